@@ -1,0 +1,33 @@
+# The two commands: `make demo` and `make test`. Everything else is CMake.
+BUILD ?= build
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+CMAKE_FLAGS ?=
+
+.PHONY: all deps configure build demo test sanitize bench format clean
+
+all: build
+
+deps:
+	sh scripts/install-deps.sh
+
+configure: deps
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
+
+build: configure
+	cmake --build $(BUILD) -j $(JOBS)
+
+demo: build
+	mkdir -p out
+	$(BUILD)/penumbra render scenes/demo/demo.pbrt -o out/demo.exr --png out/demo.png --stats out/demo-stats.json
+
+test: build
+	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+bench: build
+	sh bench/run.sh
+
+format:
+	clang-format -i include/penumbra/*.h src/*/*.[ch] tests/*.[ch]
+
+clean:
+	rm -rf $(BUILD) build-asan out

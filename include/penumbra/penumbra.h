@@ -1,0 +1,221 @@
+/* penumbra.h — the one public header of libpenumbra, a many-light renderer for pbrt-v4 scenes.
+ *
+ * Life cycle, as in Embree's rtcore.h: create a context, load a scene into it, fill a plain
+ * settings struct (zero means "default"), render into an image, write the image, free everything
+ * in reverse order. Every fallible call returns a pn_status; the context keeps the message of the
+ * first error since pn_context_clear_error(), readable with pn_context_error_message().
+ * Destructors accept NULL. Nothing in the library exits, aborts or prints to stdout; warnings go
+ * through the context's log callback (stderr by default).
+ */
+#ifndef PENUMBRA_H
+#define PENUMBRA_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#if defined(PN_STATIC_DEFINE)
+#define PN_API
+#elif defined(PN_BUILDING_LIBRARY)
+#define PN_API __attribute__((visibility("default")))
+#else
+#define PN_API
+#endif
+
+#define PN_VERSION_MAJOR 0
+#define PN_VERSION_MINOR 1
+#define PN_VERSION_PATCH 0
+#define PN_VERSION_STRING "0.1.0"
+
+/* Status codes. Values are stable; the CLI maps them to exit codes (usage 2, bad input 3,
+ * system error 4, internal bug 70). */
+typedef enum pn_status {
+    PN_OK = 0,
+    PN_ERROR_INVALID_ARGUMENT = 1, /* a caller passed a value the API does not accept */
+    PN_ERROR_BAD_INPUT = 2,        /* a scene, mesh or image file is missing, malformed or invalid */
+    PN_ERROR_IO = 3,               /* the system failed to read or write a file */
+    PN_ERROR_OUT_OF_MEMORY = 4,
+    PN_ERROR_UNSUPPORTED = 5, /* valid input that penumbra cannot render (no substitute exists) */
+    PN_ERROR_CANCELLED = 6,   /* the render was stopped through pn_render_cancel() */
+    PN_ERROR_INTERNAL = 7     /* a bug in penumbra */
+} pn_status;
+
+/* A short, static English description of a status ("bad input", ...). Never NULL. */
+PN_API const char *pn_status_string(pn_status status);
+
+/* "0.1.0"; static storage. */
+PN_API const char *pn_version_string(void);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Context */
+
+typedef struct pn_context_s *pn_context;
+
+typedef enum pn_log_level { PN_LOG_INFO = 0, PN_LOG_WARNING = 1, PN_LOG_ERROR = 2 } pn_log_level;
+
+/* Receives every warning and error message; `message` is valid only during the call. */
+typedef void (*pn_log_fn)(void *user, pn_log_level level, const char *message);
+
+/* Creates a context. Returns NULL only when memory is exhausted. Free with pn_context_free. */
+PN_API pn_context pn_context_new(void);
+PN_API void pn_context_free(pn_context ctx);
+
+/* Replaces the log callback (NULL restores the default, which prints warnings to stderr). */
+PN_API void pn_context_set_log(pn_context ctx, pn_log_fn fn, void *user);
+
+/* The message of the first error since the context was created or last cleared, or "" if none.
+ * Owned by the context; valid until the next call on it. */
+PN_API const char *pn_context_error_message(pn_context ctx);
+PN_API void pn_context_clear_error(pn_context ctx);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Scene */
+
+typedef struct pn_scene_s *pn_scene;
+
+/* Parses a pbrt-v4 scene file (and everything it includes), validates it and builds the
+ * acceleration structure. On success *out_scene owns all scene memory; free with pn_scene_free.
+ * On failure *out_scene is NULL and the context's error reads "file:line:column: message". */
+PN_API pn_status pn_scene_load(pn_context ctx, const char *path, pn_scene *out_scene);
+PN_API void pn_scene_free(pn_scene scene);
+
+/* Statistics of a loaded scene, for `penumbra info`. */
+typedef struct pn_scene_info {
+    uint64_t triangles;        /* after instancing is flattened in the count, not in memory */
+    uint64_t unique_triangles; /* stored once */
+    uint32_t meshes;
+    uint32_t instances;
+    uint32_t spheres;
+    uint32_t lights_point, lights_spot, lights_distant, lights_infinite, lights_goniometric;
+    uint32_t lights_area_triangle, lights_area_rectangle, lights_area_disk, lights_area_sphere;
+    uint32_t materials;
+    uint32_t textures;
+    uint32_t warnings;
+    float bounds_min[3], bounds_max[3];
+    int resolution[2];   /* film resolution from the scene file */
+    double parse_seconds; /* time spent parsing (PLY included) */
+    double bvh_seconds;   /* time spent building the Embree BVH */
+} pn_scene_info;
+
+PN_API pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info);
+
+/* Number of materials and, for material i, a NUL-terminated line saying what the pbrt material
+ * was and how penumbra mapped it. Owned by the scene. */
+PN_API uint32_t pn_scene_material_count(pn_scene scene);
+PN_API const char *pn_scene_material_description(pn_scene scene, uint32_t index);
+
+/* Warnings recorded while loading (each "file:line:column: message"); owned by the scene. */
+PN_API uint32_t pn_scene_warning_count(pn_scene scene);
+PN_API const char *pn_scene_warning(pn_scene scene, uint32_t index);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Render settings: zero-initialise, then set what you need. Zero means the default. */
+
+typedef enum pn_integrator_kind {
+    PN_INTEGRATOR_DEFAULT = 0, /* reference */
+    PN_INTEGRATOR_REFERENCE = 1
+} pn_integrator_kind;
+
+/* AOV layers written beside the beauty image. */
+enum {
+    PN_AOV_SHADOW_RAYS = 1u << 0,       /* shadow rays per pixel */
+    PN_AOV_EYE_RAYS = 1u << 1,          /* eye rays per pixel */
+    PN_AOV_RELATIVE_VARIANCE = 1u << 2, /* s^2 / L^2 of the pixel estimate */
+    PN_AOV_DEPTH = 1u << 3,             /* camera distance of the first hit */
+    PN_AOV_NORMAL = 1u << 4,            /* shading normal of the first hit, world space */
+    PN_AOV_ALBEDO = 1u << 5             /* diffuse reflectance of the first hit */
+};
+
+typedef struct pn_render_settings {
+    pn_integrator_kind integrator;
+    uint32_t spp;              /* fixed eye rays per pixel; 0 = adaptive with threshold */
+    double threshold;          /* relative variance target s^2/L^2; default 0.01 when spp = 0 */
+    uint32_t shadow_rays;      /* shadow rays per eye ray; default 4 */
+    uint32_t max_shadow_rays;  /* per pixel (IAS paper §5.9); default 20000 */
+    uint32_t min_shadow_rays_black; /* before a pixel may be declared black; default 2500 */
+    uint32_t min_eye_rays;     /* eye rays before the threshold test; default 4 */
+    int width, height;         /* 0 = the scene's film resolution */
+    int has_crop;              /* when non-zero, crop[] is used instead of the scene's */
+    float crop[4];             /* x0, x1, y0, y1 in fractions of the image, as pbrt's cropwindow */
+    int threads;               /* 0 = all cores */
+    uint64_t seed;
+    uint32_t max_specular_depth; /* perfect specular bounces of eye rays; default 8 */
+    uint32_t aovs;             /* PN_AOV_* bits */
+    /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
+    void (*progress)(void *user, double fraction);
+    void *progress_user;
+} pn_render_settings;
+
+/* ---------------------------------------------------------------------------------------- */
+/* Images */
+
+typedef struct pn_image_s *pn_image;
+
+/* Statistics of one render. */
+typedef struct pn_render_stats {
+    double render_seconds;
+    double embree_seconds_estimate; /* time inside Embree calls (sampled), for profiling */
+    uint64_t eye_rays, shadow_rays, specular_rays;
+    double shadow_rays_per_pixel_mean, eye_rays_per_pixel_mean;
+    uint64_t shadow_rays_per_pixel_max, eye_rays_per_pixel_max;
+    double mrays_per_second;
+    uint64_t peak_memory_bytes;
+    int partial; /* 1 when cancelled: only finished tiles hold values */
+    int threads;
+    int width, height; /* of the rendered (cropped) image */
+} pn_render_stats;
+
+/* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the
+ * beauty and the requested AOVs; stats (may be NULL) is filled. If cancelled, the partial image
+ * is still returned together with PN_ERROR_CANCELLED. */
+PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
+                           pn_image *out_image, pn_render_stats *stats);
+
+/* Asks running renders of this context to stop after their current tiles. Safe from a signal
+ * handler (it only stores an atomic flag). */
+PN_API void pn_render_cancel(pn_context ctx);
+
+PN_API void pn_image_free(pn_image image);
+PN_API int pn_image_width(pn_image image);
+PN_API int pn_image_height(pn_image image);
+/* Number of layers (beauty is layer 0, "R,G,B"); name of a layer ("" for beauty, else e.g.
+ * "shadow_rays"), and its channel count (1 or 3). */
+PN_API int pn_image_layer_count(pn_image image);
+PN_API const char *pn_image_layer_name(pn_image image, int layer);
+PN_API int pn_image_layer_channels(pn_image image, int layer);
+/* Pointer to the layer's pixels, row-major, top row first, interleaved channels. Owned by the
+ * image. */
+PN_API const float *pn_image_layer_data(pn_image image, int layer);
+
+/* Reads an image (EXR, PFM, PNG, TGA, JPG, HDR) as linear RGB into a one-layer image. 8-bit
+ * formats are decoded from sRGB. Errors read "file: message". */
+PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image);
+
+/* Writes the image; the format follows the extension: .exr (all layers, 32-bit float), .pfm
+ * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a
+ * temporary name in the same folder and renamed, so a failed write leaves no broken file. */
+PN_API pn_status pn_image_write(pn_context ctx, pn_image image, const char *path, float exposure);
+
+/* Image comparison for `penumbra diff`. */
+typedef struct pn_image_metrics {
+    double rmse;
+    double relmse;         /* mean over pixels and channels of (a-b)^2 / (b^2 + epsilon) */
+    double relmse_epsilon; /* 0.01 */
+    double rel_l1;         /* sum|a-b| / sum|b| */
+    double rel_l2;         /* ||a-b||_2 / ||b||_2 */
+    double mae;
+    double mean_luminance_reference, mean_luminance_image;
+} pn_image_metrics;
+
+/* Compares the beauty layers of two images of equal size. If error_image is not NULL it
+ * receives a new image of |a-b| x 16 (free with pn_image_free). */
+PN_API pn_status pn_image_compare(pn_context ctx, pn_image reference, pn_image image,
+                                  pn_image_metrics *metrics, pn_image *error_image);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

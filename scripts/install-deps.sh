@@ -1,0 +1,16 @@
+#!/bin/sh
+# install-deps.sh — installs the Debian 12 packages penumbra needs, only those that are missing.
+set -eu
+packages="build-essential cmake pkg-config libembree-dev libopenexr-dev libstb-dev zlib1g-dev"
+missing=""
+for p in $packages; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing="$missing $p"
+  fi
+done
+[ -z "$missing" ] && exit 0
+echo "penumbra: installing missing Debian packages:$missing"
+if [ "$(id -u)" -eq 0 ]; then SUDO=""; else SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends $missing

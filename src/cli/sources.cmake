@@ -1,0 +1,1 @@
+set(PN_CLI_SOURCES src/cli/main.c)

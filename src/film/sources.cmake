@@ -1,0 +1,1 @@
+list(APPEND PN_SOURCES)
