@@ -1,1 +1,5 @@
-list(APPEND PN_SOURCES)
+list(APPEND PN_SOURCES
+  src/driver/camera.c
+  src/driver/eye_path.c
+  src/driver/render.c
+)

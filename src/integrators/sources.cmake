@@ -1,1 +1,3 @@
-list(APPEND PN_SOURCES)
+list(APPEND PN_SOURCES
+  src/integrators/reference.c
+)

@@ -1,1 +1,4 @@
-list(APPEND PN_SOURCES)
+list(APPEND PN_SOURCES
+  src/lights/lights.c
+  src/lights/light_sample.c
+)

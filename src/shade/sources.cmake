@@ -1,1 +1,1 @@
-list(APPEND PN_SOURCES)
+list(APPEND PN_SOURCES src/shade/bsdf.c)

@@ -1,0 +1,404 @@
+/* accel.c — Embree 3 scene construction (triangles, spheres as RTC_GEOMETRY_TYPE_SPHERE_POINT,
+ * instances) and single-ray queries, with alpha cut-outs done in Embree filter callbacks. */
+#include "accel/accel.h"
+
+#include "scene/scene.h"
+
+#include <embree3/rtcore.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* What an Embree geometry id stands for. */
+typedef struct geom_ref {
+    int kind; /* 0 = mesh, 1 = sphere set, 2 = instance */
+    int index; /* mesh index, or instance index */
+    int first_sphere; /* for sphere sets: scene sphere index of primitive 0 */
+} geom_ref;
+
+typedef struct scene_table {
+    RTCScene rtc;
+    geom_ref *refs;
+    int ref_count;
+} scene_table;
+
+struct pn_accel {
+    const struct pn_scene_s *scene;
+    RTCDevice device;
+    scene_table world;
+    scene_table *objects; /* one per scene object */
+    int object_count;
+    float epsilon_base;
+};
+
+/* Alpha filter: per-geometry user data. */
+typedef struct alpha_user {
+    const struct pn_scene_s *scene;
+    const pn_mesh *mesh;
+} alpha_user;
+
+static float hash_to_unit(uint32_t a, uint32_t b) {
+    uint64_t x = ((uint64_t)a << 32) ^ b;
+    x ^= x >> 33;
+    x *= 0xff51afd7ed558ccdULL;
+    x ^= x >> 33;
+    x *= 0xc4ceb9fe1a85ec53ULL;
+    x ^= x >> 33;
+    return (float)(x >> 40) * (1.0f / 16777216.0f);
+}
+
+static void alpha_filter(const struct RTCFilterFunctionNArguments *args) {
+    const alpha_user *au = args->geometryUserPtr;
+    const pn_mesh *m = au->mesh;
+    unsigned N = args->N;
+    float *hit = (float *)args->hit;
+    const float *ray = (const float *)args->ray;
+    for (unsigned i = 0; i < N; i++) {
+        if (args->valid[i] != -1) continue;
+        unsigned prim = ((unsigned *)hit)[5 * N + i];
+        float bu = hit[3 * N + i], bv = hit[4 * N + i];
+        float s = bu, t = bv;
+        if (m->uvs) {
+            const uint32_t *idx = m->indices + 3 * (size_t)prim;
+            const float *a = m->uvs + 2 * (size_t)idx[0], *b = m->uvs + 2 * (size_t)idx[1],
+                        *c = m->uvs + 2 * (size_t)idx[2];
+            float w = 1.0f - bu - bv;
+            s = w * a[0] + bu * b[0] + bv * c[0];
+            t = w * a[1] + bu * b[1] + bv * c[1];
+        }
+        float alpha = pn_texture_eval(au->scene, m->alpha, s, t).x;
+        if (alpha >= 1.0f) continue;
+        if (alpha <= 0.0f) {
+            args->valid[i] = 0;
+            continue;
+        }
+        /* Stochastic transparency as pbrt-v4 does it: a hash of the ray decides, so the same ray
+         * always sees the same answer whatever the thread. */
+        uint32_t h1, h2;
+        float ox = ray[0 * N + i], dx = ray[4 * N + i], dy = ray[5 * N + i];
+        memcpy(&h1, &ox, 4);
+        float mix = dx * 0.7f + dy * 0.3f;
+        memcpy(&h2, &mix, 4);
+        if (hash_to_unit(h1 ^ prim * 2654435761u, h2) > alpha) args->valid[i] = 0;
+    }
+}
+
+static pn_status add_ref(scene_table *tab, unsigned id, geom_ref ref, pn_err *err) {
+    if ((int)id >= tab->ref_count) {
+        int n = (int)id + 1;
+        geom_ref *nr = realloc(tab->refs, (size_t)n * sizeof *nr);
+        if (!nr) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory building the BVH");
+        for (int i = tab->ref_count; i < n; i++) nr[i] = (geom_ref){-1, -1, -1};
+        tab->refs = nr;
+        tab->ref_count = n;
+    }
+    tab->refs[id] = ref;
+    return PN_OK;
+}
+
+static pn_status add_mesh(pn_accel *acc, scene_table *tab, int mesh_index, pn_err *err) {
+    const struct pn_scene_s *scene = acc->scene;
+    const pn_mesh *m = &scene->meshes[mesh_index];
+    if (m->triangle_count == 0 || m->vertex_count == 0) return PN_OK;
+    RTCGeometry g = rtcNewGeometry(acc->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    if (!g) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "Embree could not create a geometry");
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                        3 * sizeof(float), m->vertex_count);
+    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                           3 * sizeof(unsigned), m->triangle_count);
+    if (!vb || !ib) {
+        rtcReleaseGeometry(g);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for mesh %s", m->source ? m->source : "");
+    }
+    memcpy(vb, m->positions, (size_t)m->vertex_count * 3 * sizeof(float));
+    memcpy(ib, m->indices, (size_t)m->triangle_count * 3 * sizeof(unsigned));
+    const pn_material *mat = (m->material >= 0 && m->material < scene->material_count)
+                                 ? &scene->materials[m->material] : NULL;
+    bool has_alpha = m->alpha.texture >= 0 || m->alpha.value.x < 1.0f;
+    alpha_user *au = NULL;
+    if (has_alpha) {
+        au = malloc(sizeof *au);
+        if (!au) {
+            rtcReleaseGeometry(g);
+            return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        }
+        au->scene = scene;
+        au->mesh = m;
+        rtcSetGeometryUserData(g, au);
+        rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+        rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
+    }
+    /* Geometry mask: bit 1 = blocks shadow rays; interface materials block nothing. */
+    unsigned mask = 0x3;
+    if (mat && mat->kind == PN_MATERIAL_INTERFACE) mask = 0x0;
+    rtcSetGeometryMask(g, mask);
+    rtcCommitGeometry(g);
+    unsigned id = rtcAttachGeometry(tab->rtc, g);
+    rtcReleaseGeometry(g);
+    if (au) {
+        /* Keep the pointer for freeing: store in a ref of its own kind. */
+    }
+    return add_ref(tab, id, (geom_ref){0, mesh_index, -1}, err);
+}
+
+static pn_status add_spheres(pn_accel *acc, scene_table *tab, int first, int count, pn_err *err) {
+    if (count <= 0) return PN_OK;
+    const struct pn_scene_s *scene = acc->scene;
+    RTCGeometry g = rtcNewGeometry(acc->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    if (!g) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "Embree could not create a geometry");
+    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                        4 * sizeof(float), (size_t)count);
+    if (!vb) {
+        rtcReleaseGeometry(g);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for spheres");
+    }
+    for (int i = 0; i < count; i++) {
+        const pn_sphere *s = &scene->spheres[first + i];
+        vb[4 * i + 0] = s->center.x;
+        vb[4 * i + 1] = s->center.y;
+        vb[4 * i + 2] = s->center.z;
+        vb[4 * i + 3] = s->radius;
+    }
+    rtcSetGeometryMask(g, 0x3);
+    rtcCommitGeometry(g);
+    unsigned id = rtcAttachGeometry(tab->rtc, g);
+    rtcReleaseGeometry(g);
+    return add_ref(tab, id, (geom_ref){1, -1, first}, err);
+}
+
+static void free_alpha_users(RTCScene rtc, const scene_table *tab) {
+    for (int i = 0; i < tab->ref_count; i++) {
+        if (tab->refs[i].kind != 0) continue;
+        RTCGeometry g = rtcGetGeometry(rtc, (unsigned)i);
+        if (g) free(rtcGetGeometryUserData(g));
+    }
+}
+
+void pn_accel_free(pn_accel *acc) {
+    if (!acc) return;
+    if (acc->world.rtc) {
+        free_alpha_users(acc->world.rtc, &acc->world);
+        rtcReleaseScene(acc->world.rtc);
+    }
+    free(acc->world.refs);
+    for (int i = 0; i < acc->object_count; i++) {
+        if (acc->objects[i].rtc) {
+            free_alpha_users(acc->objects[i].rtc, &acc->objects[i]);
+            rtcReleaseScene(acc->objects[i].rtc);
+        }
+        free(acc->objects[i].refs);
+    }
+    free(acc->objects);
+    if (acc->device) rtcReleaseDevice(acc->device);
+    free(acc);
+}
+
+pn_status pn_accel_build(struct pn_scene_s *scene, pn_accel **out, pn_err *err) {
+    *out = NULL;
+    pn_accel *acc = calloc(1, sizeof *acc);
+    if (!acc) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    acc->scene = scene;
+    acc->device = rtcNewDevice("verbose=0");
+    if (!acc->device) {
+        free(acc);
+        return pn_err_set(err, PN_ERROR_INTERNAL, "Embree device creation failed (error %d)",
+                          (int)rtcGetDeviceError(NULL));
+    }
+    pn_status st = PN_OK;
+    acc->world.rtc = rtcNewScene(acc->device);
+    rtcSetSceneBuildQuality(acc->world.rtc, RTC_BUILD_QUALITY_HIGH);
+    if (scene->object_count > 0) {
+        acc->objects = calloc((size_t)scene->object_count, sizeof *acc->objects);
+        if (!acc->objects) st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        else acc->object_count = scene->object_count;
+    }
+    for (int i = 0; st == PN_OK && i < scene->mesh_count; i++) {
+        int obj = scene->meshes[i].object;
+        if (obj >= 0) continue;
+        st = add_mesh(acc, &acc->world, i, err);
+    }
+    /* World spheres form one contiguous run per object id; gather runs of object == -1. */
+    for (int i = 0; st == PN_OK && i < scene->sphere_count;) {
+        int j = i;
+        while (j < scene->sphere_count && scene->spheres[j].object == scene->spheres[i].object) j++;
+        if (scene->spheres[i].object < 0) st = add_spheres(acc, &acc->world, i, j - i, err);
+        i = j;
+    }
+    for (int o = 0; st == PN_OK && o < acc->object_count; o++) {
+        const pn_object *ob = &scene->objects[o];
+        scene_table *tab = &acc->objects[o];
+        tab->rtc = rtcNewScene(acc->device);
+        for (int k = 0; st == PN_OK && k < ob->mesh_count; k++) st = add_mesh(acc, tab, ob->first_mesh + k, err);
+        if (st == PN_OK) st = add_spheres(acc, tab, ob->first_sphere, ob->sphere_count, err);
+        if (st == PN_OK) rtcCommitScene(tab->rtc);
+    }
+    for (int k = 0; st == PN_OK && k < scene->instance_count; k++) {
+        const pn_instance *in = &scene->instances[k];
+        if (in->object < 0 || in->object >= acc->object_count) continue;
+        RTCGeometry g = rtcNewGeometry(acc->device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, acc->objects[in->object].rtc);
+        float xf[12]; /* column-major 3x4 */
+        for (int c = 0; c < 4; c++)
+            for (int r = 0; r < 3; r++) xf[c * 3 + r] = (float)in->world_from_object.m[r][c];
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
+        rtcSetGeometryMask(g, 0x3);
+        rtcCommitGeometry(g);
+        unsigned id = rtcAttachGeometry(acc->world.rtc, g);
+        rtcReleaseGeometry(g);
+        st = add_ref(&acc->world, id, (geom_ref){2, k, -1}, err);
+    }
+    if (st == PN_OK) {
+        rtcCommitScene(acc->world.rtc);
+        enum RTCError e = rtcGetDeviceError(acc->device);
+        if (e != RTC_ERROR_NONE)
+            st = pn_err_set(err, e == RTC_ERROR_OUT_OF_MEMORY ? PN_ERROR_OUT_OF_MEMORY : PN_ERROR_INTERNAL,
+                            "Embree failed to build the scene (error %d)", (int)e);
+    }
+    if (st != PN_OK) {
+        pn_accel_free(acc);
+        return st;
+    }
+    vec3 ext = v3_sub(scene->bounds_max, scene->bounds_min);
+    float diag = v3_length(ext);
+    if (!(diag > 0.0f) || !isfinite(diag)) diag = 1.0f;
+    acc->epsilon_base = diag;
+    *out = acc;
+    return PN_OK;
+}
+
+float pn_accel_ray_epsilon(const pn_accel *acc, vec3 p) {
+    float m = fmaxf(fabsf(p.x), fmaxf(fabsf(p.y), fabsf(p.z)));
+    return fmaxf(1e-5f * fminf(acc->epsilon_base, 1e6f), 4e-6f * m);
+}
+
+static void fill_triangle_hit(const struct pn_scene_s *scene, const pn_mesh *m, unsigned prim, float bu,
+                              float bv, const mat4 *xf, const mat4 *xf_inv, pn_hit *h) {
+    const uint32_t *idx = m->indices + 3 * (size_t)prim;
+    vec3 p0 = v3(m->positions[3 * idx[0]], m->positions[3 * idx[0] + 1], m->positions[3 * idx[0] + 2]);
+    vec3 p1 = v3(m->positions[3 * idx[1]], m->positions[3 * idx[1] + 1], m->positions[3 * idx[1] + 2]);
+    vec3 p2 = v3(m->positions[3 * idx[2]], m->positions[3 * idx[2] + 1], m->positions[3 * idx[2] + 2]);
+    vec3 ng = v3_normalize(v3_cross(v3_sub(p1, p0), v3_sub(p2, p0)));
+    bool flip = m->flip_normals;
+    if (xf && mat4_det3(xf) < 0.0) flip = !flip;
+    if (flip) ng = v3_neg(ng);
+    float w = 1.0f - bu - bv;
+    vec3 ns = ng;
+    if (m->normals) {
+        const float *n0 = m->normals + 3 * (size_t)idx[0], *n1 = m->normals + 3 * (size_t)idx[1],
+                    *n2 = m->normals + 3 * (size_t)idx[2];
+        vec3 n = v3(w * n0[0] + bu * n1[0] + bv * n2[0], w * n0[1] + bu * n1[1] + bv * n2[1],
+                    w * n0[2] + bu * n1[2] + bv * n2[2]);
+        if (v3_length2(n) > 0.0f) {
+            ns = v3_normalize(n);
+            if (v3_dot(ng, ns) < 0.0f) ng = v3_neg(ng);
+        }
+    }
+    if (m->uvs) {
+        const float *a = m->uvs + 2 * (size_t)idx[0], *b = m->uvs + 2 * (size_t)idx[1], *c = m->uvs + 2 * (size_t)idx[2];
+        h->u = w * a[0] + bu * b[0] + bv * c[0];
+        h->v = w * a[1] + bu * b[1] + bv * c[1];
+    } else {
+        /* pbrt's default parametrisation: (0,0), (1,0), (1,1) at the three vertices. */
+        h->u = bu + bv;
+        h->v = bv;
+    }
+    if (xf) {
+        ng = v3_normalize(mat4_apply_normal(xf_inv, ng));
+        ns = v3_normalize(mat4_apply_normal(xf_inv, ns));
+    }
+    h->ng = ng;
+    h->ns = ns;
+    h->material = m->material;
+    h->emission = m->emission;
+    (void)scene;
+}
+
+bool pn_accel_intersect(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, pn_hit *h) {
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    struct RTCRayHit rh;
+    rh.ray.org_x = o.x;
+    rh.ray.org_y = o.y;
+    rh.ray.org_z = o.z;
+    rh.ray.tnear = tmin;
+    rh.ray.dir_x = d.x;
+    rh.ray.dir_y = d.y;
+    rh.ray.dir_z = d.z;
+    rh.ray.time = 0.0f;
+    rh.ray.tfar = tmax;
+    rh.ray.mask = 0x1;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(acc->world.rtc, &ictx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    const struct pn_scene_s *scene = acc->scene;
+    const scene_table *tab = &acc->world;
+    const mat4 *xf = NULL;
+    mat4 inv;
+    h->instance = -1;
+    if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID) {
+        const geom_ref *ir = &acc->world.refs[rh.hit.instID[0]];
+        const pn_instance *in = &scene->instances[ir->index];
+        tab = &acc->objects[in->object];
+        xf = &in->world_from_object;
+        if (!mat4_inverse(*xf, &inv)) inv = mat4_identity();
+        h->instance = ir->index;
+    }
+    const geom_ref *r = &tab->refs[rh.hit.geomID];
+    h->t = rh.ray.tfar;
+    h->p = v3_madd(o, d, rh.ray.tfar);
+    h->prim = rh.hit.primID;
+    if (r->kind == 0) {
+        h->mesh = r->index;
+        h->sphere = -1;
+        fill_triangle_hit(scene, &scene->meshes[r->index], rh.hit.primID, rh.hit.u, rh.hit.v, xf, &inv, h);
+    } else {
+        int si = r->first_sphere + (int)rh.hit.primID;
+        const pn_sphere *s = &scene->spheres[si];
+        h->mesh = -1;
+        h->sphere = si;
+        vec3 c = s->center;
+        if (xf) c = mat4_apply_point(xf, c);
+        vec3 n = v3_normalize(v3_sub(h->p, c));
+        /* Project the point onto the sphere to remove the intersection error. */
+        float rad = s->radius;
+        if (xf) rad *= (float)cbrt(fabs(mat4_det3(xf)));
+        h->p = v3_madd(c, n, rad);
+        bool flip = s->flip_normals;
+        if (xf && mat4_det3(xf) < 0.0) flip = !flip;
+        if (flip) n = v3_neg(n);
+        h->ng = n;
+        h->ns = n;
+        /* pbrt sphere (u, v) = (phi / 2pi, (theta - theta_min) / (theta_max - theta_min)). */
+        vec3 ln = v3_normalize(v3_sub(h->p, c));
+        float phi = atan2f(ln.y, ln.x);
+        if (phi < 0.0f) phi += 2.0f * PN_PI;
+        h->u = phi / (2.0f * PN_PI);
+        h->v = acosf(fminf(1.0f, fmaxf(-1.0f, ln.z))) / PN_PI;
+        h->material = s->material;
+        h->emission = s->emission;
+    }
+    return true;
+}
+
+bool pn_accel_occluded(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax) {
+    struct RTCIntersectContext ictx;
+    rtcInitIntersectContext(&ictx);
+    struct RTCRay ray;
+    ray.org_x = o.x;
+    ray.org_y = o.y;
+    ray.org_z = o.z;
+    ray.tnear = tmin;
+    ray.dir_x = d.x;
+    ray.dir_y = d.y;
+    ray.dir_z = d.z;
+    ray.time = 0.0f;
+    ray.tfar = tmax;
+    ray.mask = 0x2;
+    ray.id = 0;
+    ray.flags = 0;
+    rtcOccluded1(acc->world.rtc, &ictx, &ray);
+    return ray.tfar < 0.0f;
+}

@@ -1,0 +1,43 @@
+/* accel.h — ray queries against the scene through Embree (the only module that includes Embree). */
+#ifndef PN_ACCEL_ACCEL_H
+#define PN_ACCEL_ACCEL_H
+
+#include "core/error.h"
+#include "core/vecmath.h"
+
+#include <stdbool.h>
+
+struct pn_scene_s;
+typedef struct pn_accel pn_accel;
+
+/* What an eye ray found: the surface point with its frame and what is attached to it. */
+typedef struct pn_hit {
+    float t;
+    vec3 p;
+    vec3 ng;        /* unit geometric normal, oriented by pbrt's rules (not towards the ray) */
+    vec3 ns;        /* unit shading normal (interpolated when the mesh has normals; else ng) */
+    float u, v;     /* texture coordinates */
+    int material;
+    int emission;   /* index into scene emissions, or -1 */
+    int mesh;       /* index into scene meshes, or -1 for a sphere */
+    int sphere;     /* index into scene spheres, or -1 */
+    unsigned prim;  /* triangle index within the mesh */
+    int instance;   /* -1 for world geometry */
+} pn_hit;
+
+/* Builds the BVH over the scene's meshes, spheres and instances. */
+pn_status pn_accel_build(struct pn_scene_s *scene, pn_accel **out, pn_err *err);
+void pn_accel_free(pn_accel *accel);
+
+/* Closest hit along o + t d for t in (tmin, tmax); d need not be unit length (t is in units of
+ * |d|). Returns false on a miss. */
+bool pn_accel_intersect(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax, pn_hit *hit);
+
+/* True if anything blocks o + t d for t in (tmin, tmax). */
+bool pn_accel_occluded(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax);
+
+/* A distance scale for ray-origin offsets: 1e-4 of the scene's bounding-box diagonal at most, and
+ * relative to the coordinates' magnitude. */
+float pn_accel_ray_epsilon(const pn_accel *accel, vec3 p);
+
+#endif

@@ -1,0 +1,83 @@
+/* eye_path.c — camera rays followed through perfect specular reflection and refraction to the
+ * first surface whose direct illumination is estimated. */
+#include "driver/render_job.h"
+
+#include "shade/bsdf.h"
+
+#include <string.h>
+
+/* A deterministic uniform number from a seed and a counter, for the specular choices after the
+ * first (they are rare and need no stratification). */
+static float hash_uniform(uint64_t a, uint64_t b) {
+    uint64_t x = a * 0x9e3779b97f4a7c15ULL ^ (b + 0x632be59bd9b4e019ULL);
+    x ^= x >> 31;
+    x *= 0xbf58476d1ce4e5b9ULL;
+    x ^= x >> 27;
+    x *= 0x94d049bb133111ebULL;
+    x ^= x >> 33;
+    return (float)(x >> 40) * (1.0f / 16777216.0f);
+}
+
+void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specular, pn_eye_path *path) {
+    memset(path, 0, sizeof *path);
+    path->throughput = v3(1, 1, 1);
+    path->first_depth = INFINITY;
+    const struct pn_scene_s *scene = job->scene;
+    float tmin = 0.0f;
+    float u = u_specular;
+    uint64_t chain_seed = (uint64_t)(u_specular * 16777216.0f) ^ (job->seed << 24);
+    for (uint32_t depth = 0;; depth++) {
+        pn_hit hit;
+        path->rays++;
+        if (!pn_accel_intersect(job->accel, o, d, tmin, INFINITY, &hit)) {
+            vec3 le = pn_lights_environment_radiance(job->lights, d);
+            path->emitted = v3_add(path->emitted, v3_mul(path->throughput, le));
+            return;
+        }
+        vec3 wo = v3_neg(d);
+        if (hit.emission >= 0)
+            path->emitted = v3_add(path->emitted, v3_mul(path->throughput, pn_emission_radiance(scene, hit.emission, hit.ng, wo)));
+        pn_bsdf b;
+        pn_bsdf_at(scene, &hit, wo, &b);
+        if (depth == 0) {
+            path->first_depth = hit.t;
+            path->first_normal = b.ns;
+            path->first_albedo = b.kind == PN_MATERIAL_LAMBERT_BLINN ? b.kd : b.specular;
+        }
+        if (b.kind == PN_MATERIAL_LAMBERT_BLINN) {
+            if (!pn_bsdf_is_shadable(&b)) return;
+            path->has_point = true;
+            path->hit = hit;
+            path->wo = wo;
+            return;
+        }
+        if (depth >= job->max_specular_depth) return;
+        vec3 next;
+        vec3 offset_n = b.ng; /* on wo's side */
+        if (b.kind == PN_MATERIAL_MIRROR) {
+            next = pn_reflect(wo, b.ns);
+            path->throughput = v3_mul(path->throughput, b.specular);
+        } else if (b.kind == PN_MATERIAL_DIELECTRIC) {
+            float eta = b.entering ? b.eta : 1.0f / b.eta;
+            float F = pn_fresnel_dielectric(v3_dot(wo, b.ns), eta);
+            vec3 wt;
+            bool can_refract = pn_refract(wo, b.ns, eta, &wt);
+            if (!can_refract || u < F) {
+                next = pn_reflect(wo, b.ns);
+            } else {
+                next = wt;
+                offset_n = v3_neg(b.ng);
+            }
+            path->throughput = v3_mul(path->throughput, b.specular);
+            u = hash_uniform(chain_seed, depth + 1);
+        } else {
+            /* INTERFACE surfaces are skipped by the ray mask and never reach here. */
+            return;
+        }
+        if (v3_is_zero(path->throughput)) return;
+        float eps = pn_accel_ray_epsilon(job->accel, hit.p);
+        o = v3_madd(hit.p, offset_n, eps);
+        d = v3_normalize(next);
+        tmin = 0.0f;
+    }
+}

@@ -1,0 +1,265 @@
+/* render.c — the default driver: the image window cut into 8x8 blocks (the IAS paper's block,
+ * which also seeds each block's quasi-random sequence), blocks handed to worker threads by an
+ * atomic counter, per-pixel estimates gathered into the film, AOVs, statistics. The image does
+ * not depend on the thread count: every block is computed by one thread from its own seed. */
+#include "core/context.h"
+#include "core/threadpool.h"
+#include "integrators/integrator.h"
+#include "io/image.h"
+
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <time.h>
+
+#define PN_BLOCK 8
+
+static double now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+typedef struct render_shared {
+    const pn_render_job *job;
+    const pn_integrator *integrator;
+    pn_pixel_estimate *pixels; /* width * height of the window */
+    int width, height, blocks_x, blocks_y;
+    void **scratch;            /* per worker */
+    atomic_int failed;
+    atomic_long blocks_done;
+    long block_count;
+    pthread_mutex_t progress_lock;
+    const pn_render_settings *settings;
+    unsigned char *block_finished;
+} render_shared;
+
+static void render_block(void *user, size_t job_index, int worker) {
+    render_shared *rs = user;
+    const pn_render_job *job = rs->job;
+    if (atomic_load(job->cancel) || atomic_load(&rs->failed)) return;
+    int bx = (int)(job_index % (size_t)rs->blocks_x), by = (int)(job_index / (size_t)rs->blocks_x);
+    const pn_camera *cam = &job->camera;
+    int32_t pixels[PN_BLOCK * PN_BLOCK][2];
+    pn_pixel_estimate est[PN_BLOCK * PN_BLOCK];
+    int count = 0;
+    /* Blocks are aligned to the full image so that a crop renders the same pixels as the whole
+     * image would (renders of rectangles merge into the identical full image). */
+    int gx0 = (cam->x0 / PN_BLOCK + bx) * PN_BLOCK, gy0 = (cam->y0 / PN_BLOCK + by) * PN_BLOCK;
+    for (int y = gy0; y < gy0 + PN_BLOCK; y++)
+        for (int x = gx0; x < gx0 + PN_BLOCK; x++) {
+            if (x < cam->x0 || x >= cam->x1 || y < cam->y0 || y >= cam->y1) continue;
+            pixels[count][0] = x;
+            pixels[count][1] = y;
+            count++;
+        }
+    if (count == 0) return;
+    if (!rs->scratch[worker] && rs->integrator->scratch_create) {
+        rs->scratch[worker] = rs->integrator->scratch_create(job);
+        if (!rs->scratch[worker]) {
+            atomic_store(&rs->failed, PN_ERROR_OUT_OF_MEMORY);
+            return;
+        }
+    }
+    pn_batch batch = {gx0 / PN_BLOCK, gy0 / PN_BLOCK, count, (const int32_t(*)[2])pixels};
+    pn_status st = rs->integrator->render_batch(job, &batch, est, rs->scratch[worker]);
+    if (st != PN_OK) {
+        atomic_store(&rs->failed, (int)st);
+        return;
+    }
+    for (int i = 0; i < count; i++) {
+        int x = pixels[i][0] - cam->x0, y = pixels[i][1] - cam->y0;
+        rs->pixels[(size_t)y * (size_t)rs->width + (size_t)x] = est[i];
+    }
+    rs->block_finished[job_index] = 1;
+    long done = atomic_fetch_add(&rs->blocks_done, 1) + 1;
+    if (rs->settings->progress) {
+        pthread_mutex_lock(&rs->progress_lock);
+        rs->settings->progress(rs->settings->progress_user, (double)done / (double)rs->block_count);
+        pthread_mutex_unlock(&rs->progress_lock);
+    }
+}
+
+static uint64_t peak_memory_bytes(void) {
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
+    return (uint64_t)ru.ru_maxrss * 1024u;
+}
+
+/* Resolves the settings (zero = default) into the job. */
+static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *s,
+                                  pn_render_job *job) {
+    memset(job, 0, sizeof *job);
+    job->scene = scene;
+    job->accel = scene->accel;
+    job->lights = scene->lights;
+    int w = s->width > 0 ? s->width : scene->camera.width;
+    int h = s->height > 0 ? s->height : scene->camera.height;
+    if (s->width < 0 || s->height < 0 || w <= 0 || h <= 0 || w > 65536 || h > 65536)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "image resolution %dx%d is out of range (1..65536)", w, h);
+    float crop[4];
+    if (s->has_crop) memcpy(crop, s->crop, sizeof crop);
+    else memcpy(crop, scene->camera.crop, sizeof crop);
+    for (int i = 0; i < 4; i++)
+        if (!(crop[i] >= 0.0f && crop[i] <= 1.0f))
+            return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop window values must lie in [0, 1]");
+    if (!(crop[0] < crop[1] && crop[2] < crop[3]))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop window is empty (need x0 < x1 and y0 < y1)");
+    if (!pn_camera_setup(&scene->camera, w, h, crop, &job->camera))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop window covers no pixel");
+    if (s->threshold < 0.0 || !isfinite(s->threshold))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "threshold must be a positive number");
+    job->spp = s->spp;
+    job->threshold = s->threshold > 0.0 ? s->threshold : 0.01;
+    job->shadow_rays = s->shadow_rays > 0 ? s->shadow_rays : 4;
+    job->max_shadow_rays = s->max_shadow_rays > 0 ? s->max_shadow_rays : 20000;
+    job->min_shadow_rays_black = s->min_shadow_rays_black > 0 ? s->min_shadow_rays_black : 2500;
+    job->min_eye_rays = s->min_eye_rays > 0 ? s->min_eye_rays : 4;
+    job->max_specular_depth = s->max_specular_depth > 0 ? s->max_specular_depth : 8;
+    job->seed = s->seed;
+    job->aovs = s->aovs;
+    job->cancel = &ctx->cancel;
+    return PN_OK;
+}
+
+static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *out) {
+    pn_image img = pn_image_create(rs->width, rs->height);
+    if (!img) return PN_ERROR_OUT_OF_MEMORY;
+    size_t n = (size_t)rs->width * (size_t)rs->height;
+    float *beauty = (float *)pn_image_layer_data(img, 0);
+    float *shadow = NULL, *eye = NULL, *relvar = NULL, *depth = NULL, *normal = NULL, *albedo = NULL;
+    bool ok = true;
+    if (aovs & PN_AOV_SHADOW_RAYS) ok = ok && (shadow = pn_image_add_layer(img, "shadow_rays", 1));
+    if (aovs & PN_AOV_EYE_RAYS) ok = ok && (eye = pn_image_add_layer(img, "eye_rays", 1));
+    if (aovs & PN_AOV_RELATIVE_VARIANCE) ok = ok && (relvar = pn_image_add_layer(img, "relative_variance", 1));
+    if (aovs & PN_AOV_DEPTH) ok = ok && (depth = pn_image_add_layer(img, "depth", 1));
+    if (aovs & PN_AOV_NORMAL) ok = ok && (normal = pn_image_add_layer(img, "normal", 3));
+    if (aovs & PN_AOV_ALBEDO) ok = ok && (albedo = pn_image_add_layer(img, "albedo", 3));
+    if (!ok) {
+        pn_image_free(img);
+        return PN_ERROR_OUT_OF_MEMORY;
+    }
+    for (size_t i = 0; i < n; i++) {
+        const pn_pixel_estimate *e = &rs->pixels[i];
+        beauty[3 * i] = e->radiance.x;
+        beauty[3 * i + 1] = e->radiance.y;
+        beauty[3 * i + 2] = e->radiance.z;
+        if (shadow) shadow[i] = (float)e->shadow_rays;
+        if (eye) eye[i] = (float)e->eye_rays;
+        if (relvar) relvar[i] = e->relative_variance;
+        if (depth) depth[i] = e->depth;
+        if (normal) {
+            normal[3 * i] = e->normal.x;
+            normal[3 * i + 1] = e->normal.y;
+            normal[3 * i + 2] = e->normal.z;
+        }
+        if (albedo) {
+            albedo[3 * i] = e->albedo.x;
+            albedo[3 * i + 1] = e->albedo.y;
+            albedo[3 * i + 2] = e->albedo.z;
+        }
+    }
+    *out = img;
+    return PN_OK;
+}
+
+pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
+                    pn_render_stats *stats) {
+    if (out_image) *out_image = NULL;
+    if (stats) memset(stats, 0, sizeof *stats);
+    if (!ctx || !scene || !settings || !out_image) {
+        if (ctx) pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_render: NULL argument");
+        return PN_ERROR_INVALID_ARGUMENT;
+    }
+    const pn_integrator *integ = pn_integrator_find(settings->integrator);
+    if (!integ) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown integrator %d", (int)settings->integrator);
+    pn_render_job job;
+    pn_status st = resolve_settings(ctx, scene, settings, &job);
+    if (st != PN_OK) return st;
+    atomic_store(&ctx->cancel, 0);
+
+    render_shared rs;
+    memset(&rs, 0, sizeof rs);
+    rs.job = &job;
+    rs.integrator = integ;
+    rs.settings = settings;
+    rs.width = job.camera.x1 - job.camera.x0;
+    rs.height = job.camera.y1 - job.camera.y0;
+    rs.blocks_x = (job.camera.x1 - 1) / PN_BLOCK - job.camera.x0 / PN_BLOCK + 1;
+    rs.blocks_y = (job.camera.y1 - 1) / PN_BLOCK - job.camera.y0 / PN_BLOCK + 1;
+    rs.block_count = (long)rs.blocks_x * rs.blocks_y;
+    size_t n = (size_t)rs.width * (size_t)rs.height;
+    rs.pixels = calloc(n, sizeof *rs.pixels);
+    rs.block_finished = calloc((size_t)rs.block_count, 1);
+    pn_threadpool *pool = pn_threadpool_create(settings->threads);
+    int workers = pool ? pn_threadpool_size(pool) : 0;
+    rs.scratch = pool ? calloc((size_t)workers + 1, sizeof *rs.scratch) : NULL;
+    if (!rs.pixels || !rs.block_finished || !pool || !rs.scratch) {
+        free(rs.pixels);
+        free(rs.block_finished);
+        free(rs.scratch);
+        pn_threadpool_destroy(pool);
+        return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d image", rs.width, rs.height);
+    }
+    for (size_t i = 0; i < n; i++) rs.pixels[i].depth = INFINITY;
+    atomic_init(&rs.failed, 0);
+    atomic_init(&rs.blocks_done, 0);
+    pthread_mutex_init(&rs.progress_lock, NULL);
+    double t0 = now_seconds();
+    pn_threadpool_run(pool, (size_t)rs.block_count, render_block, &rs);
+    double t1 = now_seconds();
+    pthread_mutex_destroy(&rs.progress_lock);
+    for (int w = 0; w <= workers; w++)
+        if (rs.scratch[w] && integ->scratch_free) integ->scratch_free(rs.scratch[w]);
+    free(rs.scratch);
+    pn_threadpool_destroy(pool);
+
+    int failed = atomic_load(&rs.failed);
+    if (failed) {
+        free(rs.pixels);
+        free(rs.block_finished);
+        return pn_context_fail(ctx, (pn_status)failed, "render failed: %s", pn_status_string((pn_status)failed));
+    }
+    bool cancelled = atomic_load(&ctx->cancel) != 0;
+    if (cancelled) {
+        for (long b = 0; b < rs.block_count; b++)
+            if (!rs.block_finished[b]) cancelled = true;
+    }
+    st = build_image(&rs, settings->aovs, out_image);
+    if (st != PN_OK) {
+        free(rs.pixels);
+        free(rs.block_finished);
+        return pn_context_fail(ctx, st, "out of memory for the output image");
+    }
+    if (stats) {
+        uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
+        for (size_t i = 0; i < n; i++) {
+            const pn_pixel_estimate *e = &rs.pixels[i];
+            eye += e->eye_rays;
+            shadow += e->shadow_rays;
+            spec += e->specular_rays;
+            if (e->eye_rays > max_eye) max_eye = e->eye_rays;
+            if (e->shadow_rays > max_shadow) max_shadow = e->shadow_rays;
+        }
+        stats->render_seconds = t1 - t0;
+        stats->eye_rays = eye;
+        stats->shadow_rays = shadow;
+        stats->specular_rays = spec;
+        stats->eye_rays_per_pixel_mean = (double)eye / (double)n;
+        stats->shadow_rays_per_pixel_mean = (double)shadow / (double)n;
+        stats->eye_rays_per_pixel_max = max_eye;
+        stats->shadow_rays_per_pixel_max = max_shadow;
+        stats->mrays_per_second = stats->render_seconds > 0.0
+                                      ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
+        stats->peak_memory_bytes = peak_memory_bytes();
+        stats->partial = cancelled ? 1 : 0;
+        stats->threads = workers;
+        stats->width = rs.width;
+        stats->height = rs.height;
+    }
+    free(rs.pixels);
+    free(rs.block_finished);
+    if (cancelled) return pn_context_fail(ctx, PN_ERROR_CANCELLED, "render cancelled; the image is partial");
+    return PN_OK;
+}

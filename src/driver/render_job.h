@@ -1,0 +1,48 @@
+/* render_job.h — everything an integrator needs to know about one render, resolved once. */
+#ifndef PN_DRIVER_RENDER_JOB_H
+#define PN_DRIVER_RENDER_JOB_H
+
+#include "accel/accel.h"
+#include "driver/camera.h"
+#include "lights/lights.h"
+#include "scene/scene.h"
+
+#include <stdatomic.h>
+
+typedef struct pn_render_job {
+    const struct pn_scene_s *scene;
+    const pn_accel *accel;
+    const pn_lights *lights;
+    pn_camera camera;
+    /* Settings with defaults applied. */
+    uint32_t spp;                 /* 0: adaptive */
+    double threshold;
+    uint32_t shadow_rays;         /* per eye ray */
+    uint32_t max_shadow_rays;     /* per pixel */
+    uint32_t min_shadow_rays_black;
+    uint32_t min_eye_rays;
+    uint32_t max_specular_depth;
+    uint64_t seed;
+    uint32_t aovs;
+    atomic_int *cancel;
+} pn_render_job;
+
+/* The result of following an eye ray through perfect specular interactions to the first
+ * non-specular surface. */
+typedef struct pn_eye_path {
+    vec3 emitted;     /* radiance collected along the way (emitters, environment), weighted */
+    bool has_point;   /* ended at a surface with a non-specular lobe */
+    vec3 throughput;  /* product of specular tints up to the point */
+    pn_hit hit;
+    vec3 wo;          /* unit direction from the point back along the path */
+    uint32_t rays;    /* intersect calls made (1 + specular bounces) */
+    float first_depth;
+    vec3 first_normal;
+    vec3 first_albedo;
+} pn_eye_path;
+
+/* Traces the camera ray o + t d through mirrors, dielectrics and interfaces. u_specular drives
+ * the first reflect/refract choice; deeper choices use a hash of (seed, u_specular, depth). */
+void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specular, pn_eye_path *path);
+
+#endif

@@ -1,0 +1,43 @@
+/* integrator.h — the one interface between drivers and integrators (ARCHITECTURE.md): a driver
+ * hands an integrator a batch of pixels; the integrator returns, for each, a radiance estimate,
+ * its variance and its counters. */
+#ifndef PN_INTEGRATORS_INTEGRATOR_H
+#define PN_INTEGRATORS_INTEGRATOR_H
+
+#include "driver/render_job.h"
+
+#include <stdint.h>
+
+/* A set of pixels of the work image. All pixels of a batch lie in one 8x8 block of the image
+ * (block_x, block_y in block units), which seeds that block's quasi-random sequence. */
+typedef struct pn_batch {
+    int block_x, block_y;
+    int count;
+    const int32_t (*pixels)[2]; /* full-image pixel coordinates, in evaluation order */
+} pn_batch;
+
+typedef struct pn_pixel_estimate {
+    vec3 radiance;
+    float relative_variance; /* s^2 / L^2 of the estimate (luminance), 0 when L = 0 */
+    uint32_t eye_rays, shadow_rays, specular_rays;
+    float depth;  /* first-hit distance of the first eye ray (INFINITY on a miss) */
+    vec3 normal;  /* first-hit shading normal */
+    vec3 albedo;  /* first-hit diffuse reflectance */
+} pn_pixel_estimate;
+
+typedef struct pn_integrator {
+    const char *name;
+    /* Per-worker scratch: created once per thread, freed at the end of the render. */
+    void *(*scratch_create)(const pn_render_job *job);
+    void (*scratch_free)(void *scratch);
+    /* Fills out[i] for batch->pixels[i]. */
+    pn_status (*render_batch)(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                              void *scratch);
+} pn_integrator;
+
+/* The table of integrators; NULL if unknown. */
+const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
+
+extern const pn_integrator pn_integrator_reference;
+
+#endif

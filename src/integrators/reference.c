@@ -1,0 +1,193 @@
+/* reference.c — the Monte Carlo reference of Donikian et al. 2006, §5.1 ("Reference Solution
+ * Implementation"): at each eye-ray hit, a fixed PDF over all lights proportional to each light's
+ * unoccluded irradiance at the point (zero behind the surface or facing away); a fixed number of
+ * shadow rays per eye ray; scrambled Sobol numbers whose sequence is reset once per 8x8 block
+ * (footnote 1); eye rays added to a pixel until its relative variance s^2/L^2 falls below the
+ * threshold, with a maximum number of shadow rays per pixel (20,000) and a minimum number before
+ * a pixel may be declared black (§5.9; 2,500 as for the paper's hard scenes) — or a fixed spp.
+ *
+ * Quasi-random dimensions per eye ray i of a block: 0-1 pixel filter, 2-3 lens, 4 specular
+ * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light. */
+#include "integrators/integrator.h"
+
+#include "core/sobol.h"
+#include "core/rng.h"
+#include "shade/bsdf.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct reference_scratch {
+    float *cdf; /* light_count + 1 */
+    int *index; /* lights with non-zero weight */
+} reference_scratch;
+
+static void *reference_scratch_create(const pn_render_job *job) {
+    reference_scratch *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    size_t n = (size_t)job->lights->count + 1;
+    s->cdf = malloc(n * sizeof *s->cdf);
+    s->index = malloc(n * sizeof *s->index);
+    if (!s->cdf || !s->index) {
+        free(s->cdf);
+        free(s->index);
+        free(s);
+        return NULL;
+    }
+    return s;
+}
+
+static void reference_scratch_free(void *p) {
+    reference_scratch *s = p;
+    if (!s) return;
+    free(s->cdf);
+    free(s->index);
+    free(s);
+}
+
+/* Builds the per-point PDF over lights; returns the number of lights with non-zero
+ * probability. cdf[k] is the running sum over index[0..k). */
+static int build_light_pdf(const pn_render_job *job, vec3 p, vec3 n, reference_scratch *s, float *total) {
+    const pn_lights *L = job->lights;
+    int m = 0;
+    double acc = 0.0;
+    s->cdf[0] = 0.0f;
+    for (int i = 0; i < L->count; i++) {
+        float w = pn_light_irradiance_estimate(L, &L->lights[i], p, n);
+        if (!(w > 0.0f) || !isfinite(w)) continue;
+        acc += (double)w;
+        s->index[m] = i;
+        s->cdf[++m] = (float)acc;
+    }
+    *total = (float)acc;
+    return m;
+}
+
+static int choose_light(const reference_scratch *s, int m, float total, float u, float *prob) {
+    float target = u * total;
+    int lo = 0, hi = m; /* find k with cdf[k] <= target < cdf[k+1] */
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (s->cdf[mid] <= target) lo = mid;
+        else hi = mid;
+    }
+    *prob = (s->cdf[lo + 1] - s->cdf[lo]) / total;
+    return lo;
+}
+
+typedef struct pixel_state {
+    vec3 weighted_sum;
+    double weight_sum;
+    double lum_mean, lum_m2; /* Welford on the luminance of eye-ray values */
+    uint32_t n, shadow_rays, specular_rays;
+    bool any_nonzero;
+} pixel_state;
+
+static bool pixel_done(const pn_render_job *job, const pixel_state *ps) {
+    if (job->spp > 0) return ps->n >= job->spp;
+    if (ps->shadow_rays >= job->max_shadow_rays) return true;
+    if (ps->n >= 1u << 20) return true;
+    if (ps->n < job->min_eye_rays) return false;
+    if (!ps->any_nonzero) {
+        /* Black so far: only stop once enough shadow rays saw nothing, or if the pixel casts no
+         * shadow rays at all (it sees only the void or unlit specular paths). */
+        return ps->shadow_rays >= job->min_shadow_rays_black || ps->shadow_rays == 0;
+    }
+    double var_of_mean = ps->n > 1 ? ps->lum_m2 / ((double)(ps->n - 1) * (double)ps->n) : INFINITY;
+    double mean = ps->lum_mean;
+    return var_of_mean <= job->threshold * mean * mean;
+}
+
+static pn_status reference_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                                        void *scratch) {
+    reference_scratch *s = scratch;
+    const uint32_t S = job->shadow_rays;
+    /* One scrambled Sobol sequence per block (footnote 1 of §5.1). */
+    uint32_t scramble = (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)batch->block_x,
+                                           (uint64_t)(uint32_t)batch->block_y);
+    uint32_t index = 0;
+    for (int pi = 0; pi < batch->count; pi++) {
+        int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
+        pixel_state ps;
+        memset(&ps, 0, sizeof ps);
+        pn_pixel_estimate *o = &out[pi];
+        memset(o, 0, sizeof *o);
+        o->depth = INFINITY;
+        while (!pixel_done(job, &ps)) {
+            uint32_t i = index++;
+            float rx, ry, fw;
+            pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble),
+                                    pn_sobol_sample(i, 1, scramble), &rx, &ry, &fw);
+            vec3 ro, rd;
+            pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble),
+                          &ro, &rd);
+            pn_eye_path path;
+            pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+            if (ps.n == 0) {
+                o->depth = path.first_depth;
+                o->normal = path.first_normal;
+                o->albedo = path.first_albedo;
+            }
+            ps.specular_rays += path.rays - 1;
+            vec3 value = path.emitted;
+            if (path.has_point) {
+                pn_bsdf b;
+                pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+                float total;
+                int m = build_light_pdf(job, path.hit.p, b.ng, s, &total);
+                if (m > 0 && total > 0.0f) {
+                    vec3 direct = v3(0, 0, 0);
+                    float eps = pn_accel_ray_epsilon(job->accel, path.hit.p);
+                    vec3 origin = v3_madd(path.hit.p, b.ng, eps);
+                    for (uint32_t j = 0; j < S; j++) {
+                        uint32_t k = i * S + j;
+                        float prob;
+                        int c = choose_light(s, m, total, pn_sobol_sample(k, 5, scramble), &prob);
+                        const pn_light *l = &job->lights->lights[s->index[c]];
+                        pn_light_sample ls;
+                        if (!pn_light_sample_point(job->lights, l, origin, pn_sobol_sample(k, 6, scramble),
+                                                   pn_sobol_sample(k, 7, scramble), &ls))
+                            continue;
+                        vec3 f = pn_bsdf_eval(&b, path.wo, ls.wi);
+                        if (v3_is_zero(f)) continue;
+                        float cos_i = v3_dot(b.ns, ls.wi);
+                        ps.shadow_rays++;
+                        float tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f) - eps;
+                        if (pn_accel_occluded(job->accel, origin, ls.wi, 0.0f, tmax)) continue;
+                        float w = cos_i / (ls.pdf * prob);
+                        direct = v3_add(direct, v3_scale(v3_mul(f, ls.radiance), w));
+                    }
+                    value = v3_add(value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
+                }
+            }
+            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            ps.n++;
+            ps.weighted_sum = v3_madd(ps.weighted_sum, value, fw);
+            ps.weight_sum += (double)fw;
+            double y = (double)v3_luminance(value);
+            if (y != 0.0 || !v3_is_zero(value)) ps.any_nonzero = true;
+            double delta = y - ps.lum_mean;
+            ps.lum_mean += delta / (double)ps.n;
+            ps.lum_m2 += delta * (y - ps.lum_mean);
+        }
+        o->eye_rays = ps.n;
+        o->shadow_rays = ps.shadow_rays;
+        o->specular_rays = ps.specular_rays;
+        if (ps.weight_sum != 0.0) o->radiance = v3_scale(ps.weighted_sum, (float)(1.0 / ps.weight_sum));
+        double var_of_mean = ps.n > 1 ? ps.lum_m2 / ((double)(ps.n - 1) * (double)ps.n) : 0.0;
+        o->relative_variance = ps.lum_mean > 0.0 ? (float)(var_of_mean / (ps.lum_mean * ps.lum_mean)) : 0.0f;
+    }
+    return PN_OK;
+}
+
+const pn_integrator pn_integrator_reference = {
+    "reference", reference_scratch_create, reference_scratch_free, reference_render_batch,
+};
+
+const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
+    switch (kind) {
+    case PN_INTEGRATOR_DEFAULT:
+    case PN_INTEGRATOR_REFERENCE: return &pn_integrator_reference;
+    }
+    return NULL;
+}

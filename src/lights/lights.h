@@ -1,0 +1,109 @@
+/* lights.h — every light of a scene behind one record: point, spot, distant, triangle, rectangle,
+ * disk, sphere and environment lights; sampling, evaluation, and the unoccluded-irradiance
+ * estimate that the reference integrator's light PDF uses (IAS paper §5.1). */
+#ifndef PN_LIGHTS_LIGHTS_H
+#define PN_LIGHTS_LIGHTS_H
+
+#include "core/error.h"
+#include "core/vecmath.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+
+struct pn_scene_s;
+struct pn_distribution2d;
+
+typedef enum pn_light_kind {
+    PN_LIGHT_POINT = 0,
+    PN_LIGHT_SPOT = 1,
+    PN_LIGHT_DISTANT = 2,
+    PN_LIGHT_TRIANGLE = 3,
+    PN_LIGHT_RECTANGLE = 4,
+    PN_LIGHT_DISK = 5,
+    PN_LIGHT_SPHERE = 6,
+    PN_LIGHT_ENVIRONMENT = 7,
+    PN_LIGHT_KIND_COUNT = 8
+} pn_light_kind;
+
+typedef struct pn_light {
+    pn_light_kind kind;
+    vec3 p;          /* POINT/SPOT: position; TRIANGLE/RECTANGLE: corner p0; DISK/SPHERE: centre */
+    vec3 e1, e2;     /* TRIANGLE: p1 - p0, p2 - p0; RECTANGLE: the two edges from p0 */
+    vec3 n;          /* unit emitting normal (TRIANGLE/RECTANGLE/DISK), SPOT axis, DISTANT
+                        direction towards the light */
+    float radius;    /* DISK, SPHERE */
+    float area;      /* m^2 (TRIANGLE/RECTANGLE/DISK/SPHERE) */
+    vec3 emit;       /* radiance (area, distant: irradiance, env: scale), intensity (point/spot) */
+    float cos_falloff_start, cos_total_width; /* SPOT */
+    bool two_sided;
+    int env;         /* ENVIRONMENT: index into pn_lights.envs */
+    int mesh, prim;  /* area lights from meshes: source triangle(s), for `info` and tests */
+} pn_light;
+
+/* An environment map prepared for lookup and importance sampling by luminance. */
+typedef struct pn_env {
+    int width, height;
+    const float *rgb;   /* owned by the scene's image table, or `constant` when NULL */
+    vec3 constant;
+    vec3 scale;
+    bool equal_area;
+    mat4 world_from_light, light_from_world;
+    struct pn_distribution2d *dist; /* over pixels, NULL for constant maps */
+    float average_luminance;
+} pn_env;
+
+typedef struct pn_lights {
+    pn_light *lights;
+    int count;
+    pn_env *envs;
+    int env_count;
+    int count_by_kind[PN_LIGHT_KIND_COUNT];
+    float scene_radius;
+    vec3 scene_center;
+} pn_lights;
+
+/* Builds the light records: LightSource definitions, and emissive shapes (a mesh's triangle pairs
+ * that form planar rectangles become RECTANGLE lights, other triangles TRIANGLE lights, disks
+ * DISK lights, spheres SPHERE lights). Zero-area and zero-power emitters are dropped with a
+ * warning. */
+pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err);
+void pn_lights_free(pn_lights *lights);
+
+/* A sample of the light arriving at a receiving point. */
+typedef struct pn_light_sample {
+    vec3 wi;       /* unit direction from the receiver towards the light */
+    float dist;    /* distance to the sampled point (INFINITY for distant/environment) */
+    vec3 radiance; /* incident radiance (delta lights: intensity / d^2, or irradiance) */
+    float pdf;     /* solid-angle density; for delta lights 1 */
+    bool delta;
+} pn_light_sample;
+
+/* Samples light `l` as seen from point p with normal n; u in [0,1)^2. Returns false when the
+ * sample carries nothing (facing away, outside the spot cone, zero pdf). */
+bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
+                           pn_light_sample *s);
+
+/* Emitted radiance of an area light toward direction w (unit, from the light's surface point to
+ * the viewer), for eye rays that hit an emitter. */
+vec3 pn_emission_radiance(const struct pn_scene_s *scene, int emission, vec3 ng, vec3 w);
+
+/* Radiance of all environment lights for an escaping ray with unit direction d. */
+vec3 pn_lights_environment_radiance(const pn_lights *lights, vec3 d);
+vec3 pn_env_radiance(const pn_env *env, vec3 d);
+
+/* The unoccluded irradiance the light would give to a point p with normal n (zero if it is
+ * behind the surface, or the point is behind a one-sided light): exact for point, spot, distant
+ * and polygon lights (Lambert's contour formula, clipped to the horizon), approximate for disks
+ * (a 24-gon), spheres and environment maps. The reference integrator's PDF over lights is
+ * proportional to it. */
+float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, vec3 p, vec3 n);
+
+/* Irradiance at the origin (normal n) from the polygon v[0..count) of uniform unit radiance,
+ * clipped to the hemisphere of n (Lambert 1760; the contour-integral form of Vedel's eq. 4). */
+float pn_polygon_irradiance(const vec3 *v, int count, vec3 n);
+
+/* pbrt-v4's equal-area octahedral mapping between the unit square and the sphere (Clarberg). */
+vec3 pn_equal_area_square_to_sphere(float u, float v);
+void pn_equal_area_sphere_to_square(vec3 d, float *u, float *v);
+
+#endif

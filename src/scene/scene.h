@@ -1,0 +1,257 @@
+/* scene.h — the validated, immutable scene that the pbrt-v4 parser produces and the renderer reads.
+ *
+ * Everything is in world space (pbrt's "render space" = world) except the geometry of object
+ * definitions used by ObjectInstance, which is stored once and placed by pn_instance transforms.
+ * Units and conventions follow pbrt-v4: RGB values are linear Rec.709/sRGB primaries; an
+ * AreaLightSource's "L" becomes radiance (W/(m^2 sr)) already multiplied by "scale" (and by the
+ * "power" normalisation when given); point and spot "I" becomes intensity (W/sr) likewise.
+ */
+#ifndef PN_SCENE_SCENE_H
+#define PN_SCENE_SCENE_H
+
+#include "core/vecmath.h"
+#include "penumbra/penumbra.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+
+struct pn_image_s; /* io/image.h */
+
+/* ---- textures ---------------------------------------------------------------------------- */
+
+/* A parameter that is either a constant or a texture: texture < 0 means `value` is used. Float
+ * parameters use value.x. */
+typedef struct pn_texref {
+    int texture;
+    vec3 value;
+} pn_texref;
+
+typedef enum pn_texture_kind {
+    PN_TEXTURE_CONSTANT = 0,  /* value */
+    PN_TEXTURE_IMAGE = 1,     /* image[] lookup with (s, 1 - t), bilinear, wrap */
+    PN_TEXTURE_SCALE = 2,     /* a * b   ("tex" * "scale") */
+    PN_TEXTURE_MIX = 3,       /* (1 - amount) * a + amount * b */
+    PN_TEXTURE_CHECKERBOARD = 4 /* 2D checkerboard of a ("tex1") and b ("tex2") */
+} pn_texture_kind;
+
+typedef enum pn_wrap_mode { PN_WRAP_REPEAT = 0, PN_WRAP_CLAMP = 1, PN_WRAP_BLACK = 2 } pn_wrap_mode;
+
+typedef struct pn_texture {
+    pn_texture_kind kind;
+    bool is_float;    /* "float" texture (single channel, stored in .x of results) */
+    vec3 value;       /* CONSTANT */
+    int image;        /* IMAGE: index into pn_scene_s.images */
+    float su, sv, du, dv; /* uv mapping: s = su*u + du, t = sv*v + dv */
+    float scale;      /* IMAGE: multiplies the looked-up value (pbrt "scale") */
+    bool invert;      /* IMAGE: 1 - value */
+    pn_wrap_mode wrap;
+    pn_texref a, b, amount; /* SCALE: a*b; MIX: a, b, amount; CHECKERBOARD: a=tex1, b=tex2 */
+    char *name;
+} pn_texture;
+
+/* A decoded texture image: linear RGB floats, top row first (8-bit sources decoded per the
+ * texture's "encoding", sRGB by default). */
+typedef struct pn_texture_image {
+    int width, height;
+    float *rgb; /* 3 * width * height */
+    char *path;
+} pn_texture_image;
+
+/* ---- materials --------------------------------------------------------------------------- */
+
+/* penumbra's reflection models (ARCHITECTURE.md, "Materials from pbrt-v4 scenes"):
+ *  LAMBERT_BLINN: f = kd/pi + ks (n+2)/(2 pi) cos^n(beta)   (normalised Blinn–Phong lobe,
+ *                 IlluminationCut eq. 1); ks = 0 means pure Lambert.
+ *  MIRROR: perfect specular reflection with RGB reflectance `specular` (eye rays follow it).
+ *  DIELECTRIC: perfect specular reflection + refraction with index `eta` for eye rays; opaque to
+ *              shadow rays. `specular` tints both.
+ *  INTERFACE: invisible (pbrt's "interface"); eye and shadow rays pass through. */
+typedef enum pn_material_kind {
+    PN_MATERIAL_LAMBERT_BLINN = 0,
+    PN_MATERIAL_MIRROR = 1,
+    PN_MATERIAL_DIELECTRIC = 2,
+    PN_MATERIAL_INTERFACE = 3
+} pn_material_kind;
+
+typedef struct pn_material {
+    pn_material_kind kind;
+    pn_texref kd;        /* diffuse reflectance (RGB) */
+    pn_texref ks;        /* glossy coefficient k_spec (RGB), 0 = none */
+    float exponent;      /* Blinn–Phong exponent n */
+    vec3 specular;       /* MIRROR / DIELECTRIC tint */
+    float eta;           /* DIELECTRIC */
+    char *name;          /* pbrt name ("" for anonymous Material directives) */
+    char *description;   /* one line: "NAME: pbrt TYPE -> penumbra model (parameters)" */
+} pn_material;
+
+/* ---- geometry ---------------------------------------------------------------------------- */
+
+/* Emission of an area light attached to a shape (AreaLightSource "diffuse"). */
+typedef struct pn_emission {
+    vec3 radiance;  /* L * scale (* power normalisation) */
+    bool two_sided;
+} pn_emission;
+
+/* A triangle mesh. Positions/normals are in world space, or in the object's space for meshes of
+ * an object definition (object >= 0). Normals are unit length. */
+typedef struct pn_mesh {
+    uint32_t vertex_count, triangle_count;
+    float *positions;   /* 3 * vertex_count */
+    float *normals;     /* 3 * vertex_count or NULL */
+    float *uvs;         /* 2 * vertex_count or NULL */
+    uint32_t *indices;  /* 3 * triangle_count */
+    int material;       /* index into materials */
+    pn_texref alpha;    /* alpha cut-out: texture >= 0, or value.x < 1 to cut everything */
+    int emission;       /* index into emissions, or -1 */
+    /* pbrt: ReverseOrientation XOR the transform swaps handedness. The geometric normal of a
+     * triangle is normalize(cross(p1 - p0, p2 - p0)), negated when this is true, then (if the
+     * mesh has normals) flipped to the side of the interpolated shading normal. One-sided
+     * emitters emit on the side of that geometric normal. */
+    bool flip_normals;
+    int object;         /* -1: world geometry; >= 0: belongs to objects[object] */
+    int disk;           /* >= 0: this mesh tessellates disks[disk] (for analytic disk lights) */
+    char *source;       /* "file:line" of the Shape directive, for messages */
+} pn_mesh;
+
+/* An analytic sphere (pbrt "sphere" with full zmin/zmax/phimax). A non-uniform scale in its
+ * transform is approximated by the cube root of the determinant (with a warning). */
+typedef struct pn_sphere {
+    vec3 center;
+    float radius;
+    int material;
+    int emission;       /* -1 or index into emissions */
+    bool flip_normals;  /* normals point inward */
+    int object;
+} pn_sphere;
+
+/* An analytic disk as a light source; its geometry is also tessellated into a pn_mesh. */
+typedef struct pn_disk {
+    vec3 center, normal; /* normal already flipped per ReverseOrientation/handedness */
+    float radius;
+    float inner_radius;  /* pbrt "innerradius" (0 = full disk) */
+    int mesh;            /* the tessellated mesh */
+} pn_disk;
+
+typedef struct pn_object {
+    char *name;
+    int first_mesh, mesh_count;       /* meshes[first_mesh .. +mesh_count) */
+    int first_sphere, sphere_count;
+} pn_object;
+
+typedef struct pn_instance {
+    int object;
+    mat4 world_from_object;
+} pn_instance;
+
+/* ---- lights (LightSource directives; area lights come from emissive shapes) --------------- */
+
+typedef enum pn_light_def_kind {
+    PN_LIGHTDEF_POINT = 0,
+    PN_LIGHTDEF_SPOT = 1,
+    PN_LIGHTDEF_DISTANT = 2,
+    PN_LIGHTDEF_INFINITE = 3,
+    PN_LIGHTDEF_GONIOMETRIC = 4
+} pn_light_def_kind;
+
+typedef struct pn_light_def {
+    pn_light_def_kind kind;
+    vec3 position;      /* POINT, SPOT, GONIOMETRIC: world position */
+    vec3 direction;     /* SPOT: unit axis of the cone (from -> to); DISTANT: unit direction
+                           TOWARDS the light (from - to, normalised) */
+    vec3 intensity;     /* POINT/SPOT/GONIOMETRIC: I * scale (W/sr); DISTANT: L * scale
+                           (irradiance on a surface facing it); INFINITE: constant L * scale
+                           when image < 0, else the scale in .x,.y,.z */
+    float cos_falloff_start, cos_total_width; /* SPOT: pbrt's smoothstep falloff */
+    int image;          /* INFINITE or GONIOMETRIC: index into images, or -1 */
+    bool equal_area;    /* INFINITE image: pbrt-v4 equal-area octahedral (square image);
+                           false: equirectangular (latitude-longitude) */
+    mat4 world_from_light; /* INFINITE / GONIOMETRIC orientation */
+    mat4 light_from_world;
+    char *source;       /* "file:line" */
+} pn_light_def;
+
+/* ---- camera and film --------------------------------------------------------------------- */
+
+typedef enum pn_filter_kind {
+    PN_FILTER_BOX = 0,
+    PN_FILTER_TRIANGLE = 1,
+    PN_FILTER_GAUSSIAN = 2,
+    PN_FILTER_MITCHELL = 3
+} pn_filter_kind;
+
+typedef struct pn_camera_def {
+    mat4 camera_from_world, world_from_camera;
+    float fov_deg;          /* of the shorter image axis, pbrt's "fov" (default 90) */
+    float screen_window[4]; /* xmin, xmax, ymin, ymax (default from the aspect ratio) */
+    float lens_radius, focal_distance;
+    int width, height;      /* Film resolution (default 1280 x 720) */
+    float crop[4];          /* x0, x1, y0, y1 (default 0 1 0 1) */
+    pn_filter_kind filter;
+    float filter_radius[2];
+    float gaussian_sigma;
+    float mitchell_b, mitchell_c;
+    int pixel_samples;      /* Sampler "pixelsamples", reported only */
+    char *film_filename;
+    char *integrator_name;  /* Integrator, reported only */
+    int max_depth;
+} pn_camera_def;
+
+/* ---- the scene --------------------------------------------------------------------------- */
+
+struct pn_accel; /* accel/accel.h */
+struct pn_lights; /* lights/lights.h */
+
+struct pn_scene_s {
+    pn_context ctx; /* for logging only; not owned */
+    char *path;
+
+    pn_camera_def camera;
+
+    pn_mesh *meshes;
+    int mesh_count;
+    pn_sphere *spheres;
+    int sphere_count;
+    pn_disk *disks;
+    int disk_count;
+    pn_object *objects;
+    int object_count;
+    pn_instance *instances;
+    int instance_count;
+
+    pn_material *materials;
+    int material_count;
+    pn_texture *textures;
+    int texture_count;
+    pn_texture_image *images;
+    int image_count;
+    pn_emission *emissions;
+    int emission_count;
+    pn_light_def *light_defs;
+    int light_def_count;
+
+    char **warnings; /* "file:line:column: message" */
+    int warning_count;
+
+    vec3 bounds_min, bounds_max; /* of world geometry and instances */
+    double parse_seconds, bvh_seconds;
+
+    struct pn_accel *accel;   /* built after parsing */
+    struct pn_lights *lights; /* built after parsing */
+};
+
+/* Parses the file into a new scene (geometry, materials, lights, camera; no BVH, no light
+ * records). On failure returns the status with err = "file:line:column: message" and *out NULL.
+ * Warnings are stored in the scene and also sent to ctx's log. */
+pn_status pn_scene_parse(pn_context ctx, const char *path, struct pn_scene_s **out, pn_err *err);
+
+/* Frees everything parse allocated (accel and lights are freed by pn_scene_free). */
+void pn_scene_parse_free(struct pn_scene_s *scene);
+
+/* Adds a warning to the scene (copies the text) and logs it. */
+void pn_scene_warn(struct pn_scene_s *scene, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* Texture evaluation at surface coordinates (u, v); returns RGB (float textures: all three
+ * channels equal). Implemented in scene/texture.c. */
+vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, float v);
+
+#endif

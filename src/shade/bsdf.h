@@ -1,0 +1,44 @@
+/* bsdf.h — penumbra's reflection models at a surface point: Lambert + normalised Blinn–Phong
+ * (IlluminationCut eq. 1), perfect mirror, and smooth dielectric for eye rays. */
+#ifndef PN_SHADE_BSDF_H
+#define PN_SHADE_BSDF_H
+
+#include "accel/accel.h"
+#include "core/vecmath.h"
+#include "scene/scene.h"
+
+typedef struct pn_bsdf {
+    pn_material_kind kind;
+    vec3 kd;        /* diffuse reflectance */
+    vec3 ks;        /* glossy coefficient */
+    float exponent; /* Blinn–Phong n */
+    vec3 specular;  /* mirror / dielectric tint */
+    float eta;
+    vec3 ng, ns;    /* normals flipped to the side of wo */
+    bool entering;  /* wo is on the side the geometric normal points to (dielectric: outside) */
+} pn_bsdf;
+
+/* Evaluates the material at a hit, seen from direction wo (unit, pointing away from the
+ * surface towards the viewer). */
+void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_bsdf *out);
+
+/* f(wo, wi) for the non-specular part (Lambert + Blinn); zero below either normal's horizon. */
+vec3 pn_bsdf_eval(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
+
+/* True when the BSDF has a non-specular lobe (so light sampling applies). */
+static inline bool pn_bsdf_is_shadable(const pn_bsdf *b) {
+    return b->kind == PN_MATERIAL_LAMBERT_BLINN && (!v3_is_zero(b->kd) || !v3_is_zero(b->ks));
+}
+
+/* Fresnel reflectance of a smooth dielectric for cos_i (of the incident side) and relative index
+ * eta = eta_t / eta_i; returns 1 for total internal reflection. */
+float pn_fresnel_dielectric(float cos_i, float eta);
+
+/* Perfect reflection of wo about n. */
+static inline vec3 pn_reflect(vec3 wo, vec3 n) { return v3_sub(v3_scale(n, 2.0f * v3_dot(wo, n)), wo); }
+
+/* Refraction of wo through n (n on wo's side) with eta = eta_t / eta_i; false on total internal
+ * reflection. */
+bool pn_refract(vec3 wo, vec3 n, float eta, vec3 *wt);
+
+#endif
