@@ -1,0 +1,141 @@
+/* light_sample.c — sampling a point on each kind of light as seen from a receiver: solid-angle
+ * sampling for rectangles (Ureña et al. 2013) and spheres (the cone they subtend), uniform area
+ * for triangles and disks, importance sampling by luminance for environment maps. */
+#include "lights/lights.h"
+
+#include "core/sampling.h"
+
+static float spot_falloff(const pn_light *l, float cos_theta) {
+    if (cos_theta >= l->cos_falloff_start) return 1.0f;
+    if (cos_theta <= l->cos_total_width) return 0.0f;
+    float t = (cos_theta - l->cos_total_width) / (l->cos_falloff_start - l->cos_total_width);
+    return t * t * (3.0f - 2.0f * t);
+}
+
+/* Converts an area sample y (with area density 1/area) into a solid-angle sample at p. */
+static bool finish_area_sample(const pn_light *l, vec3 p, vec3 y, float area_pdf, pn_light_sample *s) {
+    vec3 d = v3_sub(y, p);
+    float d2 = v3_length2(d);
+    if (!(d2 > 0.0f)) return false;
+    float dist = sqrtf(d2);
+    vec3 wi = v3_scale(d, 1.0f / dist);
+    float cos_l = -v3_dot(wi, l->n);
+    if (l->two_sided) cos_l = fabsf(cos_l);
+    if (cos_l <= 1e-7f) return false;
+    s->wi = wi;
+    s->dist = dist;
+    s->radiance = l->emit;
+    s->pdf = area_pdf * d2 / cos_l;
+    s->delta = false;
+    return isfinite(s->pdf) && s->pdf > 0.0f;
+}
+
+bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
+                           pn_light_sample *s) {
+    switch (l->kind) {
+    case PN_LIGHT_POINT:
+    case PN_LIGHT_SPOT: {
+        vec3 d = v3_sub(l->p, p);
+        float d2 = v3_length2(d);
+        if (!(d2 > 0.0f)) return false;
+        float dist = sqrtf(d2);
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->dist = dist;
+        float k = 1.0f / d2;
+        if (l->kind == PN_LIGHT_SPOT) k *= spot_falloff(l, -v3_dot(s->wi, l->n));
+        if (k <= 0.0f) return false;
+        s->radiance = v3_scale(l->emit, k);
+        s->pdf = 1.0f;
+        s->delta = true;
+        return true;
+    }
+    case PN_LIGHT_DISTANT:
+        s->wi = l->n;
+        s->dist = INFINITY;
+        s->radiance = l->emit;
+        s->pdf = 1.0f;
+        s->delta = true;
+        return true;
+    case PN_LIGHT_TRIANGLE: {
+        float b0, b1;
+        pn_sample_uniform_triangle(u1, u2, &b0, &b1);
+        vec3 y = v3_add(l->p, v3_add(v3_scale(l->e1, b1), v3_scale(l->e2, 1.0f - b0 - b1)));
+        return finish_area_sample(l, p, y, 1.0f / l->area, s);
+    }
+    case PN_LIGHT_RECTANGLE: {
+        /* One-sided: nothing reaches a point behind the emitting side. */
+        float side = v3_dot(v3_sub(p, l->p), l->n);
+        if (!l->two_sided && side <= 0.0f) return false;
+        pn_spherical_rectangle sr;
+        if (pn_spherical_rectangle_init(&sr, p, l->p, l->e1, l->e2) && sr.solid_angle > 1e-6f) {
+            vec3 y = pn_spherical_rectangle_sample(&sr, u1, u2);
+            vec3 d = v3_sub(y, p);
+            float dist = v3_length(d);
+            if (!(dist > 0.0f)) return false;
+            s->wi = v3_scale(d, 1.0f / dist);
+            s->dist = dist;
+            s->radiance = l->emit;
+            s->pdf = 1.0f / sr.solid_angle;
+            s->delta = false;
+            return true;
+        }
+        vec3 y = v3_add(l->p, v3_add(v3_scale(l->e1, u1), v3_scale(l->e2, u2)));
+        return finish_area_sample(l, p, y, 1.0f / l->area, s);
+    }
+    case PN_LIGHT_DISK: {
+        float dx, dy;
+        pn_sample_concentric_disk(u1, u2, &dx, &dy);
+        vec3 t, b;
+        v3_basis(l->n, &t, &b);
+        vec3 y = v3_add(l->p, v3_add(v3_scale(t, dx * l->radius), v3_scale(b, dy * l->radius)));
+        return finish_area_sample(l, p, y, 1.0f / l->area, s);
+    }
+    case PN_LIGHT_SPHERE: {
+        vec3 y;
+        float pdf;
+        if (!pn_sample_sphere_from_point(l->p, l->radius, p, u1, u2, &y, &pdf)) return false;
+        vec3 d = v3_sub(y, p);
+        float dist = v3_length(d);
+        if (!(dist > 0.0f) || !(pdf > 0.0f)) return false;
+        s->wi = v3_scale(d, 1.0f / dist);
+        s->dist = dist;
+        s->radiance = l->emit;
+        s->pdf = pdf;
+        s->delta = false;
+        return true;
+    }
+    case PN_LIGHT_ENVIRONMENT: {
+        const pn_env *env = &lights->envs[l->env];
+        vec3 wl;
+        float pdf;
+        if (!env->dist) {
+            /* Constant environment: uniform directions over the sphere. */
+            wl = pn_sample_uniform_sphere(u1, u2);
+            pdf = PN_INV_4PI;
+            s->radiance = env->constant;
+        } else {
+            float uv_pdf, u, v;
+            if (!pn_distribution2d_sample(env->dist, u1, u2, &u, &v, &uv_pdf)) return false;
+            if (env->equal_area) {
+                wl = pn_equal_area_square_to_sphere(u, v);
+                pdf = uv_pdf * PN_INV_4PI;
+            } else {
+                float theta = v * PN_PI, phi = u * 2.0f * PN_PI;
+                float st = sinf(theta);
+                if (st <= 0.0f) return false;
+                wl = v3(st * cosf(phi), st * sinf(phi), cosf(theta));
+                pdf = uv_pdf / (2.0f * PN_PI * PN_PI * st);
+            }
+            s->radiance = pn_env_radiance(env, mat4_apply_vector(&env->world_from_light, wl));
+        }
+        s->wi = v3_normalize(mat4_apply_vector(&env->world_from_light, wl));
+        s->dist = INFINITY;
+        s->pdf = pdf;
+        s->delta = false;
+        return pdf > 0.0f && isfinite(pdf);
+    }
+    case PN_LIGHT_KIND_COUNT:
+        break;
+    }
+    return false;
+}
