@@ -1,1 +1,6 @@
-list(APPEND PN_SOURCES)
+# film files; a file is compiled once it exists.
+foreach(f metrics.c)
+  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
+    list(APPEND PN_SOURCES src/film/${f})
+  endif()
+endforeach()

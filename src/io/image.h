@@ -1,0 +1,44 @@
+/* image.h — the image type behind the public pn_image handle, and the file readers/writers.
+ *
+ * An image is a stack of named layers of equal size; layer 0 is the beauty ("", 3 channels RGB).
+ * Pixels are row-major, top row first, channels interleaved. Implemented in io/image.c (layers,
+ * public accessors), io/exr.c (OpenEXR C core), io/pfm.c, io/ldr.c (stb_image / stb_image_write)
+ * and io/write.c (atomic temporary-file-and-rename writes).
+ */
+#ifndef PN_IO_IMAGE_H
+#define PN_IO_IMAGE_H
+
+#include "core/error.h"
+#include "penumbra/penumbra.h"
+
+typedef struct pn_image_layer {
+    char *name;   /* "" for beauty; AOV names such as "shadow_rays", "normal" */
+    int channels; /* 1 or 3 */
+    float *data;  /* channels * width * height */
+} pn_image_layer;
+
+struct pn_image_s {
+    int width, height;
+    int layer_count;
+    pn_image_layer *layers;
+};
+
+/* A new image with a zeroed 3-channel beauty layer; NULL when out of memory or w/h <= 0. */
+pn_image pn_image_create(int width, int height);
+
+/* Appends a zeroed layer and returns its pixels (NULL when out of memory). */
+float *pn_image_add_layer(pn_image image, const char *name, int channels);
+
+/* Reads EXR (first RGB(A) or Y layer of any pixel type, scanline or tiled), PFM, PNG, TGA, JPG,
+ * BMP, HDR into a one-layer RGB image. 8-bit formats are converted with `gamma`: 0 = the sRGB
+ * curve, 1 = linear (v / 255), other = v^gamma. Greyscale is replicated into RGB; alpha is
+ * dropped. Errors read "path: message" (PN_ERROR_BAD_INPUT for malformed or unsupported files,
+ * PN_ERROR_IO when the file cannot be opened). */
+pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_err *err);
+
+/* Writes by extension (.exr all layers as 32-bit float; .pfm beauty; .png beauty as 8-bit sRGB
+ * after multiplying by 2^exposure and clamping). Writes a temporary file in the same folder and
+ * renames it, so a failure leaves no partial file at `path`. */
+pn_status pn_image_write_file(pn_image image, const char *path, float exposure, pn_err *err);
+
+#endif

@@ -1,0 +1,68 @@
+/* build.h — turning pbrt-v4 directives into scene records: materials (scene/materials.c),
+ * textures (scene/texture.c), spectra (scene/spectrum.c) and light sources (scene/lightdefs.c).
+ * The parser (scene/parser.c) calls these with the directive's parameter list.
+ */
+#ifndef PN_SCENE_BUILD_H
+#define PN_SCENE_BUILD_H
+
+#include "scene/params.h"
+#include "scene/scene.h"
+
+/* How an RGB / blackbody / spectrum value is turned into linear RGB. */
+typedef enum pn_spectrum_use {
+    PN_SPECTRUM_ALBEDO = 0,     /* reflectances: clamped to [0, 1] */
+    PN_SPECTRUM_UNBOUNDED = 1,  /* eta, k, sigma: taken as they are */
+    PN_SPECTRUM_ILLUMINANT = 2  /* emission: blackbody normalised to luminance 1, named
+                                   illuminants (stdillum-*) to their white point */
+} pn_spectrum_use;
+
+/* Reads parameter `name` of type rgb, blackbody or spectrum (numeric lambda/value pairs, a named
+ * pbrt-v4 spectrum such as "metal-Cu-eta" / "glass-BK7", or an .spd file relative to base_dir) as
+ * linear RGB. Absent: *out = def, *found = false (found may be NULL). Wrong type or values: err at
+ * the parameter's location, PN_ERROR_BAD_INPUT. */
+pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spectrum_use use,
+                        vec3 *out, bool *found, pn_err *err);
+
+/* A material input that is a constant or a named texture ("texture name" "tex"): float (is_float,
+ * value in .x of the texref) or RGB/spectrum. Undefined texture names are an error at the
+ * parameter's location. Absent: constant `def`. */
+pn_status pn_params_texref(struct pn_scene_s *scene, const pn_params *ps, const char *name,
+                           bool is_float, vec3 def, pn_texref *out, pn_err *err);
+
+/* Texture "name" "float"|"spectrum" "class" params: appends to scene->textures (and decodes image
+ * files into scene->images, sharing identical files). loc is the directive's location. */
+pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const char *value_type,
+                               const char *class_name, const pn_params *ps, pn_err *err);
+
+/* Index of the last texture called `name`, or -1. */
+int pn_scene_find_texture(const struct pn_scene_s *scene, const char *name);
+
+/* Material "type" params / MakeNamedMaterial "name" "string type" ...: appends a material mapped
+ * as ARCHITECTURE.md says (with its one-line description) and returns its index in *out.
+ * name is "" for anonymous Material directives. */
+pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, const char *name,
+                                const pn_params *ps, int *out, pn_err *err);
+
+/* Index of the last material called `name`, or -1. */
+int pn_scene_find_material(const struct pn_scene_s *scene, const char *name);
+
+/* LightSource "type" params under the current transform: appends to scene->light_defs
+ * (point, spot, distant, infinite, goniometric; projection is rejected as unsupported). */
+pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
+                             const mat4 *world_from_light, pn_err *err);
+
+/* AreaLightSource "diffuse" params. radiance = L * scale; when "power" is given, power > 0 and
+ * pn_area_light_apply_power must be called with the total area of the shape it is attached to. */
+typedef struct pn_area_light_desc {
+    pn_emission emission;
+    double power;        /* 0 = not given */
+    float luminance_of_L; /* luminance of L before scale, for the power normalisation */
+} pn_area_light_desc;
+
+pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
+                                  pn_area_light_desc *out, pn_err *err);
+
+/* pbrt-v4: radiance *= power / (pi * (two_sided ? 2 : 1) * area * luminance_of_L). */
+void pn_area_light_apply_power(pn_area_light_desc *desc, double area);
+
+#endif
