@@ -23,8 +23,15 @@ demo: build
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
+# Unit tests again under AddressSanitizer and UndefinedBehaviorSanitizer (image tests excluded).
+sanitize: deps
+	cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPN_SANITIZE=ON $(CMAKE_FLAGS)
+	cmake --build build-asan -j $(JOBS)
+	cd build-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	    ctest --output-on-failure -j $(JOBS) -LE slow
+
 bench: build
-	sh bench/run.sh
+	$(BUILD)/penumbra_bench --config bench/bench.conf --runs 3 --out bench/results
 
 format:
 	clang-format -i include/penumbra/*.h src/*/*.[ch] tests/*.[ch]

@@ -157,7 +157,8 @@ typedef struct pn_image_s *pn_image;
 /* Statistics of one render. */
 typedef struct pn_render_stats {
     double render_seconds;
-    double embree_seconds_estimate; /* time inside Embree calls (sampled), for profiling */
+    double embree_seconds_estimate; /* time inside Embree calls (every 8th eye ray's calls timed,
+                                       scaled, summed over threads and divided by their number) */
     uint64_t eye_rays, shadow_rays, specular_rays;
     double shadow_rays_per_pixel_mean, eye_rays_per_pixel_mean;
     uint64_t shadow_rays_per_pixel_max, eye_rays_per_pixel_max;
@@ -198,6 +199,11 @@ PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_i
  * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a
  * temporary name in the same folder and renamed, so a failed write leaves no broken file. */
 PN_API pn_status pn_image_write(pn_context ctx, pn_image image, const char *path, float exposure);
+
+/* A new image holding the pixel rectangle [x0, x0 + width) x [y0, y0 + height) of every layer
+ * (for comparing a crop-window render with the matching part of a full reference). */
+PN_API pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, int width, int height,
+                               pn_image *out_image);
 
 /* Image comparison for `penumbra diff`. */
 typedef struct pn_image_metrics {

@@ -234,15 +234,19 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     }
     if (stats) {
         uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
+        double embree_seconds = 0.0;
         for (size_t i = 0; i < n; i++) {
             const pn_pixel_estimate *e = &rs.pixels[i];
             eye += e->eye_rays;
             shadow += e->shadow_rays;
             spec += e->specular_rays;
+            embree_seconds += (double)e->embree_seconds;
             if (e->eye_rays > max_eye) max_eye = e->eye_rays;
             if (e->shadow_rays > max_shadow) max_shadow = e->shadow_rays;
         }
         stats->render_seconds = t1 - t0;
+        /* Summed over threads: divide by the worker count to compare with wall-clock time. */
+        stats->embree_seconds_estimate = embree_seconds / (double)(workers > 0 ? workers : 1);
         stats->eye_rays = eye;
         stats->shadow_rays = shadow;
         stats->specular_rays = spec;

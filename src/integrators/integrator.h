@@ -23,6 +23,7 @@ typedef struct pn_pixel_estimate {
     float depth;  /* first-hit distance of the first eye ray (INFINITY on a miss) */
     vec3 normal;  /* first-hit shading normal */
     vec3 albedo;  /* first-hit diffuse reflectance */
+    float embree_seconds; /* estimated time inside Embree calls for this pixel (sampled) */
 } pn_pixel_estimate;
 
 typedef struct pn_integrator {

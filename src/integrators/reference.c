@@ -16,6 +16,17 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+
+/* Every PN_TIMING_STRIDE-th eye ray of a block has its Embree calls timed; the sum, scaled by the
+ * stride, estimates the time spent in Embree without timing every ray. */
+#define PN_TIMING_STRIDE 8u
+
+static double clock_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 typedef struct reference_scratch {
     float *cdf; /* light_count + 1 */
@@ -113,6 +124,7 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
         pn_pixel_estimate *o = &out[pi];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
+        double embree_seconds = 0.0;
         while (!pixel_done(job, &ps)) {
             uint32_t i = index++;
             float rx, ry, fw;
@@ -121,8 +133,11 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
             vec3 ro, rd;
             pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble),
                           &ro, &rd);
+            const bool timed = i % PN_TIMING_STRIDE == 0u;
+            double t_start = timed ? clock_seconds() : 0.0;
             pn_eye_path path;
             pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+            if (timed) embree_seconds += clock_seconds() - t_start;
             if (ps.n == 0) {
                 o->depth = path.first_depth;
                 o->normal = path.first_normal;
@@ -153,7 +168,10 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
                         float cos_i = v3_dot(b.ns, ls.wi);
                         ps.shadow_rays++;
                         float tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f) - eps;
-                        if (pn_accel_occluded(job->accel, origin, ls.wi, 0.0f, tmax)) continue;
+                        double t_ray = timed ? clock_seconds() : 0.0;
+                        bool blocked = pn_accel_occluded(job->accel, origin, ls.wi, 0.0f, tmax);
+                        if (timed) embree_seconds += clock_seconds() - t_ray;
+                        if (blocked) continue;
                         float w = cos_i / (ls.pdf * prob);
                         direct = v3_add(direct, v3_scale(v3_mul(f, ls.radiance), w));
                     }
@@ -173,6 +191,7 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
         o->eye_rays = ps.n;
         o->shadow_rays = ps.shadow_rays;
         o->specular_rays = ps.specular_rays;
+        o->embree_seconds = (float)(embree_seconds * PN_TIMING_STRIDE);
         if (ps.weight_sum != 0.0) o->radiance = v3_scale(ps.weighted_sum, (float)(1.0 / ps.weight_sum));
         double var_of_mean = ps.n > 1 ? ps.lum_m2 / ((double)(ps.n - 1) * (double)ps.n) : 0.0;
         o->relative_variance = ps.lum_mean > 0.0 ? (float)(var_of_mean / (ps.lum_mean * ps.lum_mean)) : 0.0f;

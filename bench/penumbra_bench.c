@@ -1,0 +1,311 @@
+/* penumbra_bench — the benchmark driver behind `make bench`.
+ *
+ * Reads a list of fixed cases (scene, reference image, crop window, settings), renders each case
+ * several times in a child process of its own (so that peak memory is per case), and writes a
+ * Markdown table and a JSON file: median render time with its spread, Mrays/s, shadow and eye
+ * rays per pixel, peak memory, the fraction of render time spent inside Embree, and relMSE of the
+ * image against the pbrt-v4 reference of the same pixels. Uses only the public header.
+ *
+ *   penumbra_bench [--config FILE] [--runs N] [--threads N] [--out DIR] [--only NAME]
+ *
+ * Config lines: NAME SCENE REFERENCE CROP SETTINGS, where SCENE and REFERENCE may start with
+ * "shared/" for ../shared, CROP is x0,x1,y0,y1 in fractions, SETTINGS is a comma list of spp=N,
+ * threshold=T, shadow=N, seed=S. '#' starts a comment.
+ */
+#include "penumbra/penumbra.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#define MAX_RUNS 15
+
+typedef struct bench_case {
+    char name[128], scene[1024], reference[1024], crop_text[64], settings_text[256];
+    float crop[4];
+    pn_render_settings settings;
+} bench_case;
+
+typedef struct bench_result {
+    int ok;
+    char error[512];
+    double parse_seconds, bvh_seconds;
+    double times[MAX_RUNS];
+    int runs;
+    double median, min, max;
+    pn_render_stats stats;
+    pn_image_metrics metrics;
+    int has_metrics;
+    int bit_identical; /* all runs gave the same image */
+    uint64_t triangles;
+    uint32_t lights;
+} bench_result;
+
+static const char *shared_dir = "../shared";
+
+static void resolve(const char *in, char *out, size_t n) {
+    if (strncmp(in, "shared/", 7) == 0) snprintf(out, n, "%s/%s", shared_dir, in + 7);
+    else snprintf(out, n, "%s", in);
+}
+
+static int parse_settings(const char *text, pn_render_settings *s) {
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", text);
+    for (char *tok = strtok(buf, ","); tok; tok = strtok(NULL, ",")) {
+        char *eq = strchr(tok, '=');
+        if (!eq) return 0;
+        *eq = '\0';
+        const char *v = eq + 1;
+        if (strcmp(tok, "spp") == 0) s->spp = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "threshold") == 0) s->threshold = strtod(v, NULL);
+        else if (strcmp(tok, "shadow") == 0) s->shadow_rays = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "seed") == 0) s->seed = strtoull(v, NULL, 10);
+        else if (strcmp(tok, "max") == 0) s->max_shadow_rays = (uint32_t)strtoul(v, NULL, 10);
+        else return 0;
+    }
+    return 1;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int same_pixels(pn_image a, pn_image b) {
+    size_t n = (size_t)pn_image_width(a) * (size_t)pn_image_height(a) * 3u;
+    return pn_image_width(a) == pn_image_width(b) && pn_image_height(a) == pn_image_height(b) &&
+           memcmp(pn_image_layer_data(a, 0), pn_image_layer_data(b, 0), n * sizeof(float)) == 0;
+}
+
+/* Runs one case; called in a child process. */
+static void run_case(const bench_case *bc, int runs, int threads, bench_result *r) {
+    memset(r, 0, sizeof *r);
+    pn_context ctx = pn_context_new();
+    pn_context_set_log(ctx, NULL, NULL);
+    pn_scene scene = NULL;
+    if (pn_scene_load(ctx, bc->scene, &scene) != PN_OK) {
+        snprintf(r->error, sizeof r->error, "%s", pn_context_error_message(ctx));
+        pn_context_free(ctx);
+        return;
+    }
+    pn_scene_info info;
+    pn_scene_get_info(scene, &info);
+    r->parse_seconds = info.parse_seconds;
+    r->bvh_seconds = info.bvh_seconds;
+    r->triangles = info.triangles;
+    r->lights = info.lights_point + info.lights_spot + info.lights_distant + info.lights_infinite +
+                info.lights_goniometric + info.lights_area_triangle + info.lights_area_rectangle +
+                info.lights_area_disk + info.lights_area_sphere;
+    pn_render_settings s = bc->settings;
+    s.threads = threads;
+    s.has_crop = 1;
+    memcpy(s.crop, bc->crop, sizeof s.crop);
+    pn_image first = NULL;
+    r->bit_identical = 1;
+    for (int i = 0; i < runs; i++) {
+        pn_image img = NULL;
+        double t0 = now();
+        pn_status st = pn_render(ctx, scene, &s, &img, &r->stats);
+        r->times[i] = now() - t0;
+        if (st != PN_OK) {
+            snprintf(r->error, sizeof r->error, "%s", pn_context_error_message(ctx));
+            pn_image_free(img);
+            pn_image_free(first);
+            pn_scene_free(scene);
+            pn_context_free(ctx);
+            return;
+        }
+        if (!first) first = img;
+        else {
+            if (!same_pixels(first, img)) r->bit_identical = 0;
+            pn_image_free(img);
+        }
+    }
+    r->runs = runs;
+    double sorted[MAX_RUNS];
+    memcpy(sorted, r->times, (size_t)runs * sizeof(double));
+    qsort(sorted, (size_t)runs, sizeof(double), cmp_double);
+    r->median = sorted[runs / 2];
+    r->min = sorted[0];
+    r->max = sorted[runs - 1];
+    pn_image ref = NULL, ref_crop = NULL;
+    if (bc->reference[0] && pn_image_read(ctx, bc->reference, &ref) == PN_OK) {
+        int W = pn_image_width(ref), H = pn_image_height(ref);
+        int x0 = (int)ceil((double)W * bc->crop[0]), x1 = (int)ceil((double)W * bc->crop[1]);
+        int y0 = (int)ceil((double)H * bc->crop[2]), y1 = (int)ceil((double)H * bc->crop[3]);
+        if (pn_image_crop(ctx, ref, x0, y0, x1 - x0, y1 - y0, &ref_crop) == PN_OK &&
+            pn_image_compare(ctx, ref_crop, first, &r->metrics, NULL) == PN_OK)
+            r->has_metrics = 1;
+        else
+            snprintf(r->error, sizeof r->error, "reference: %s", pn_context_error_message(ctx));
+    }
+    pn_image_free(ref_crop);
+    pn_image_free(ref);
+    pn_image_free(first);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+    r->ok = 1;
+}
+
+static int read_config(const char *path, bench_case **out, int *count) {
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        fprintf(stderr, "penumbra_bench: %s: %s\n", path, strerror(errno));
+        return 0;
+    }
+    char line[4096];
+    int n = 0, cap = 0, lineno = 0;
+    bench_case *cases = NULL;
+    while (fgets(line, sizeof line, f)) {
+        lineno++;
+        char *hash = strchr(line, '#');
+        if (hash) *hash = '\0';
+        bench_case bc;
+        memset(&bc, 0, sizeof bc);
+        char scene[1024], ref[1024];
+        int k = sscanf(line, "%127s %1023s %1023s %63s %255s", bc.name, scene, ref, bc.crop_text, bc.settings_text);
+        if (k <= 0) continue;
+        if (k != 5 || sscanf(bc.crop_text, "%f,%f,%f,%f", &bc.crop[0], &bc.crop[1], &bc.crop[2], &bc.crop[3]) != 4 ||
+            !parse_settings(bc.settings_text, &bc.settings)) {
+            fprintf(stderr, "penumbra_bench: %s:%d: expected NAME SCENE REFERENCE x0,x1,y0,y1 SETTINGS\n", path,
+                    lineno);
+            fclose(f);
+            free(cases);
+            return 0;
+        }
+        resolve(scene, bc.scene, sizeof bc.scene);
+        resolve(ref, bc.reference, sizeof bc.reference);
+        if (n == cap) {
+            cap = cap ? 2 * cap : 16;
+            bench_case *grown = realloc(cases, (size_t)cap * sizeof *cases);
+            if (!grown) {
+                fclose(f);
+                free(cases);
+                return 0;
+            }
+            cases = grown;
+        }
+        cases[n++] = bc;
+    }
+    fclose(f);
+    *out = cases;
+    *count = n;
+    return 1;
+}
+
+int main(int argc, char **argv) {
+    const char *config = "bench/bench.conf", *out_dir = "bench/results", *only = NULL;
+    int runs = 3, threads = 0;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--config") == 0 && i + 1 < argc) config = argv[++i];
+        else if (strcmp(argv[i], "--runs") == 0 && i + 1 < argc) runs = atoi(argv[++i]);
+        else if (strcmp(argv[i], "--threads") == 0 && i + 1 < argc) threads = atoi(argv[++i]);
+        else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc) out_dir = argv[++i];
+        else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) only = argv[++i];
+        else if (strcmp(argv[i], "--shared") == 0 && i + 1 < argc) shared_dir = argv[++i];
+        else {
+            fprintf(stderr, "usage: penumbra_bench [--config FILE] [--runs N] [--threads N] [--out DIR] "
+                            "[--only NAME] [--shared DIR]\n");
+            return 2;
+        }
+    }
+    if (runs < 1 || runs > MAX_RUNS) {
+        fprintf(stderr, "penumbra_bench: --runs must be 1..%d\n", MAX_RUNS);
+        return 2;
+    }
+    bench_case *cases = NULL;
+    int count = 0;
+    if (!read_config(config, &cases, &count)) return 3;
+    mkdir(out_dir, 0777);
+    char md_path[1100], json_path[1100];
+    snprintf(md_path, sizeof md_path, "%s/latest.md", out_dir);
+    snprintf(json_path, sizeof json_path, "%s/latest.json", out_dir);
+    FILE *md = fopen(md_path, "w"), *js = fopen(json_path, "w");
+    if (!md || !js) {
+        fprintf(stderr, "penumbra_bench: cannot write into %s: %s\n", out_dir, strerror(errno));
+        return 4;
+    }
+    fprintf(md, "| case | crop | settings | triangles | lights | time median (s) [min, max] | Mrays/s | "
+                "shadow rays/px | eye rays/px | peak MiB | relMSE vs pbrt-v4 | Embree share | identical runs |\n");
+    fprintf(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    fprintf(js, "{\n  \"penumbra\": \"%s\",\n  \"runs\": %d,\n  \"threads\": %d,\n  \"cases\": [", pn_version_string(),
+            runs, threads);
+    int first = 1;
+    for (int c = 0; c < count; c++) {
+        const bench_case *bc = &cases[c];
+        if (only && strcmp(only, bc->name) != 0) continue;
+        if (access(bc->scene, R_OK) != 0) {
+            fprintf(stderr, "penumbra_bench: %s: skipped (%s not found)\n", bc->name, bc->scene);
+            continue;
+        }
+        int fds[2];
+        if (pipe(fds) != 0) return 4;
+        fflush(NULL);
+        pid_t pid = fork();
+        if (pid == 0) {
+            close(fds[0]);
+            bench_result r;
+            run_case(bc, runs, threads, &r);
+            ssize_t w = write(fds[1], &r, sizeof r);
+            _exit(w == (ssize_t)sizeof r ? 0 : 1);
+        }
+        close(fds[1]);
+        bench_result r;
+        memset(&r, 0, sizeof r);
+        ssize_t got = read(fds[0], &r, sizeof r);
+        close(fds[0]);
+        int status = 0;
+        waitpid(pid, &status, 0);
+        if (got != (ssize_t)sizeof r || !r.ok) {
+            fprintf(stderr, "penumbra_bench: %s: failed: %s\n", bc->name, got == (ssize_t)sizeof r ? r.error : "crashed");
+            fprintf(md, "| %s | %s | %s | failed: %s |||||||||\n", bc->name, bc->crop_text, bc->settings_text,
+                    r.error);
+            continue;
+        }
+        double px = (double)r.stats.width * (double)r.stats.height;
+        double embree_share = r.stats.render_seconds > 0 ? r.stats.embree_seconds_estimate / r.stats.render_seconds : 0;
+        char relmse[64] = "n/a", relmse_json[64] = "null", rmse_json[64] = "null";
+        if (r.has_metrics) {
+            snprintf(relmse, sizeof relmse, "%.3g", r.metrics.relmse);
+            snprintf(relmse_json, sizeof relmse_json, "%.6g", r.metrics.relmse);
+            snprintf(rmse_json, sizeof rmse_json, "%.6g", r.metrics.rmse);
+        }
+        fprintf(md, "| %s | %s | %s | %llu | %u | %.3f [%.3f, %.3f] | %.2f | %.1f | %.1f | %.0f | %s | %.0f%% | %s |\n",
+                bc->name, bc->crop_text, bc->settings_text, (unsigned long long)r.triangles, r.lights, r.median, r.min,
+                r.max, r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
+                (double)r.stats.peak_memory_bytes / 1048576.0, relmse, 100.0 * embree_share,
+                r.bit_identical ? "yes" : "NO");
+        fprintf(js,
+                "%s\n    {\"name\": \"%s\", \"scene\": \"%s\", \"crop\": \"%s\", \"settings\": \"%s\", "
+                "\"width\": %d, \"height\": %d, \"pixels\": %.0f, \"triangles\": %llu, \"lights\": %u, "
+                "\"parse_seconds\": %.4f, \"bvh_seconds\": %.4f, \"render_seconds_median\": %.4f, "
+                "\"render_seconds_min\": %.4f, \"render_seconds_max\": %.4f, \"mrays_per_second\": %.3f, "
+                "\"shadow_rays_per_pixel\": %.3f, \"eye_rays_per_pixel\": %.3f, \"peak_memory_bytes\": %llu, "
+                "\"embree_share\": %.4f, \"relmse\": %s, \"rmse\": %s, \"bit_identical_runs\": %s}",
+                first ? "" : ",", bc->name, bc->scene, bc->crop_text, bc->settings_text, r.stats.width, r.stats.height,
+                px, (unsigned long long)r.triangles, r.lights, r.parse_seconds, r.bvh_seconds, r.median, r.min, r.max,
+                r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
+                (unsigned long long)r.stats.peak_memory_bytes, embree_share, relmse_json, rmse_json, r.bit_identical ? "true" : "false");
+        first = 0;
+        fprintf(stderr, "penumbra_bench: %s: %.3f s median, relMSE %s\n", bc->name, r.median,
+                r.has_metrics ? relmse : "n/a");
+    }
+    fprintf(js, "\n  ]\n}\n");
+    fclose(md);
+    fclose(js);
+    free(cases);
+    printf("wrote %s and %s\n", md_path, json_path);
+    return 0;
+}
