@@ -1,0 +1,2 @@
+# Core utilities: hashing, random numbers, thread pool.
+pn_add_test(test_core)
