@@ -143,8 +143,8 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
     pn_image ref = NULL, ref_crop = NULL;
     if (bc->reference[0] && pn_image_read(ctx, bc->reference, &ref) == PN_OK) {
         int W = pn_image_width(ref), H = pn_image_height(ref);
-        int x0 = (int)ceil((double)W * bc->crop[0]), x1 = (int)ceil((double)W * bc->crop[1]);
-        int y0 = (int)ceil((double)H * bc->crop[2]), y1 = (int)ceil((double)H * bc->crop[3]);
+        int x0 = (int)ceilf((float)W * bc->crop[0]), x1 = (int)ceilf((float)W * bc->crop[1]);
+        int y0 = (int)ceilf((float)H * bc->crop[2]), y1 = (int)ceilf((float)H * bc->crop[3]);
         if (pn_image_crop(ctx, ref, x0, y0, x1 - x0, y1 - y0, &ref_crop) == PN_OK &&
             pn_image_compare(ctx, ref_crop, first, &r->metrics, NULL) == PN_OK)
             r->has_metrics = 1;

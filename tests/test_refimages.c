@@ -47,8 +47,8 @@ static double render_relmse(const ref_case *rc, double scale, double *relmse_sca
         goto done;
     }
     int W = s.width, H = s.height;
-    int x0 = (int)ceil((double)W * rc->crop[0]), x1 = (int)ceil((double)W * rc->crop[1]);
-    int y0 = (int)ceil((double)H * rc->crop[2]), y1 = (int)ceil((double)H * rc->crop[3]);
+    int x0 = (int)ceilf((float)W * rc->crop[0]), x1 = (int)ceilf((float)W * rc->crop[1]);
+    int y0 = (int)ceilf((float)H * rc->crop[2]), y1 = (int)ceilf((float)H * rc->crop[3]);
     pn_image_metrics m;
     if (pn_image_crop(ctx, ref, x0, y0, x1 - x0, y1 - y0, &ref_crop) != PN_OK ||
         pn_image_compare(ctx, ref_crop, img, &m, NULL) != PN_OK) {

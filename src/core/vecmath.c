@@ -143,10 +143,11 @@ bool mat4_look_at(double ex, double ey, double ez, double lx, double ly, double 
 }
 
 vec3 mat4_apply_point(const mat4 *m, vec3 p) {
-    double x = m->m[0][0] * p.x + m->m[0][1] * p.y + m->m[0][2] * p.z + m->m[0][3];
-    double y = m->m[1][0] * p.x + m->m[1][1] * p.y + m->m[1][2] * p.z + m->m[1][3];
-    double z = m->m[2][0] * p.x + m->m[2][1] * p.y + m->m[2][2] * p.z + m->m[2][3];
-    double w = m->m[3][0] * p.x + m->m[3][1] * p.y + m->m[3][2] * p.z + m->m[3][3];
+    const double px = (double)p.x, py = (double)p.y, pz = (double)p.z;
+    double x = m->m[0][0] * px + m->m[0][1] * py + m->m[0][2] * pz + m->m[0][3];
+    double y = m->m[1][0] * px + m->m[1][1] * py + m->m[1][2] * pz + m->m[1][3];
+    double z = m->m[2][0] * px + m->m[2][1] * py + m->m[2][2] * pz + m->m[2][3];
+    double w = m->m[3][0] * px + m->m[3][1] * py + m->m[3][2] * pz + m->m[3][3];
     if (w != 1.0 && w != 0.0) {
         x /= w;
         y /= w;
@@ -156,15 +157,17 @@ vec3 mat4_apply_point(const mat4 *m, vec3 p) {
 }
 
 vec3 mat4_apply_vector(const mat4 *m, vec3 v) {
-    return v3((float)(m->m[0][0] * v.x + m->m[0][1] * v.y + m->m[0][2] * v.z),
-              (float)(m->m[1][0] * v.x + m->m[1][1] * v.y + m->m[1][2] * v.z),
-              (float)(m->m[2][0] * v.x + m->m[2][1] * v.y + m->m[2][2] * v.z));
+    const double vx = (double)v.x, vy = (double)v.y, vz = (double)v.z;
+    return v3((float)(m->m[0][0] * vx + m->m[0][1] * vy + m->m[0][2] * vz),
+              (float)(m->m[1][0] * vx + m->m[1][1] * vy + m->m[1][2] * vz),
+              (float)(m->m[2][0] * vx + m->m[2][1] * vy + m->m[2][2] * vz));
 }
 
 vec3 mat4_apply_normal(const mat4 *inv, vec3 n) {
-    return v3((float)(inv->m[0][0] * n.x + inv->m[1][0] * n.y + inv->m[2][0] * n.z),
-              (float)(inv->m[0][1] * n.x + inv->m[1][1] * n.y + inv->m[2][1] * n.z),
-              (float)(inv->m[0][2] * n.x + inv->m[1][2] * n.y + inv->m[2][2] * n.z));
+    const double nx = (double)n.x, ny = (double)n.y, nz = (double)n.z;
+    return v3((float)(inv->m[0][0] * nx + inv->m[1][0] * ny + inv->m[2][0] * nz),
+              (float)(inv->m[0][1] * nx + inv->m[1][1] * ny + inv->m[2][1] * nz),
+              (float)(inv->m[0][2] * nx + inv->m[1][2] * ny + inv->m[2][2] * nz));
 }
 
 double mat4_det3(const mat4 *m) {

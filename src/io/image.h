@@ -11,6 +11,8 @@
 #include "core/error.h"
 #include "penumbra/penumbra.h"
 
+#include <stdio.h>
+
 typedef struct pn_image_layer {
     char *name;   /* "" for beauty; AOV names such as "shadow_rays", "normal" */
     int channels; /* 1 or 3 */
@@ -40,5 +42,16 @@ pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_er
  * after multiplying by 2^exposure and clamping). Writes a temporary file in the same folder and
  * renames it, so a failure leaves no partial file at `path`. */
 pn_status pn_image_write_file(pn_image image, const char *path, float exposure, pn_err *err);
+
+/* Format back ends, called by io/write.c. Readers get a file opened for reading and positioned
+ * at its start; writers get a new, empty file opened for writing (the EXR writer uses pwrite on
+ * fileno(file) and leaves the FILE buffer untouched). `name` is the path shown in messages,
+ * which always read "name: message". */
+pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err);
+pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err);
+pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, pn_err *err);
+pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err);
+pn_status pn_pfm_write(pn_image image, FILE *file, const char *name, pn_err *err);
+pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *name, pn_err *err);
 
 #endif

@@ -23,11 +23,43 @@ typedef enum pn_spectrum_use {
 pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spectrum_use use,
                         vec3 *out, bool *found, pn_err *err);
 
+/* A spectral quantity read as one number at wavelength lambda_nm: a float, a numeric or file
+ * spectrum evaluated there (end values held outside its range), a named spectrum's green value
+ * (glasses: their index at 550 nm), or the green channel of an rgb. Absent: *out = def. */
+pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double lambda_nm, double def,
+                                   double *out, bool *found, pn_err *err);
+
+/* RGB of a named pbrt-v4 spectrum (metal-Cu-eta, glass-BK7, stdillum-D65, ...); false if unknown. */
+bool pn_named_spectrum_rgb(const char *name, vec3 *out);
+
+/* Linear sRGB of a blackbody at `kelvin`, normalised to luminance 1. */
+vec3 pn_blackbody_rgb(double kelvin);
+
+/* Linear sRGB of a piecewise linear spectrum given as (lambda, value) pairs (value_count numbers,
+ * increasing lambdas), converted as pn_params_rgb does for `use`. */
+vec3 pn_spectrum_pairs_rgb(const double *pairs, int value_count, pn_spectrum_use use);
+
+/* The shared image table (scene->images): decodes `path` (already resolved) with `gamma` as
+ * pn_image_read_file takes it, or returns the index of the same file decoded with the same gamma
+ * earlier. On failure err holds the image reader's message (without a location). */
+pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma, int *out_index,
+                         pn_err *err);
+
 /* A material input that is a constant or a named texture ("texture name" "tex"): float (is_float,
  * value in .x of the texref) or RGB/spectrum. Undefined texture names are an error at the
  * parameter's location. Absent: constant `def`. */
 pn_status pn_params_texref(struct pn_scene_s *scene, const pn_params *ps, const char *name,
                            bool is_float, vec3 def, pn_texref *out, pn_err *err);
+
+/* pn_params_texref with the conversion of constant RGB/spectrum values chosen by `use`
+ * (pn_params_texref uses PN_SPECTRUM_ALBEDO, clamping with a warning; eta and k of conductors
+ * need PN_SPECTRUM_UNBOUNDED). */
+pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, const char *name,
+                               bool is_float, vec3 def, pn_spectrum_use use, pn_texref *out,
+                               pn_err *err);
+
+/* Index of the last texture called `name` of the given kind (float or spectrum), or -1. */
+int pn_scene_find_texture_typed(const struct pn_scene_s *scene, const char *name, bool is_float);
 
 /* Texture "name" "float"|"spectrum" "class" params: appends to scene->textures (and decodes image
  * files into scene->images, sharing identical files). loc is the directive's location. */

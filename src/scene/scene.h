@@ -9,6 +9,7 @@
 #ifndef PN_SCENE_SCENE_H
 #define PN_SCENE_SCENE_H
 
+#include "core/error.h"
 #include "core/vecmath.h"
 #include "penumbra/penumbra.h"
 

@@ -1,0 +1,182 @@
+/* ldr.c — everything stb_image can read (PNG, JPEG, TGA, BMP, HDR, ...) and PNG writing.
+ *
+ * This is the one file that compiles the stb_image and stb_image_write implementations. Radiance
+ * HDR files come back linear as they are stored; 8- and 16-bit files are converted to linear
+ * with the `gamma` rule of image.h (0 = sRGB curve, 1 = v / max, other = (v / max)^gamma).
+ * Greyscale is replicated into RGB and alpha is dropped. PNG output is the beauty layer scaled by
+ * 2^exposure, sRGB-encoded, clamped to [0, 1] and rounded to 8 bits.
+ */
+#include "io/image.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdouble-promotion"
+#pragma GCC diagnostic ignored "-Wshadow"
+#pragma GCC diagnostic ignored "-Wmissing-prototypes"
+#pragma GCC diagnostic ignored "-Wstrict-prototypes"
+#pragma GCC diagnostic ignored "-Wsign-compare"
+#pragma GCC diagnostic ignored "-Wunused-function"
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#pragma GCC diagnostic ignored "-Wunused-but-set-variable"
+#pragma GCC diagnostic ignored "-Wimplicit-fallthrough"
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
+#pragma GCC diagnostic ignored "-Wtype-limits"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_NO_GIF
+#define STBI_NO_PIC
+#define STBI_NO_PNM
+#include "stb_image.h"
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#include "stb_image_write.h"
+#pragma GCC diagnostic pop
+
+/* The sRGB transfer curve and its inverse, on values in [0, 1]. */
+static float pn_srgb_to_linear(float v) {
+    return v <= 0.04045f ? v / 12.92f : powf((v + 0.055f) / 1.055f, 2.4f);
+}
+
+static float pn_linear_to_srgb(float v) {
+    return v <= 0.0031308f ? v * 12.92f : 1.055f * powf(v, 1.0f / 2.4f) - 0.055f;
+}
+
+/* Converts an integer sample in [0, 1] (already normalised) with the image.h gamma rule. */
+static float pn_decode_sample(float v, float gamma) {
+    if (gamma == 0.0f) return pn_srgb_to_linear(v);
+    if (gamma == 1.0f) return v;
+    return powf(v, gamma);
+}
+
+/* A short name for the file type, judged from its first bytes, for error messages. */
+static const char *pn_ldr_kind(FILE *file) {
+    unsigned char b[8] = {0};
+    long pos = ftell(file);
+    size_t n = fread(b, 1, sizeof b, file);
+    if (pos >= 0) fseek(file, pos, SEEK_SET);
+    if (n >= 4 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G') return "PNG";
+    if (n >= 2 && b[0] == 0xff && b[1] == 0xd8) return "JPEG";
+    if (n >= 2 && b[0] == 'B' && b[1] == 'M') return "BMP";
+    if (n >= 2 && b[0] == '#' && b[1] == '?') return "Radiance HDR";
+    return NULL;
+}
+
+/* Moves interleaved samples with `comp` channels into the RGB beauty layer: 1 or 2 channels
+ * are grey (plus alpha), 3 or 4 are RGB (plus alpha). `kind` is the sample type: 8 or 16-bit
+ * integers (converted with `gamma`) or 32 for linear floats. */
+static void pn_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind,
+                        float gamma) {
+    /* 8-bit files use a table of all 256 values. */
+    float table[256];
+    if (kind == 8) {
+        for (int i = 0; i < 256; i++) table[i] = pn_decode_sample((float)i / 255.0f, gamma);
+    }
+    for (size_t p = 0; p < pixels; p++) {
+        for (int c = 0; c < 3; c++) {
+            size_t src = p * (size_t)comp + (size_t)(comp >= 3 ? c : 0);
+            float v;
+            if (kind == 8) {
+                v = table[((const unsigned char *)data)[src]];
+            } else if (kind == 16) {
+                v = pn_decode_sample((float)((const uint16_t *)data)[src] / 65535.0f, gamma);
+            } else {
+                v = ((const float *)data)[src];
+            }
+            rgb[p * 3 + (size_t)c] = v;
+        }
+    }
+}
+
+pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, pn_err *err) {
+    *out = NULL;
+    const char *kind_name = pn_ldr_kind(file);
+    int width = 0, height = 0, comp = 0, kind;
+    void *data;
+    if (stbi_is_hdr_from_file(file)) {
+        kind = 32;
+        data = stbi_loadf_from_file(file, &width, &height, &comp, 0);
+    } else if (stbi_is_16_bit_from_file(file)) {
+        kind = 16;
+        data = stbi_load_from_file_16(file, &width, &height, &comp, 0);
+    } else {
+        kind = 8;
+        data = stbi_load_from_file(file, &width, &height, &comp, 0);
+    }
+    if (!data) {
+        const char *reason = stbi_failure_reason();
+        if (!reason || !reason[0]) reason = "corrupt or truncated data";
+        if (kind_name) {
+            return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid %s file: %s", name,
+                              kind_name, reason);
+        }
+        return pn_err_set(err, PN_ERROR_BAD_INPUT,
+                          "%s: not a supported image file (%s; use EXR, PFM, PNG, JPEG, TGA, BMP "
+                          "or HDR)",
+                          name, reason);
+    }
+    if (width <= 0 || height <= 0 || comp < 1 || comp > 4) {
+        stbi_image_free(data);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid image file: bad layout",
+                          name);
+    }
+    pn_image image = pn_image_create(width, height);
+    if (!image) {
+        stbi_image_free(data);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name,
+                          width, height);
+    }
+    pn_fill_rgb(image->layers[0].data, (size_t)width * (size_t)height, comp, data, kind, gamma);
+    stbi_image_free(data);
+    *out = image;
+    return PN_OK;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* PNG writing */
+
+typedef struct pn_png_sink {
+    FILE *file;
+    int failed;
+    int error;
+} pn_png_sink;
+
+static void pn_png_sink_write(void *context, void *data, int size) {
+    pn_png_sink *sink = context;
+    if (sink->failed || size <= 0) return;
+    if (fwrite(data, 1, (size_t)size, sink->file) != (size_t)size) {
+        sink->failed = 1;
+        sink->error = errno ? errno : EIO;
+    }
+}
+
+/* One linear value to an 8-bit sRGB code; NaN becomes 0. */
+static unsigned char pn_encode_8bit(float v) {
+    if (!(v > 0.0f)) return 0;
+    if (v >= 1.0f) return 255;
+    float s = pn_linear_to_srgb(v);
+    int code = (int)(s * 255.0f + 0.5f);
+    return (unsigned char)(code < 0 ? 0 : code > 255 ? 255 : code);
+}
+
+pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *name, pn_err *err) {
+    const int width = image->width, height = image->height;
+    size_t count = (size_t)width * (size_t)height * 3;
+    unsigned char *pixels = malloc(count);
+    if (!pixels) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", name);
+
+    const float scale = exp2f(exposure);
+    const float *rgb = image->layers[0].data;
+    for (size_t i = 0; i < count; i++) pixels[i] = pn_encode_8bit(rgb[i] * scale);
+
+    pn_png_sink sink = {file, 0, 0};
+    int ok = stbi_write_png_to_func(pn_png_sink_write, &sink, width, height, 3, pixels,
+                                    width * 3);
+    free(pixels);
+    if (sink.failed) return pn_err_set(err, PN_ERROR_IO, "%s: %s", name, strerror(sink.error));
+    if (!ok) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: PNG encoding failed", name);
+    return PN_OK;
+}

@@ -1,0 +1,255 @@
+/* lightdefs.c — pbrt-v4 LightSource and AreaLightSource directives as scene records.
+ *
+ * Light spectra are read with PN_SPECTRUM_ILLUMINANT (rgb as given; blackbody and other spectra
+ * normalised to luminance 1, as pbrt-v4 divides every light spectrum by its photometric value).
+ *
+ *  point        I (default 1) * scale at world_from_light * from (default origin). "power" P
+ *               (when > 0) rescales the intensity to I * scale * P / (4 pi luminance(I)).
+ *  spot         as point, aimed from "from" (0,0,0) to "to" (0,0,1); cone of "coneangle" (30
+ *               degrees) with a smooth falloff over the last "conedelta" (5) degrees:
+ *               cos_total_width = cos(coneangle), cos_falloff_start = cos(coneangle - conedelta).
+ *               "power" P: I * scale * P / (2 pi ((1 - cosStart) + (cosStart - cosEnd) / 2) lum(I)).
+ *  distant      L * scale arriving from world_from_light * (from - to) (defaults (0,0,0) and
+ *               (0,0,1)). "illuminance" E rescales to L * scale * E / luminance(L); "power" is
+ *               not meaningful for it and is ignored with a warning.
+ *  infinite     constant "L" * scale, or the image "filename" scaled by "scale". pbrt-v4 expects
+ *               an equal-area octahedral (square) image; a non-square image is read as a
+ *               latitude-longitude map with a warning. "illuminance" E is honoured for a constant
+ *               L (L * scale * E / (pi luminance(L)), the irradiance of the upper hemisphere) and
+ *               ignored with a warning for images. "portal" is ignored with a warning.
+ *  goniometric  I * scale at world_from_light * origin, with its image recorded (the renderer
+ *               treats it as a point light); "power" is ignored with a warning.
+ *  projection   rejected as unsupported.
+ *
+ * AreaLightSource "diffuse": radiance = L * scale (default L = 1), "twosided", and "power" left
+ * for pn_area_light_apply_power once the shape's area is known. An emission image ("filename")
+ * is not supported: L is used instead, with a warning.
+ */
+#include "scene/build.h"
+
+#include "scene/parser_internal.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PN_PI_D 3.14159265358979323846
+
+static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) {
+    char msg[768];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    pn_scene_warn(scene, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
+}
+
+static pn_status error_at(pn_srcloc loc, pn_status status, pn_err *err, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+
+static pn_status error_at(pn_srcloc loc, pn_status status, pn_err *err, const char *fmt, ...) {
+    char msg[768];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    return pn_err_set(err, status, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
+}
+
+/* Warns about a parameter that is understood but has no effect here. */
+static void warn_ignored(struct pn_scene_s *scene, const pn_params *ps, const char *name, const char *why) {
+    const pn_param *p = pn_params_find(ps, name);
+    if (p) warn_at(scene, p->loc, "\"%s\" %s", name, why);
+}
+
+/* Reads "power" (or another positive scalar); 0 when absent or not positive. */
+static pn_status read_positive(const pn_params *ps, const char *name, double *out, pn_err *err) {
+    double v = -1.0;
+    pn_status st = pn_params_float(ps, name, -1.0, &v, err);
+    if (st != PN_OK) return st;
+    *out = v > 0.0 && isfinite(v) ? v : 0.0;
+    return PN_OK;
+}
+
+/* Intensity rescaled to emit `power` over the solid-angle factor k_e. */
+static vec3 apply_power(vec3 intensity, vec3 spectrum, double power, double k_e) {
+    float lum = v3_luminance(spectrum);
+    if (!(power > 0.0) || !(lum > 0.0f) || !(k_e > 0.0)) return intensity;
+    return v3_scale(intensity, (float)(power / (k_e * (double)lum)));
+}
+
+static pn_status load_image_param(struct pn_scene_s *scene, const pn_params *ps, const char *file, int *index,
+                                  pn_err *err) {
+    char *path = pn_path_resolve(ps->base_dir, file);
+    if (!path) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    pn_err ierr;
+    pn_err_init(&ierr);
+    pn_status st = pn_scene_image(scene, path, 0.0f, index, &ierr);
+    free(path);
+    if (st == PN_ERROR_OUT_OF_MEMORY) return pn_err_set(err, st, "%s", ierr.message);
+    if (st != PN_OK)
+        return pn_param_error(pn_params_find(ps, "filename"), err, "cannot read light image: %s", ierr.message);
+    return PN_OK;
+}
+
+pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
+                             const mat4 *world_from_light, pn_err *err) {
+    pn_light_def d;
+    memset(&d, 0, sizeof d);
+    d.image = -1;
+    d.world_from_light = *world_from_light;
+    if (!mat4_is_finite(*world_from_light) || !mat4_inverse(*world_from_light, &d.light_from_world))
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "LightSource \"%s\" under a singular transform", type);
+
+    pn_status st = PN_OK;
+    const vec3 one = v3(1, 1, 1);
+    double scale = 1.0, power = 0.0;
+    if (strcmp(type, "projection") == 0)
+        return error_at(ps->loc, PN_ERROR_UNSUPPORTED, err, "projection lights are not supported");
+    if (strcmp(type, "point") == 0 || strcmp(type, "spot") == 0 || strcmp(type, "goniometric") == 0) {
+        vec3 I;
+        vec3 from = v3(0, 0, 0), to = v3(0, 0, 1);
+        st = pn_params_rgb(ps, "I", one, PN_SPECTRUM_ILLUMINANT, &I, NULL, err);
+        if (st == PN_OK) st = pn_params_float(ps, "scale", 1.0, &scale, err);
+        if (st == PN_OK) st = read_positive(ps, "power", &power, err);
+        if (st == PN_OK && strcmp(type, "goniometric") != 0) st = pn_params_vec3(ps, "from", from, &from, err);
+        if (st != PN_OK) return st;
+        d.intensity = v3_scale(I, (float)scale);
+        d.position = mat4_apply_point(world_from_light, from);
+        if (strcmp(type, "point") == 0) {
+            d.kind = PN_LIGHTDEF_POINT;
+            d.intensity = apply_power(d.intensity, I, power, 4.0 * PN_PI_D);
+        } else if (strcmp(type, "spot") == 0) {
+            double cone = 30.0, delta = 5.0;
+            st = pn_params_vec3(ps, "to", to, &to, err);
+            if (st == PN_OK) st = pn_params_float(ps, "coneangle", 30.0, &cone, err);
+            if (st == PN_OK) st = pn_params_float(ps, "conedelta", 5.0, &delta, err);
+            if (st != PN_OK) return st;
+            vec3 axis = mat4_apply_vector(world_from_light, v3_sub(to, from));
+            if (!(v3_length(axis) > 0.0f) || !v3_is_finite(axis))
+                return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "spot light with \"from\" equal to \"to\"");
+            d.kind = PN_LIGHTDEF_SPOT;
+            d.direction = v3_normalize(axis);
+            double rad = PN_PI_D / 180.0;
+            double cos_end = cos(cone * rad), cos_start = cos((cone - delta) * rad);
+            d.cos_total_width = (float)cos_end;
+            d.cos_falloff_start = (float)cos_start;
+            double k_e = 2.0 * PN_PI_D * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0);
+            d.intensity = apply_power(d.intensity, I, power, k_e);
+        } else {
+            d.kind = PN_LIGHTDEF_GONIOMETRIC;
+            const char *file = NULL;
+            st = pn_params_string(ps, "filename", "", &file, err);
+            if (st != PN_OK) return st;
+            if (file[0]) {
+                st = load_image_param(scene, ps, file, &d.image, err);
+                if (st != PN_OK) return st;
+            }
+            if (power > 0.0)
+                warn_ignored(scene, ps, "power", "of a goniometric light is not supported; ignored");
+        }
+    } else if (strcmp(type, "distant") == 0) {
+        vec3 L, from = v3(0, 0, 0), to = v3(0, 0, 1);
+        double illuminance = 0.0;
+        st = pn_params_rgb(ps, "L", one, PN_SPECTRUM_ILLUMINANT, &L, NULL, err);
+        if (st == PN_OK) st = pn_params_float(ps, "scale", 1.0, &scale, err);
+        if (st == PN_OK) st = pn_params_vec3(ps, "from", from, &from, err);
+        if (st == PN_OK) st = pn_params_vec3(ps, "to", to, &to, err);
+        if (st == PN_OK) st = read_positive(ps, "illuminance", &illuminance, err);
+        if (st != PN_OK) return st;
+        vec3 w = mat4_apply_vector(world_from_light, v3_sub(from, to));
+        if (!(v3_length(w) > 0.0f) || !v3_is_finite(w))
+            return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "distant light with \"from\" equal to \"to\"");
+        d.kind = PN_LIGHTDEF_DISTANT;
+        d.direction = v3_normalize(w);
+        d.intensity = apply_power(v3_scale(L, (float)scale), L, illuminance, 1.0);
+        warn_ignored(scene, ps, "power", "is not supported for distant lights (use \"illuminance\"); ignored");
+    } else if (strcmp(type, "infinite") == 0) {
+        vec3 L;
+        bool has_L = false;
+        const char *file = NULL;
+        double illuminance = 0.0;
+        st = pn_params_rgb(ps, "L", one, PN_SPECTRUM_ILLUMINANT, &L, &has_L, err);
+        if (st == PN_OK) st = pn_params_float(ps, "scale", 1.0, &scale, err);
+        if (st == PN_OK) st = pn_params_string(ps, "filename", "", &file, err);
+        if (st == PN_OK) st = read_positive(ps, "illuminance", &illuminance, err);
+        if (st != PN_OK) return st;
+        d.kind = PN_LIGHTDEF_INFINITE;
+        warn_ignored(scene, ps, "portal", "is not supported; the infinite light is sampled without its portal");
+        if (file[0]) {
+            if (has_L)
+                return error_at(ps->loc, PN_ERROR_BAD_INPUT, err,
+                                "infinite light: \"L\" and \"filename\" cannot both be given");
+            st = load_image_param(scene, ps, file, &d.image, err);
+            if (st != PN_OK) return st;
+            const pn_texture_image *img = &scene->images[d.image];
+            d.equal_area = img->width == img->height;
+            if (!d.equal_area) {
+                const pn_param *p = pn_params_find(ps, "filename");
+                warn_at(scene, p ? p->loc : ps->loc,
+                        "environment image \"%s\" is %dx%d, not square (pbrt-v4's equal-area octahedral layout); "
+                        "read as a latitude-longitude map",
+                        file, img->width, img->height);
+            }
+            d.intensity = v3((float)scale, (float)scale, (float)scale);
+            if (illuminance > 0.0)
+                warn_ignored(scene, ps, "illuminance", "of an image infinite light is not supported; ignored");
+        } else {
+            d.intensity = apply_power(v3_scale(L, (float)scale), L, illuminance, PN_PI_D);
+        }
+    } else {
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "unknown light type \"%s\"", type);
+    }
+    if (!v3_is_finite(d.intensity) || !v3_is_finite(d.position))
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "LightSource \"%s\" has non-finite values", type);
+
+    char source[512];
+    snprintf(source, sizeof source, "%s:%d", ps->loc.file ? ps->loc.file : "?", ps->loc.line);
+    size_t n = strlen(source) + 1;
+    d.source = malloc(n);
+    if (!d.source ||
+        !pn_grow_for_append((void **)&scene->light_defs, scene->light_def_count, sizeof *scene->light_defs)) {
+        free(d.source);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a light");
+    }
+    memcpy(d.source, source, n);
+    scene->light_defs[scene->light_def_count++] = d;
+    return PN_OK;
+}
+
+pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
+                                  pn_area_light_desc *out, pn_err *err) {
+    memset(out, 0, sizeof *out);
+    if (strcmp(type, "diffuse") != 0)
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "unknown area light type \"%s\" (only \"diffuse\")", type);
+    vec3 L;
+    double scale = 1.0, power = 0.0;
+    bool two_sided = false;
+    const char *file = NULL;
+    pn_status st = pn_params_rgb(ps, "L", v3(1, 1, 1), PN_SPECTRUM_ILLUMINANT, &L, NULL, err);
+    if (st == PN_OK) st = pn_params_float(ps, "scale", 1.0, &scale, err);
+    if (st == PN_OK) st = pn_params_bool(ps, "twosided", false, &two_sided, err);
+    if (st == PN_OK) st = read_positive(ps, "power", &power, err);
+    if (st == PN_OK) st = pn_params_string(ps, "filename", "", &file, err);
+    if (st != PN_OK) return st;
+    if (file[0])
+        warn_ignored(scene, ps, "filename", "(an emission image) is not supported; the constant \"L\" is used");
+    out->emission.radiance = v3_scale(L, (float)scale);
+    out->emission.two_sided = two_sided;
+    out->power = power;
+    out->luminance_of_L = v3_luminance(L);
+    if (!v3_is_finite(out->emission.radiance))
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "AreaLightSource has non-finite radiance");
+    return PN_OK;
+}
+
+void pn_area_light_apply_power(pn_area_light_desc *desc, double area) {
+    if (!(desc->power > 0.0) || !(area > 0.0) || !(desc->luminance_of_L > 0.0f)) return;
+    double k = PN_PI_D * (desc->emission.two_sided ? 2.0 : 1.0) * area * (double)desc->luminance_of_L;
+    desc->emission.radiance = v3_scale(desc->emission.radiance, (float)(desc->power / k));
+}

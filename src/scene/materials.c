@@ -1,0 +1,552 @@
+/* materials.c — mapping pbrt-v4 materials onto penumbra's reflection models.
+ *
+ * penumbra has four models (scene.h): LAMBERT_BLINN (kd/pi + ks (n+2)/(2 pi) cos^n), MIRROR,
+ * DIELECTRIC (smooth, eye rays only) and INTERFACE. Every pbrt-v4 material type is mapped here,
+ * and the material's description says what was done:
+ *
+ *   pbrt type            penumbra
+ *   -------------------  ------------------------------------------------------------------
+ *   diffuse              LAMBERT kd = reflectance (default 0.5), ks = 0
+ *   coateddiffuse        LAMBERT kd = reflectance (0.5) + BLINN ks = F0 of the coating,
+ *                        ((eta - 1) / (eta + 1))^2 (eta default 1.5 -> 0.04), n from roughness
+ *   conductor            smooth (alpha < 1e-3): MIRROR, specular = F0 of the metal;
+ *                        rough: BLINN ks = F0, kd = 0, n from roughness. F0 per channel is
+ *                        ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2) from eta, k (default
+ *                        metal-Cu), or "reflectance" when given
+ *   coatedconductor      BLINN ks = F0 of the conductor (conductor.eta / conductor.k or
+ *                        reflectance), kd = 0, n from the interface roughness
+ *   dielectric,          DIELECTRIC with eta (a float, or a spectrum's value at 550 nm; default
+ *   thindielectric       1.5), white; a rough dielectric is rendered smooth, with a warning
+ *   diffusetransmission  LAMBERT kd = reflectance (default 0.25) * scale; transmission dropped
+ *                        with a warning
+ *   mix                  the input material with the larger weight ("amount" > 0.5 picks the
+ *                        second one), with a warning
+ *   measured, hair,      LAMBERT substitutes with a warning: kd = 0.5 (measured), the hair
+ *   subsurface           "color" or 0.3 (hair), "reflectance" or 0.5 (subsurface)
+ *   interface            INTERFACE
+ *
+ * Roughness: "uroughness" / "vroughness" (each falling back to "roughness", default 0) are
+ * averaged; with "remaproughness" (default true) alpha = sqrt(roughness) as pbrt-v4's
+ * TrowbridgeReitz RoughnessToAlpha does, else alpha = roughness. The Blinn–Phong exponent with
+ * the same highlight width as a microfacet lobe of width alpha is n = 2 / alpha^2 - 2, clamped
+ * to [1, 10000]; alpha = 0 (perfectly smooth) gives n = 10000. A roughness given as a texture
+ * uses the texture's value when it is constant, else 0.5 with a warning (the exponent is one
+ * number per material).
+ *
+ * Bump and normal maps ("displacement", "normalmap") are ignored with a warning. Parameters of
+ * the layered models that have no counterpart here (thickness, albedo, g, maxdepth, nsamples)
+ * are accepted silently.
+ */
+#include "scene/build.h"
+
+#include "scene/parser_internal.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PN_BLINN_MAX_EXPONENT 10000.0
+#define PN_SMOOTH_ALPHA 1e-3
+
+static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) {
+    char msg[768];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    pn_scene_warn(scene, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
+}
+
+static char *dup_string(const char *s) {
+    size_t n = strlen(s) + 1;
+    char *d = malloc(n);
+    if (d) memcpy(d, s, n);
+    return d;
+}
+
+/* What is being built: the material, its label for messages and the description pieces. */
+typedef struct builder {
+    struct pn_scene_s *scene;
+    const pn_params *ps;
+    const char *label; /* the name, or "Material" for anonymous ones */
+    pn_material m;
+    char model[384];  /* "Lambert kd=0.5 + Blinn ks=0.04 n=98" */
+    char note[512];   /* "(roughness 0.1)" */
+} builder;
+
+/* ---- small helpers ------------------------------------------------------------------------ */
+
+static void fmt_rgb(char *buf, size_t size, vec3 c) {
+    if (c.x == c.y && c.y == c.z)
+        snprintf(buf, size, "%.4g", (double)c.x);
+    else
+        snprintf(buf, size, "(%.4g, %.4g, %.4g)", (double)c.x, (double)c.y, (double)c.z);
+}
+
+static void fmt_ref(const struct pn_scene_s *scene, char *buf, size_t size, pn_texref r) {
+    if (r.texture >= 0 && r.texture < scene->texture_count)
+        snprintf(buf, size, "texture '%s'", scene->textures[r.texture].name ? scene->textures[r.texture].name : "?");
+    else
+        fmt_rgb(buf, size, r.value);
+}
+
+static pn_texref constant_ref(vec3 v) {
+    pn_texref r;
+    r.texture = -1;
+    r.value = v;
+    return r;
+}
+
+/* The value of a texref when it must be one number: constants, constant textures and scale
+ * chains of constants are exact; anything else gives `fallback` and *varies = true. */
+static vec3 texref_constant(const struct pn_scene_s *scene, pn_texref r, vec3 fallback, bool *varies) {
+    if (r.texture < 0 || r.texture >= scene->texture_count) return r.value;
+    const pn_texture *t = &scene->textures[r.texture];
+    if (t->kind == PN_TEXTURE_CONSTANT) return t->value;
+    if (t->kind == PN_TEXTURE_SCALE) {
+        bool va = false, vb = false;
+        vec3 a = texref_constant(scene, t->a, fallback, &va);
+        vec3 b = texref_constant(scene, t->b, fallback, &vb);
+        if (!va && !vb) return v3_mul(a, b);
+    }
+    *varies = true;
+    return fallback;
+}
+
+static const pn_param *find_param(const pn_params *ps, const char *name) { return pn_params_find(ps, name); }
+
+/* Reads and ignores parameters that have no counterpart in penumbra's models. */
+static void accept_silently(const pn_params *ps, const char *const *names, size_t n) {
+    for (size_t i = 0; i < n; i++) (void)find_param(ps, names[i]);
+}
+
+static void consume_all(const pn_params *ps) {
+    for (int i = 0; i < ps->count; i++) (void)find_param(ps, ps->items[i].name);
+}
+
+/* Warns about bump / normal maps, which penumbra does not apply. */
+static void warn_bump(builder *b) {
+    const char *names[] = {"displacement", "normalmap"};
+    for (int i = 0; i < 2; i++) {
+        const pn_param *p = find_param(b->ps, names[i]);
+        if (p) warn_at(b->scene, p->loc, "%s: \"%s\" (bump mapping) is ignored", b->label, names[i]);
+    }
+}
+
+/* One float input that may be a texture, reduced to a number. */
+static pn_status float_input(builder *b, const char *name, double def, double *out, bool *found, pn_err *err) {
+    const pn_param *p = find_param(b->ps, name);
+    if (found) *found = p != NULL;
+    *out = def;
+    if (!p) return PN_OK;
+    pn_texref r;
+    pn_status st = pn_params_texref(b->scene, b->ps, name, true, v3((float)def, (float)def, (float)def), &r, err);
+    if (st != PN_OK) return st;
+    bool varies = false;
+    vec3 v = texref_constant(b->scene, r, v3(0.5f, 0.5f, 0.5f), &varies);
+    if (varies)
+        warn_at(b->scene, p->loc, "%s: \"%s\" is a varying texture; the constant 0.5 is used instead", b->label, name);
+    *out = v.x;
+    return PN_OK;
+}
+
+/* Roughness with pbrt-v4's parameter names under `prefix` ("" or "interface." / "conductor."),
+ * as the average roughness and the microfacet alpha. */
+static pn_status read_roughness(builder *b, const char *prefix, double *roughness, double *alpha, pn_err *err) {
+    char un[64], vn[64], rn[64];
+    snprintf(un, sizeof un, "%suroughness", prefix);
+    snprintf(vn, sizeof vn, "%svroughness", prefix);
+    snprintf(rn, sizeof rn, "%sroughness", prefix);
+    double r = 0.0, u = 0.0, v = 0.0;
+    bool has_u = false, has_v = false;
+    pn_status st = float_input(b, rn, 0.0, &r, NULL, err);
+    if (st == PN_OK) st = float_input(b, un, r, &u, &has_u, err);
+    if (st == PN_OK) st = float_input(b, vn, r, &v, &has_v, err);
+    if (st != PN_OK) return st;
+    if (!has_u) u = r;
+    if (!has_v) v = r;
+    bool remap = true;
+    st = pn_params_bool(b->ps, "remaproughness", true, &remap, err);
+    if (st != PN_OK) return st;
+    double ru = fmax(0.0, u), rv = fmax(0.0, v);
+    double au = remap ? sqrt(ru) : ru, av = remap ? sqrt(rv) : rv;
+    *roughness = 0.5 * (ru + rv);
+    *alpha = 0.5 * (au + av);
+    return PN_OK;
+}
+
+/* Blinn–Phong exponent for a microfacet alpha; *clamped tells whether the formula was cut. */
+static double blinn_exponent(double alpha, bool *clamped) {
+    *clamped = false;
+    if (!(alpha > 0.0)) {
+        *clamped = true;
+        return PN_BLINN_MAX_EXPONENT;
+    }
+    double n = 2.0 / (alpha * alpha) - 2.0;
+    if (n > PN_BLINN_MAX_EXPONENT) {
+        *clamped = true;
+        return PN_BLINN_MAX_EXPONENT;
+    }
+    return n < 1.0 ? 1.0 : n;
+}
+
+static double dielectric_f0(double eta) {
+    double r = (eta - 1.0) / (eta + 1.0);
+    return r * r;
+}
+
+static float conductor_f0(float eta, float k) {
+    double e = eta, kk = k;
+    double num = (e - 1.0) * (e - 1.0) + kk * kk, den = (e + 1.0) * (e + 1.0) + kk * kk;
+    return den > 0.0 ? (float)(num / den) : 1.0f;
+}
+
+static void describe_roughness(char *out, size_t size, double roughness, double alpha, double n, bool clamped) {
+    if (!(alpha > 0.0))
+        snprintf(out, size, "(roughness 0: treated as very sharp, n=%g)", n);
+    else if (clamped)
+        snprintf(out, size, "(roughness %g, alpha %.3g: n clamped to %g)", roughness, alpha, n);
+    else
+        snprintf(out, size, "(roughness %g, alpha %.3g)", roughness, alpha);
+}
+
+/* ---- the types -------------------------------------------------------------------------- */
+
+static void set_lambert(builder *b, pn_texref kd) {
+    b->m.kind = PN_MATERIAL_LAMBERT_BLINN;
+    b->m.kd = kd;
+    b->m.ks = constant_ref(v3(0, 0, 0));
+    b->m.exponent = 1.0f;
+    char s[128];
+    fmt_ref(b->scene, s, sizeof s, kd);
+    snprintf(b->model, sizeof b->model, "Lambert kd=%s", s);
+}
+
+static pn_status map_diffuse(builder *b, pn_err *err) {
+    pn_texref kd;
+    pn_status st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+    if (st != PN_OK) return st;
+    set_lambert(b, kd);
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_coateddiffuse(builder *b, pn_err *err) {
+    pn_texref kd;
+    pn_status st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+    double roughness = 0, alpha = 0, eta = 1.5;
+    if (st == PN_OK) st = read_roughness(b, "", &roughness, &alpha, err);
+    if (st == PN_OK) st = pn_params_spectrum_value(b->ps, "eta", 550.0, 1.5, &eta, NULL, err);
+    if (st != PN_OK) return st;
+    if (!(eta > 0.0)) {
+        const pn_param *p = find_param(b->ps, "eta");
+        return pn_param_error(p, err, "%s: eta %g must be positive", b->label, eta);
+    }
+    static const char *const ignored[] = {"thickness", "albedo", "g", "maxdepth", "nsamples"};
+    accept_silently(b->ps, ignored, sizeof ignored / sizeof ignored[0]);
+    bool clamped = false;
+    double n = blinn_exponent(alpha, &clamped);
+    float ks = (float)dielectric_f0(eta);
+    set_lambert(b, kd);
+    b->m.ks = constant_ref(v3(ks, ks, ks));
+    b->m.exponent = (float)n;
+    size_t len = strlen(b->model);
+    snprintf(b->model + len, sizeof b->model - len, " + Blinn ks=%.4g n=%.4g", (double)ks, n);
+    describe_roughness(b->note, sizeof b->note, roughness, alpha, n, clamped);
+    warn_bump(b);
+    return PN_OK;
+}
+
+/* F0 of a conductor from `reflectance` or eta / k under `prefix`. */
+static pn_status conductor_reflectance(builder *b, const char *prefix, pn_texref *f0, char *what, size_t what_size,
+                                       pn_err *err) {
+    char en[64], kn[64];
+    snprintf(en, sizeof en, "%seta", prefix);
+    snprintf(kn, sizeof kn, "%sk", prefix);
+    const pn_param *refl = find_param(b->ps, "reflectance");
+    if (refl) {
+        pn_status st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(1, 1, 1), f0, err);
+        if (st != PN_OK) return st;
+        /* eta and k are overridden; they are read so they are not reported as unused. */
+        (void)find_param(b->ps, en);
+        (void)find_param(b->ps, kn);
+        snprintf(what, what_size, "reflectance");
+        return PN_OK;
+    }
+    vec3 cu_eta, cu_k;
+    pn_named_spectrum_rgb("metal-Cu-eta", &cu_eta);
+    pn_named_spectrum_rgb("metal-Cu-k", &cu_k);
+    pn_texref eta_ref, k_ref;
+    pn_status st = pn_params_texref_use(b->scene, b->ps, en, false, cu_eta, PN_SPECTRUM_UNBOUNDED, &eta_ref, err);
+    if (st == PN_OK) st = pn_params_texref_use(b->scene, b->ps, kn, false, cu_k, PN_SPECTRUM_UNBOUNDED, &k_ref, err);
+    if (st != PN_OK) return st;
+    bool varies = false;
+    vec3 eta = texref_constant(b->scene, eta_ref, cu_eta, &varies);
+    vec3 k = texref_constant(b->scene, k_ref, cu_k, &varies);
+    if (varies)
+        warn_at(b->scene, b->ps->loc, "%s: textured \"%s\" / \"%s\" are not supported; copper is used where they vary",
+                b->label, en, kn);
+    *f0 = constant_ref(v3(conductor_f0(eta.x, k.x), conductor_f0(eta.y, k.y), conductor_f0(eta.z, k.z)));
+    const pn_param *pe = find_param(b->ps, en);
+    const char *ename = pe && pe->type == PN_PT_SPECTRUM && pe->str_count == 1 ? pe->strs[0] : NULL;
+    if (!pe)
+        snprintf(what, what_size, "copper (default)");
+    else if (ename)
+        snprintf(what, what_size, "eta \"%s\"", ename);
+    else
+        snprintf(what, what_size, "eta (%.3g, %.3g, %.3g) k (%.3g, %.3g, %.3g)", (double)eta.x, (double)eta.y,
+                 (double)eta.z, (double)k.x, (double)k.y, (double)k.z);
+    return PN_OK;
+}
+
+static pn_status map_conductor(builder *b, pn_err *err) {
+    double roughness = 0, alpha = 0;
+    pn_status st = read_roughness(b, "", &roughness, &alpha, err);
+    pn_texref f0;
+    char what[160];
+    if (st == PN_OK) st = conductor_reflectance(b, "", &f0, what, sizeof what, err);
+    if (st != PN_OK) return st;
+    char s[128];
+    fmt_ref(b->scene, s, sizeof s, f0);
+    if (alpha < PN_SMOOTH_ALPHA) {
+        bool varies = false;
+        vec3 spec = texref_constant(b->scene, f0, v3(0.9f, 0.9f, 0.9f), &varies);
+        if (varies) {
+            warn_at(b->scene, b->ps->loc, "%s: a textured reflectance on a smooth conductor is not supported; 0.9 used",
+                    b->label);
+            fmt_rgb(s, sizeof s, spec);
+        }
+        b->m.kind = PN_MATERIAL_MIRROR;
+        b->m.specular = spec;
+        b->m.kd = constant_ref(v3(0, 0, 0));
+        b->m.ks = constant_ref(v3(0, 0, 0));
+        b->m.exponent = 1.0f;
+        snprintf(b->model, sizeof b->model, "mirror specular=%s", s);
+        snprintf(b->note, sizeof b->note, "(F0 of %s; smooth: roughness %g)", what, roughness);
+    } else {
+        bool clamped = false;
+        double n = blinn_exponent(alpha, &clamped);
+        b->m.kind = PN_MATERIAL_LAMBERT_BLINN;
+        b->m.kd = constant_ref(v3(0, 0, 0));
+        b->m.ks = f0;
+        b->m.exponent = (float)n;
+        snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.4g, kd=0", s, n);
+        char r[128];
+        describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
+        snprintf(b->note, sizeof b->note, "(F0 of %s) %s", what, r);
+    }
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_coatedconductor(builder *b, pn_err *err) {
+    double roughness = 0, alpha = 0, cr = 0, ca = 0, ieta = 1.5;
+    pn_status st = read_roughness(b, "interface.", &roughness, &alpha, err);
+    if (st == PN_OK) st = read_roughness(b, "conductor.", &cr, &ca, err); /* reported only */
+    if (st == PN_OK) st = pn_params_spectrum_value(b->ps, "interface.eta", 550.0, 1.5, &ieta, NULL, err);
+    pn_texref f0;
+    char what[160];
+    if (st == PN_OK) st = conductor_reflectance(b, "conductor.", &f0, what, sizeof what, err);
+    if (st != PN_OK) return st;
+    static const char *const ignored[] = {"thickness", "albedo", "g", "maxdepth", "nsamples"};
+    accept_silently(b->ps, ignored, sizeof ignored / sizeof ignored[0]);
+    bool clamped = false;
+    double n = blinn_exponent(alpha, &clamped);
+    b->m.kind = PN_MATERIAL_LAMBERT_BLINN;
+    b->m.kd = constant_ref(v3(0, 0, 0));
+    b->m.ks = f0;
+    b->m.exponent = (float)n;
+    char s[128];
+    fmt_ref(b->scene, s, sizeof s, f0);
+    snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.4g, kd=0", s, n);
+    char r[128];
+    describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
+    snprintf(b->note, sizeof b->note, "(F0 of the conductor, %s; interface %s)", what, r);
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_dielectric(builder *b, bool thin, pn_err *err) {
+    double eta = 1.5;
+    pn_status st = pn_params_spectrum_value(b->ps, "eta", 550.0, 1.5, &eta, NULL, err);
+    double roughness = 0, alpha = 0;
+    if (st == PN_OK && !thin) st = read_roughness(b, "", &roughness, &alpha, err);
+    if (st != PN_OK) return st;
+    if (!(eta > 0.0)) return pn_param_error(find_param(b->ps, "eta"), err, "%s: eta %g must be positive", b->label, eta);
+    if (alpha >= PN_SMOOTH_ALPHA)
+        warn_at(b->scene, b->ps->loc, "%s: rough dielectric (roughness %g) rendered as smooth glass", b->label,
+                roughness);
+    b->m.kind = PN_MATERIAL_DIELECTRIC;
+    b->m.eta = (float)eta;
+    b->m.specular = v3(1, 1, 1);
+    b->m.kd = constant_ref(v3(0, 0, 0));
+    b->m.ks = constant_ref(v3(0, 0, 0));
+    b->m.exponent = 1.0f;
+    snprintf(b->model, sizeof b->model, "dielectric eta=%.4g", eta);
+    if (alpha >= PN_SMOOTH_ALPHA) snprintf(b->note, sizeof b->note, "(roughness %g ignored: smooth)", roughness);
+    else if (thin) snprintf(b->note, sizeof b->note, "(thin: rendered as a refracting surface)");
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_diffusetransmission(builder *b, pn_err *err) {
+    pn_texref kd, kt;
+    double scale = 1.0;
+    pn_status st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.25f, 0.25f, 0.25f), &kd, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "transmittance", false, v3(0.25f, 0.25f, 0.25f), &kt, err);
+    if (st == PN_OK) st = pn_params_float(b->ps, "scale", 1.0, &scale, err);
+    if (st != PN_OK) return st;
+    if (scale != 1.0) {
+        if (kd.texture < 0)
+            kd.value = v3_min(v3(1, 1, 1), v3_max(v3(0, 0, 0), v3_scale(kd.value, (float)scale)));
+        else
+            warn_at(b->scene, b->ps->loc, "%s: \"scale\" %g of a textured reflectance is ignored", b->label, scale);
+    }
+    set_lambert(b, kd);
+    warn_at(b->scene, b->ps->loc, "%s: diffusetransmission rendered as diffuse reflection; its transmission is dropped",
+            b->label);
+    snprintf(b->note, sizeof b->note, "(transmission dropped)");
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_substitute(builder *b, const char *type, pn_err *err) {
+    pn_texref kd = constant_ref(v3(0.5f, 0.5f, 0.5f));
+    pn_status st = PN_OK;
+    if (strcmp(type, "hair") == 0) {
+        const pn_param *p = find_param(b->ps, "color");
+        if (p) st = pn_params_texref(b->scene, b->ps, "color", false, v3(0.3f, 0.3f, 0.3f), &kd, err);
+        else kd = constant_ref(v3(0.3f, 0.3f, 0.3f));
+    } else if (strcmp(type, "subsurface") == 0) {
+        if (find_param(b->ps, "reflectance"))
+            st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+    }
+    if (st != PN_OK) return st;
+    consume_all(b->ps);
+    set_lambert(b, kd);
+    char s[128];
+    fmt_ref(b->scene, s, sizeof s, kd);
+    warn_at(b->scene, b->ps->loc, "%s: %s material is not supported; substituted by a diffuse material kd=%s", b->label,
+            type, s);
+    snprintf(b->note, sizeof b->note, "(substitute for an unsupported %s material)", type);
+    return PN_OK;
+}
+
+static pn_status map_mix(builder *b, pn_err *err) {
+    const pn_param *mp = find_param(b->ps, "materials");
+    if (!mp) return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: mix material needs \"materials\"",
+                               b->ps->loc.file ? b->ps->loc.file : "?", b->ps->loc.line, b->ps->loc.column);
+    if (mp->type != PN_PT_STRING || mp->str_count != 2)
+        return pn_param_error(mp, err, "\"materials\" of a mix needs two material names");
+    double amount = 0.5;
+    pn_status st = float_input(b, "amount", 0.5, &amount, NULL, err);
+    if (st != PN_OK) return st;
+    int pick = amount > 0.5 ? 1 : 0;
+    const char *chosen = mp->strs[pick];
+    int idx = pn_scene_find_material(b->scene, chosen);
+    if (idx < 0) return pn_param_error(mp, err, "mix: undefined material \"%s\"", chosen);
+    if (pn_scene_find_material(b->scene, mp->strs[1 - pick]) < 0)
+        return pn_param_error(mp, err, "mix: undefined material \"%s\"", mp->strs[1 - pick]);
+    const pn_material *src = &b->scene->materials[idx];
+    char *keep_name = b->m.name;
+    b->m = *src;
+    b->m.name = keep_name;
+    b->m.description = NULL;
+    /* The chosen material's description without its "NAME: pbrt TYPE -> " head. */
+    const char *arrow = src->description ? strstr(src->description, "-> ") : NULL;
+    snprintf(b->model, sizeof b->model, "%s", arrow ? arrow + 3 : "?");
+    snprintf(b->note, sizeof b->note, "(material '%s' of the mix, amount %g)", chosen, amount);
+    warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
+            pick ? "second" : "first", chosen, amount);
+    warn_bump(b);
+    return PN_OK;
+}
+
+/* ---- entry points ----------------------------------------------------------------------- */
+
+pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, const char *name,
+                                const pn_params *ps, int *out, pn_err *err) {
+    if (out) *out = -1;
+    if (!name) name = "";
+    builder b;
+    memset(&b, 0, sizeof b);
+    b.scene = scene;
+    b.ps = ps;
+    char label[256];
+    if (name[0])
+        snprintf(label, sizeof label, "material \"%s\"", name);
+    else
+        snprintf(label, sizeof label, "material");
+    b.label = label;
+    b.m.kind = PN_MATERIAL_LAMBERT_BLINN;
+    b.m.kd = constant_ref(v3(0, 0, 0));
+    b.m.ks = constant_ref(v3(0, 0, 0));
+    b.m.exponent = 1.0f;
+    b.m.specular = v3(0, 0, 0);
+    b.m.eta = 1.0f;
+    b.m.name = NULL;
+
+    pn_status st;
+    if (strcmp(type, "diffuse") == 0) {
+        st = map_diffuse(&b, err);
+    } else if (strcmp(type, "coateddiffuse") == 0) {
+        st = map_coateddiffuse(&b, err);
+    } else if (strcmp(type, "conductor") == 0) {
+        st = map_conductor(&b, err);
+    } else if (strcmp(type, "coatedconductor") == 0) {
+        st = map_coatedconductor(&b, err);
+    } else if (strcmp(type, "dielectric") == 0) {
+        st = map_dielectric(&b, false, err);
+    } else if (strcmp(type, "thindielectric") == 0) {
+        st = map_dielectric(&b, true, err);
+    } else if (strcmp(type, "diffusetransmission") == 0) {
+        st = map_diffusetransmission(&b, err);
+    } else if (strcmp(type, "measured") == 0 || strcmp(type, "hair") == 0 || strcmp(type, "subsurface") == 0) {
+        st = map_substitute(&b, type, err);
+    } else if (strcmp(type, "mix") == 0) {
+        st = map_mix(&b, err);
+    } else if (strcmp(type, "interface") == 0 || strcmp(type, "none") == 0) {
+        b.m.kind = PN_MATERIAL_INTERFACE;
+        snprintf(b.model, sizeof b.model, "interface (invisible)");
+        st = PN_OK;
+    } else {
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: unknown material type \"%s\"",
+                          ps->loc.file ? ps->loc.file : "?", ps->loc.line, ps->loc.column, type);
+    }
+    if (st != PN_OK) return st;
+
+    char head[256];
+    if (name[0])
+        snprintf(head, sizeof head, "%s", name);
+    else if (ps->loc.file)
+        snprintf(head, sizeof head, "(anonymous, %s:%d)", ps->loc.file, ps->loc.line);
+    else
+        snprintf(head, sizeof head, "(default material)");
+    size_t need = strlen(head) + strlen(type) + strlen(b.model) + strlen(b.note) + 32;
+    char *desc = malloc(need);
+    b.m.name = dup_string(name);
+    if (!desc || !b.m.name ||
+        !pn_grow_for_append((void **)&scene->materials, scene->material_count, sizeof *scene->materials)) {
+        free(desc);
+        free(b.m.name);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a material");
+    }
+    snprintf(desc, need, "%s: pbrt %s -> %s%s%s", head, type, b.model, b.note[0] ? " " : "", b.note);
+    b.m.description = desc;
+    scene->materials[scene->material_count] = b.m;
+    if (out) *out = scene->material_count;
+    scene->material_count++;
+    return PN_OK;
+}
+
+int pn_scene_find_material(const struct pn_scene_s *scene, const char *name) {
+    if (!name || !name[0]) return -1;
+    for (int i = scene->material_count - 1; i >= 0; i--)
+        if (scene->materials[i].name && strcmp(scene->materials[i].name, name) == 0) return i;
+    return -1;
+}

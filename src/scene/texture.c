@@ -1,0 +1,515 @@
+/* texture.c — pbrt-v4 Texture directives, texture-valued material inputs, the shared table of
+ * decoded images, and texture evaluation at surface (u, v).
+ *
+ * Supported classes and how they are stored (pn_texture):
+ *  - imagemap: "filename" (relative to the directive's folder), "encoding" ("sRGB" default,
+ *    "linear", "gamma g"; only 8-bit files are affected), "scale", "invert", "wrap" (repeat,
+ *    clamp, black), the uv mapping "uscale" "vscale" "udelta" "vdelta". "filter" and
+ *    "maxanisotropy" are accepted and ignored: lookups are bilinear. Files are decoded once per
+ *    (path, encoding) into scene->images.
+ *  - constant ("value"), scale ("tex" * "scale"), mix ((1 - "amount") "tex1" + "amount" "tex2"),
+ *    checkerboard (2D; "tex1" on cells where floor(s) + floor(t) is even, else "tex2").
+ *  - directionmix and dots become a mix with amount 0.5 of their two inputs; bilerp the
+ *    average of its four corners; fbm, wrinkled, windy, marble and ptex a constant 0.5. Each
+ *    substitution is reported with a warning.
+ * Mappings other than "uv" (spherical, cylindrical, planar) are replaced by uv with a warning.
+ *
+ * Evaluation follows pbrt-v4: s = su * u + du, t = sv * v + dv; an image is looked up at
+ * (s, 1 - t) because its row 0 is the top; the value is bilinearly interpolated between the four
+ * nearest texel centres, multiplied by "scale", inverted (1 - x) if asked, and clamped at 0.
+ * Float textures read from RGB images use the average of the three channels (pbrt-v4 reads the
+ * first channel; for the greyscale images float textures normally use, both agree). Float
+ * results are returned in all three channels, and float constants are stored the same way.
+ *
+ * Texture inputs refer to textures by index; a texture can only refer to textures defined before
+ * it, so evaluation always terminates.
+ */
+#include "scene/build.h"
+
+#include "io/image.h"
+#include "scene/parser_internal.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) {
+    char msg[768];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    pn_scene_warn(scene, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
+}
+
+static char *dup_string(const char *s) {
+    size_t n = strlen(s) + 1;
+    char *d = malloc(n);
+    if (d) memcpy(d, s, n);
+    return d;
+}
+
+/* ---- the shared image table ----------------------------------------------------------------- */
+
+/* The table key: the path, plus the encoding when it is not the default sRGB curve. */
+static void image_key(const char *path, float gamma, char *key, size_t size) {
+    if (gamma == 0.0f)
+        snprintf(key, size, "%s", path);
+    else if (gamma == 1.0f)
+        snprintf(key, size, "%s (linear)", path);
+    else
+        snprintf(key, size, "%s (gamma %g)", path, (double)gamma);
+}
+
+pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma, int *out_index,
+                         pn_err *err) {
+    *out_index = -1;
+    size_t key_size = strlen(path) + 64;
+    char *key = malloc(key_size);
+    if (!key) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    image_key(path, gamma, key, key_size);
+    for (int i = 0; i < scene->image_count; i++) {
+        if (scene->images[i].path && strcmp(scene->images[i].path, key) == 0) {
+            *out_index = i;
+            free(key);
+            return PN_OK;
+        }
+    }
+    pn_image img = NULL;
+    pn_status st = pn_image_read_file(path, gamma, &img, err);
+    if (st != PN_OK) {
+        free(key);
+        pn_image_free(img);
+        return st;
+    }
+    if (!img || img->layer_count < 1 || img->width <= 0 || img->height <= 0 || !img->layers[0].data) {
+        free(key);
+        pn_image_free(img);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: empty image", path);
+    }
+    size_t n = (size_t)img->width * (size_t)img->height;
+    float *rgb = NULL;
+    if (img->layers[0].channels == 3) {
+        rgb = img->layers[0].data; /* take the pixels over */
+        img->layers[0].data = NULL;
+    } else {
+        rgb = malloc(3 * n * sizeof *rgb);
+        if (rgb) {
+            int ch = img->layers[0].channels;
+            for (size_t i = 0; i < n; i++)
+                for (int c = 0; c < 3; c++) rgb[3 * i + (size_t)c] = img->layers[0].data[i * (size_t)ch + (size_t)(c < ch ? c : 0)];
+        }
+    }
+    if (!rgb || !pn_grow_for_append((void **)&scene->images, scene->image_count, sizeof *scene->images)) {
+        free(rgb);
+        free(key);
+        pn_image_free(img);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for image \"%s\"", path);
+    }
+    pn_texture_image *ti = &scene->images[scene->image_count];
+    ti->width = img->width;
+    ti->height = img->height;
+    ti->rgb = rgb;
+    ti->path = key;
+    *out_index = scene->image_count++;
+    pn_image_free(img);
+    return PN_OK;
+}
+
+/* ---- lookups ---------------------------------------------------------------------------------- */
+
+int pn_scene_find_texture(const struct pn_scene_s *scene, const char *name) {
+    for (int i = scene->texture_count - 1; i >= 0; i--)
+        if (scene->textures[i].name && strcmp(scene->textures[i].name, name) == 0) return i;
+    return -1;
+}
+
+int pn_scene_find_texture_typed(const struct pn_scene_s *scene, const char *name, bool is_float) {
+    for (int i = scene->texture_count - 1; i >= 0; i--)
+        if (scene->textures[i].is_float == is_float && scene->textures[i].name &&
+            strcmp(scene->textures[i].name, name) == 0)
+            return i;
+    return -1;
+}
+
+/* ---- texture-valued parameters ---------------------------------------------------------------- */
+
+static pn_texref constant_ref(vec3 v) {
+    pn_texref r;
+    r.texture = -1;
+    r.value = v;
+    return r;
+}
+
+pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, const char *name,
+                               bool is_float, vec3 def, pn_spectrum_use use, pn_texref *out,
+                               pn_err *err) {
+    if (is_float) def = v3(def.x, def.x, def.x);
+    *out = constant_ref(def);
+    const pn_param *p = pn_params_find(ps, name);
+    if (!p) return PN_OK;
+    switch (p->type) {
+    case PN_PT_TEXTURE: {
+        if (p->str_count != 1) return pn_param_error(p, err, "texture \"%s\" needs one texture name", name);
+        const char *tex = p->strs[0];
+        int idx = pn_scene_find_texture_typed(scene, tex, is_float);
+        if (idx < 0 && !is_float) idx = pn_scene_find_texture_typed(scene, tex, true); /* grey */
+        if (idx < 0) {
+            if (pn_scene_find_texture(scene, tex) >= 0)
+                return pn_param_error(p, err, "\"%s\": texture \"%s\" is a spectrum texture; a float texture is needed",
+                                      name, tex);
+            return pn_param_error(p, err, "\"%s\": undefined texture \"%s\"", name, tex);
+        }
+        out->texture = idx;
+        out->value = v3(0, 0, 0);
+        return PN_OK;
+    }
+    case PN_PT_FLOAT:
+    case PN_PT_INTEGER: {
+        if (p->num_count != 1) return pn_param_error(p, err, "\"%s\" needs one value, got %d", name, p->num_count);
+        float v = (float)p->nums[0];
+        if (!isfinite(v)) return pn_param_error(p, err, "\"%s\" is not finite", name);
+        out->value = v3(v, v, v);
+        return PN_OK;
+    }
+    case PN_PT_RGB:
+    case PN_PT_SPECTRUM:
+    case PN_PT_BLACKBODY: {
+        if (is_float) return pn_param_error(p, err, "\"%s\" must be a float or a float texture", name);
+        vec3 c;
+        pn_status st = pn_params_rgb(ps, name, def, use == PN_SPECTRUM_ALBEDO ? PN_SPECTRUM_UNBOUNDED : use, &c,
+                                     NULL, err);
+        if (st != PN_OK) return st;
+        if (use == PN_SPECTRUM_ALBEDO && (v3_max_component(c) > 1.0f || fminf(c.x, fminf(c.y, c.z)) < 0.0f)) {
+            warn_at(scene, p->loc, "\"%s\" (%g, %g, %g) is outside [0, 1]; clamped", name, (double)c.x,
+                    (double)c.y, (double)c.z);
+            c = v3_min(v3(1, 1, 1), v3_max(v3(0, 0, 0), c));
+        }
+        out->value = c;
+        return PN_OK;
+    }
+    default:
+        return pn_param_error(p, err, "\"%s\" must be %s or a texture", name, is_float ? "a float" : "an rgb or spectrum value");
+    }
+}
+
+pn_status pn_params_texref(struct pn_scene_s *scene, const pn_params *ps, const char *name,
+                           bool is_float, vec3 def, pn_texref *out, pn_err *err) {
+    return pn_params_texref_use(scene, ps, name, is_float, def, PN_SPECTRUM_ALBEDO, out, err);
+}
+
+/* ---- Texture directives ----------------------------------------------------------------------- */
+
+static pn_status error_at(pn_srcloc loc, pn_status status, pn_err *err, const char *what) {
+    return pn_err_set(err, status, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, what);
+}
+
+/* Reads "encoding" into the gamma that pn_image_read_file takes. */
+static pn_status read_encoding(const pn_params *ps, float *gamma, pn_err *err) {
+    const char *enc = NULL;
+    pn_status st = pn_params_string(ps, "encoding", "sRGB", &enc, err);
+    if (st != PN_OK) return st;
+    if (strcmp(enc, "sRGB") == 0 || strcmp(enc, "srgb") == 0) {
+        *gamma = 0.0f;
+        return PN_OK;
+    }
+    if (strcmp(enc, "linear") == 0) {
+        *gamma = 1.0f;
+        return PN_OK;
+    }
+    if (strncmp(enc, "gamma", 5) == 0) {
+        char *end = NULL;
+        double g = strtod(enc + 5, &end);
+        while (end && (*end == ' ' || *end == '\t')) end++;
+        if (end != enc + 5 && end && *end == '\0' && g > 0.0 && isfinite(g)) {
+            *gamma = (float)g;
+            return PN_OK;
+        }
+    }
+    return pn_param_error(pn_params_find(ps, "encoding"), err,
+                          "unknown encoding \"%s\" (expected \"sRGB\", \"linear\" or \"gamma <value>\")", enc);
+}
+
+static pn_status read_wrap(const pn_params *ps, pn_wrap_mode *wrap, pn_err *err) {
+    const char *w = NULL;
+    pn_status st = pn_params_string(ps, "wrap", "repeat", &w, err);
+    if (st != PN_OK) return st;
+    if (strcmp(w, "repeat") == 0)
+        *wrap = PN_WRAP_REPEAT;
+    else if (strcmp(w, "clamp") == 0)
+        *wrap = PN_WRAP_CLAMP;
+    else if (strcmp(w, "black") == 0)
+        *wrap = PN_WRAP_BLACK;
+    else if (strcmp(w, "octahedralsphere") == 0)
+        *wrap = PN_WRAP_CLAMP;
+    else
+        return pn_param_error(pn_params_find(ps, "wrap"), err,
+                              "unknown wrap mode \"%s\" (expected repeat, clamp or black)", w);
+    return PN_OK;
+}
+
+static pn_status read_mapping(struct pn_scene_s *scene, const pn_params *ps, pn_texture *t, pn_err *err) {
+    const char *mapping = NULL;
+    pn_status st = pn_params_string(ps, "mapping", "uv", &mapping, err);
+    if (st != PN_OK) return st;
+    if (strcmp(mapping, "uv") != 0) {
+        const pn_param *p = pn_params_find(ps, "mapping");
+        warn_at(scene, p ? p->loc : ps->loc, "texture mapping \"%s\" is not supported; uv mapping used instead",
+                mapping);
+        /* The parameters of the other mappings are consumed so they are not reported twice. */
+        const char *extra[] = {"v1", "v2", "dimension"};
+        for (size_t i = 0; i < sizeof extra / sizeof extra[0]; i++) (void)pn_params_find(ps, extra[i]);
+    }
+    double su = 1, sv = 1, du = 0, dv = 0;
+    if ((st = pn_params_float(ps, "uscale", 1.0, &su, err)) != PN_OK) return st;
+    if ((st = pn_params_float(ps, "vscale", 1.0, &sv, err)) != PN_OK) return st;
+    if ((st = pn_params_float(ps, "udelta", 0.0, &du, err)) != PN_OK) return st;
+    if ((st = pn_params_float(ps, "vdelta", 0.0, &dv, err)) != PN_OK) return st;
+    t->su = (float)su;
+    t->sv = (float)sv;
+    t->du = (float)du;
+    t->dv = (float)dv;
+    return PN_OK;
+}
+
+/* Marks every parameter as used (for substituted classes, whose parameters were all understood
+ * and replaced as a whole). */
+static void consume_all(const pn_params *ps) {
+    for (int i = 0; i < ps->count; i++) (void)pn_params_find(ps, ps->items[i].name);
+}
+
+static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps, pn_texture *t, pn_err *err) {
+    const char *file = NULL;
+    pn_status st = pn_params_string(ps, "filename", "", &file, err);
+    if (st != PN_OK) return st;
+    if (!file[0]) return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "imagemap texture needs a \"filename\"");
+    float gamma = 0.0f;
+    if ((st = read_encoding(ps, &gamma, err)) != PN_OK) return st;
+    double scale = 1.0;
+    bool invert = false;
+    if ((st = pn_params_float(ps, "scale", 1.0, &scale, err)) != PN_OK) return st;
+    if ((st = pn_params_bool(ps, "invert", false, &invert, err)) != PN_OK) return st;
+    if ((st = read_wrap(ps, &t->wrap, err)) != PN_OK) return st;
+    const char *filter = NULL;
+    if ((st = pn_params_string(ps, "filter", "bilinear", &filter, err)) != PN_OK) return st;
+    double aniso = 8.0;
+    if ((st = pn_params_float(ps, "maxanisotropy", 8.0, &aniso, err)) != PN_OK) return st;
+
+    char *path = pn_path_resolve(ps->base_dir, file);
+    if (!path) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    pn_err ierr;
+    pn_err_init(&ierr);
+    int index = -1;
+    st = pn_scene_image(scene, path, gamma, &index, &ierr);
+    free(path);
+    if (st == PN_ERROR_OUT_OF_MEMORY) return pn_err_set(err, st, "%s", ierr.message);
+    if (st != PN_OK) return pn_param_error(pn_params_find(ps, "filename"), err, "cannot read texture image: %s", ierr.message);
+    t->kind = PN_TEXTURE_IMAGE;
+    t->image = index;
+    t->scale = (float)scale;
+    t->invert = invert;
+    return PN_OK;
+}
+
+pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const char *value_type,
+                               const char *class_name, const pn_params *ps, pn_err *err) {
+    pn_texture t;
+    memset(&t, 0, sizeof t);
+    char msg[512];
+    if (strcmp(value_type, "float") == 0) {
+        t.is_float = true;
+    } else if (strcmp(value_type, "spectrum") == 0 || strcmp(value_type, "rgb") == 0 ||
+               strcmp(value_type, "color") == 0) {
+        t.is_float = false;
+    } else {
+        snprintf(msg, sizeof msg, "texture \"%s\": unknown texture type \"%s\" (expected \"float\" or \"spectrum\")",
+                 name, value_type);
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, msg);
+    }
+    const bool f = t.is_float;
+    t.image = -1;
+    t.su = t.sv = 1.0f;
+    t.scale = 1.0f;
+    t.wrap = PN_WRAP_REPEAT;
+    t.a = t.b = t.amount = constant_ref(v3(0, 0, 0));
+    pn_status st = read_mapping(scene, ps, &t, err);
+    if (st != PN_OK) return st;
+
+    const vec3 one = v3(1, 1, 1), zero = v3(0, 0, 0), half = v3(0.5f, 0.5f, 0.5f);
+    if (strcmp(class_name, "imagemap") == 0) {
+        st = texture_imagemap(scene, ps, &t, err);
+    } else if (strcmp(class_name, "constant") == 0) {
+        pn_texref r;
+        st = pn_params_texref_use(scene, ps, "value", f, one, PN_SPECTRUM_UNBOUNDED, &r, err);
+        if (st == PN_OK && r.texture >= 0) {
+            /* A constant naming a texture is that texture. */
+            t.kind = PN_TEXTURE_SCALE;
+            t.a = r;
+            t.b = constant_ref(one);
+        } else {
+            t.kind = PN_TEXTURE_CONSTANT;
+            t.value = r.value;
+        }
+    } else if (strcmp(class_name, "scale") == 0) {
+        t.kind = PN_TEXTURE_SCALE;
+        st = pn_params_texref_use(scene, ps, "tex", f, one, PN_SPECTRUM_UNBOUNDED, &t.a, err);
+        if (st == PN_OK) st = pn_params_texref_use(scene, ps, "scale", true, one, PN_SPECTRUM_UNBOUNDED, &t.b, err);
+    } else if (strcmp(class_name, "mix") == 0 || strcmp(class_name, "directionmix") == 0 ||
+               strcmp(class_name, "dots") == 0) {
+        t.kind = PN_TEXTURE_MIX;
+        bool dots = strcmp(class_name, "dots") == 0;
+        st = pn_params_texref_use(scene, ps, dots ? "outside" : "tex1", f, dots ? zero : zero,
+                                  PN_SPECTRUM_UNBOUNDED, &t.a, err);
+        if (st == PN_OK)
+            st = pn_params_texref_use(scene, ps, dots ? "inside" : "tex2", f, one, PN_SPECTRUM_UNBOUNDED, &t.b, err);
+        if (st == PN_OK && strcmp(class_name, "mix") == 0)
+            st = pn_params_texref_use(scene, ps, "amount", true, half, PN_SPECTRUM_UNBOUNDED, &t.amount, err);
+        else
+            t.amount = constant_ref(half);
+        if (st == PN_OK && strcmp(class_name, "mix") != 0) {
+            consume_all(ps);
+            warn_at(scene, ps->loc, "texture \"%s\": %s texture approximated by an even mix of its two inputs", name,
+                    class_name);
+        }
+    } else if (strcmp(class_name, "checkerboard") == 0) {
+        t.kind = PN_TEXTURE_CHECKERBOARD;
+        int dim = 2;
+        st = pn_params_int(ps, "dimension", 2, &dim, err);
+        if (st == PN_OK && dim != 2) {
+            if (dim != 3) {
+                snprintf(msg, sizeof msg, "checkerboard texture \"%s\": dimension %d (expected 2 or 3)", name, dim);
+                return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, msg);
+            }
+            warn_at(scene, ps->loc, "texture \"%s\": 3D checkerboard approximated by a 2D checkerboard in uv", name);
+        }
+        if (st == PN_OK) st = pn_params_texref_use(scene, ps, "tex1", f, one, PN_SPECTRUM_UNBOUNDED, &t.a, err);
+        if (st == PN_OK) st = pn_params_texref_use(scene, ps, "tex2", f, zero, PN_SPECTRUM_UNBOUNDED, &t.b, err);
+    } else if (strcmp(class_name, "bilerp") == 0) {
+        const char *corners[] = {"v00", "v01", "v10", "v11"};
+        const vec3 defs[] = {zero, one, zero, one};
+        vec3 sum = zero;
+        for (int i = 0; i < 4 && st == PN_OK; i++) {
+            pn_texref r;
+            st = pn_params_texref_use(scene, ps, corners[i], f, defs[i], PN_SPECTRUM_UNBOUNDED, &r, err);
+            if (st == PN_OK && r.texture < 0) sum = v3_add(sum, r.value);
+            if (st == PN_OK && r.texture >= 0) sum = v3_add(sum, half);
+        }
+        t.kind = PN_TEXTURE_CONSTANT;
+        t.value = v3_scale(sum, 0.25f);
+        if (st == PN_OK)
+            warn_at(scene, ps->loc, "texture \"%s\": bilerp texture approximated by the average of its corners", name);
+    } else if (strcmp(class_name, "fbm") == 0 || strcmp(class_name, "wrinkled") == 0 ||
+               strcmp(class_name, "windy") == 0 || strcmp(class_name, "marble") == 0 ||
+               strcmp(class_name, "ptex") == 0) {
+        consume_all(ps);
+        t.kind = PN_TEXTURE_CONSTANT;
+        t.value = half;
+        warn_at(scene, ps->loc, "texture \"%s\": %s texture is not supported; constant 0.5 used instead", name,
+                class_name);
+    } else {
+        snprintf(msg, sizeof msg, "unknown texture class \"%s\"", class_name);
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, msg);
+    }
+    if (st != PN_OK) return st;
+
+    t.name = dup_string(name);
+    if (!t.name || !pn_grow_for_append((void **)&scene->textures, scene->texture_count, sizeof *scene->textures)) {
+        free(t.name);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for texture \"%s\"", name);
+    }
+    scene->textures[scene->texture_count++] = t;
+    return PN_OK;
+}
+
+/* ---- evaluation --------------------------------------------------------------------------------- */
+
+/* Texel (x, y) of an image under a wrap mode; black outside for PN_WRAP_BLACK. */
+static vec3 texel(const pn_texture_image *img, int x, int y, pn_wrap_mode wrap) {
+    int w = img->width, h = img->height;
+    if (x < 0 || x >= w || y < 0 || y >= h) {
+        switch (wrap) {
+        case PN_WRAP_BLACK:
+            return v3(0, 0, 0);
+        case PN_WRAP_CLAMP:
+            x = x < 0 ? 0 : (x >= w ? w - 1 : x);
+            y = y < 0 ? 0 : (y >= h ? h - 1 : y);
+            break;
+        case PN_WRAP_REPEAT:
+        default:
+            x %= w;
+            if (x < 0) x += w;
+            y %= h;
+            if (y < 0) y += h;
+            break;
+        }
+    }
+    const float *p = img->rgb + 3 * ((size_t)y * (size_t)w + (size_t)x);
+    return v3(p[0], p[1], p[2]);
+}
+
+/* Bilinear lookup at image coordinates (s, t) in [0, 1]^2 (t down from the top row). */
+static vec3 image_bilerp(const pn_texture_image *img, float s, float t, pn_wrap_mode wrap) {
+    double x = (double)s * img->width - 0.5, y = (double)t * img->height - 0.5;
+    if (!isfinite(x) || !isfinite(y)) return v3(0, 0, 0);
+    /* Keep the integer coordinates in range of int for huge s, t (repeat wraps them anyway). */
+    if (fabs(x) > 1e8 || fabs(y) > 1e8) {
+        x = fmod(x, (double)img->width);
+        y = fmod(y, (double)img->height);
+    }
+    double fx0 = floor(x), fy0 = floor(y);
+    float dx = (float)(x - fx0), dy = (float)(y - fy0);
+    int x0 = (int)fx0, y0 = (int)fy0;
+    vec3 a = texel(img, x0, y0, wrap), b = texel(img, x0 + 1, y0, wrap);
+    vec3 c = texel(img, x0, y0 + 1, wrap), d = texel(img, x0 + 1, y0 + 1, wrap);
+    vec3 top = v3_add(v3_scale(a, 1.0f - dx), v3_scale(b, dx));
+    vec3 bottom = v3_add(v3_scale(c, 1.0f - dx), v3_scale(d, dx));
+    return v3_add(v3_scale(top, 1.0f - dy), v3_scale(bottom, dy));
+}
+
+vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, float v) {
+    if (ref.texture < 0 || ref.texture >= scene->texture_count) return ref.value;
+    const pn_texture *t = &scene->textures[ref.texture];
+    float s = t->su * u + t->du, tt = t->sv * v + t->dv;
+    vec3 r;
+    switch (t->kind) {
+    case PN_TEXTURE_CONSTANT:
+        r = t->value;
+        break;
+    case PN_TEXTURE_IMAGE: {
+        if (t->image < 0 || t->image >= scene->image_count) return v3(0, 0, 0);
+        r = v3_scale(image_bilerp(&scene->images[t->image], s, 1.0f - tt, t->wrap), t->scale);
+        if (t->invert) r = v3_sub(v3(1, 1, 1), r);
+        r = v3_max(r, v3(0, 0, 0));
+        if (t->is_float) {
+            float avg = (r.x + r.y + r.z) * (1.0f / 3.0f);
+            r = v3(avg, avg, avg);
+        }
+        break;
+    }
+    case PN_TEXTURE_SCALE:
+        r = v3_mul(pn_texture_eval(scene, t->a, u, v), pn_texture_eval(scene, t->b, u, v));
+        break;
+    case PN_TEXTURE_MIX: {
+        float amt = pn_texture_eval(scene, t->amount, u, v).x;
+        vec3 a = amt != 1.0f ? pn_texture_eval(scene, t->a, u, v) : v3(0, 0, 0);
+        vec3 b = amt != 0.0f ? pn_texture_eval(scene, t->b, u, v) : v3(0, 0, 0);
+        r = v3_add(v3_scale(a, 1.0f - amt), v3_scale(b, amt));
+        break;
+    }
+    case PN_TEXTURE_CHECKERBOARD: {
+        double cell = floor((double)s) + floor((double)tt);
+        bool even = fmod(fabs(cell), 2.0) < 0.5;
+        r = pn_texture_eval(scene, even ? t->a : t->b, u, v);
+        break;
+    }
+    default:
+        r = v3(0, 0, 0);
+        break;
+    }
+    return r;
+}

@@ -1,0 +1,647 @@
+/* test_materials.c — the pbrt-v4 material, spectrum, texture and light builders against closed
+ * forms: material mapping and descriptions, conductor Fresnel, blackbody and constant spectra,
+ * point/spot/area power normalisation, bilinear image lookups with wrap modes. Parameter lists
+ * are assembled by hand. */
+#include "harness.h"
+
+#include "io/image.h"
+#include "scene/build.h"
+
+#include <unistd.h>
+
+/* ---- building parameter lists and scenes ---------------------------------------------------- */
+
+static char *dupstr(const char *s) {
+    size_t n = strlen(s) + 1;
+    char *d = malloc(n);
+    memcpy(d, s, n);
+    return d;
+}
+
+static pn_params make_params(void) {
+    pn_params ps;
+    memset(&ps, 0, sizeof ps);
+    ps.base_dir = "";
+    ps.loc.file = "scene.pbrt";
+    ps.loc.line = 12;
+    ps.loc.column = 3;
+    return ps;
+}
+
+static pn_param *add_param(pn_params *ps, pn_param_type type, const char *name) {
+    ps->items = realloc(ps->items, (size_t)(ps->count + 1) * sizeof *ps->items);
+    pn_param *p = &ps->items[ps->count++];
+    memset(p, 0, sizeof *p);
+    p->type = type;
+    p->name = dupstr(name);
+    p->loc.file = "scene.pbrt";
+    p->loc.line = 13 + ps->count;
+    p->loc.column = 5;
+    return p;
+}
+
+static void add_nums(pn_params *ps, pn_param_type type, const char *name, int n, const double *v) {
+    pn_param *p = add_param(ps, type, name);
+    p->nums = malloc((size_t)n * sizeof *p->nums);
+    memcpy(p->nums, v, (size_t)n * sizeof *v);
+    p->num_count = n;
+}
+
+static void add_float(pn_params *ps, const char *name, double v) { add_nums(ps, PN_PT_FLOAT, name, 1, &v); }
+
+static void add_bool(pn_params *ps, const char *name, bool b) {
+    double v = b ? 1.0 : 0.0;
+    add_nums(ps, PN_PT_BOOL, name, 1, &v);
+}
+
+static void add_rgb(pn_params *ps, const char *name, double r, double g, double b) {
+    double v[3] = {r, g, b};
+    add_nums(ps, PN_PT_RGB, name, 3, v);
+}
+
+static void add_str(pn_params *ps, pn_param_type type, const char *name, const char *s) {
+    pn_param *p = add_param(ps, type, name);
+    p->strs = malloc(sizeof *p->strs);
+    p->strs[0] = dupstr(s);
+    p->str_count = 1;
+}
+
+static void add_strs2(pn_params *ps, const char *name, const char *a, const char *b) {
+    pn_param *p = add_param(ps, PN_PT_STRING, name);
+    p->strs = malloc(2 * sizeof *p->strs);
+    p->strs[0] = dupstr(a);
+    p->strs[1] = dupstr(b);
+    p->str_count = 2;
+}
+
+static void silent_log(void *user, pn_log_level level, const char *message) {
+    (void)user;
+    (void)level;
+    (void)message;
+}
+
+static struct pn_scene_s *new_scene(void) {
+    struct pn_scene_s *s = calloc(1, sizeof *s);
+    s->ctx = pn_context_new();
+    pn_context_set_log(s->ctx, silent_log, NULL);
+    return s;
+}
+
+static void free_scene(struct pn_scene_s *s) {
+    for (int i = 0; i < s->material_count; i++) {
+        free(s->materials[i].name);
+        free(s->materials[i].description);
+    }
+    for (int i = 0; i < s->texture_count; i++) free(s->textures[i].name);
+    for (int i = 0; i < s->image_count; i++) {
+        free(s->images[i].rgb);
+        free(s->images[i].path);
+    }
+    for (int i = 0; i < s->light_def_count; i++) free(s->light_defs[i].source);
+    for (int i = 0; i < s->warning_count; i++) free(s->warnings[i]);
+    free(s->materials);
+    free(s->textures);
+    free(s->images);
+    free(s->light_defs);
+    free(s->warnings);
+    pn_context_free(s->ctx);
+    free(s);
+}
+
+static bool has_warning(const struct pn_scene_s *s, const char *needle) {
+    for (int i = 0; i < s->warning_count; i++)
+        if (strstr(s->warnings[i], needle)) return true;
+    return false;
+}
+
+/* Builds a material of `type` from ps; returns its index (or -1, failing the test). */
+static int build_material(struct pn_scene_s *s, const char *type, const char *name, pn_params *ps) {
+    pn_err err;
+    pn_err_init(&err);
+    int idx = -1;
+    pn_status st = pn_material_from_pbrt(s, type, name, ps, &idx, &err);
+    CHECK_MSG(st == PN_OK, "%s", err.message);
+    pn_params_free(ps);
+    return st == PN_OK ? idx : -1;
+}
+
+static double f0_conductor(double eta, double k) {
+    return ((eta - 1) * (eta - 1) + k * k) / ((eta + 1) * (eta + 1) + k * k);
+}
+
+/* ---- materials ---------------------------------------------------------------------------- */
+
+static void test_diffuse_default(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    int i = build_material(s, "diffuse", "Wall", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK(m->kd.texture < 0);
+        CHECK_NEAR(m->kd.value.x, 0.5, 1e-6);
+        CHECK_NEAR(m->kd.value.z, 0.5, 1e-6);
+        CHECK(v3_is_zero(m->ks.value) && m->ks.texture < 0);
+        CHECK_STR_CONTAINS(m->description, "Wall: pbrt diffuse -> Lambert kd=0.5");
+        CHECK(pn_scene_find_material(s, "Wall") == i);
+        CHECK(pn_scene_find_material(s, "Other") == -1);
+    }
+    /* An albedo above 1 is clamped with a warning. */
+    ps = make_params();
+    add_rgb(&ps, "reflectance", 1.5, 0.2, 0.1);
+    i = build_material(s, "diffuse", "", &ps);
+    if (i >= 0) {
+        CHECK_NEAR(s->materials[i].kd.value.x, 1.0, 1e-6);
+        CHECK_NEAR(s->materials[i].kd.value.y, 0.2, 1e-6);
+        CHECK(has_warning(s, "clamped"));
+        CHECK_STR_CONTAINS(s->materials[i].description, "(anonymous, scene.pbrt:12)");
+    }
+    free_scene(s);
+}
+
+static void test_coateddiffuse(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    add_rgb(&ps, "reflectance", 0.2, 0.3, 0.4);
+    add_float(&ps, "roughness", 0.1);
+    int i = build_material(s, "coateddiffuse", "Floor", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK_NEAR(m->kd.value.y, 0.3, 1e-6);
+        CHECK_NEAR(m->ks.value.x, 0.04, 1e-6);
+        /* remaproughness: alpha = sqrt(0.1), n = 2 / alpha^2 - 2 = 18 */
+        CHECK_NEAR(m->exponent, 18.0, 1e-3);
+        CHECK_STR_CONTAINS(m->description, "Floor: pbrt coateddiffuse -> Lambert kd=(0.2, 0.3, 0.4) + Blinn ks=0.04 n=18");
+    }
+    ps = make_params();
+    add_float(&ps, "uroughness", 0.05);
+    add_float(&ps, "vroughness", 0.15);
+    add_bool(&ps, "remaproughness", false);
+    add_float(&ps, "eta", 1.33);
+    i = build_material(s, "coateddiffuse", "B", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        double f0 = pow((1.33 - 1) / (1.33 + 1), 2);
+        CHECK_NEAR(m->ks.value.z, f0, 1e-6);
+        CHECK_NEAR(m->exponent, 2.0 / (0.1 * 0.1) - 2.0, 1e-2);
+        CHECK_NEAR(m->kd.value.x, 0.5, 1e-6);
+    }
+    ps = make_params(); /* roughness 0: very sharp */
+    i = build_material(s, "coateddiffuse", "C", &ps);
+    if (i >= 0) {
+        CHECK_NEAR(s->materials[i].exponent, 10000.0, 1e-3);
+        CHECK_STR_CONTAINS(s->materials[i].description, "very sharp");
+    }
+    free_scene(s);
+}
+
+static void test_conductor(void) {
+    struct pn_scene_s *s = new_scene();
+    vec3 eta, k;
+    CHECK(pn_named_spectrum_rgb("metal-Cu-eta", &eta));
+    CHECK(pn_named_spectrum_rgb("metal-Cu-k", &k));
+    /* Named copper, smooth: mirror with the normal-incidence Fresnel reflectance. */
+    pn_params ps = make_params();
+    add_str(&ps, PN_PT_SPECTRUM, "eta", "metal-Cu-eta");
+    add_str(&ps, PN_PT_SPECTRUM, "k", "metal-Cu-k");
+    add_float(&ps, "roughness", 0.0);
+    int i = build_material(s, "conductor", "Copper", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_MIRROR);
+        CHECK_NEAR(m->specular.x, f0_conductor(eta.x, k.x), 1e-5);
+        CHECK_NEAR(m->specular.y, f0_conductor(eta.y, k.y), 1e-5);
+        CHECK_NEAR(m->specular.z, f0_conductor(eta.z, k.z), 1e-5);
+        CHECK(m->specular.x > m->specular.z); /* copper is reddish */
+        CHECK_STR_CONTAINS(m->description, "Copper: pbrt conductor -> mirror");
+    }
+    /* The default conductor is copper too. */
+    ps = make_params();
+    i = build_material(s, "conductor", "Default", &ps);
+    if (i >= 0) CHECK_NEAR(s->materials[i].specular.x, f0_conductor(eta.x, k.x), 1e-5);
+    /* Explicit rgb eta / k, rough: Blinn lobe, kd = 0. */
+    ps = make_params();
+    add_rgb(&ps, "eta", 1.65746, 0.880369, 0.521229);
+    add_rgb(&ps, "k", 9.223869, 6.269523, 4.837001);
+    add_float(&ps, "uroughness", 0.2);
+    add_float(&ps, "vroughness", 0.2);
+    i = build_material(s, "conductor", "Steel", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK(v3_is_zero(m->kd.value));
+        CHECK_NEAR(m->ks.value.x, f0_conductor(1.65746, 9.223869), 1e-5);
+        CHECK_NEAR(m->ks.value.y, f0_conductor(0.880369, 6.269523), 1e-5);
+        CHECK_NEAR(m->ks.value.z, f0_conductor(0.521229, 4.837001), 1e-5);
+        CHECK_NEAR(m->exponent, 2.0 / 0.2 - 2.0, 1e-3);
+    }
+    /* "reflectance" overrides eta / k. */
+    ps = make_params();
+    add_rgb(&ps, "reflectance", 0.9, 0.8, 0.7);
+    i = build_material(s, "conductor", "R", &ps);
+    if (i >= 0) {
+        CHECK(s->materials[i].kind == PN_MATERIAL_MIRROR);
+        CHECK_NEAR(s->materials[i].specular.y, 0.8, 1e-6);
+    }
+    /* coatedconductor: Blinn from the conductor's F0 and the interface roughness. */
+    ps = make_params();
+    add_str(&ps, PN_PT_SPECTRUM, "conductor.eta", "metal-Cu-eta");
+    add_str(&ps, PN_PT_SPECTRUM, "conductor.k", "metal-Cu-k");
+    add_float(&ps, "interface.roughness", 0.02);
+    add_float(&ps, "conductor.roughness", 0.002);
+    i = build_material(s, "coatedconductor", "CC", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK_NEAR(m->ks.value.x, f0_conductor(eta.x, k.x), 1e-5);
+        CHECK_NEAR(m->exponent, 2.0 / 0.02 - 2.0, 1e-2);
+    }
+    free_scene(s);
+}
+
+static void test_dielectric_mix_interface(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    add_float(&ps, "eta", 1.33);
+    int glass = build_material(s, "dielectric", "Water", &ps);
+    if (glass >= 0) {
+        CHECK(s->materials[glass].kind == PN_MATERIAL_DIELECTRIC);
+        CHECK_NEAR(s->materials[glass].eta, 1.33, 1e-6);
+        CHECK_NEAR(s->materials[glass].specular.y, 1.0, 1e-6);
+    }
+    ps = make_params();
+    add_str(&ps, PN_PT_SPECTRUM, "eta", "glass-BK7");
+    add_float(&ps, "roughness", 0.3);
+    int bk7 = build_material(s, "dielectric", "BK7", &ps);
+    if (bk7 >= 0) {
+        CHECK_NEAR(s->materials[bk7].eta, 1.5185, 1e-3);
+        CHECK(has_warning(s, "rough dielectric"));
+    }
+    ps = make_params();
+    double spd[4] = {400, 1.6, 700, 1.4};
+    add_nums(&ps, PN_PT_SPECTRUM, "eta", 4, spd);
+    int i = build_material(s, "dielectric", "Spd", &ps);
+    if (i >= 0) CHECK_NEAR(s->materials[i].eta, 1.6 - 0.2 * (150.0 / 300.0), 1e-4);
+
+    ps = make_params();
+    int diffuse = build_material(s, "diffuse", "D", &ps);
+    ps = make_params();
+    add_strs2(&ps, "materials", "D", "Water");
+    add_float(&ps, "amount", 0.7);
+    i = build_material(s, "mix", "Mix", &ps);
+    if (i >= 0 && diffuse >= 0) {
+        CHECK(s->materials[i].kind == PN_MATERIAL_DIELECTRIC);
+        CHECK(has_warning(s, "mix material"));
+        CHECK_STR_CONTAINS(s->materials[i].description, "Mix: pbrt mix -> dielectric");
+    }
+    ps = make_params();
+    i = build_material(s, "interface", "I", &ps);
+    if (i >= 0) CHECK(s->materials[i].kind == PN_MATERIAL_INTERFACE);
+
+    ps = make_params();
+    add_rgb(&ps, "reflectance", 0.4, 0.4, 0.4);
+    i = build_material(s, "diffusetransmission", "T", &ps);
+    if (i >= 0) {
+        CHECK_NEAR(s->materials[i].kd.value.x, 0.4, 1e-6);
+        CHECK(has_warning(s, "transmission is dropped"));
+    }
+    free_scene(s);
+}
+
+static void test_unknown_material(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    pn_err err;
+    pn_err_init(&err);
+    int idx = 7;
+    pn_status st = pn_material_from_pbrt(s, "foo", "X", &ps, &idx, &err);
+    CHECK(st == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(err.message, "scene.pbrt:12:3: unknown material type \"foo\"");
+    CHECK(s->material_count == 0);
+    pn_params_free(&ps);
+
+    /* A texture name that is not defined is an error at the parameter. */
+    ps = make_params();
+    add_str(&ps, PN_PT_TEXTURE, "reflectance", "nope");
+    pn_err_init(&err);
+    st = pn_material_from_pbrt(s, "diffuse", "Y", &ps, &idx, &err);
+    CHECK(st == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(err.message, "scene.pbrt:14:5:");
+    CHECK_STR_CONTAINS(err.message, "nope");
+    pn_params_free(&ps);
+    free_scene(s);
+}
+
+/* ---- spectra ------------------------------------------------------------------------------- */
+
+static void test_spectra(void) {
+    vec3 c = pn_blackbody_rgb(6500.0);
+    CHECK_NEAR(v3_luminance(c), 1.0, 2e-3);
+    CHECK_NEAR(c.x, 1.0, 0.1);
+    CHECK_NEAR(c.y, 1.0, 0.1);
+    CHECK_NEAR(c.z, 1.0, 0.1);
+    vec3 warm = pn_blackbody_rgb(2700.0);
+    CHECK(warm.x > warm.y && warm.y > warm.z);
+    CHECK_NEAR(v3_luminance(warm), 1.0, 2e-3);
+
+    pn_params ps = make_params();
+    double bb = 6500.0;
+    add_nums(&ps, PN_PT_BLACKBODY, "L", 1, &bb);
+    double konst[6] = {380, 0.3, 500, 0.3, 780, 0.3};
+    add_nums(&ps, PN_PT_SPECTRUM, "refl", 6, konst);
+    double big[4] = {300, 2.5, 900, 2.5};
+    add_nums(&ps, PN_PT_SPECTRUM, "eta", 4, big);
+    add_str(&ps, PN_PT_SPECTRUM, "named", "metal-Au-k");
+    add_str(&ps, PN_PT_SPECTRUM, "illum", "stdillum-D65");
+    add_str(&ps, PN_PT_SPECTRUM, "bogus", "metal-Xx-eta");
+    add_rgb(&ps, "wrong", 1, 2, 3);
+    ps.items[ps.count - 1].num_count = 2;
+    pn_err err;
+    pn_err_init(&err);
+    vec3 out;
+    bool found = false;
+    CHECK(pn_params_rgb(&ps, "L", v3(0, 0, 0), PN_SPECTRUM_ILLUMINANT, &out, &found, &err) == PN_OK);
+    CHECK(found);
+    CHECK_NEAR(v3_luminance(out), 1.0, 2e-3);
+    CHECK(pn_params_rgb(&ps, "refl", v3(0, 0, 0), PN_SPECTRUM_ALBEDO, &out, NULL, &err) == PN_OK);
+    CHECK_NEAR(out.x, 0.3, 1e-3);
+    CHECK_NEAR(out.y, 0.3, 1e-3);
+    CHECK_NEAR(out.z, 0.3, 1e-3);
+    CHECK(pn_params_rgb(&ps, "eta", v3(0, 0, 0), PN_SPECTRUM_UNBOUNDED, &out, NULL, &err) == PN_OK);
+    CHECK_NEAR(out.x, 2.5, 1e-3);
+    CHECK_NEAR(out.z, 2.5, 1e-3);
+    CHECK(pn_params_rgb(&ps, "named", v3(0, 0, 0), PN_SPECTRUM_UNBOUNDED, &out, NULL, &err) == PN_OK);
+    CHECK(out.x > out.z);
+    CHECK(pn_params_rgb(&ps, "illum", v3(0, 0, 0), PN_SPECTRUM_ILLUMINANT, &out, NULL, &err) == PN_OK);
+    CHECK_NEAR(out.y, 1.0, 1e-6);
+    CHECK(pn_params_rgb(&ps, "absent", v3(0.1f, 0.2f, 0.3f), PN_SPECTRUM_ALBEDO, &out, &found, &err) == PN_OK);
+    CHECK(!found);
+    CHECK_NEAR(out.y, 0.2, 1e-6);
+    CHECK(pn_params_rgb(&ps, "bogus", v3(0, 0, 0), PN_SPECTRUM_UNBOUNDED, &out, NULL, &err) == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(err.message, "unknown named spectrum");
+    pn_err_init(&err);
+    CHECK(pn_params_rgb(&ps, "wrong", v3(0, 0, 0), PN_SPECTRUM_ALBEDO, &out, NULL, &err) == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(err.message, "scene.pbrt:");
+    pn_params_free(&ps);
+}
+
+static void test_spd_file(void) {
+    char dir[] = "/tmp/pn_test_materials_XXXXXX";
+    if (!mkdtemp(dir)) {
+        pn_test_skip("no temporary folder");
+        return;
+    }
+    char path[256];
+    snprintf(path, sizeof path, "%s/flat.spd", dir);
+    FILE *f = fopen(path, "w");
+    fprintf(f, "# a flat spectrum\n350 0.25\n550 0.25 # middle\n850 0.25\n");
+    fclose(f);
+    pn_params ps = make_params();
+    ps.base_dir = dir;
+    add_str(&ps, PN_PT_SPECTRUM, "k", "flat.spd");
+    add_str(&ps, PN_PT_SPECTRUM, "missing", "nothere.spd");
+    pn_err err;
+    pn_err_init(&err);
+    vec3 out;
+    CHECK(pn_params_rgb(&ps, "k", v3(0, 0, 0), PN_SPECTRUM_UNBOUNDED, &out, NULL, &err) == PN_OK);
+    CHECK_NEAR(out.x, 0.25, 1e-3);
+    CHECK_NEAR(out.y, 0.25, 1e-3);
+    CHECK(pn_params_rgb(&ps, "missing", v3(0, 0, 0), PN_SPECTRUM_UNBOUNDED, &out, NULL, &err) == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(err.message, "scene.pbrt:15:5:");
+    CHECK_STR_CONTAINS(err.message, "nothere.spd");
+    pn_params_free(&ps);
+    unlink(path);
+    rmdir(dir);
+}
+
+/* ---- lights --------------------------------------------------------------------------------- */
+
+static void test_light_power(void) {
+    struct pn_scene_s *s = new_scene();
+    mat4 m = mat4_translate(1, 2, 3);
+    pn_err err;
+    pn_err_init(&err);
+
+    pn_params ps = make_params();
+    add_rgb(&ps, "I", 1, 2, 3);
+    add_float(&ps, "power", 100);
+    add_float(&ps, "scale", 2);
+    CHECK(pn_light_from_pbrt(s, "point", &ps, &m, &err) == PN_OK);
+    pn_params_free(&ps);
+    if (s->light_def_count == 1) {
+        const pn_light_def *d = &s->light_defs[0];
+        CHECK(d->kind == PN_LIGHTDEF_POINT);
+        double lum = 0.2126 + 0.7152 * 2 + 0.0722 * 3;
+        CHECK_NEAR(d->intensity.y, 2.0 * 2.0 * 100.0 / (4.0 * M_PI * lum), 1e-4);
+        CHECK_NEAR(d->position.x, 1.0, 1e-6);
+        CHECK_NEAR(d->position.z, 3.0, 1e-6);
+        CHECK_STR_CONTAINS(d->source, "scene.pbrt:12");
+    }
+
+    ps = make_params();
+    add_float(&ps, "power", 50);
+    add_float(&ps, "coneangle", 40);
+    add_float(&ps, "conedelta", 10);
+    double from[3] = {0, 0, 0}, to[3] = {0, 1, 0};
+    add_nums(&ps, PN_PT_POINT3, "from", 3, from);
+    add_nums(&ps, PN_PT_POINT3, "to", 3, to);
+    CHECK(pn_light_from_pbrt(s, "spot", &ps, &m, &err) == PN_OK);
+    pn_params_free(&ps);
+    if (s->light_def_count == 2) {
+        const pn_light_def *d = &s->light_defs[1];
+        double c_end = cos(40.0 * M_PI / 180.0), c_start = cos(30.0 * M_PI / 180.0);
+        CHECK(d->kind == PN_LIGHTDEF_SPOT);
+        CHECK_NEAR(d->cos_total_width, c_end, 1e-6);
+        CHECK_NEAR(d->cos_falloff_start, c_start, 1e-6);
+        double k_e = 2.0 * M_PI * ((1.0 - c_start) + (c_start - c_end) / 2.0);
+        CHECK_NEAR(d->intensity.x, 50.0 / k_e, 1e-3);
+        CHECK_NEAR(d->direction.y, 1.0, 1e-6);
+        CHECK_NEAR(d->position.y, 2.0, 1e-6);
+    }
+
+    ps = make_params();
+    add_rgb(&ps, "L", 3, 3, 3);
+    CHECK(pn_light_from_pbrt(s, "distant", &ps, &m, &err) == PN_OK);
+    pn_params_free(&ps);
+    if (s->light_def_count == 3) {
+        CHECK_NEAR(s->light_defs[2].direction.z, -1.0, 1e-6); /* from - to = (0,0,-1) */
+        CHECK_NEAR(s->light_defs[2].intensity.x, 3.0, 1e-6);
+    }
+
+    ps = make_params();
+    CHECK(pn_light_from_pbrt(s, "projection", &ps, &m, &err) == PN_ERROR_UNSUPPORTED);
+    CHECK_STR_CONTAINS(err.message, "scene.pbrt:12:3:");
+    pn_params_free(&ps);
+
+    /* Area light: radiance = L * scale, then power / (pi * sides * area * lum(L)). */
+    ps = make_params();
+    add_rgb(&ps, "L", 2, 2, 2);
+    add_float(&ps, "scale", 3);
+    add_float(&ps, "power", 100);
+    pn_area_light_desc desc;
+    pn_err_init(&err);
+    CHECK(pn_area_light_from_pbrt(s, "diffuse", &ps, &desc, &err) == PN_OK);
+    pn_params_free(&ps);
+    CHECK_NEAR(desc.emission.radiance.x, 6.0, 1e-6);
+    CHECK_NEAR(desc.power, 100.0, 1e-9);
+    pn_area_light_apply_power(&desc, 2.0);
+    CHECK_NEAR(desc.emission.radiance.x, 6.0 * 100.0 / (M_PI * 2.0 * 2.0), 1e-3);
+    ps = make_params();
+    pn_err_init(&err);
+    CHECK(pn_area_light_from_pbrt(s, "goniometric", &ps, &desc, &err) == PN_ERROR_BAD_INPUT);
+    pn_params_free(&ps);
+    free_scene(s);
+}
+
+/* ---- textures ------------------------------------------------------------------------------- */
+
+/* A 2 x 2 image: top row (0, 0.2, 0.4) (1, 1, 1); bottom row (0.5, 0.5, 0.5) (0.3, 0.6, 0.9). */
+static bool write_test_image(const char *path) {
+    pn_image img = pn_image_create(2, 2);
+    if (!img) return false;
+    const float px[12] = {0, 0.2f, 0.4f, 1, 1, 1, 0.5f, 0.5f, 0.5f, 0.3f, 0.6f, 0.9f};
+    memcpy(img->layers[0].data, px, sizeof px);
+    pn_err err;
+    pn_err_init(&err);
+    bool ok = pn_image_write_file(img, path, 0.0f, &err) == PN_OK;
+    pn_image_free(img);
+    return ok;
+}
+
+static void test_texture_eval(void) {
+    char dir[] = "/tmp/pn_test_materials_XXXXXX";
+    if (!mkdtemp(dir)) {
+        pn_test_skip("no temporary folder");
+        return;
+    }
+    char path[256];
+    snprintf(path, sizeof path, "%s/tiny.pfm", dir);
+    if (!write_test_image(path)) {
+        pn_test_skip("cannot write a PFM image");
+        rmdir(dir);
+        return;
+    }
+    struct pn_scene_s *s = new_scene();
+    pn_err err;
+    pn_err_init(&err);
+    const char *wraps[3] = {"repeat", "clamp", "black"};
+    for (int w = 0; w < 3; w++) {
+        pn_params ps = make_params();
+        ps.base_dir = dir;
+        add_str(&ps, PN_PT_STRING, "filename", "tiny.pfm");
+        add_str(&ps, PN_PT_STRING, "wrap", wraps[w]);
+        add_str(&ps, PN_PT_STRING, "filter", "trilinear");
+        char name[16];
+        snprintf(name, sizeof name, "t%d", w);
+        CHECK_MSG(pn_texture_from_pbrt(s, name, "spectrum", "imagemap", &ps, &err) == PN_OK, "%s", err.message);
+        pn_params_free(&ps);
+    }
+    CHECK(s->texture_count == 3);
+    CHECK(s->image_count == 1); /* the same file is decoded once */
+    if (s->texture_count == 3) {
+        pn_texref r = {0, {0, 0, 0}};
+        /* u = 0.25, v = 0.75 -> (s, 1 - t) = (0.25, 0.25): exactly the top-left texel centre. */
+        vec3 c = pn_texture_eval(s, r, 0.25f, 0.75f);
+        CHECK_NEAR(c.x, 0.0, 1e-6);
+        CHECK_NEAR(c.y, 0.2, 1e-6);
+        /* Centre of the image: the average of the four texels. */
+        c = pn_texture_eval(s, r, 0.5f, 0.5f);
+        CHECK_NEAR(c.x, (0 + 1 + 0.5 + 0.3) / 4.0, 1e-6);
+        CHECK_NEAR(c.z, (0.4 + 1 + 0.5 + 0.9) / 4.0, 1e-6);
+        /* u = 0.375 (x = 0.25), v = 0.25 (bottom-row centre): 3/4 of (0.5) + 1/4 of (0.3) in red. */
+        c = pn_texture_eval(s, r, 0.375f, 0.25f);
+        CHECK_NEAR(c.x, 0.75 * 0.5 + 0.25 * 0.3, 1e-6);
+        /* u = 0 on the top row: repeat blends the left and right columns, clamp keeps the left,
+         * black halves it. */
+        vec3 rep = pn_texture_eval(s, (pn_texref){0, {0, 0, 0}}, 0.0f, 0.75f);
+        vec3 clm = pn_texture_eval(s, (pn_texref){1, {0, 0, 0}}, 0.0f, 0.75f);
+        vec3 blk = pn_texture_eval(s, (pn_texref){2, {0, 0, 0}}, 0.0f, 0.75f);
+        CHECK_NEAR(rep.y, 0.5 * (0.2 + 1.0), 1e-6);
+        CHECK_NEAR(clm.y, 0.2, 1e-6);
+        CHECK_NEAR(blk.y, 0.1, 1e-6);
+    }
+    /* A float texture of the same file averages the channels; a scale texture halves it. */
+    pn_params ps = make_params();
+    ps.base_dir = dir;
+    add_str(&ps, PN_PT_STRING, "filename", "tiny.pfm");
+    add_float(&ps, "uscale", 2.0);
+    CHECK(pn_texture_from_pbrt(s, "t0", "float", "imagemap", &ps, &err) == PN_OK);
+    pn_params_free(&ps);
+    ps = make_params();
+    add_str(&ps, PN_PT_TEXTURE, "tex", "t0");
+    add_float(&ps, "scale", 0.5);
+    CHECK(pn_texture_from_pbrt(s, "half", "spectrum", "scale", &ps, &err) == PN_OK);
+    pn_params_free(&ps);
+    CHECK(s->image_count == 1);
+    int ft = pn_scene_find_texture_typed(s, "t0", true);
+    int half = pn_scene_find_texture(s, "half");
+    CHECK(ft == 3 && half == 4);
+    if (ft == 3 && half == 4) {
+        /* uscale 2: u = 0.125 -> s = 0.25 */
+        vec3 c = pn_texture_eval(s, (pn_texref){ft, {0, 0, 0}}, 0.125f, 0.75f);
+        CHECK_NEAR(c.x, 0.2, 1e-6);
+        CHECK_NEAR(c.z, 0.2, 1e-6);
+        c = pn_texture_eval(s, (pn_texref){half, {0, 0, 0}}, 0.25f, 0.75f);
+        CHECK_NEAR(c.y, 0.1, 1e-6);
+        /* A material input naming the spectrum texture "t0" finds it, not the float one. */
+        ps = make_params();
+        add_str(&ps, PN_PT_TEXTURE, "reflectance", "t0");
+        int mi = build_material(s, "diffuse", "Tex", &ps);
+        if (mi >= 0) {
+            CHECK(s->materials[mi].kd.texture == 0);
+            CHECK_STR_CONTAINS(s->materials[mi].description, "kd=texture 't0'");
+        }
+    }
+    /* A checkerboard: tex1 where floor(s) + floor(t) is even. */
+    ps = make_params();
+    add_float(&ps, "tex1", 0.25);
+    add_float(&ps, "tex2", 0.75);
+    add_float(&ps, "uscale", 4);
+    add_float(&ps, "vscale", 4);
+    CHECK(pn_texture_from_pbrt(s, "check", "float", "checkerboard", &ps, &err) == PN_OK);
+    pn_params_free(&ps);
+    int ck = pn_scene_find_texture(s, "check");
+    if (ck >= 0) {
+        CHECK_NEAR(pn_texture_eval(s, (pn_texref){ck, {0, 0, 0}}, 0.1f, 0.1f).x, 0.25, 1e-6);
+        CHECK_NEAR(pn_texture_eval(s, (pn_texref){ck, {0, 0, 0}}, 0.3f, 0.1f).x, 0.75, 1e-6);
+        CHECK_NEAR(pn_texture_eval(s, (pn_texref){ck, {0, 0, 0}}, 0.3f, 0.3f).x, 0.25, 1e-6);
+    }
+    /* A missing image is an error at the filename parameter, with the reader's message. */
+    ps = make_params();
+    ps.base_dir = dir;
+    add_str(&ps, PN_PT_STRING, "filename", "missing.png");
+    pn_err_init(&err);
+    CHECK(pn_texture_from_pbrt(s, "bad", "spectrum", "imagemap", &ps, &err) == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(err.message, "scene.pbrt:14:5:");
+    CHECK_STR_CONTAINS(err.message, "missing.png");
+    pn_params_free(&ps);
+    /* An unknown class is an error at the directive. */
+    ps = make_params();
+    pn_err_init(&err);
+    CHECK(pn_texture_from_pbrt(s, "x", "float", "nosuch", &ps, &err) == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(err.message, "scene.pbrt:12:3: unknown texture class");
+    pn_params_free(&ps);
+
+    /* An infinite light with a square image: equal-area, sharing the image table. */
+    ps = make_params();
+    ps.base_dir = dir;
+    add_str(&ps, PN_PT_STRING, "filename", "tiny.pfm");
+    add_float(&ps, "scale", 2);
+    mat4 id = mat4_identity();
+    pn_err_init(&err);
+    CHECK_MSG(pn_light_from_pbrt(s, "infinite", &ps, &id, &err) == PN_OK, "%s", err.message);
+    pn_params_free(&ps);
+    if (s->light_def_count == 1) {
+        CHECK(s->light_defs[0].equal_area);
+        CHECK(s->light_defs[0].image == 0);
+        CHECK_NEAR(s->light_defs[0].intensity.y, 2.0, 1e-6);
+    }
+    free_scene(s);
+    unlink(path);
+    rmdir(dir);
+}
+
+PN_TESTS(TEST(test_diffuse_default), TEST(test_coateddiffuse), TEST(test_conductor),
+         TEST(test_dielectric_mix_interface), TEST(test_unknown_material), TEST(test_spectra),
+         TEST(test_spd_file), TEST(test_light_power), TEST(test_texture_eval))
