@@ -593,6 +593,17 @@ static void test_texture_eval(void) {
             CHECK_STR_CONTAINS(s->materials[mi].description, "kd=texture 't0'");
         }
     }
+    /* diffusetransmission's "scale" on a textured reflectance becomes a scale texture. */
+    ps = make_params();
+    add_str(&ps, PN_PT_TEXTURE, "reflectance", "t0");
+    add_float(&ps, "scale", 0.5);
+    int dt = build_material(s, "diffusetransmission", "Leaves", &ps);
+    if (dt >= 0) {
+        pn_texref kd = s->materials[dt].kd;
+        CHECK(kd.texture >= 0 && s->textures[kd.texture].kind == PN_TEXTURE_SCALE);
+        CHECK_NEAR(pn_texture_eval(s, kd, 0.25f, 0.75f).y, 0.1, 1e-6);
+        CHECK_STR_CONTAINS(s->materials[dt].description, "texture 't0 x 0.5'");
+    }
     /* A checkerboard: tex1 where floor(s) + floor(t) is even. */
     ps = make_params();
     add_float(&ps, "tex1", 0.25);
@@ -636,6 +647,39 @@ static void test_texture_eval(void) {
         CHECK(s->light_defs[0].equal_area);
         CHECK(s->light_defs[0].image == 0);
         CHECK_NEAR(s->light_defs[0].intensity.y, 2.0, 1e-6);
+    }
+    /* "illuminance" of a constant white equal-area environment: the cosine-weighted upper
+     * hemisphere of radiance 1 gives pi, so scale = E / pi (up to the texel discretisation). */
+    char white[256];
+    snprintf(white, sizeof white, "%s/white.pfm", dir);
+    pn_image wimg = pn_image_create(32, 32);
+    bool wrote = false;
+    if (wimg) {
+        for (int i = 0; i < 3 * 32 * 32; i++) wimg->layers[0].data[i] = 1.0f;
+        pn_err_init(&err);
+        wrote = pn_image_write_file(wimg, white, 0.0f, &err) == PN_OK;
+        pn_image_free(wimg);
+    }
+    CHECK(wrote);
+    if (wrote) {
+        ps = make_params();
+        ps.base_dir = dir;
+        add_str(&ps, PN_PT_STRING, "filename", "white.pfm");
+        add_float(&ps, "illuminance", 10.0);
+        pn_err_init(&err);
+        CHECK_MSG(pn_light_from_pbrt(s, "infinite", &ps, &id, &err) == PN_OK, "%s", err.message);
+        pn_params_free(&ps);
+        if (s->light_def_count == 2) CHECK_NEAR(s->light_defs[1].intensity.x, 10.0 / M_PI, 0.02 * 10.0 / M_PI);
+        unlink(white);
+    }
+    ps = make_params();
+    add_rgb(&ps, "L", 2, 2, 2);
+    add_float(&ps, "illuminance", 10.0);
+    CHECK(pn_light_from_pbrt(s, "infinite", &ps, &id, &err) == PN_OK);
+    pn_params_free(&ps);
+    if (s->light_def_count == 3) {
+        CHECK(s->light_defs[2].image < 0);
+        CHECK_NEAR(s->light_defs[2].intensity.y, 10.0 / M_PI, 1e-4);
     }
     free_scene(s);
     unlink(path);

@@ -416,6 +416,37 @@ static void test_other_shapes(void) {
     pn_scene_parse_free(s);
 }
 
+static void test_loop_subdivision(void) {
+    /* a closed tetrahedron, one level: 4 -> 16 triangles, 4 + 6 vertices */
+    struct pn_scene_s *s = parse_ok("loop.pbrt",
+                                    "WorldBegin\n"
+                                    "Shape \"loopsubdiv\" \"integer levels\" 1\n"
+                                    "  \"point3 P\" [0 0 0  1 0 0  0 1 0  0 0 1]\n"
+                                    "  \"integer indices\" [0 2 1  0 1 3  0 3 2  1 2 3]\n"
+                                    "Shape \"loopsubdiv\" \"integer levels\" 2 \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    if (!s) return;
+    CHECK(s->mesh_count == 2);
+    if (s->mesh_count == 2) {
+        const pn_mesh *m = &s->meshes[0];
+        CHECK(m->vertex_count == 10 && m->triangle_count == 16);
+        /* even vertex 0 (valence 3, beta 3/16): 7/16 v0 + 3/16 (v1 + v2 + v3) */
+        check_point(mesh_vertex(m, 0), 0.1875, 0.1875, 0.1875, 1e-6);
+        /* an odd vertex on edge (0,1): 3/8 (v0 + v1) + 1/8 (v2 + v3) */
+        bool found = false;
+        for (uint32_t v = 4; v < m->vertex_count; v++) {
+            vec3 p = mesh_vertex(m, v);
+            if (fabsf(p.x - 0.375f) < 1e-6f && fabsf(p.y - 0.125f) < 1e-6f && fabsf(p.z - 0.125f) < 1e-6f) found = true;
+        }
+        CHECK(found);
+        /* an open single triangle: boundary rules keep it in its plane; 2 levels -> 16 triangles */
+        const pn_mesh *b = &s->meshes[1];
+        CHECK(b->triangle_count == 16 && b->vertex_count == 15);
+        for (uint32_t v = 0; v < b->vertex_count; v++) CHECK(b->positions[3 * v + 2] == 0.0f);
+        check_point(mesh_vertex(b, 0), 0, 0, 0, 1e-6); /* a corner stays */
+    }
+    pn_scene_parse_free(s);
+}
+
 /* ---- lights and materials ---------------------------------------------------------------- */
 
 static void test_area_light(void) {
@@ -725,7 +756,7 @@ static void test_real_scenes(void) {
 PN_TESTS(TEST(test_look_at_camera), TEST(test_transform_composition), TEST(test_coordinate_systems),
          TEST(test_attribute_scoping), TEST(test_default_material), TEST(test_reverse_orientation_and_handedness),
          TEST(test_attribute_defaults), TEST(test_include_relative), TEST(test_object_instances),
-         TEST(test_trianglemesh_contents), TEST(test_disk_and_sphere), TEST(test_other_shapes),
+         TEST(test_trianglemesh_contents), TEST(test_disk_and_sphere), TEST(test_other_shapes), TEST(test_loop_subdivision),
          TEST(test_area_light), TEST(test_named_materials), TEST(test_unused_parameter_warning),
          TEST(test_motion_blur_warning), TEST(test_bad_input_table), TEST(test_recursive_include),
          TEST(test_missing_main_file), TEST(test_truncated_prefixes), TEST(test_real_scenes))

@@ -14,9 +14,10 @@
  *               not meaningful for it and is ignored with a warning.
  *  infinite     constant "L" * scale, or the image "filename" scaled by "scale". pbrt-v4 expects
  *               an equal-area octahedral (square) image; a non-square image is read as a
- *               latitude-longitude map with a warning. "illuminance" E is honoured for a constant
- *               L (L * scale * E / (pi luminance(L)), the irradiance of the upper hemisphere) and
- *               ignored with a warning for images. "portal" is ignored with a warning.
+ *               latitude-longitude map with a warning. "illuminance" E rescales the light so that
+ *               a surface facing +z (in light space) receives illuminance E: L * scale * E /
+ *               (pi luminance(L)) for a constant L, scale * E / (the image's upper-hemisphere
+ *               illuminance) for an image. "portal" is ignored with a warning.
  *  goniometric  I * scale at world_from_light * origin, with its image recorded (the renderer
  *               treats it as a point light); "power" is ignored with a warning.
  *  projection   rejected as unsupported.
@@ -27,6 +28,7 @@
  */
 #include "scene/build.h"
 
+#include "lights/lights.h"
 #include "scene/parser_internal.h"
 
 #include <math.h>
@@ -74,6 +76,32 @@ static pn_status read_positive(const pn_params *ps, const char *name, double *ou
     if (st != PN_OK) return st;
     *out = v > 0.0 && isfinite(v) ? v : 0.0;
     return PN_OK;
+}
+
+/* Illuminance (luminance-weighted irradiance) that an environment image delivers to a surface
+ * facing +z in light space: the sum over texels above the horizon of luminance * cos(theta) *
+ * solid angle. Equal-area texels all cover 4 pi / (w h); latitude-longitude texels cover
+ * (2 pi / w) (pi / h) sin(theta). */
+static double image_illuminance(const pn_texture_image *img, bool equal_area) {
+    double sum = 0.0;
+    for (int y = 0; y < img->height; y++) {
+        for (int x = 0; x < img->width; x++) {
+            float u = ((float)x + 0.5f) / (float)img->width, v = ((float)y + 0.5f) / (float)img->height;
+            double cos_theta, solid_angle;
+            if (equal_area) {
+                cos_theta = pn_equal_area_square_to_sphere(u, v).z;
+                solid_angle = 4.0 * PN_PI_D / ((double)img->width * (double)img->height);
+            } else {
+                double theta = (double)v * PN_PI_D;
+                cos_theta = cos(theta);
+                solid_angle = (2.0 * PN_PI_D / img->width) * (PN_PI_D / img->height) * sin(theta);
+            }
+            if (cos_theta <= 0.0) continue;
+            const float *px = img->rgb + 3 * ((size_t)y * (size_t)img->width + (size_t)x);
+            sum += (double)v3_luminance(v3(px[0], px[1], px[2])) * cos_theta * solid_angle;
+        }
+    }
+    return sum;
 }
 
 /* Intensity rescaled to emit `power` over the solid-angle factor k_e. */
@@ -196,9 +224,14 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
                         "read as a latitude-longitude map",
                         file, img->width, img->height);
             }
+            if (illuminance > 0.0) {
+                double e = image_illuminance(img, d.equal_area);
+                if (e > 0.0)
+                    scale *= illuminance / e;
+                else
+                    warn_ignored(scene, ps, "illuminance", "cannot be met by a black upper hemisphere; ignored");
+            }
             d.intensity = v3((float)scale, (float)scale, (float)scale);
-            if (illuminance > 0.0)
-                warn_ignored(scene, ps, "illuminance", "of an image infinite light is not supported; ignored");
         } else {
             d.intensity = apply_power(v3_scale(L, (float)scale), L, illuminance, PN_PI_D);
         }

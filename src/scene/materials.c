@@ -17,8 +17,8 @@
  *                        reflectance), kd = 0, n from the interface roughness
  *   dielectric,          DIELECTRIC with eta (a float, or a spectrum's value at 550 nm; default
  *   thindielectric       1.5), white; a rough dielectric is rendered smooth, with a warning
- *   diffusetransmission  LAMBERT kd = reflectance (default 0.25) * scale; transmission dropped
- *                        with a warning
+ *   diffusetransmission  LAMBERT kd = reflectance (default 0.25) * scale (a textured reflectance
+ *                        gets a scale texture "TEX x scale"); transmission dropped with a warning
  *   mix                  the input material with the larger weight ("amount" > 0.5 picks the
  *                        second one), with a warning
  *   measured, hair,      LAMBERT substitutes with a warning: kd = 0.5 (measured), the hair
@@ -256,7 +256,7 @@ static pn_status map_coateddiffuse(builder *b, pn_err *err) {
     b->m.ks = constant_ref(v3(ks, ks, ks));
     b->m.exponent = (float)n;
     size_t len = strlen(b->model);
-    snprintf(b->model + len, sizeof b->model - len, " + Blinn ks=%.4g n=%.4g", (double)ks, n);
+    snprintf(b->model + len, sizeof b->model - len, " + Blinn ks=%.4g n=%.5g", (double)ks, n);
     describe_roughness(b->note, sizeof b->note, roughness, alpha, n, clamped);
     warn_bump(b);
     return PN_OK;
@@ -335,7 +335,7 @@ static pn_status map_conductor(builder *b, pn_err *err) {
         b->m.kd = constant_ref(v3(0, 0, 0));
         b->m.ks = f0;
         b->m.exponent = (float)n;
-        snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.4g, kd=0", s, n);
+        snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.5g, kd=0", s, n);
         char r[128];
         describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
         snprintf(b->note, sizeof b->note, "(F0 of %s) %s", what, r);
@@ -363,7 +363,7 @@ static pn_status map_coatedconductor(builder *b, pn_err *err) {
     b->m.exponent = (float)n;
     char s[128];
     fmt_ref(b->scene, s, sizeof s, f0);
-    snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.4g, kd=0", s, n);
+    snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.5g, kd=0", s, n);
     char r[128];
     describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
     snprintf(b->note, sizeof b->note, "(F0 of the conductor, %s; interface %s)", what, r);
@@ -394,6 +394,33 @@ static pn_status map_dielectric(builder *b, bool thin, pn_err *err) {
     return PN_OK;
 }
 
+/* A new SCALE texture "NAME x s" standing for `in` times s (for material-level scale factors). */
+static pn_status scaled_texture(builder *b, pn_texref in, float s, pn_texref *out, pn_err *err) {
+    struct pn_scene_s *scene = b->scene;
+    const pn_texture *src = &scene->textures[in.texture];
+    pn_texture t;
+    memset(&t, 0, sizeof t);
+    t.kind = PN_TEXTURE_SCALE;
+    t.is_float = src->is_float;
+    t.image = -1;
+    t.su = t.sv = 1.0f;
+    t.scale = 1.0f;
+    t.a = in;
+    t.b = constant_ref(v3(s, s, s));
+    t.amount = constant_ref(v3(0, 0, 0));
+    char name[300];
+    snprintf(name, sizeof name, "%s x %g", src->name ? src->name : "?", (double)s);
+    t.name = dup_string(name);
+    if (!t.name || !pn_grow_for_append((void **)&scene->textures, scene->texture_count, sizeof *scene->textures)) {
+        free(t.name);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a texture");
+    }
+    out->texture = scene->texture_count;
+    out->value = v3(0, 0, 0);
+    scene->textures[scene->texture_count++] = t;
+    return PN_OK;
+}
+
 static pn_status map_diffusetransmission(builder *b, pn_err *err) {
     pn_texref kd, kt;
     double scale = 1.0;
@@ -404,8 +431,8 @@ static pn_status map_diffusetransmission(builder *b, pn_err *err) {
     if (scale != 1.0) {
         if (kd.texture < 0)
             kd.value = v3_min(v3(1, 1, 1), v3_max(v3(0, 0, 0), v3_scale(kd.value, (float)scale)));
-        else
-            warn_at(b->scene, b->ps->loc, "%s: \"scale\" %g of a textured reflectance is ignored", b->label, scale);
+        else if ((st = scaled_texture(b, kd, (float)scale, &kd, err)) != PN_OK)
+            return st;
     }
     set_lambert(b, kd);
     warn_at(b->scene, b->ps->loc, "%s: diffusetransmission rendered as diffuse reflection; its transmission is dropped",

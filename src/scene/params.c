@@ -240,9 +240,8 @@ pn_status pn_params_parse(pn_tokenizer *tz, pn_params *ps, pn_err *err) {
                 st = add_value(p, &v, &num_cap, &str_cap, err);
                 if (st != PN_OK) return st;
             }
-        } else if (v.kind == PN_TOKEN_STRING || (v.kind == PN_TOKEN_WORD && (pn_token_is_numeric(&v) ||
-                                                                              pn_token_is(&v, "true") ||
-                                                                              pn_token_is(&v, "false")))) {
+        } else if (v.kind == PN_TOKEN_STRING ||
+                   (v.kind == PN_TOKEN_WORD && (pn_token_is_numeric(&v) || p->type == PN_PT_BOOL))) {
             st = add_value(p, &v, &num_cap, &str_cap, err);
             if (st != PN_OK) return st;
         } else {

@@ -1112,6 +1112,7 @@ static pn_status to_floats(pn_parser *p, const double *v, int count, float **out
 /* Reads P, N, uv of a mesh-like shape (trianglemesh, bilinearmesh, loopsubdiv). */
 static pn_status read_vertices(pn_parser *p, const pn_shape_ctx *sc, const pn_params *ps, bool with_attributes,
                                pn_mesh_data *data) {
+    memset(data, 0, sizeof *data);
     const double *P, *N = NULL, *UV = NULL;
     int np, nn = 0, nuv = 0;
     pn_status st = pn_params_array(ps, "P", PN_PT_POINT3, 3, &P, &np, p->err);
@@ -1129,7 +1130,6 @@ static pn_status read_vertices(pn_parser *p, const pn_shape_ctx *sc, const pn_pa
             return pn_param_error(pn_params_find(ps, "uv"), p->err,
                                   "\"uv\" has %d coordinate pairs but \"P\" has %d vertices", nuv / 2, np / 3);
     }
-    memset(data, 0, sizeof *data);
     data->vertex_count = (uint32_t)(np / 3);
     if ((st = to_floats(p, P, np, &data->positions)) != PN_OK) return st;
     if ((st = to_floats(p, N, N ? nn : 0, &data->normals)) != PN_OK) return st;
@@ -1571,7 +1571,7 @@ static const pn_directive pn_directives[] = {
     {"Accelerator", d_accelerator, PN_OPTIONS_ONLY},
     {"MakeNamedMedium", d_make_named_medium, PN_ANYWHERE},
     {"MediumInterface", d_medium_interface, PN_ANYWHERE},
-    {"WorldBegin", d_world_begin, PN_OPTIONS_ONLY},
+    {"WorldBegin", d_world_begin, PN_ANYWHERE},
     {"WorldEnd", d_world_end, PN_WORLD_ONLY},
     {"Include", d_include, PN_ANYWHERE},
     {"Import", d_include, PN_ANYWHERE},

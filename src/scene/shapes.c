@@ -222,9 +222,166 @@ pn_status pn_tessellate_cylinder(double radius, double zmin, double zmax, double
     return PN_OK;
 }
 
+/* ---- Loop subdivision -------------------------------------------------------------------- */
+
+/* One half-edge of the input: the undirected edge's key and the corner it starts at. */
+typedef struct pn_half_edge {
+    uint64_t key; /* (min vertex << 32) | max vertex */
+    uint32_t corner; /* 3 * triangle + k: the edge runs from corner k to corner k+1 */
+} pn_half_edge;
+
+static int compare_half_edges(const void *a, const void *b) {
+    const pn_half_edge *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return x->corner < y->corner ? -1 : (x->corner > y->corner);
+}
+
+/* Loop's weight for an interior vertex of valence n (3/16 for n = 3, else 3/(8n)). */
+static double loop_beta(uint32_t n) { return n == 3 ? 3.0 / 16.0 : 3.0 / (8.0 * (double)n); }
+
+/* One level of Loop subdivision (Loop 1987, "Smooth Subdivision Surfaces Based on Triangles",
+ * section 3.2): every triangle becomes four; old ("even") vertices move by the valence-weighted
+ * mask, new ("odd") vertices on edges use 3/8 for the edge ends and 1/8 for the two opposite
+ * vertices. Boundary (and non-manifold) edges use the cubic B-spline rules 1/2,1/2 and 1/8,3/4,1/8. */
+static pn_status loop_level(uint32_t nv, uint32_t nt, const double *P, const uint32_t *ix, double **out_p,
+                            uint32_t **out_ix, uint32_t *out_nv, uint32_t *out_nt, pn_err *err) {
+    size_t nh = (size_t)nt * 3;
+    pn_half_edge *he = malloc((nh ? nh : 1) * sizeof *he);
+    uint32_t *edge_of = malloc((nh ? nh : 1) * sizeof *edge_of);
+    double *nsum = calloc((size_t)nv * 3, sizeof *nsum), *bsum = calloc((size_t)nv * 3, sizeof *bsum);
+    uint32_t *valence = calloc(nv, sizeof *valence), *bcount = calloc(nv, sizeof *bcount);
+    double *np = NULL;
+    uint32_t *nix = NULL;
+    pn_status st = PN_OK;
+    if (!he || !edge_of || !nsum || !bsum || !valence || !bcount) goto oom;
+    for (uint32_t t = 0; t < nt; t++)
+        for (uint32_t k = 0; k < 3; k++) {
+            uint64_t a = ix[3 * t + k], b = ix[3 * t + (k + 1) % 3];
+            uint64_t lo = a < b ? a : b, hi = a < b ? b : a;
+            he[3 * t + k] = (pn_half_edge){(lo << 32) | hi, 3 * t + k};
+        }
+    qsort(he, nh, sizeof *he, compare_half_edges);
+    /* count unique edges */
+    uint32_t ne = 0;
+    for (size_t i = 0; i < nh; i++)
+        if (i == 0 || he[i].key != he[i - 1].key) ne++;
+    if ((uint64_t)nv + ne > 0xFFFFFFFFull || (uint64_t)nt * 4 > 0xFFFFFFFFull / 3) {
+        st = pn_err_set(err, PN_ERROR_BAD_INPUT, "loopsubdiv: the subdivided mesh is too large");
+        goto done;
+    }
+    uint32_t nv2 = nv + ne;
+    np = malloc((size_t)nv2 * 3 * sizeof *np);
+    nix = malloc((size_t)nt * 12 * sizeof *nix);
+    if (!np || !nix) goto oom;
+    /* odd vertices, and the neighbour sums of the even ones */
+    uint32_t e = 0;
+    for (size_t i = 0; i < nh;) {
+        size_t j = i;
+        while (j < nh && he[j].key == he[i].key) j++;
+        uint32_t a = (uint32_t)(he[i].key >> 32), b = (uint32_t)(he[i].key & 0xFFFFFFFFu);
+        size_t sharing = j - i;
+        double *q = &np[3 * (size_t)(nv + e)];
+        for (int c = 0; c < 3; c++) {
+            nsum[3 * (size_t)a + c] += P[3 * (size_t)b + c];
+            nsum[3 * (size_t)b + c] += P[3 * (size_t)a + c];
+        }
+        valence[a]++;
+        valence[b]++;
+        if (sharing == 2) {
+            uint32_t o0 = ix[3 * (he[i].corner / 3) + (he[i].corner % 3 + 2) % 3];
+            uint32_t o1 = ix[3 * (he[i + 1].corner / 3) + (he[i + 1].corner % 3 + 2) % 3];
+            for (int c = 0; c < 3; c++)
+                q[c] = 0.375 * (P[3 * (size_t)a + c] + P[3 * (size_t)b + c]) +
+                       0.125 * (P[3 * (size_t)o0 + c] + P[3 * (size_t)o1 + c]);
+        } else {
+            for (int c = 0; c < 3; c++) {
+                q[c] = 0.5 * (P[3 * (size_t)a + c] + P[3 * (size_t)b + c]);
+                bsum[3 * (size_t)a + c] += P[3 * (size_t)b + c];
+                bsum[3 * (size_t)b + c] += P[3 * (size_t)a + c];
+            }
+            bcount[a]++;
+            bcount[b]++;
+        }
+        for (size_t k = i; k < j; k++) edge_of[he[k].corner] = nv + e;
+        e++;
+        i = j;
+    }
+    /* even vertices */
+    for (uint32_t v = 0; v < nv; v++) {
+        double *q = &np[3 * (size_t)v];
+        const double *pv = &P[3 * (size_t)v];
+        if (bcount[v] == 2) {
+            for (int c = 0; c < 3; c++) q[c] = 0.75 * pv[c] + 0.125 * bsum[3 * (size_t)v + c];
+        } else if (bcount[v] > 0 || valence[v] < 3) {
+            for (int c = 0; c < 3; c++) q[c] = pv[c]; /* corners and non-manifold vertices stay */
+        } else {
+            double beta = loop_beta(valence[v]);
+            double w = 1.0 - (double)valence[v] * beta;
+            for (int c = 0; c < 3; c++) q[c] = w * pv[c] + beta * nsum[3 * (size_t)v + c];
+        }
+    }
+    for (uint32_t t = 0; t < nt; t++) {
+        uint32_t a = ix[3 * t], b = ix[3 * t + 1], c = ix[3 * t + 2];
+        uint32_t ab = edge_of[3 * t], bc = edge_of[3 * t + 1], ca = edge_of[3 * t + 2];
+        uint32_t *o = &nix[12 * (size_t)t];
+        o[0] = a, o[1] = ab, o[2] = ca;
+        o[3] = ab, o[4] = b, o[5] = bc;
+        o[6] = ca, o[7] = bc, o[8] = c;
+        o[9] = ab, o[10] = bc, o[11] = ca;
+    }
+    *out_p = np;
+    *out_ix = nix;
+    *out_nv = nv2;
+    *out_nt = nt * 4;
+    np = NULL;
+    nix = NULL;
+    goto done;
+oom:
+    st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory subdividing a loopsubdiv shape");
+done:
+    free(he);
+    free(edge_of);
+    free(nsum);
+    free(bsum);
+    free(valence);
+    free(bcount);
+    free(np);
+    free(nix);
+    return st;
+}
+
 pn_status pn_loop_subdivide(pn_mesh_data *d, int levels, pn_err *err) {
-    (void)d;
-    (void)levels;
-    (void)err;
+    if (levels <= 0 || d->triangle_count == 0) return PN_OK;
+    double *P = malloc((size_t)d->vertex_count * 3 * sizeof *P);
+    if (!P) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory subdividing a loopsubdiv shape");
+    for (size_t i = 0; i < (size_t)d->vertex_count * 3; i++) P[i] = (double)d->positions[i];
+    uint32_t *ix = d->indices, nv = d->vertex_count, nt = d->triangle_count;
+    bool own_ix = false;
+    for (int l = 0; l < levels; l++) {
+        double *P2;
+        uint32_t *ix2, nv2, nt2;
+        pn_status st = loop_level(nv, nt, P, ix, &P2, &ix2, &nv2, &nt2, err);
+        free(P);
+        if (own_ix) free(ix);
+        if (st != PN_OK) return st;
+        P = P2;
+        ix = ix2;
+        nv = nv2;
+        nt = nt2;
+        own_ix = true;
+    }
+    float *pf = malloc((size_t)nv * 3 * sizeof *pf);
+    if (!pf) {
+        free(P);
+        free(ix);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory subdividing a loopsubdiv shape");
+    }
+    for (size_t i = 0; i < (size_t)nv * 3; i++) pf[i] = (float)P[i];
+    free(P);
+    pn_mesh_data_free(d);
+    d->vertex_count = nv;
+    d->triangle_count = nt;
+    d->positions = pf;
+    d->indices = ix;
     return PN_OK;
 }

@@ -81,9 +81,18 @@ done
 [ -x "$prefix/bin/penumbra" ] || fail "the CLI was not installed as bin/penumbra"
 
 # --- 2. the installed package files must not point back into the source or build tree --------
+# without_prefix FILE: the file with every occurrence of the prefix path cut out (the prefix
+# itself may sit inside the build tree).
+without_prefix() {
+    awk -v p="$prefix" '{
+        out = ""
+        while ((i = index($0, p)) > 0) { out = out substr($0, 1, i - 1); $0 = substr($0, i + length(p)) }
+        print NR ":" out $0
+    }' "$1"
+}
 for f in "$config_dir"/*.cmake "$pc_file"; do
-    if grep -n -e "$source_dir" -e "$build_dir" "$f" >&2; then
-        fail "$f refers to the source or build tree (lines above)"
+    if without_prefix "$f" | grep -F -e "$source_dir" -e "$build_dir" >&2; then
+        fail "$f refers to the source or build tree (lines above, prefix cut out)"
     fi
     if grep -n -e 'penumbra_objects' -e 'penumbra_internal' -e 'PN_BUILDING_LIBRARY' "$f" >&2; then
         fail "$f exposes internal targets or definitions (lines above)"
