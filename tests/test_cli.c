@@ -406,7 +406,7 @@ static void test_bad_scenes(void) {
         {"wrong-type.pbrt",
          "WorldBegin\n"
          "Shape \"sphere\" \"float radius\" \"abc\"\n",
-         "wrong-type.pbrt:2:16:"},
+         "wrong-type.pbrt:2:31:"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         write_file(cases[i].file, cases[i].text);

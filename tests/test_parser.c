@@ -1,6 +1,7 @@
 /* test_parser.c — the pbrt-v4 scene parser: transforms, graphics state, Include, instancing,
  * shapes, area lights, named materials, the bad-input error table (exact line:column) and, when
  * ../shared is present, every real scene. */
+#define _XOPEN_SOURCE 700 /* nftw, mkdtemp */
 #include "harness.h"
 
 #include "core/context.h"
@@ -8,6 +9,7 @@
 #include "scene/scene.h"
 
 #include <dirent.h>
+#include <ftw.h>
 #include <errno.h>
 #include <stdarg.h>
 #include <sys/stat.h>
@@ -388,6 +390,30 @@ static void test_disk_and_sphere(void) {
     pn_scene_parse_free(s);
 }
 
+/* Under a mirroring transform pbrt flips quadric normals (ReverseOrientation XOR handedness);
+ * the disk record and its tessellation must agree. */
+static void test_mirrored_disk(void) {
+    struct pn_scene_s *s = parse_ok("mirror_disk.pbrt",
+                                    "WorldBegin\n"
+                                    "AttributeBegin\n Scale 1 1 -1\n Shape \"disk\"\nAttributeEnd\n"
+                                    "AttributeBegin\n Scale 1 1 -1\n ReverseOrientation\n Shape \"disk\"\nAttributeEnd\n");
+    if (!s) return;
+    CHECK(s->disk_count == 2);
+    for (int i = 0; i < s->disk_count; i++) {
+        const pn_disk *d = &s->disks[i];
+        const pn_mesh *m = &s->meshes[d->mesh];
+        check_point(d->normal, 0, 0, i == 0 ? 1 : -1, 1e-6);
+        for (uint32_t t = 0; t < m->triangle_count; t++) {
+            vec3 p0 = mesh_vertex(m, m->indices[3 * t]), p1 = mesh_vertex(m, m->indices[3 * t + 1]),
+                 p2 = mesh_vertex(m, m->indices[3 * t + 2]);
+            vec3 n = v3_normalize(v3_cross(v3_sub(p1, p0), v3_sub(p2, p0)));
+            if (m->flip_normals) n = v3_neg(n);
+            CHECK(v3_dot(n, d->normal) > 0.99f);
+        }
+    }
+    pn_scene_parse_free(s);
+}
+
 static void test_other_shapes(void) {
     struct pn_scene_s *s = parse_ok("shapes.pbrt",
                                     "WorldBegin\n"
@@ -442,7 +468,8 @@ static void test_loop_subdivision(void) {
         const pn_mesh *b = &s->meshes[1];
         CHECK(b->triangle_count == 16 && b->vertex_count == 15);
         for (uint32_t v = 0; v < b->vertex_count; v++) CHECK(b->positions[3 * v + 2] == 0.0f);
-        check_point(mesh_vertex(b, 0), 0, 0, 0, 1e-6); /* a corner stays */
+        /* boundary rule twice: (1/8, 1/8) after one level, then 3/4 of it + 1/8 of (1/2, 0) and (0, 1/2) */
+        check_point(mesh_vertex(b, 0), 0.15625, 0.15625, 0, 1e-6);
     }
     pn_scene_parse_free(s);
 }
@@ -669,6 +696,44 @@ static void test_truncated_prefixes(void) {
     free(buf);
 }
 
+/* Random byte edits of a valid scene: every result must be a clean success or error. */
+static void test_mutations(void) {
+    const char *text = "LookAt 0 0 5 0 0 0 0 1 0\nCamera \"perspective\" \"float fov\" [45]\n"
+                       "Film \"rgb\" \"integer xresolution\" [64] \"integer yresolution\" [32]\nWorldBegin\n"
+                       "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\nTranslate 1 2 3\n"
+                       "Shape \"trianglemesh\" \"integer indices\" [0 1 2] \"point3 P\" [0 0 0 1 0 0 0 1 0]\n"
+                       "AttributeEnd\nObjectBegin \"o\"\nShape \"disk\" \"float radius\" 2\nObjectEnd\n"
+                       "ObjectInstance \"o\"\nMakeNamedMaterial \"m\" \"string type\" \"diffuse\"\n"
+                       "NamedMaterial \"m\"\nShape \"sphere\" \"float radius\" 2\n";
+    const char alphabet[] = "[]\"#\\ \n0123456789.-eE\0abcAttributeBeginEnd";
+    size_t n = strlen(text);
+    char *buf = malloc(n + 1);
+    uint32_t rng = 12345u;
+    for (int iter = 0; iter < 400; iter++) {
+        memcpy(buf, text, n + 1);
+        int edits = 1 + iter % 4;
+        for (int e = 0; e < edits; e++) {
+            rng = rng * 1664525u + 1013904223u;
+            size_t at = (rng >> 8) % n;
+            rng = rng * 1664525u + 1013904223u;
+            buf[at] = alphabet[(rng >> 8) % (sizeof alphabet - 1)];
+        }
+        /* write the full n bytes: a NUL edit must reach the parser */
+        FILE *f = fopen(tpath("mut.pbrt"), "wb");
+        fwrite(buf, 1, n, f);
+        fclose(f);
+        pn_err err;
+        pn_err_init(&err);
+        struct pn_scene_s *s = NULL;
+        pn_status st = pn_scene_parse(test_context(), tpath("mut.pbrt"), &s, &err);
+        CHECK_MSG(st == PN_OK || st == PN_ERROR_BAD_INPUT || st == PN_ERROR_UNSUPPORTED, "iteration %d: %d %s",
+                  iter, (int)st, err.message);
+        CHECK((st == PN_OK) == (s != NULL));
+        pn_scene_parse_free(s);
+    }
+    free(buf);
+}
+
 /* ---- the real scenes in ../shared/scenes ------------------------------------------------- */
 
 static double seconds_now(void) {
@@ -753,10 +818,20 @@ static void test_real_scenes(void) {
     for (int i = 0; i < count; i++) free(names[i]);
 }
 
+static int remove_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw) {
+    (void)st;
+    (void)flag;
+    (void)ftw;
+    return remove(path);
+}
+
+/* Last: removes the temporary folder the tests wrote. */
+static void test_cleanup(void) { CHECK(nftw(temp_dir(), remove_entry, 16, FTW_DEPTH | FTW_PHYS) == 0); }
+
 PN_TESTS(TEST(test_look_at_camera), TEST(test_transform_composition), TEST(test_coordinate_systems),
          TEST(test_attribute_scoping), TEST(test_default_material), TEST(test_reverse_orientation_and_handedness),
          TEST(test_attribute_defaults), TEST(test_include_relative), TEST(test_object_instances),
-         TEST(test_trianglemesh_contents), TEST(test_disk_and_sphere), TEST(test_other_shapes), TEST(test_loop_subdivision),
+         TEST(test_trianglemesh_contents), TEST(test_disk_and_sphere), TEST(test_mirrored_disk), TEST(test_other_shapes), TEST(test_loop_subdivision),
          TEST(test_area_light), TEST(test_named_materials), TEST(test_unused_parameter_warning),
          TEST(test_motion_blur_warning), TEST(test_bad_input_table), TEST(test_recursive_include),
-         TEST(test_missing_main_file), TEST(test_truncated_prefixes), TEST(test_real_scenes))
+         TEST(test_missing_main_file), TEST(test_truncated_prefixes), TEST(test_mutations), TEST(test_real_scenes), TEST(test_cleanup))

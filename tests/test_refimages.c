@@ -110,26 +110,29 @@ static void run_case(const ref_case *rc) {
               rc->max_relmse, scaled);
 }
 
-/* Bounds: measured box relMSE of these exact renders (in the comment), with head-room. */
+/* Bounds: about twice the box relMSE measured for these exact renders (cornell 6.7e-7, hall-many
+ * 9.8e-4, staircase 1.3e-3, living-env 2.1e-3 on 2026-11-27), and below what a 10% bias gives.
+ * The staircase crop is the upper wall lit by the globe lights: lower down, where warm light falls
+ * on orange wood, penumbra's RGB products differ from pbrt-v4's spectral ones by 4-9% in red. */
 static void test_cornell_box_matte(void) {
-    ref_case rc = {"cornell-box/cornell-box-matte.pbrt", "cornell-box-matte.exr", {0.3f, 0.45f, 0.55f, 0.7f}, 64, 1.0};
+    ref_case rc = {"cornell-box/cornell-box-matte.pbrt", "cornell-box-matte.exr", {0.3f, 0.45f, 0.55f, 0.7f}, 64, 1e-4};
     run_case(&rc);
 }
 
 static void test_hall_many_matte(void) {
-    ref_case rc = {"hall-many/hall-many-matte.pbrt", "hall-many-matte.exr", {0.4f, 0.5f, 0.4f, 0.5f}, 16, 1.0};
+    ref_case rc = {"hall-many/hall-many-matte.pbrt", "hall-many-matte.exr", {0.4f, 0.5f, 0.4f, 0.5f}, 16, 2.5e-3};
     run_case(&rc);
 }
 
 static void test_staircase_832_matte(void) {
-    ref_case rc = {"staircase-832/staircase-832-matte.pbrt", "staircase-832-matte.exr", {0.4f, 0.6f, 0.45f, 0.55f},
-                   64, 1.0};
+    ref_case rc = {"staircase-832/staircase-832-matte.pbrt", "staircase-832-matte.exr", {0.4f, 0.6f, 0.1f, 0.2f},
+                   64, 3e-3};
     run_case(&rc);
 }
 
 static void test_living_env_138_matte(void) {
     ref_case rc = {"living-env-138/living-env-138-matte.pbrt", "living-env-138-matte.exr",
-                   {0.4f, 0.55f, 0.4f, 0.6f}, 64, 1.0};
+                   {0.4f, 0.55f, 0.4f, 0.6f}, 64, 4e-3};
     run_case(&rc);
 }
 

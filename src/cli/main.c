@@ -207,6 +207,15 @@ static int check_output_folder(const char *path) {
     return EXIT_OK;
 }
 
+/* A missing or unreadable input file is bad input (exit 3), whatever the reader would call it. */
+static int check_input_file(const char *path) {
+    if (access(path, R_OK) != 0) {
+        fprintf(stderr, "penumbra: %s: %s\n", path, strerror(errno));
+        return EXIT_BAD_INPUT;
+    }
+    return EXIT_OK;
+}
+
 /* "dir/name.pbrt" -> "name.exr" (in the current folder). Caller frees. */
 static char *default_output_name(const char *scene_path) {
     const char *base = strrchr(scene_path, '/');
@@ -438,7 +447,8 @@ static int bad_value(const char *command, const char *option, const char *value,
 typedef struct json_writer {
     FILE *file;
     int depth;
-    int need_comma[32];
+    int need_comma[32]; /* per nesting level: an item was written, the next needs a comma */
+    int inline_items[32]; /* per nesting level: items on one line (short arrays of numbers) */
     int after_key;
 } json_writer;
 
@@ -456,8 +466,9 @@ static void json_prefix(json_writer *w) {
     }
     if (w->depth > 0) {
         if (w->need_comma[w->depth])
-            fputc(',', w->file);
-        json_indent(w);
+            fputs(w->inline_items[w->depth] ? ", " : ",", w->file);
+        if (!w->inline_items[w->depth])
+            json_indent(w);
     }
     w->need_comma[w->depth] = 1;
 }
@@ -497,19 +508,21 @@ static void json_raw_string(json_writer *w, const char *s) {
     fputc('"', w->file);
 }
 
-static void json_open(json_writer *w, char bracket) {
+static void json_open(json_writer *w, char bracket, int inline_items) {
     json_prefix(w);
     fputc(bracket, w->file);
     if (w->depth < 31)
         w->depth++;
     w->need_comma[w->depth] = 0;
+    w->inline_items[w->depth] = inline_items;
 }
 
 static void json_close(json_writer *w, char bracket) {
     int had_items = w->need_comma[w->depth];
+    int was_inline = w->inline_items[w->depth];
     if (w->depth > 0)
         w->depth--;
-    if (had_items)
+    if (had_items && !was_inline)
         json_indent(w);
     fputc(bracket, w->file);
 }
@@ -572,13 +585,20 @@ static void json_null(json_writer *w, const char *key) {
 static void json_begin_object(json_writer *w, const char *key) {
     if (key)
         json_key(w, key);
-    json_open(w, '{');
+    json_open(w, '{', 0);
 }
 
 static void json_begin_array(json_writer *w, const char *key) {
     if (key)
         json_key(w, key);
-    json_open(w, '[');
+    json_open(w, '[', 0);
+}
+
+/* An array whose items are written on one line: for short lists of numbers or names. */
+static void json_begin_inline_array(json_writer *w, const char *key) {
+    if (key)
+        json_key(w, key);
+    json_open(w, '[', 1);
 }
 
 static void json_end_object(json_writer *w) { json_close(w, '}'); }
@@ -857,7 +877,7 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
 }
 
 static void write_aov_list(json_writer *w, uint32_t bits) {
-    json_begin_array(w, "aovs");
+    json_begin_inline_array(w, "aovs");
     for (size_t i = 0; i < AOV_NAME_COUNT; i++)
         if (bits & aov_names[i].bit)
             json_string(w, NULL, aov_names[i].name);
@@ -885,15 +905,15 @@ static void write_scene_info_json(json_writer *w, const pn_scene_info *info, pn_
     json_u64(w, "materials", info->materials);
     json_u64(w, "textures", info->textures);
     json_u64(w, "warnings", info->warnings);
-    json_begin_array(w, "bounds_min");
+    json_begin_inline_array(w, "bounds_min");
     for (int i = 0; i < 3; i++)
         json_double(w, NULL, (double)info->bounds_min[i]);
     json_end_array(w);
-    json_begin_array(w, "bounds_max");
+    json_begin_inline_array(w, "bounds_max");
     for (int i = 0; i < 3; i++)
         json_double(w, NULL, (double)info->bounds_max[i]);
     json_end_array(w);
-    json_begin_array(w, "film_resolution");
+    json_begin_inline_array(w, "film_resolution");
     json_int(w, NULL, info->resolution[0]);
     json_int(w, NULL, info->resolution[1]);
     json_end_array(w);
@@ -918,7 +938,7 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         free(tmp_path);
         return EXIT_SYSTEM;
     }
-    json_writer w = {file, 0, {0}, 0};
+    json_writer w = {file, 0, {0}, {0}, 0};
     const pn_render_settings *st = &o->settings;
 
     json_begin_object(&w, NULL);
@@ -940,7 +960,7 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
     json_u64(&w, "shadow_rays", st->shadow_rays);
     json_u64(&w, "max_shadow_rays", st->max_shadow_rays);
     if (st->width) {
-        json_begin_array(&w, "resolution");
+        json_begin_inline_array(&w, "resolution");
         json_int(&w, NULL, st->width);
         json_int(&w, NULL, st->height);
         json_end_array(&w);
@@ -948,7 +968,7 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         json_null(&w, "resolution");
     }
     if (st->has_crop) {
-        json_begin_array(&w, "crop");
+        json_begin_inline_array(&w, "crop");
         for (int i = 0; i < 4; i++)
             json_double(&w, NULL, (double)st->crop[i]);
         json_end_array(&w);
@@ -1117,14 +1137,16 @@ static int command_render(int argc, char **argv) {
         fprintf(stderr, "penumbra: interrupted; the partial image was not written to '%s'\n",
                 image_path);
         char *partial_path = image ? partial_output_name(image_path) : NULL;
+        int partial_written = 0;
         if (partial_path) {
             pn_context_clear_error(ctx);
-            if (pn_image_write(ctx, image, partial_path, (float)o.exposure) == PN_OK)
+            partial_written = pn_image_write(ctx, image, partial_path, (float)o.exposure) == PN_OK;
+            if (partial_written)
                 fprintf(stderr, "penumbra: what was rendered is in '%s'\n", partial_path);
-            free(partial_path);
         }
         if (o.stats_path)
-            write_stats_json(&o, NULL, scene, &info, &stats, 1);
+            write_stats_json(&o, partial_written ? partial_path : NULL, scene, &info, &stats, 1);
+        free(partial_path);
         code = EXIT_INTERRUPTED;
         goto done;
     }
@@ -1133,7 +1155,8 @@ static int command_render(int argc, char **argv) {
         goto done;
     }
 
-    if ((status = pn_image_write(ctx, image, image_path, 0.0f)) != PN_OK) {
+    /* The exposure only affects PNG files. */
+    if ((status = pn_image_write(ctx, image, image_path, (float)o.exposure)) != PN_OK) {
         code = report_failure(ctx, status);
         goto done;
     }
@@ -1191,6 +1214,9 @@ static int command_diff(int argc, char **argv) {
     if (count < 2)
         return usage_error(cmd, "needs two images, REFERENCE and IMAGE");
     int code;
+    if ((code = check_input_file(paths[0])) != EXIT_OK ||
+        (code = check_input_file(paths[1])) != EXIT_OK)
+        return code;
     if (error_path && (code = check_output_folder(error_path)) != EXIT_OK)
         return code;
 
@@ -1229,7 +1255,7 @@ static int command_diff(int argc, char **argv) {
         goto done;
     }
     if (json) {
-        json_writer w = {stdout, 0, {0}, 0};
+        json_writer w = {stdout, 0, {0}, {0}, 0};
         json_begin_object(&w, NULL);
         json_string(&w, "reference", paths[0]);
         json_string(&w, "image", paths[1]);

@@ -1336,6 +1336,9 @@ static pn_status shape_sphere(pn_parser *p, pn_shape_ctx *sc, pn_params *ps) {
     if (!is_similarity(M, 3))
         pn_scene_warn(p->scene, "%s:%d:%d: sphere under a non-uniform scale or shear; approximated by a sphere of "
                       "the same volume", loc->file, loc->line, loc->column);
+    if (sc->alpha.texture >= 0 || sc->alpha.value.x < 1.0f)
+        pn_scene_warn(p->scene, "%s:%d:%d: \"alpha\" is not supported on spheres; ignored", loc->file, loc->line,
+                      loc->column);
     pn_sphere sp;
     memset(&sp, 0, sizeof sp);
     sp.center = mat4_apply_point(M, v3(0, 0, 0));

@@ -358,8 +358,8 @@ pn_status pn_loop_subdivide(pn_mesh_data *d, int levels, pn_err *err) {
     uint32_t *ix = d->indices, nv = d->vertex_count, nt = d->triangle_count;
     bool own_ix = false;
     for (int l = 0; l < levels; l++) {
-        double *P2;
-        uint32_t *ix2, nv2, nt2;
+        double *P2 = NULL;
+        uint32_t *ix2 = NULL, nv2 = 0, nt2 = 0;
         pn_status st = loop_level(nv, nt, P, ix, &P2, &ix2, &nv2, &nt2, err);
         free(P);
         if (own_ix) free(ix);

@@ -166,6 +166,9 @@ static pn_status scan(pn_tokenizer *tz, pn_token *tok, pn_err *err) {
             continue;
         }
         tok->loc = (pn_srcloc){tz->path, tz->line, tz->column};
+        if (c == '\0')
+            return pn_loc_error(&tok->loc, PN_ERROR_BAD_INPUT, err,
+                                "unexpected NUL byte (is this a binary file rather than a pbrt scene?)");
         if (c == '[' || c == ']') {
             tok->kind = c == '[' ? PN_TOKEN_LBRACKET : PN_TOKEN_RBRACKET;
             tok->text = tz->data + tz->pos;
