@@ -152,8 +152,9 @@ static void run_free(run_result *r) {
     r->out = r->err = NULL;
 }
 
-/* Runs `penumbra args...` (args NULL-terminated) in the work folder with a 20 s limit. */
-static run_result run_cli(const char *const *args) {
+/* Runs `penumbra args...` (args NULL-terminated) in the work folder with a 20 s limit; when
+ * interrupt_ms > 0, sends SIGINT once after that many milliseconds. */
+static run_result run_cli_interrupted(const char *const *args, long interrupt_ms) {
     run_result r = {-1, NULL, NULL};
     char *argv[64];
     int argc = 0;
@@ -185,7 +186,7 @@ static run_result run_cli(const char *const *args) {
     }
     struct timespec start, now, pause = {0, 5 * 1000 * 1000};
     clock_gettime(CLOCK_MONOTONIC, &start);
-    int wstatus = 0;
+    int wstatus = 0, signalled = 0;
     for (;;) {
         pid_t done = waitpid(pid, &wstatus, WNOHANG);
         if (done == pid)
@@ -193,6 +194,12 @@ static run_result run_cli(const char *const *args) {
         if (done < 0 && errno != EINTR)
             return r;
         clock_gettime(CLOCK_MONOTONIC, &now);
+        long elapsed_ms = (long)(now.tv_sec - start.tv_sec) * 1000 +
+                          (long)(now.tv_nsec - start.tv_nsec) / 1000000;
+        if (interrupt_ms > 0 && !signalled && elapsed_ms >= interrupt_ms) {
+            kill(pid, SIGINT);
+            signalled = 1;
+        }
         if (now.tv_sec - start.tv_sec > 20) {
             kill(pid, SIGKILL);
             waitpid(pid, &wstatus, 0);
@@ -214,6 +221,10 @@ static run_result run_cli(const char *const *args) {
     if (r.err == NULL)
         r.err = calloc(1, 1);
     return r;
+}
+
+static run_result run_cli(const char *const *args) {
+    return run_cli_interrupted(args, 0);
 }
 
 /* Runs and checks the exit status; prints the captured output when it differs. */
@@ -557,6 +568,29 @@ static void test_same_image_for_any_thread_count(void) {
     run_free(&r);
 }
 
+/* Ctrl-C: exit status 130 and nothing at the -o path (the partial image goes elsewhere). */
+static void test_interrupt(void) {
+    write_file("slow.pbrt", tiny_scene);
+    const char *const args[] = {"render", "slow.pbrt", "--resolution", "1024x1024", "--spp", "4096",
+                                "--threads", "2", "-o", "slow.exr", "--stats", "slow.json", NULL};
+    run_result r = run_cli_interrupted(args, 400);
+    CHECK_MSG(r.status == 130, "exit %d, stderr: %s", r.status, r.err ? r.err : "");
+    CHECK(!file_exists("slow.exr"));
+    CHECK(!file_exists("slow.exr.tmp"));
+    if (r.err && strstr(r.err, "interrupted")) {
+        /* The handler was installed (the render had started): the partial image is kept aside
+         * and the statistics say it is partial. */
+        CHECK_STR_CONTAINS(r.err, "not written to 'slow.exr'");
+        CHECK(file_exists("slow.partial.exr"));
+        char *json = read_file("slow.json", NULL);
+        CHECK(json != NULL);
+        if (json)
+            CHECK_STR_CONTAINS(json, "\"partial\": true");
+        free(json);
+    }
+    run_free(&r);
+}
+
 static void test_unwritable_output(void) {
     run_result r;
     write_tiny_scene();
@@ -580,4 +614,5 @@ static void test_unwritable_output(void) {
 
 PN_TESTS(TEST(test_version_and_help), TEST(test_usage_errors), TEST(test_bad_scenes),
          TEST(test_render_outputs), TEST(test_info), TEST(test_diff),
-         TEST(test_same_image_for_any_thread_count), TEST(test_unwritable_output))
+         TEST(test_same_image_for_any_thread_count), TEST(test_interrupt),
+         TEST(test_unwritable_output))

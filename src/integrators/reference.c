@@ -97,6 +97,9 @@ typedef struct pixel_state {
 static bool pixel_done(const pn_render_job *job, const pixel_state *ps) {
     if (job->spp > 0) return ps->n >= job->spp;
     if (ps->shadow_rays >= job->max_shadow_rays) return true;
+    /* Eye rays that cast no shadow rays (a pixel that sees emitters, the sky or unlit specular
+     * paths) count against the same budget as if each had cast its shadow rays. */
+    if ((uint64_t)ps->n * job->shadow_rays >= job->max_shadow_rays) return true;
     if (ps->n >= 1u << 20) return true;
     if (ps->n < job->min_eye_rays) return false;
     if (!ps->any_nonzero) {
