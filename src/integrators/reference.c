@@ -107,7 +107,7 @@ static bool pixel_done(const pn_render_job *job, const pixel_state *ps) {
          * shadow rays at all (it sees only the void or unlit specular paths). */
         return ps->shadow_rays >= job->min_shadow_rays_black || ps->shadow_rays == 0;
     }
-    double var_of_mean = ps->n > 1 ? ps->lum_m2 / ((double)(ps->n - 1) * (double)ps->n) : INFINITY;
+    double var_of_mean = ps->n > 1 ? ps->lum_m2 / ((double)(ps->n - 1) * (double)ps->n) : (double)INFINITY;
     double mean = ps->lum_mean;
     return var_of_mean <= job->threshold * mean * mean;
 }
