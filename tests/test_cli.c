@@ -418,7 +418,41 @@ static void test_bad_scenes(void) {
          "WorldBegin\n"
          "Shape \"sphere\" \"float radius\" \"abc\"\n",
          "wrong-type.pbrt:2:31:"},
+        /* Binary inputs: the scene position of the reference, then "file: message". */
+        {"truncated-ply.pbrt",
+         "WorldBegin\n"
+         "Shape \"plymesh\" \"string filename\" \"trunc.ply\"\n",
+         "truncated-ply.pbrt:2:17: trunc.ply: file is too short"},
+        {"corrupt-exr.pbrt",
+         "WorldBegin\n"
+         "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"corrupt.exr\"\n"
+         "Material \"diffuse\" \"texture reflectance\" \"t\"\n"
+         "Shape \"sphere\"\n",
+         "corrupt-exr.pbrt:2:35: cannot read texture image: corrupt.exr: not a valid EXR file"},
+        {"corrupt-png.pbrt",
+         "WorldBegin\n"
+         "LightSource \"infinite\" \"string filename\" \"corrupt.png\"\n",
+         "corrupt-png.pbrt:2:24: cannot read light image: corrupt.png: not a valid PNG file"},
+        {"nan-transform.pbrt",
+         "Translate 0 0 nan\n"
+         "WorldBegin\n",
+         "nan-transform.pbrt:1:15: \"nan\" is not a finite number"},
+        {"zero-resolution.pbrt",
+         "Film \"rgb\" \"integer xresolution\" 0\n"
+         "WorldBegin\n",
+         "zero-resolution.pbrt:1:12: the film resolution must be between 1 and 65536"},
+        {"huge-resolution.pbrt",
+         "Film \"rgb\" \"integer xresolution\" 1000000000\n"
+         "WorldBegin\n",
+         "huge-resolution.pbrt:1:12: the film resolution must be between 1 and 65536"},
     };
+    /* Support files of the binary cases: a PLY cut off inside its vertex list, and image files
+     * whose contents are not what their names say. */
+    write_file("trunc.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                            "end_header\n0 0 0\n1 0 0\n");
+    write_file("corrupt.exr", "this is not an OpenEXR file");
+    write_file("corrupt.png", "\x89PNG\r\n\x1a\nnot really");
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         write_file(cases[i].file, cases[i].text);
         const char *const args[] = {"render", cases[i].file, "--spp", "1", "-o", "bad.exr",
