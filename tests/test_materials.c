@@ -1,5 +1,6 @@
 /* test_materials.c — the pbrt-v4 material, spectrum, texture and light builders against closed
- * forms: material mapping and descriptions, conductor Fresnel, blackbody and constant spectra,
+ * forms: material mapping and descriptions (pbrt-v4 types and the pbrt-v3 names with their
+ * roughness remapping), conductor Fresnel, blackbody and constant spectra,
  * point/spot/area power normalisation, bilinear image lookups with wrap modes. Parameter lists
  * are assembled by hand. */
 #include "harness.h"
@@ -330,6 +331,450 @@ static void test_unknown_material(void) {
     CHECK_STR_CONTAINS(err.message, "scene.pbrt:14:5:");
     CHECK_STR_CONTAINS(err.message, "nope");
     pn_params_free(&ps);
+    free_scene(s);
+}
+
+/* ---- pbrt-v3 material names ------------------------------------------------------------------ */
+
+/* pbrt-v3's roughness remapping written out term by term (the closed form the mapping must match). */
+static double v3_alpha(double roughness) {
+    double x = log(roughness < 1e-3 ? 1e-3 : roughness);
+    return 1.62142 + 0.819955 * x + 0.1734 * x * x + 0.0171201 * x * x * x + 0.000640711 * x * x * x * x;
+}
+
+/* The Blinn exponent rule of materials.c: n = 2 / alpha^2 - 2 within [1, 10000]. */
+static double blinn_n(double alpha) {
+    double n = 2.0 / (alpha * alpha) - 2.0;
+    return n < 1.0 ? 1.0 : n > 10000.0 ? 10000.0 : n;
+}
+
+/* Builds a material without freeing ps (so the caller can look at which parameters were read). */
+static int build_keep(struct pn_scene_s *s, const char *type, const char *name, pn_params *ps) {
+    pn_err err;
+    pn_err_init(&err);
+    int idx = -1;
+    pn_status st = pn_material_from_pbrt(s, type, name, ps, &idx, &err);
+    CHECK_MSG(st == PN_OK, "%s", err.message);
+    return st == PN_OK ? idx : -1;
+}
+
+static bool param_used(const pn_params *ps, const char *name) {
+    for (int i = 0; i < ps->count; i++)
+        if (strcmp(ps->items[i].name, name) == 0) return ps->items[i].used;
+    return false;
+}
+
+/* Building `type` from ps must fail with an error at `where` ("scene.pbrt:LINE:5:") naming `param`;
+ * no material is added. Frees ps. */
+static void expect_param_error(struct pn_scene_s *s, const char *type, pn_params *ps, const char *where,
+                               const char *param) {
+    pn_err err;
+    pn_err_init(&err);
+    int before = s->material_count, idx = 7;
+    pn_status st = pn_material_from_pbrt(s, type, "Bad", ps, &idx, &err);
+    CHECK_MSG(st == PN_ERROR_BAD_INPUT, "%s: status %d", type, (int)st);
+    CHECK_STR_CONTAINS(err.message, where);
+    CHECK_STR_CONTAINS(err.message, param);
+    CHECK(s->material_count == before);
+    pn_params_free(ps);
+}
+
+static void test_v3_remap_closed_form(void) {
+    /* Reference values of the quartic, computed independently. */
+    CHECK_NEAR(v3_alpha(0.1), 0.4617600320, 1e-8);
+    CHECK_NEAR(v3_alpha(0.5), 1.1308275394, 1e-8);
+    CHECK_NEAR(v3_alpha(0.0), v3_alpha(1e-3), 1e-12);
+    CHECK_NEAR(blinn_n(v3_alpha(0.1)), 7.3798807, 1e-5);
+    CHECK_NEAR(blinn_n(v3_alpha(0.5)), 1.0, 0.0);
+}
+
+static void test_v3_matte(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    int i = build_material(s, "matte", "M", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK(m->kd.texture < 0);
+        CHECK_NEAR(m->kd.value.x, 0.5, 1e-6);
+        CHECK(v3_is_zero(m->ks.value) && m->ks.texture < 0);
+        CHECK_STR_CONTAINS(m->description, "M: pbrt-v3 matte -> Lambert kd=0.5");
+        CHECK(strstr(m->description, "sigma") == NULL);
+    }
+    /* Oren-Nayar sigma is ignored, with a note; an rgb Kd is taken as it is. */
+    ps = make_params();
+    add_rgb(&ps, "Kd", 0.1, 0.2, 0.3);
+    add_float(&ps, "sigma", 20);
+    i = build_keep(s, "matte", "Rough", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK_NEAR(m->kd.value.z, 0.3, 1e-6);
+        CHECK(param_used(&ps, "Kd") && param_used(&ps, "sigma"));
+        CHECK_STR_CONTAINS(m->description, "Rough: pbrt-v3 matte -> Lambert kd=(0.1, 0.2, 0.3)");
+        CHECK_STR_CONTAINS(m->description, "Oren-Nayar sigma 20 ignored");
+    }
+    pn_params_free(&ps);
+    /* A texture Kd is allowed. */
+    ps = make_params();
+    add_rgb(&ps, "value", 0.7, 0.6, 0.5);
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_texture_from_pbrt(s, "konst", "spectrum", "constant", &ps, &err) == PN_OK);
+    pn_params_free(&ps);
+    ps = make_params();
+    add_str(&ps, PN_PT_TEXTURE, "Kd", "konst");
+    i = build_material(s, "matte", "Tex", &ps);
+    if (i >= 0) {
+        CHECK(s->materials[i].kd.texture == pn_scene_find_texture(s, "konst"));
+        CHECK_STR_CONTAINS(s->materials[i].description, "kd=texture 'konst'");
+    }
+    /* Type errors are reported at the parameter. */
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "Kd", "red");
+    expect_param_error(s, "matte", &ps, "scene.pbrt:14:5:", "Kd");
+    ps = make_params();
+    add_rgb(&ps, "Kd", 0.5, 0.5, 0.5);
+    add_bool(&ps, "sigma", true);
+    expect_param_error(s, "matte", &ps, "scene.pbrt:15:5:", "sigma");
+    free_scene(s);
+}
+
+static void test_v3_plastic(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    int i = build_material(s, "plastic", "P", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK_NEAR(m->kd.value.x, 0.25, 1e-6);
+        CHECK_NEAR(m->ks.value.y, 0.25, 1e-6);
+        /* Default roughness 0.1, remapped by pbrt-v3's quartic (not pbrt-v4's sqrt, which gives 18). */
+        CHECK_NEAR(m->exponent, blinn_n(v3_alpha(0.1)), 1e-4);
+        CHECK_NEAR(m->exponent, 7.37988, 1e-4);
+        CHECK_STR_CONTAINS(m->description, "P: pbrt-v3 plastic -> Lambert kd=0.25 + Blinn ks=0.25 n=7.3799");
+        CHECK_STR_CONTAINS(m->description, "(roughness 0.1, alpha 0.462)");
+    }
+    /* Roughness 0.5: alpha 1.13, so the exponent is clamped to 1. */
+    ps = make_params();
+    add_rgb(&ps, "Kd", 0.4, 0.3, 0.2);
+    add_rgb(&ps, "Ks", 0.1, 0.1, 0.1);
+    add_float(&ps, "roughness", 0.5);
+    i = build_material(s, "plastic", "Soft", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK_NEAR(m->kd.value.y, 0.3, 1e-6);
+        CHECK_NEAR(m->ks.value.x, 0.1, 1e-6);
+        CHECK_NEAR(m->exponent, 1.0, 1e-6);
+        CHECK_STR_CONTAINS(m->description, "alpha 1.13: n clamped to 1");
+    }
+    /* Without remapping alpha = roughness. */
+    ps = make_params();
+    add_float(&ps, "roughness", 0.1);
+    add_bool(&ps, "remaproughness", false);
+    i = build_material(s, "plastic", "Raw", &ps);
+    if (i >= 0) CHECK_NEAR(s->materials[i].exponent, 2.0 / (0.1 * 0.1) - 2.0, 1e-3);
+    /* plastic has no u/v roughness: they stay unused. */
+    ps = make_params();
+    add_float(&ps, "uroughness", 0.3);
+    i = build_keep(s, "plastic", "UV", &ps);
+    if (i >= 0) {
+        CHECK(!param_used(&ps, "uroughness"));
+        CHECK_NEAR(s->materials[i].exponent, blinn_n(v3_alpha(0.1)), 1e-4);
+    }
+    pn_params_free(&ps);
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "Ks", "shiny");
+    expect_param_error(s, "plastic", &ps, "scene.pbrt:14:5:", "Ks");
+    free_scene(s);
+}
+
+static void test_v3_substrate(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    int i = build_material(s, "substrate", "S", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK_NEAR(m->kd.value.x, 0.5, 1e-6);
+        CHECK_NEAR(m->ks.value.z, 0.5, 1e-6);
+        CHECK_NEAR(m->exponent, blinn_n(v3_alpha(0.1)), 1e-4);
+        CHECK_STR_CONTAINS(m->description, "S: pbrt-v3 substrate -> Lambert kd=0.5 + Blinn ks=0.5");
+    }
+    /* u and v are remapped separately and the alphas averaged; "roughness" is not a substrate input. */
+    ps = make_params();
+    add_rgb(&ps, "Kd", 0.6, 0.5, 0.4);
+    add_rgb(&ps, "Ks", 0.04, 0.04, 0.04);
+    add_float(&ps, "uroughness", 0.5);
+    add_float(&ps, "vroughness", 0.1);
+    add_float(&ps, "roughness", 0.9);
+    i = build_keep(s, "substrate", "Aniso", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        double alpha = 0.5 * (v3_alpha(0.5) + v3_alpha(0.1));
+        CHECK_NEAR(m->exponent, blinn_n(alpha), 1e-4);
+        CHECK_NEAR(m->ks.value.y, 0.04, 1e-6);
+        CHECK_NEAR(m->kd.value.x, 0.6, 1e-6);
+        CHECK(!param_used(&ps, "roughness"));
+    }
+    pn_params_free(&ps);
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "Kd", "brown");
+    expect_param_error(s, "substrate", &ps, "scene.pbrt:14:5:", "Kd");
+    free_scene(s);
+}
+
+static void test_v3_uber(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    int i = build_material(s, "uber", "U", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK_NEAR(m->kd.value.x, 0.25, 1e-6);
+        CHECK_NEAR(m->ks.value.x, 0.25, 1e-6);
+        CHECK_NEAR(m->exponent, blinn_n(v3_alpha(0.1)), 1e-4);
+        CHECK_STR_CONTAINS(m->description, "U: pbrt-v3 uber -> Lambert kd=0.25 + Blinn ks=0.25");
+        CHECK(s->warning_count == 0);
+    }
+    /* Kr, Kt and opacity < 1 are dropped with warnings; a missing vroughness follows uroughness. */
+    ps = make_params();
+    add_rgb(&ps, "Kd", 0.3, 0.3, 0.3);
+    add_rgb(&ps, "Kr", 0.2, 0.2, 0.2);
+    add_rgb(&ps, "Kt", 0.1, 0.1, 0.1);
+    add_rgb(&ps, "opacity", 0.5, 0.5, 0.5);
+    add_float(&ps, "index", 1.33);
+    add_float(&ps, "uroughness", 0.5);
+    i = build_keep(s, "uber", "Busy", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK_NEAR(m->kd.value.x, 0.3, 1e-6);
+        CHECK_NEAR(m->exponent, blinn_n(v3_alpha(0.5)), 1e-6);
+        CHECK_NEAR(m->exponent, 1.0, 1e-6);
+        CHECK(has_warning(s, "scene.pbrt:15:5:"));  /* Kr */
+        CHECK(has_warning(s, "specular reflection \"Kr\""));
+        CHECK(has_warning(s, "specular transmission \"Kt\""));
+        CHECK(has_warning(s, "\"opacity\" 0.5 (below 1) is ignored"));
+        CHECK_STR_CONTAINS(m->description, "(Kr 0.2 dropped)");
+        CHECK_STR_CONTAINS(m->description, "(eta 1.33 not used)");
+        CHECK(param_used(&ps, "index") && param_used(&ps, "Kt") && param_used(&ps, "opacity"));
+    }
+    pn_params_free(&ps);
+    /* "roughness" with u/v: u overrides, v falls back to u (not to roughness). */
+    ps = make_params();
+    add_float(&ps, "roughness", 0.01);
+    add_float(&ps, "uroughness", 0.1);
+    i = build_material(s, "uber", "UV", &ps);
+    if (i >= 0) CHECK_NEAR(s->materials[i].exponent, blinn_n(v3_alpha(0.1)), 1e-4);
+    ps = make_params();
+    add_float(&ps, "roughness", 0.1);
+    add_nums(&ps, PN_PT_BOOL, "opacity", 1, (const double[]){1.0});
+    expect_param_error(s, "uber", &ps, "scene.pbrt:15:5:", "opacity");
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "Kd", "grey");
+    expect_param_error(s, "uber", &ps, "scene.pbrt:14:5:", "Kd");
+    free_scene(s);
+}
+
+static void test_v3_glass(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    int i = build_material(s, "glass", "G", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_DIELECTRIC);
+        CHECK_NEAR(m->eta, 1.5, 1e-6);
+        CHECK_NEAR(m->specular.x, 1.0, 1e-6);
+        CHECK_NEAR(m->specular.z, 1.0, 1e-6);
+        CHECK_STR_CONTAINS(m->description, "G: pbrt-v3 glass -> dielectric eta=1.5");
+        CHECK(s->warning_count == 0);
+    }
+    /* "index" is pbrt-v3's older name for eta; "eta" wins when both are given. */
+    ps = make_params();
+    add_float(&ps, "index", 1.33);
+    i = build_material(s, "glass", "Water", &ps);
+    if (i >= 0) CHECK_NEAR(s->materials[i].eta, 1.33, 1e-6);
+    ps = make_params();
+    add_float(&ps, "eta", 1.6);
+    add_float(&ps, "index", 1.33);
+    i = build_keep(s, "glass", "Both", &ps);
+    if (i >= 0) {
+        CHECK_NEAR(s->materials[i].eta, 1.6, 1e-6);
+        CHECK(!param_used(&ps, "index"));
+    }
+    pn_params_free(&ps);
+    /* A non-white Kr tints the glass (and the description says so); a non-white Kt is dropped. */
+    ps = make_params();
+    add_rgb(&ps, "Kr", 0.9, 0.8, 0.7);
+    add_rgb(&ps, "Kt", 0.5, 0.6, 0.7);
+    i = build_material(s, "glass", "Tinted", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK_NEAR(m->specular.x, 0.9, 1e-6);
+        CHECK_NEAR(m->specular.y, 0.8, 1e-6);
+        CHECK_NEAR(m->specular.z, 0.7, 1e-6);
+        CHECK_STR_CONTAINS(m->description, "specular tint Kr=(0.9, 0.8, 0.7)");
+        CHECK_STR_CONTAINS(m->description, "Kt=(0.5, 0.6, 0.7) dropped");
+        CHECK(has_warning(s, "transmission tint Kt"));
+    }
+    /* Kr = 0 (transmission only): the tint comes from Kt. Rough glass is rendered smooth. */
+    ps = make_params();
+    add_rgb(&ps, "Kr", 0, 0, 0);
+    add_rgb(&ps, "Kt", 0.5, 0.6, 0.7);
+    add_float(&ps, "uroughness", 0.1);
+    i = build_material(s, "glass", "Clear", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK_NEAR(m->specular.x, 0.5, 1e-6);
+        CHECK_NEAR(m->specular.z, 0.7, 1e-6);
+        CHECK_STR_CONTAINS(m->description, "specular tint Kt=(0.5, 0.6, 0.7)");
+        CHECK(has_warning(s, "rough glass"));
+    }
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "Kr", "white");
+    expect_param_error(s, "glass", &ps, "scene.pbrt:14:5:", "Kr");
+    ps = make_params();
+    add_float(&ps, "index", -1.0);
+    expect_param_error(s, "glass", &ps, "scene.pbrt:14:5:", "index");
+    free_scene(s);
+}
+
+static void test_v3_metal(void) {
+    struct pn_scene_s *s = new_scene();
+    vec3 eta, k;
+    CHECK(pn_named_spectrum_rgb("metal-Cu-eta", &eta));
+    CHECK(pn_named_spectrum_rgb("metal-Cu-k", &k));
+    /* Default: copper at roughness 0.01, which pbrt-v3 remaps to alpha 0.139 (a glossy lobe). */
+    pn_params ps = make_params();
+    int i = build_material(s, "metal", "Cu", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK(v3_is_zero(m->kd.value));
+        CHECK_NEAR(m->ks.value.x, f0_conductor(eta.x, k.x), 1e-5);
+        CHECK_NEAR(m->ks.value.z, f0_conductor(eta.z, k.z), 1e-5);
+        CHECK_NEAR(m->exponent, blinn_n(v3_alpha(0.01)), 1e-3);
+        CHECK_STR_CONTAINS(m->description, "Cu: pbrt-v3 metal -> Blinn ks=");
+        CHECK_STR_CONTAINS(m->description, "copper (default)");
+    }
+    /* Unremapped roughness 0: a mirror with the metal's F0. */
+    ps = make_params();
+    add_rgb(&ps, "eta", 0.2, 0.9, 1.1);
+    add_rgb(&ps, "k", 3.9, 2.4, 2.2);
+    add_float(&ps, "roughness", 0.0);
+    add_bool(&ps, "remaproughness", false);
+    i = build_material(s, "metal", "Smooth", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_MIRROR);
+        CHECK_NEAR(m->specular.x, f0_conductor(0.2, 3.9), 1e-5);
+        CHECK_NEAR(m->specular.y, f0_conductor(0.9, 2.4), 1e-5);
+        CHECK_NEAR(m->specular.z, f0_conductor(1.1, 2.2), 1e-5);
+        CHECK_STR_CONTAINS(m->description, "Smooth: pbrt-v3 metal -> mirror");
+    }
+    /* u/v roughness remapped separately (v falls back to "roughness"); "reflectance" is not a
+     * pbrt-v3 metal input and stays unused. */
+    ps = make_params();
+    add_float(&ps, "roughness", 0.5);
+    add_float(&ps, "uroughness", 0.1);
+    add_rgb(&ps, "reflectance", 0.9, 0.9, 0.9);
+    i = build_keep(s, "metal", "Brushed", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK_NEAR(m->exponent, blinn_n(0.5 * (v3_alpha(0.1) + v3_alpha(0.5))), 1e-4);
+        CHECK_NEAR(m->ks.value.x, f0_conductor(eta.x, k.x), 1e-5);
+        CHECK(!param_used(&ps, "reflectance"));
+    }
+    pn_params_free(&ps);
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "k", "metal-Cu-k");
+    expect_param_error(s, "metal", &ps, "scene.pbrt:14:5:", "k");
+    free_scene(s);
+}
+
+static void test_v3_mirror(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    int i = build_material(s, "mirror", "Mi", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_MIRROR);
+        CHECK_NEAR(m->specular.x, 0.9, 1e-6);
+        CHECK_NEAR(m->specular.z, 0.9, 1e-6);
+        CHECK_STR_CONTAINS(m->description, "Mi: pbrt-v3 mirror -> mirror specular=0.9");
+    }
+    ps = make_params();
+    add_rgb(&ps, "Kr", 0.8, 0.7, 0.6);
+    i = build_material(s, "mirror", "Gold", &ps);
+    if (i >= 0) {
+        CHECK_NEAR(s->materials[i].specular.y, 0.7, 1e-6);
+        CHECK_STR_CONTAINS(s->materials[i].description, "specular=(0.8, 0.7, 0.6)");
+    }
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "Kr", "silver");
+    expect_param_error(s, "mirror", &ps, "scene.pbrt:14:5:", "Kr");
+    free_scene(s);
+}
+
+/* The unsupported pbrt-v3 types become diffuse stand-ins with a warning. */
+static void check_v3_substitute(const char *type, const char *colour_param, double expect_kd) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    if (colour_param) add_rgb(&ps, colour_param, 0.2, 0.4, 0.6);
+    add_float(&ps, "eta", 1.33);       /* other inputs are accepted without "unused" warnings */
+    add_str(&ps, PN_PT_STRING, "bsdffile", "x.bsdf");
+    int i = build_keep(s, type, "Sub", &ps);
+    if (i >= 0) {
+        const pn_material *m = &s->materials[i];
+        CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK_NEAR(m->kd.value.x, colour_param ? 0.2 : expect_kd, 1e-6);
+        CHECK_NEAR(m->kd.value.z, colour_param ? 0.6 : expect_kd, 1e-6);
+        CHECK(v3_is_zero(m->ks.value));
+        char want[96];
+        snprintf(want, sizeof want, "Sub: pbrt-v3 %s -> Lambert kd=", type);
+        CHECK_STR_CONTAINS(m->description, want);
+        snprintf(want, sizeof want, "pbrt-v3 %s material is not supported", type);
+        CHECK(has_warning(s, want));
+        CHECK(param_used(&ps, "eta") && param_used(&ps, "bsdffile"));
+    }
+    pn_params_free(&ps);
+    /* The colour is still read with the typed getter: a string is an error at its location. */
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, colour_param ? colour_param : "Kd", "green");
+    expect_param_error(s, type, &ps, "scene.pbrt:14:5:", colour_param ? colour_param : "Kd");
+    free_scene(s);
+}
+
+static void test_v3_translucent(void) { check_v3_substitute("translucent", "Kd", 0.5); }
+static void test_v3_kdsubsurface(void) { check_v3_substitute("kdsubsurface", NULL, 0.5); }
+static void test_v3_fourier(void) { check_v3_substitute("fourier", "reflectance", 0.5); }
+static void test_v3_disney(void) { check_v3_substitute("disney", "color", 0.5); }
+
+static void test_v3_mix(void) {
+    struct pn_scene_s *s = new_scene();
+    pn_params ps = make_params();
+    build_material(s, "matte", "A", &ps);
+    ps = make_params();
+    build_material(s, "mirror", "B", &ps);
+    /* pbrt-v3's amount weights the first material: 0.7 keeps A, 0.3 keeps B. */
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "namedmaterial1", "A");
+    add_str(&ps, PN_PT_STRING, "namedmaterial2", "B");
+    add_float(&ps, "amount", 0.7);
+    int i = build_material(s, "mix", "MixA", &ps);
+    if (i >= 0) {
+        CHECK(s->materials[i].kind == PN_MATERIAL_LAMBERT_BLINN);
+        CHECK_STR_CONTAINS(s->materials[i].description, "MixA: pbrt-v3 mix -> Lambert kd=0.5");
+    }
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "namedmaterial1", "A");
+    add_str(&ps, PN_PT_STRING, "namedmaterial2", "B");
+    add_rgb(&ps, "amount", 0.3, 0.3, 0.3);
+    i = build_material(s, "mix", "MixB", &ps);
+    if (i >= 0) CHECK(s->materials[i].kind == PN_MATERIAL_MIRROR);
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "namedmaterial1", "A");
+    add_str(&ps, PN_PT_STRING, "namedmaterial2", "Nope");
+    expect_param_error(s, "mix", &ps, "scene.pbrt:15:5:", "Nope");
     free_scene(s);
 }
 
@@ -687,5 +1132,9 @@ static void test_texture_eval(void) {
 }
 
 PN_TESTS(TEST(test_diffuse_default), TEST(test_coateddiffuse), TEST(test_conductor),
-         TEST(test_dielectric_mix_interface), TEST(test_unknown_material), TEST(test_spectra),
+         TEST(test_dielectric_mix_interface), TEST(test_unknown_material), TEST(test_v3_remap_closed_form),
+         TEST(test_v3_matte), TEST(test_v3_plastic), TEST(test_v3_substrate), TEST(test_v3_uber),
+         TEST(test_v3_glass), TEST(test_v3_metal), TEST(test_v3_mirror), TEST(test_v3_translucent),
+         TEST(test_v3_kdsubsurface), TEST(test_v3_fourier), TEST(test_v3_disney), TEST(test_v3_mix),
+         TEST(test_spectra),
          TEST(test_spd_file), TEST(test_light_power), TEST(test_texture_eval))

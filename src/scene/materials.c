@@ -25,6 +25,42 @@
  *   subsurface           "color" or 0.3 (hair), "reflectance" or 0.5 (subsurface)
  *   interface            INTERFACE
  *
+ * Older scenes written for pbrt-v3 use its material names, which are mapped with the same models
+ * (descriptions read "pbrt-v3 TYPE"). Their inputs have pbrt-v3's names and defaults, and their
+ * roughness goes through pbrt-v3's remapping (below):
+ *
+ *   pbrt-v3 type         penumbra
+ *   -------------------  ------------------------------------------------------------------
+ *   matte                LAMBERT kd = Kd (default 0.5); an Oren-Nayar "sigma" > 0 is ignored
+ *                        (noted in the description)
+ *   plastic              LAMBERT kd = Kd (0.25) + BLINN ks = Ks (0.25), n from "roughness" (0.1)
+ *   substrate            LAMBERT kd = Kd (0.5) + BLINN ks = Ks (0.5, taken as the reflectance at
+ *                        normal incidence), n from "uroughness" / "vroughness" (0.1 each)
+ *   uber                 LAMBERT kd = Kd (0.25) + BLINN ks = Ks (0.25), n from "roughness" (0.1)
+ *                        or u/v (a missing vroughness follows uroughness); the specular
+ *                        reflection Kr and transmission Kt (default 0) are dropped with a
+ *                        warning when non-zero, as is an "opacity" below 1; "eta" / "index"
+ *                        is read and reported only
+ *   glass                DIELECTRIC with "eta" or, failing that, "index" (1.5). Kr (1) tints
+ *                        it when not white (said in the description); Kr = 0 takes the tint
+ *                        from Kt instead (penumbra's glass always reflects); any other
+ *                        non-white Kt is dropped with a warning; a rough glass (u/v roughness
+ *                        not 0) is rendered smooth with a warning
+ *   metal                as conductor: eta / k (default copper), "roughness" (0.01) or u/v;
+ *                        MIRROR when alpha < 1e-3, else BLINN ks = F0, kd = 0
+ *   mirror               MIRROR, specular = Kr (0.9)
+ *   mix                  with "namedmaterial1" / "namedmaterial2" instead of "materials": as
+ *                        mix, but "amount" weights the first material (pbrt-v3's convention)
+ *   translucent,         LAMBERT substitutes with a warning: kd = "Kd", "color" or
+ *   kdsubsurface,        "reflectance" (the first one given), else 0.5
+ *   fourier, disney
+ *
+ * pbrt-v3's remaproughness (default true) is not pbrt-v4's square root: its TrowbridgeReitz
+ * RoughnessToAlpha is a quartic polynomial in x = ln(max(roughness, 1e-3)),
+ *   alpha = 1.62142 + 0.819955 x + 0.1734 x^2 + 0.0171201 x^3 + 0.000640711 x^4,
+ * so roughness 0.1 gives alpha 0.4618 (n = 7.38), 0.5 gives 1.131 (n clamped to 1), and even
+ * roughness 0 gives alpha 0.047 (a remapped pbrt-v3 surface is never a perfect mirror).
+ *
  * Roughness: "uroughness" / "vroughness" (each falling back to "roughness", default 0) are
  * averaged; with "remaproughness" (default true) alpha = sqrt(roughness) as pbrt-v4's
  * TrowbridgeReitz RoughnessToAlpha does, else alpha = roughness. The Blinn–Phong exponent with
@@ -33,9 +69,9 @@
  * uses the texture's value when it is constant, else 0.5 with a warning (the exponent is one
  * number per material).
  *
- * Bump and normal maps ("displacement", "normalmap") are ignored with a warning. Parameters of
- * the layered models that have no counterpart here (thickness, albedo, g, maxdepth, nsamples)
- * are accepted silently.
+ * Bump and normal maps ("displacement", "normalmap"; pbrt-v3's "bumpmap") are ignored with a
+ * warning. Parameters of the layered models that have no counterpart here (thickness, albedo, g,
+ * maxdepth, nsamples) are accepted silently.
  */
 #include "scene/build.h"
 
@@ -77,6 +113,7 @@ typedef struct builder {
     pn_material m;
     char model[384];  /* "Lambert kd=0.5 + Blinn ks=0.04 n=98" */
     char note[512];   /* "(roughness 0.1)" */
+    bool v3;          /* a pbrt-v3 material name: "pbrt-v3" in the description, v3 bump map */
 } builder;
 
 /* ---- small helpers ------------------------------------------------------------------------ */
@@ -129,10 +166,29 @@ static void consume_all(const pn_params *ps) {
     for (int i = 0; i < ps->count; i++) (void)find_param(ps, ps->items[i].name);
 }
 
-/* Warns about bump / normal maps, which penumbra does not apply. */
+/* Appends a parenthesised remark to the description's note. */
+static void add_note(builder *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+static void add_note(builder *b, const char *fmt, ...) {
+    size_t len = strlen(b->note);
+    if (len > 0 && len + 1 < sizeof b->note) {
+        b->note[len++] = ' ';
+        b->note[len] = '\0';
+    }
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(b->note + len, sizeof b->note - len, fmt, ap);
+    va_end(ap);
+}
+
+/* Warns about bump / normal maps, which penumbra does not apply (pbrt-v3 calls its bump map
+ * "bumpmap"; pbrt-v4 has "displacement" and "normalmap"). */
 static void warn_bump(builder *b) {
-    const char *names[] = {"displacement", "normalmap"};
-    for (int i = 0; i < 2; i++) {
+    const char *v4_names[] = {"displacement", "normalmap"};
+    const char *v3_names[] = {"bumpmap"};
+    const char *const *names = b->v3 ? v3_names : v4_names;
+    int count = b->v3 ? 1 : 2;
+    for (int i = 0; i < count; i++) {
         const pn_param *p = find_param(b->ps, names[i]);
         if (p) warn_at(b->scene, p->loc, "%s: \"%s\" (bump mapping) is ignored", b->label, names[i]);
     }
@@ -192,7 +248,11 @@ static double blinn_exponent(double alpha, bool *clamped) {
         *clamped = true;
         return PN_BLINN_MAX_EXPONENT;
     }
-    return n < 1.0 ? 1.0 : n;
+    if (n < 1.0) {
+        *clamped = true;
+        return 1.0;
+    }
+    return n;
 }
 
 static double dielectric_f0(double eta) {
@@ -262,13 +322,13 @@ static pn_status map_coateddiffuse(builder *b, pn_err *err) {
     return PN_OK;
 }
 
-/* F0 of a conductor from `reflectance` or eta / k under `prefix`. */
-static pn_status conductor_reflectance(builder *b, const char *prefix, pn_texref *f0, char *what, size_t what_size,
-                                       pn_err *err) {
+/* F0 of a conductor from `reflectance` (when the type has one) or eta / k under `prefix`. */
+static pn_status conductor_reflectance(builder *b, const char *prefix, bool has_reflectance, pn_texref *f0, char *what,
+                                       size_t what_size, pn_err *err) {
     char en[64], kn[64];
     snprintf(en, sizeof en, "%seta", prefix);
     snprintf(kn, sizeof kn, "%sk", prefix);
-    const pn_param *refl = find_param(b->ps, "reflectance");
+    const pn_param *refl = has_reflectance ? find_param(b->ps, "reflectance") : NULL;
     if (refl) {
         pn_status st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(1, 1, 1), f0, err);
         if (st != PN_OK) return st;
@@ -304,13 +364,9 @@ static pn_status conductor_reflectance(builder *b, const char *prefix, pn_texref
     return PN_OK;
 }
 
-static pn_status map_conductor(builder *b, pn_err *err) {
-    double roughness = 0, alpha = 0;
-    pn_status st = read_roughness(b, "", &roughness, &alpha, err);
-    pn_texref f0;
-    char what[160];
-    if (st == PN_OK) st = conductor_reflectance(b, "", &f0, what, sizeof what, err);
-    if (st != PN_OK) return st;
+/* A bare conductor with normal-incidence reflectance f0 (described as `what`): a mirror when
+ * smooth, else a Blinn lobe. */
+static void set_conductor(builder *b, pn_texref f0, const char *what, double roughness, double alpha) {
     char s[128];
     fmt_ref(b->scene, s, sizeof s, f0);
     if (alpha < PN_SMOOTH_ALPHA) {
@@ -340,6 +396,16 @@ static pn_status map_conductor(builder *b, pn_err *err) {
         describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
         snprintf(b->note, sizeof b->note, "(F0 of %s) %s", what, r);
     }
+}
+
+static pn_status map_conductor(builder *b, pn_err *err) {
+    double roughness = 0, alpha = 0;
+    pn_status st = read_roughness(b, "", &roughness, &alpha, err);
+    pn_texref f0;
+    char what[160];
+    if (st == PN_OK) st = conductor_reflectance(b, "", true, &f0, what, sizeof what, err);
+    if (st != PN_OK) return st;
+    set_conductor(b, f0, what, roughness, alpha);
     warn_bump(b);
     return PN_OK;
 }
@@ -351,7 +417,7 @@ static pn_status map_coatedconductor(builder *b, pn_err *err) {
     if (st == PN_OK) st = pn_params_spectrum_value(b->ps, "interface.eta", 550.0, 1.5, &ieta, NULL, err);
     pn_texref f0;
     char what[160];
-    if (st == PN_OK) st = conductor_reflectance(b, "conductor.", &f0, what, sizeof what, err);
+    if (st == PN_OK) st = conductor_reflectance(b, "conductor.", true, &f0, what, sizeof what, err);
     if (st != PN_OK) return st;
     static const char *const ignored[] = {"thickness", "albedo", "g", "maxdepth", "nsamples"};
     accept_silently(b->ps, ignored, sizeof ignored / sizeof ignored[0]);
@@ -452,20 +518,32 @@ static pn_status map_substitute(builder *b, const char *type, pn_err *err) {
     } else if (strcmp(type, "subsurface") == 0) {
         if (find_param(b->ps, "reflectance"))
             st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+    } else if (b->v3) {
+        /* pbrt-v3 translucent / kdsubsurface / fourier / disney: the first colour input given. */
+        static const char *const colour_names[] = {"Kd", "color", "reflectance"};
+        for (size_t i = 0; i < sizeof colour_names / sizeof colour_names[0]; i++) {
+            if (!find_param(b->ps, colour_names[i])) continue;
+            st = pn_params_texref(b->scene, b->ps, colour_names[i], false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+            break;
+        }
     }
     if (st != PN_OK) return st;
     consume_all(b->ps);
     set_lambert(b, kd);
     char s[128];
     fmt_ref(b->scene, s, sizeof s, kd);
-    warn_at(b->scene, b->ps->loc, "%s: %s material is not supported; substituted by a diffuse material kd=%s", b->label,
-            type, s);
-    snprintf(b->note, sizeof b->note, "(substitute for an unsupported %s material)", type);
+    const char *dialect = b->v3 ? "pbrt-v3 " : "";
+    warn_at(b->scene, b->ps->loc, "%s: %s%s material is not supported; substituted by a diffuse material kd=%s",
+            b->label, dialect, type, s);
+    snprintf(b->note, sizeof b->note, "(substitute for an unsupported %s%s material)", dialect, type);
     return PN_OK;
 }
 
+static pn_status map_mix_v3(builder *b, pn_err *err);
+
 static pn_status map_mix(builder *b, pn_err *err) {
     const pn_param *mp = find_param(b->ps, "materials");
+    if (!mp && (find_param(b->ps, "namedmaterial1") || find_param(b->ps, "namedmaterial2"))) return map_mix_v3(b, err);
     if (!mp) return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: mix material needs \"materials\"",
                                b->ps->loc.file ? b->ps->loc.file : "?", b->ps->loc.line, b->ps->loc.column);
     if (mp->type != PN_PT_STRING || mp->str_count != 2)
@@ -491,6 +569,294 @@ static pn_status map_mix(builder *b, pn_err *err) {
     warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
             pick ? "second" : "first", chosen, amount);
     warn_bump(b);
+    return PN_OK;
+}
+
+/* ---- pbrt-v3 material names --------------------------------------------------------------- */
+
+/* pbrt-v3's TrowbridgeReitz RoughnessToAlpha: a quartic in the logarithm of the roughness
+ * (floored at 1e-3), evaluated here in Horner form. */
+static double v3_roughness_to_alpha(double roughness) {
+    double x = log(fmax(roughness, 1e-3));
+    return 1.62142 + x * (0.819955 + x * (0.1734 + x * (0.0171201 + x * 0.000640711)));
+}
+
+/* Roughness of a pbrt-v3 material, as the average roughness and the average alpha of the two
+ * directions. `single`: the type has a "roughness" input (default `def`); `uv`: it has
+ * "uroughness" / "vroughness" (default: "roughness", or `def` when there is none).
+ * `v_from_u`: a missing vroughness takes uroughness's value (pbrt-v3's uber). */
+static pn_status read_roughness_v3(builder *b, bool single, bool uv, bool v_from_u, double def, double *roughness,
+                                   double *alpha, pn_err *err) {
+    double r = def, u = def, v = def;
+    bool has_u = false, has_v = false;
+    pn_status st = PN_OK;
+    if (single) st = float_input(b, "roughness", def, &r, NULL, err);
+    if (st == PN_OK && uv) st = float_input(b, "uroughness", r, &u, &has_u, err);
+    if (st == PN_OK && uv) st = float_input(b, "vroughness", r, &v, &has_v, err);
+    if (st != PN_OK) return st;
+    if (!has_u) u = r;
+    if (!has_v) v = v_from_u ? u : r;
+    bool remap = true;
+    st = pn_params_bool(b->ps, "remaproughness", true, &remap, err);
+    if (st != PN_OK) return st;
+    double ru = fmax(0.0, u), rv = fmax(0.0, v);
+    double au = remap ? v3_roughness_to_alpha(ru) : ru, av = remap ? v3_roughness_to_alpha(rv) : rv;
+    *roughness = 0.5 * (ru + rv);
+    *alpha = 0.5 * (au + av);
+    return PN_OK;
+}
+
+/* Adds a Blinn lobe ks with the exponent for `alpha` to the Lambert model set before. */
+static void add_blinn(builder *b, pn_texref ks, double roughness, double alpha) {
+    bool clamped = false;
+    double n = blinn_exponent(alpha, &clamped);
+    b->m.ks = ks;
+    b->m.exponent = (float)n;
+    char s[128];
+    fmt_ref(b->scene, s, sizeof s, ks);
+    size_t len = strlen(b->model);
+    snprintf(b->model + len, sizeof b->model - len, " + Blinn ks=%s n=%.5g", s, n);
+    char r[160];
+    describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
+    add_note(b, "%s", r);
+}
+
+/* pbrt-v3's index of refraction: "eta", else its older name "index" (default 1.5). pbrt-v3
+ * reads a float or float texture; a pbrt-v4 style spectrum is taken at 550 nm. */
+static pn_status read_v3_eta(builder *b, double *eta, bool *found, pn_err *err) {
+    *eta = 1.5;
+    *found = false;
+    const char *name = "eta";
+    const pn_param *p = find_param(b->ps, name);
+    if (!p) {
+        name = "index";
+        p = find_param(b->ps, name);
+    }
+    if (!p) return PN_OK;
+    *found = true;
+    pn_status st = p->type == PN_PT_TEXTURE ? float_input(b, name, 1.5, eta, NULL, err)
+                                            : pn_params_spectrum_value(b->ps, name, 550.0, 1.5, eta, NULL, err);
+    if (st != PN_OK) return st;
+    if (!(*eta > 0.0)) return pn_param_error(p, err, "%s: %s %g must be positive", b->label, name, *eta);
+    return PN_OK;
+}
+
+/* One colour a model needs as a constant (a mirror or glass tint): a texture that is not constant
+ * gives `fallback`, with a warning at the parameter. */
+static vec3 constant_tint(builder *b, const char *name, pn_texref r, vec3 fallback) {
+    bool varies = false;
+    vec3 c = texref_constant(b->scene, r, fallback, &varies);
+    if (varies) {
+        const pn_param *p = find_param(b->ps, name);
+        char s[64];
+        fmt_rgb(s, sizeof s, fallback);
+        warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: a varying texture \"%s\" is not supported here; %s is used",
+                b->label, name, s);
+    }
+    return c;
+}
+
+static bool is_white(vec3 c) { return c.x == 1.0f && c.y == 1.0f && c.z == 1.0f; }
+
+static pn_status map_v3_matte(builder *b, pn_err *err) {
+    pn_texref kd;
+    double sigma = 0.0;
+    pn_status st = pn_params_texref(b->scene, b->ps, "Kd", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+    if (st == PN_OK) st = float_input(b, "sigma", 0.0, &sigma, NULL, err);
+    if (st != PN_OK) return st;
+    set_lambert(b, kd);
+    if (sigma > 0.0) add_note(b, "(Oren-Nayar sigma %g ignored: rendered Lambertian)", sigma);
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_v3_plastic(builder *b, pn_err *err) {
+    pn_texref kd, ks;
+    double roughness = 0, alpha = 0;
+    pn_status st = pn_params_texref(b->scene, b->ps, "Kd", false, v3(0.25f, 0.25f, 0.25f), &kd, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "Ks", false, v3(0.25f, 0.25f, 0.25f), &ks, err);
+    if (st == PN_OK) st = read_roughness_v3(b, true, false, false, 0.1, &roughness, &alpha, err);
+    if (st != PN_OK) return st;
+    set_lambert(b, kd);
+    add_blinn(b, ks, roughness, alpha);
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_v3_substrate(builder *b, pn_err *err) {
+    pn_texref kd, ks;
+    double roughness = 0, alpha = 0;
+    pn_status st = pn_params_texref(b->scene, b->ps, "Kd", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "Ks", false, v3(0.5f, 0.5f, 0.5f), &ks, err);
+    if (st == PN_OK) st = read_roughness_v3(b, false, true, false, 0.1, &roughness, &alpha, err);
+    if (st != PN_OK) return st;
+    set_lambert(b, kd);
+    add_blinn(b, ks, roughness, alpha);
+    add_note(b, "(Ks as the reflectance at normal incidence)");
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_v3_uber(builder *b, pn_err *err) {
+    pn_texref kd, ks, kr, kt, opacity;
+    double roughness = 0, alpha = 0, eta = 1.5;
+    bool has_eta = false;
+    pn_status st = pn_params_texref(b->scene, b->ps, "Kd", false, v3(0.25f, 0.25f, 0.25f), &kd, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "Ks", false, v3(0.25f, 0.25f, 0.25f), &ks, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "Kr", false, v3(0, 0, 0), &kr, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "Kt", false, v3(0, 0, 0), &kt, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "opacity", false, v3(1, 1, 1), &opacity, err);
+    if (st == PN_OK) st = read_roughness_v3(b, true, true, true, 0.1, &roughness, &alpha, err);
+    if (st == PN_OK) st = read_v3_eta(b, &eta, &has_eta, err);
+    if (st != PN_OK) return st;
+    set_lambert(b, kd);
+    add_blinn(b, ks, roughness, alpha);
+    /* The perfectly specular lobes have no place in a Lambert + Blinn model. */
+    const char *lobe_names[2] = {"Kr", "Kt"};
+    const char *lobe_what[2] = {"specular reflection", "specular transmission"};
+    pn_texref lobes[2] = {kr, kt};
+    for (int i = 0; i < 2; i++) {
+        bool varies = false;
+        vec3 c = texref_constant(b->scene, lobes[i], v3(1, 1, 1), &varies);
+        if (!varies && v3_is_zero(c)) continue;
+        const pn_param *p = find_param(b->ps, lobe_names[i]);
+        char s[128];
+        fmt_ref(b->scene, s, sizeof s, lobes[i]);
+        warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: uber's %s \"%s\" = %s is dropped", b->label, lobe_what[i],
+                lobe_names[i], s);
+        add_note(b, "(%s %s dropped)", lobe_names[i], s);
+    }
+    bool op_varies = false;
+    vec3 op = texref_constant(b->scene, opacity, v3(1, 1, 1), &op_varies);
+    if (op_varies || fminf(op.x, fminf(op.y, op.z)) < 1.0f) {
+        const pn_param *p = find_param(b->ps, "opacity");
+        char s[128];
+        fmt_ref(b->scene, s, sizeof s, opacity);
+        warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: \"opacity\" %s (below 1) is ignored; rendered opaque",
+                b->label, s);
+        add_note(b, "(opacity %s ignored)", s);
+    }
+    if (has_eta) add_note(b, "(eta %g not used)", eta);
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_v3_glass(builder *b, pn_err *err) {
+    pn_texref kr, kt;
+    double eta = 1.5, roughness = 0, alpha = 0;
+    bool has_eta = false;
+    pn_status st = pn_params_texref(b->scene, b->ps, "Kr", false, v3(1, 1, 1), &kr, err);
+    if (st == PN_OK) st = pn_params_texref(b->scene, b->ps, "Kt", false, v3(1, 1, 1), &kt, err);
+    if (st == PN_OK) st = read_v3_eta(b, &eta, &has_eta, err);
+    if (st == PN_OK) st = read_roughness_v3(b, false, true, false, 0.0, &roughness, &alpha, err);
+    if (st != PN_OK) return st;
+    vec3 r = constant_tint(b, "Kr", kr, v3(1, 1, 1));
+    vec3 t = constant_tint(b, "Kt", kt, v3(1, 1, 1));
+    b->m.kind = PN_MATERIAL_DIELECTRIC;
+    b->m.eta = (float)eta;
+    b->m.kd = constant_ref(v3(0, 0, 0));
+    b->m.ks = constant_ref(v3(0, 0, 0));
+    b->m.exponent = 1.0f;
+    b->m.specular = v3(1, 1, 1);
+    char rs[64], ts[64];
+    fmt_rgb(rs, sizeof rs, r);
+    fmt_rgb(ts, sizeof ts, t);
+    if (v3_is_zero(r)) {
+        /* Transmission only in pbrt-v3; penumbra's glass reflects anyway, so Kt is the tint. */
+        b->m.specular = t;
+        if (!is_white(t)) add_note(b, "(specular tint Kt=%s; Kr=0 not honoured: glass always reflects)", ts);
+        else add_note(b, "(Kr=0 not honoured: glass always reflects)");
+        warn_at(b->scene, b->ps->loc, "%s: glass with Kr = 0 still reflects in penumbra", b->label);
+    } else {
+        if (!is_white(r)) {
+            b->m.specular = r;
+            add_note(b, "(specular tint Kr=%s)", rs);
+        }
+        if (!is_white(t)) {
+            const pn_param *p = find_param(b->ps, "Kt");
+            warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: the transmission tint Kt = %s of glass is dropped",
+                    b->label, ts);
+            add_note(b, "(Kt=%s dropped)", ts);
+        }
+    }
+    if (roughness > 0.0) {
+        warn_at(b->scene, b->ps->loc, "%s: rough glass (roughness %g) rendered as smooth glass", b->label, roughness);
+        add_note(b, "(roughness %g ignored: smooth)", roughness);
+    }
+    snprintf(b->model, sizeof b->model, "dielectric eta=%.4g", eta);
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_v3_metal(builder *b, pn_err *err) {
+    double roughness = 0, alpha = 0;
+    pn_status st = read_roughness_v3(b, true, true, false, 0.01, &roughness, &alpha, err);
+    pn_texref f0;
+    char what[160];
+    if (st == PN_OK) st = conductor_reflectance(b, "", false, &f0, what, sizeof what, err);
+    if (st != PN_OK) return st;
+    set_conductor(b, f0, what, roughness, alpha);
+    warn_bump(b);
+    return PN_OK;
+}
+
+static pn_status map_v3_mirror(builder *b, pn_err *err) {
+    pn_texref kr;
+    pn_status st = pn_params_texref(b->scene, b->ps, "Kr", false, v3(0.9f, 0.9f, 0.9f), &kr, err);
+    if (st != PN_OK) return st;
+    vec3 spec = constant_tint(b, "Kr", kr, v3(0.9f, 0.9f, 0.9f));
+    b->m.kind = PN_MATERIAL_MIRROR;
+    b->m.specular = spec;
+    b->m.kd = constant_ref(v3(0, 0, 0));
+    b->m.ks = constant_ref(v3(0, 0, 0));
+    b->m.exponent = 1.0f;
+    char s[64];
+    fmt_rgb(s, sizeof s, spec);
+    snprintf(b->model, sizeof b->model, "mirror specular=%s", s);
+    warn_bump(b);
+    return PN_OK;
+}
+
+/* pbrt-v3's mix: "namedmaterial1" / "namedmaterial2", with "amount" (a spectrum, default 0.5)
+ * weighting the first one; the input with the larger weight is used. */
+static pn_status map_mix_v3(builder *b, pn_err *err) {
+    b->v3 = true;
+    const char *names[2] = {NULL, NULL};
+    pn_status st = pn_params_string(b->ps, "namedmaterial1", NULL, &names[0], err);
+    if (st == PN_OK) st = pn_params_string(b->ps, "namedmaterial2", NULL, &names[1], err);
+    if (st != PN_OK) return st;
+    for (int i = 0; i < 2; i++) {
+        if (names[i]) continue;
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: pbrt-v3 mix material needs \"namedmaterial%d\"",
+                          b->ps->loc.file ? b->ps->loc.file : "?", b->ps->loc.line, b->ps->loc.column, i + 1);
+    }
+    pn_texref amount_ref;
+    st = pn_params_texref(b->scene, b->ps, "amount", false, v3(0.5f, 0.5f, 0.5f), &amount_ref, err);
+    if (st != PN_OK) return st;
+    bool varies = false;
+    vec3 a = texref_constant(b->scene, amount_ref, v3(0.5f, 0.5f, 0.5f), &varies);
+    double amount = ((double)a.x + (double)a.y + (double)a.z) / 3.0;
+    if (varies)
+        warn_at(b->scene, find_param(b->ps, "amount")->loc,
+                "%s: \"amount\" is a varying texture; the constant 0.5 is used instead", b->label);
+    for (int i = 0; i < 2; i++) {
+        if (pn_scene_find_material(b->scene, names[i]) >= 0) continue;
+        char pname[32];
+        snprintf(pname, sizeof pname, "namedmaterial%d", i + 1);
+        return pn_param_error(find_param(b->ps, pname), err, "mix: undefined material \"%s\"", names[i]);
+    }
+    int pick = amount >= 0.5 ? 0 : 1; /* amount is the weight of the first material */
+    const char *chosen = names[pick];
+    const pn_material *src = &b->scene->materials[pn_scene_find_material(b->scene, chosen)];
+    char *keep_name = b->m.name;
+    b->m = *src;
+    b->m.name = keep_name;
+    b->m.description = NULL;
+    const char *arrow = src->description ? strstr(src->description, "-> ") : NULL;
+    snprintf(b->model, sizeof b->model, "%s", arrow ? arrow + 3 : "?");
+    snprintf(b->note, sizeof b->note, "(material '%s' of the mix, weight %g)", chosen, pick ? 1.0 - amount : amount);
+    warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
+            pick ? "second" : "first", chosen, amount);
     return PN_OK;
 }
 
@@ -537,6 +903,31 @@ pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, cons
         st = map_substitute(&b, type, err);
     } else if (strcmp(type, "mix") == 0) {
         st = map_mix(&b, err);
+    } else if (strcmp(type, "matte") == 0) {
+        b.v3 = true;
+        st = map_v3_matte(&b, err);
+    } else if (strcmp(type, "plastic") == 0) {
+        b.v3 = true;
+        st = map_v3_plastic(&b, err);
+    } else if (strcmp(type, "substrate") == 0) {
+        b.v3 = true;
+        st = map_v3_substrate(&b, err);
+    } else if (strcmp(type, "uber") == 0) {
+        b.v3 = true;
+        st = map_v3_uber(&b, err);
+    } else if (strcmp(type, "glass") == 0) {
+        b.v3 = true;
+        st = map_v3_glass(&b, err);
+    } else if (strcmp(type, "metal") == 0) {
+        b.v3 = true;
+        st = map_v3_metal(&b, err);
+    } else if (strcmp(type, "mirror") == 0) {
+        b.v3 = true;
+        st = map_v3_mirror(&b, err);
+    } else if (strcmp(type, "translucent") == 0 || strcmp(type, "kdsubsurface") == 0 ||
+               strcmp(type, "fourier") == 0 || strcmp(type, "disney") == 0) {
+        b.v3 = true;
+        st = map_substitute(&b, type, err);
     } else if (strcmp(type, "interface") == 0 || strcmp(type, "none") == 0) {
         b.m.kind = PN_MATERIAL_INTERFACE;
         snprintf(b.model, sizeof b.model, "interface (invisible)");
@@ -563,7 +954,8 @@ pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, cons
         free(b.m.name);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a material");
     }
-    snprintf(desc, need, "%s: pbrt %s -> %s%s%s", head, type, b.model, b.note[0] ? " " : "", b.note);
+    snprintf(desc, need, "%s: %s %s -> %s%s%s", head, b.v3 ? "pbrt-v3" : "pbrt", type, b.model, b.note[0] ? " " : "",
+             b.note);
     b.m.description = desc;
     scene->materials[scene->material_count] = b.m;
     if (out) *out = scene->material_count;
