@@ -29,8 +29,10 @@ static double clock_seconds(void) {
 }
 
 typedef struct reference_scratch {
-    float *cdf; /* light_count + 1 */
-    int *index; /* lights with non-zero weight */
+    float *cdf;    /* light_count + 1 */
+    int *index;    /* lights with non-zero weight */
+    float *weight; /* unoccluded irradiance of every light */
+    int *exact;    /* scratch of pn_lights_irradiance_all */
 } reference_scratch;
 
 static void *reference_scratch_create(const pn_render_job *job) {
@@ -39,9 +41,13 @@ static void *reference_scratch_create(const pn_render_job *job) {
     size_t n = (size_t)job->lights->count + 1;
     s->cdf = malloc(n * sizeof *s->cdf);
     s->index = malloc(n * sizeof *s->index);
-    if (!s->cdf || !s->index) {
+    s->weight = malloc(n * sizeof *s->weight);
+    s->exact = malloc(n * sizeof *s->exact);
+    if (!s->cdf || !s->index || !s->weight || !s->exact) {
         free(s->cdf);
         free(s->index);
+        free(s->weight);
+        free(s->exact);
         free(s);
         return NULL;
     }
@@ -53,6 +59,8 @@ static void reference_scratch_free(void *p) {
     if (!s) return;
     free(s->cdf);
     free(s->index);
+    free(s->weight);
+    free(s->exact);
     free(s);
 }
 
@@ -63,8 +71,9 @@ static int build_light_pdf(const pn_render_job *job, vec3 p, vec3 n, reference_s
     int m = 0;
     double acc = 0.0;
     s->cdf[0] = 0.0f;
+    pn_lights_irradiance_all(L, p, n, s->weight, s->exact);
     for (int i = 0; i < L->count; i++) {
-        float w = pn_light_irradiance_estimate(L, &L->lights[i], p, n);
+        float w = s->weight[i];
         if (!(w > 0.0f) || !isfinite(w)) continue;
         acc += (double)w;
         s->index[m] = i;

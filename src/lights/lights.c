@@ -275,6 +275,7 @@ void pn_lights_free(pn_lights *lights) {
     for (int i = 0; i < lights->env_count; i++) pn_distribution2d_free(lights->envs[i].dist);
     free(lights->envs);
     free(lights->lights);
+    pn_lights_free_soa(lights);
     free(lights);
 }
 
@@ -397,6 +398,11 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
     L->lights = ll.items;
     L->count = ll.count;
     for (int i = 0; i < L->count; i++) L->count_by_kind[L->lights[i].kind]++;
+    st = pn_lights_build_soa(L, err);
+    if (st != PN_OK) {
+        pn_lights_free(L);
+        return st;
+    }
     *out = L;
     return PN_OK;
 }
@@ -450,8 +456,6 @@ static float spot_falloff(const pn_light *l, float cos_theta) {
 
 static float lum(vec3 c) { return fmaxf(0.0f, v3_luminance(c)); }
 
-/* Distance, in light radii, beyond which polygon lights use the point approximation. */
-#define PN_FAR_FIELD 8.0f
 
 float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, vec3 p, vec3 n) {
     switch (l->kind) {
@@ -473,34 +477,7 @@ float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, v
     case PN_LIGHT_RECTANGLE:
     case PN_LIGHT_DISK: {
         vec3 rel = v3_sub(l->p, p);
-        float plane = v3_dot(rel, l->n); /* < 0: p is on the emitting side */
-        if (!l->two_sided && plane >= 0.0f) return 0.0f;
-        /* Far field: when the light is small as seen from p and lies wholly above p's horizon,
-         * it acts as a point source of power L * A * cos at its centre (relative error of order
-         * (radius / distance)^2, under 2% beyond PN_FAR_FIELD radii). This keeps the per-point
-         * PDF cheap in scenes with many lights; near lights get the exact contour integral. */
-        vec3 centre;
-        float radius2;
-        if (l->kind == PN_LIGHT_TRIANGLE) {
-            centre = v3_add(rel, v3_scale(v3_add(l->e1, l->e2), 1.0f / 3.0f));
-            radius2 = fmaxf(v3_length2(v3_sub(rel, centre)),
-                            fmaxf(v3_length2(v3_sub(v3_add(rel, l->e1), centre)),
-                                  v3_length2(v3_sub(v3_add(rel, l->e2), centre))));
-        } else if (l->kind == PN_LIGHT_RECTANGLE) {
-            centre = v3_add(rel, v3_scale(v3_add(l->e1, l->e2), 0.5f));
-            radius2 = 0.25f * v3_length2(v3_add(l->e1, l->e2));
-        } else {
-            centre = rel;
-            radius2 = l->radius * l->radius;
-        }
-        float d2 = v3_length2(centre);
-        float above = v3_dot(centre, n);
-        if (d2 > PN_FAR_FIELD * PN_FAR_FIELD * radius2 && above > 0.0f && above * above > radius2) {
-            float inv_d = 1.0f / sqrtf(d2);
-            float cos_r = above * inv_d;
-            float cos_l = fabsf(plane) * inv_d;
-            return lum(l->emit) * l->area * cos_l * cos_r / d2;
-        }
+        if (!l->two_sided && v3_dot(rel, l->n) >= 0.0f) return 0.0f;
         vec3 poly[24];
         int count;
         if (l->kind == PN_LIGHT_TRIANGLE) {

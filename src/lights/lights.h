@@ -52,6 +52,16 @@ typedef struct pn_env {
     float average_luminance;
 } pn_env;
 
+/* The lights again as plain arrays, for pn_lights_irradiance_all (light_pdf.c). */
+typedef struct pn_light_soa {
+    float *cx, *cy, *cz; /* centre: position, centroid, or disk / sphere centre */
+    float *nx, *ny, *nz; /* emitting normal of planar lights, else 0 */
+    float *r2;           /* squared bounding radius (0 for points) */
+    float *power;        /* luminance of the far-field source term (see light_pdf.c) */
+    float *far2;         /* squared distance beyond which the far field is used */
+    int *cls;            /* point-like, planar one-sided, planar two-sided, or exact only */
+} pn_light_soa;
+
 typedef struct pn_lights {
     pn_light *lights;
     int count;
@@ -60,6 +70,7 @@ typedef struct pn_lights {
     int count_by_kind[PN_LIGHT_KIND_COUNT];
     float scene_radius;
     vec3 scene_center;
+    pn_light_soa soa;
 } pn_lights;
 
 /* Builds the light records: LightSource definitions, and emissive shapes (a mesh's triangle pairs
@@ -97,6 +108,13 @@ vec3 pn_env_radiance(const pn_env *env, vec3 d);
  * (a 24-gon), spheres and environment maps. The reference integrator's PDF over lights is
  * proportional to it. */
 float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, vec3 p, vec3 n);
+
+/* pn_light_irradiance_estimate for every light at once (out[i] for lights[i]); `exact` is
+ * scratch of count ints. Vectorised far field with exact fix-ups (light_pdf.c); returns how many
+ * lights needed the exact formula. */
+int pn_lights_irradiance_all(const pn_lights *lights, vec3 p, vec3 n, float *out, int *exact);
+pn_status pn_lights_build_soa(pn_lights *lights, pn_err *err);
+void pn_lights_free_soa(pn_lights *lights);
 
 /* Irradiance at the origin (normal n) from the polygon v[0..count) of uniform unit radiance,
  * clipped to the hemisphere of n (Lambert 1760; the contour-integral form of Vedel's eq. 4). */
