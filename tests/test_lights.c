@@ -54,7 +54,7 @@ static void test_rectangle_closed_form(void) {
     pn_lights L = make_lights(&l);
     double expected = 2.0 * M_PI * 4.0 * corner_rectangle_form_factor(0.5, 0.5, 0.7);
     vec3 p = v3(0, 0, 0), n = v3(0, 0, 1);
-    double exact = pn_light_irradiance_estimate(&L, &l, p, n) / 1.0; /* luminance of (2,2,2) = 2 */
+    double exact = (double)pn_light_irradiance_estimate(&L, &l, p, n); /* luminance of (2,2,2) = 2 */
     CHECK_NEAR(exact, expected, 1e-4 * expected);
     double mc = sampled_irradiance(&L, &l, p, n, 4096);
     CHECK_NEAR(mc, expected, 0.005 * expected);

@@ -71,7 +71,7 @@ static void test_plane_under_rectangle_light(void) {
         double expected = 0.5 * 3.0 * 4.0 * corner_ff(0.5, 0.5, 1.0);
         const float *px = pn_image_layer_data(img, 0);
         double mean = 0;
-        for (int i = 0; i < 4; i++) mean += px[3 * i + 1];
+        for (int i = 0; i < 4; i++) mean += (double)px[3 * i + 1];
         mean /= 4;
         CHECK_NEAR(mean, expected, 0.01 * expected);
         pn_image_free(img);

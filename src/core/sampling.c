@@ -438,8 +438,13 @@ bool pn_distribution2d_sample(const pn_distribution2d *d, float u1, float u2, fl
     /* Keep the continuous coordinates inside the chosen cell and below 1. */
     double fu = ((double)col + fmin(ru, 1.0 - 1e-9)) / (double)d->w;
     double fv = ((double)r + fmin(rv, 1.0 - 1e-9)) / (double)d->h;
-    *u = clamp_unit((float)fu);
-    *v = clamp_unit((float)fv);
+    /* Rounding to float may carry a coordinate onto the next cell's edge; step back so that
+     * the point lies in the cell whose probability is returned. */
+    float fu_f = clamp_unit((float)fu), fv_f = clamp_unit((float)fv);
+    while (fu_f > 0.0f && (int)((double)fu_f * (double)d->w) > col) fu_f = nextafterf(fu_f, 0.0f);
+    while (fv_f > 0.0f && (int)((double)fv_f * (double)d->h) > r) fv_f = nextafterf(fv_f, 0.0f);
+    *u = fu_f;
+    *v = fv_f;
     float p = (float)(pr * pc * (double)d->w * (double)d->h);
     *pdf = p;
     return p > 0.0f && isfinite(p);

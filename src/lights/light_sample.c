@@ -118,15 +118,25 @@ bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, f
             if (!pn_distribution2d_sample(env->dist, u1, u2, &u, &v, &uv_pdf)) return false;
             if (env->equal_area) {
                 wl = pn_equal_area_square_to_sphere(u, v);
-                pdf = uv_pdf * PN_INV_4PI;
             } else {
                 float theta = v * PN_PI, phi = u * 2.0f * PN_PI;
                 float st = sinf(theta);
                 if (st <= 0.0f) return false;
                 wl = v3(st * cosf(phi), st * sinf(phi), cosf(theta));
+            }
+            /* Radiance and density both from the texel the direction maps back to, as an eye
+             * ray leaving in that direction would see it: near a texel edge, float rounding may
+             * put the direction in the neighbour of the texel that was sampled. */
+            float lu, lv;
+            s->radiance = pn_env_lookup(env, wl, &lu, &lv);
+            uv_pdf = pn_distribution2d_pdf(env->dist, lu, lv);
+            if (env->equal_area) {
+                pdf = uv_pdf * PN_INV_4PI;
+            } else {
+                float st = sqrtf(wl.x * wl.x + wl.y * wl.y);
+                if (st <= 0.0f) return false;
                 pdf = uv_pdf / (2.0f * PN_PI * PN_PI * st);
             }
-            s->radiance = pn_env_radiance(env, mat4_apply_vector(&env->world_from_light, wl));
         }
         s->wi = v3_normalize(mat4_apply_vector(&env->world_from_light, wl));
         s->dist = INFINITY;

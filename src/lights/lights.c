@@ -52,7 +52,9 @@ static void env_direction_to_uv(const pn_env *env, vec3 wl, float *u, float *v) 
     if (env->equal_area) {
         pn_equal_area_sphere_to_square(wl, u, v);
     } else {
-        float theta = acosf(fminf(1.0f, fmaxf(-1.0f, wl.z)));
+        /* atan2 rather than acos: well conditioned near the poles, so that the direction of a
+         * sampled texel maps back to that texel. */
+        float theta = atan2f(sqrtf(wl.x * wl.x + wl.y * wl.y), wl.z);
         float phi = atan2f(wl.y, wl.x);
         if (phi < 0.0f) phi += 2.0f * PN_PI;
         *u = phi * (0.5f * PN_INV_PI);
@@ -69,6 +71,11 @@ static vec3 env_texel(const pn_env *env, float u, float v) {
     if (y >= env->height) y = env->height - 1;
     const float *px = env->rgb + 3 * ((size_t)y * (size_t)env->width + (size_t)x);
     return v3_mul(v3(px[0], px[1], px[2]), env->scale);
+}
+
+vec3 pn_env_lookup(const pn_env *env, vec3 wl, float *u, float *v) {
+    env_direction_to_uv(env, wl, u, v);
+    return env_texel(env, *u, *v);
 }
 
 vec3 pn_env_radiance(const pn_env *env, vec3 d) {

@@ -101,6 +101,9 @@ vec3 pn_emission_radiance(const struct pn_scene_s *scene, int emission, vec3 ng,
 /* Radiance of all environment lights for an escaping ray with unit direction d. */
 vec3 pn_lights_environment_radiance(const pn_lights *lights, vec3 d);
 vec3 pn_env_radiance(const pn_env *env, vec3 d);
+/* Radiance of an image environment in light-space direction wl (unit), and the map coordinates
+ * it was read at. */
+vec3 pn_env_lookup(const pn_env *env, vec3 wl, float *u, float *v);
 
 /* The unoccluded irradiance the light would give to a point p with normal n (zero if it is
  * behind the surface, or the point is behind a one-sided light): exact for point, spot, distant
