@@ -39,17 +39,6 @@
 
 #define PN_PI_D 3.14159265358979323846
 
-static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-
-static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) {
-    char msg[768];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    pn_scene_warn(scene, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
-}
 
 static pn_status error_at(pn_srcloc loc, pn_status status, pn_err *err, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));
@@ -66,7 +55,7 @@ static pn_status error_at(pn_srcloc loc, pn_status status, pn_err *err, const ch
 /* Warns about a parameter that is understood but has no effect here. */
 static void warn_ignored(struct pn_scene_s *scene, const pn_params *ps, const char *name, const char *why) {
     const pn_param *p = pn_params_find(ps, name);
-    if (p) warn_at(scene, p->loc, "\"%s\" %s", name, why);
+    if (p) pn_warn_at(scene, p->loc, "\"%s\" %s", name, why);
 }
 
 /* Reads "power" (or another positive scalar); 0 when absent or not positive. */
@@ -219,7 +208,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             d.equal_area = img->width == img->height;
             if (!d.equal_area) {
                 const pn_param *p = pn_params_find(ps, "filename");
-                warn_at(scene, p ? p->loc : ps->loc,
+                pn_warn_at(scene, p ? p->loc : ps->loc,
                         "environment image \"%s\" is %dx%d, not square (pbrt-v4's equal-area octahedral layout); "
                         "read as a latitude-longitude map",
                         file, img->width, img->height);

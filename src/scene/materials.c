@@ -86,24 +86,7 @@
 #define PN_BLINN_MAX_EXPONENT 10000.0
 #define PN_SMOOTH_ALPHA 1e-3
 
-static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
 
-static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) {
-    char msg[768];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    pn_scene_warn(scene, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
-}
-
-static char *dup_string(const char *s) {
-    size_t n = strlen(s) + 1;
-    char *d = malloc(n);
-    if (d) memcpy(d, s, n);
-    return d;
-}
 
 /* What is being built: the material, its label for messages and the description pieces. */
 typedef struct builder {
@@ -190,7 +173,7 @@ static void warn_bump(builder *b) {
     int count = b->v3 ? 1 : 2;
     for (int i = 0; i < count; i++) {
         const pn_param *p = find_param(b->ps, names[i]);
-        if (p) warn_at(b->scene, p->loc, "%s: \"%s\" (bump mapping) is ignored", b->label, names[i]);
+        if (p) pn_warn_at(b->scene, p->loc, "%s: \"%s\" (bump mapping) is ignored", b->label, names[i]);
     }
 }
 
@@ -206,7 +189,7 @@ static pn_status float_input(builder *b, const char *name, double def, double *o
     bool varies = false;
     vec3 v = texref_constant(b->scene, r, v3(0.5f, 0.5f, 0.5f), &varies);
     if (varies)
-        warn_at(b->scene, p->loc, "%s: \"%s\" is a varying texture; the constant 0.5 is used instead", b->label, name);
+        pn_warn_at(b->scene, p->loc, "%s: \"%s\" is a varying texture; the constant 0.5 is used instead", b->label, name);
     *out = v.x;
     return PN_OK;
 }
@@ -349,7 +332,7 @@ static pn_status conductor_reflectance(builder *b, const char *prefix, bool has_
     vec3 eta = texref_constant(b->scene, eta_ref, cu_eta, &varies);
     vec3 k = texref_constant(b->scene, k_ref, cu_k, &varies);
     if (varies)
-        warn_at(b->scene, b->ps->loc, "%s: textured \"%s\" / \"%s\" are not supported; copper is used where they vary",
+        pn_warn_at(b->scene, b->ps->loc, "%s: textured \"%s\" / \"%s\" are not supported; copper is used where they vary",
                 b->label, en, kn);
     *f0 = constant_ref(v3(conductor_f0(eta.x, k.x), conductor_f0(eta.y, k.y), conductor_f0(eta.z, k.z)));
     const pn_param *pe = find_param(b->ps, en);
@@ -373,7 +356,7 @@ static void set_conductor(builder *b, pn_texref f0, const char *what, double rou
         bool varies = false;
         vec3 spec = texref_constant(b->scene, f0, v3(0.9f, 0.9f, 0.9f), &varies);
         if (varies) {
-            warn_at(b->scene, b->ps->loc, "%s: a textured reflectance on a smooth conductor is not supported; 0.9 used",
+            pn_warn_at(b->scene, b->ps->loc, "%s: a textured reflectance on a smooth conductor is not supported; 0.9 used",
                     b->label);
             fmt_rgb(s, sizeof s, spec);
         }
@@ -445,7 +428,7 @@ static pn_status map_dielectric(builder *b, bool thin, pn_err *err) {
     if (st != PN_OK) return st;
     if (!(eta > 0.0)) return pn_param_error(find_param(b->ps, "eta"), err, "%s: eta %g must be positive", b->label, eta);
     if (alpha >= PN_SMOOTH_ALPHA)
-        warn_at(b->scene, b->ps->loc, "%s: rough dielectric (roughness %g) rendered as smooth glass", b->label,
+        pn_warn_at(b->scene, b->ps->loc, "%s: rough dielectric (roughness %g) rendered as smooth glass", b->label,
                 roughness);
     b->m.kind = PN_MATERIAL_DIELECTRIC;
     b->m.eta = (float)eta;
@@ -476,7 +459,7 @@ static pn_status scaled_texture(builder *b, pn_texref in, float s, pn_texref *ou
     t.amount = constant_ref(v3(0, 0, 0));
     char name[300];
     snprintf(name, sizeof name, "%s x %g", src->name ? src->name : "?", (double)s);
-    t.name = dup_string(name);
+    t.name = pn_strdup(name);
     if (!t.name || !pn_grow_for_append((void **)&scene->textures, scene->texture_count, sizeof *scene->textures)) {
         free(t.name);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a texture");
@@ -501,7 +484,7 @@ static pn_status map_diffusetransmission(builder *b, pn_err *err) {
             return st;
     }
     set_lambert(b, kd);
-    warn_at(b->scene, b->ps->loc, "%s: diffusetransmission rendered as diffuse reflection; its transmission is dropped",
+    pn_warn_at(b->scene, b->ps->loc, "%s: diffusetransmission rendered as diffuse reflection; its transmission is dropped",
             b->label);
     snprintf(b->note, sizeof b->note, "(transmission dropped)");
     warn_bump(b);
@@ -533,7 +516,7 @@ static pn_status map_substitute(builder *b, const char *type, pn_err *err) {
     char s[128];
     fmt_ref(b->scene, s, sizeof s, kd);
     const char *dialect = b->v3 ? "pbrt-v3 " : "";
-    warn_at(b->scene, b->ps->loc, "%s: %s%s material is not supported; substituted by a diffuse material kd=%s",
+    pn_warn_at(b->scene, b->ps->loc, "%s: %s%s material is not supported; substituted by a diffuse material kd=%s",
             b->label, dialect, type, s);
     snprintf(b->note, sizeof b->note, "(substitute for an unsupported %s%s material)", dialect, type);
     return PN_OK;
@@ -566,7 +549,7 @@ static pn_status map_mix(builder *b, pn_err *err) {
     const char *arrow = src->description ? strstr(src->description, "-> ") : NULL;
     snprintf(b->model, sizeof b->model, "%s", arrow ? arrow + 3 : "?");
     snprintf(b->note, sizeof b->note, "(material '%s' of the mix, amount %g)", chosen, amount);
-    warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
+    pn_warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
             pick ? "second" : "first", chosen, amount);
     warn_bump(b);
     return PN_OK;
@@ -650,7 +633,7 @@ static vec3 constant_tint(builder *b, const char *name, pn_texref r, vec3 fallba
         const pn_param *p = find_param(b->ps, name);
         char s[64];
         fmt_rgb(s, sizeof s, fallback);
-        warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: a varying texture \"%s\" is not supported here; %s is used",
+        pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: a varying texture \"%s\" is not supported here; %s is used",
                 b->label, name, s);
     }
     return c;
@@ -722,7 +705,7 @@ static pn_status map_v3_uber(builder *b, pn_err *err) {
         const pn_param *p = find_param(b->ps, lobe_names[i]);
         char s[128];
         fmt_ref(b->scene, s, sizeof s, lobes[i]);
-        warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: uber's %s \"%s\" = %s is dropped", b->label, lobe_what[i],
+        pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: uber's %s \"%s\" = %s is dropped", b->label, lobe_what[i],
                 lobe_names[i], s);
         add_note(b, "(%s %s dropped)", lobe_names[i], s);
     }
@@ -732,7 +715,7 @@ static pn_status map_v3_uber(builder *b, pn_err *err) {
         const pn_param *p = find_param(b->ps, "opacity");
         char s[128];
         fmt_ref(b->scene, s, sizeof s, opacity);
-        warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: \"opacity\" %s (below 1) is ignored; rendered opaque",
+        pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: \"opacity\" %s (below 1) is ignored; rendered opaque",
                 b->label, s);
         add_note(b, "(opacity %s ignored)", s);
     }
@@ -766,7 +749,7 @@ static pn_status map_v3_glass(builder *b, pn_err *err) {
         b->m.specular = t;
         if (!is_white(t)) add_note(b, "(specular tint Kt=%s; Kr=0 not honoured: glass always reflects)", ts);
         else add_note(b, "(Kr=0 not honoured: glass always reflects)");
-        warn_at(b->scene, b->ps->loc, "%s: glass with Kr = 0 still reflects in penumbra", b->label);
+        pn_warn_at(b->scene, b->ps->loc, "%s: glass with Kr = 0 still reflects in penumbra", b->label);
     } else {
         if (!is_white(r)) {
             b->m.specular = r;
@@ -774,13 +757,13 @@ static pn_status map_v3_glass(builder *b, pn_err *err) {
         }
         if (!is_white(t)) {
             const pn_param *p = find_param(b->ps, "Kt");
-            warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: the transmission tint Kt = %s of glass is dropped",
+            pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: the transmission tint Kt = %s of glass is dropped",
                     b->label, ts);
             add_note(b, "(Kt=%s dropped)", ts);
         }
     }
     if (roughness > 0.0) {
-        warn_at(b->scene, b->ps->loc, "%s: rough glass (roughness %g) rendered as smooth glass", b->label, roughness);
+        pn_warn_at(b->scene, b->ps->loc, "%s: rough glass (roughness %g) rendered as smooth glass", b->label, roughness);
         add_note(b, "(roughness %g ignored: smooth)", roughness);
     }
     snprintf(b->model, sizeof b->model, "dielectric eta=%.4g", eta);
@@ -837,7 +820,7 @@ static pn_status map_mix_v3(builder *b, pn_err *err) {
     vec3 a = texref_constant(b->scene, amount_ref, v3(0.5f, 0.5f, 0.5f), &varies);
     double amount = ((double)a.x + (double)a.y + (double)a.z) / 3.0;
     if (varies)
-        warn_at(b->scene, find_param(b->ps, "amount")->loc,
+        pn_warn_at(b->scene, find_param(b->ps, "amount")->loc,
                 "%s: \"amount\" is a varying texture; the constant 0.5 is used instead", b->label);
     for (int i = 0; i < 2; i++) {
         if (pn_scene_find_material(b->scene, names[i]) >= 0) continue;
@@ -855,7 +838,7 @@ static pn_status map_mix_v3(builder *b, pn_err *err) {
     const char *arrow = src->description ? strstr(src->description, "-> ") : NULL;
     snprintf(b->model, sizeof b->model, "%s", arrow ? arrow + 3 : "?");
     snprintf(b->note, sizeof b->note, "(material '%s' of the mix, weight %g)", chosen, pick ? 1.0 - amount : amount);
-    warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
+    pn_warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
             pick ? "second" : "first", chosen, amount);
     return PN_OK;
 }
@@ -947,7 +930,7 @@ pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, cons
         snprintf(head, sizeof head, "(default material)");
     size_t need = strlen(head) + strlen(type) + strlen(b.model) + strlen(b.note) + 32;
     char *desc = malloc(need);
-    b.m.name = dup_string(name);
+    b.m.name = pn_strdup(name);
     if (!desc || !b.m.name ||
         !pn_grow_for_append((void **)&scene->materials, scene->material_count, sizeof *scene->materials)) {
         free(desc);

@@ -395,3 +395,19 @@ char *pn_path_resolve(const char *base_dir, const char *path) {
     memcpy(r + k, path, np + 1);
     return r;
 }
+
+void pn_warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) {
+    char msg[768];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    pn_scene_warn(scene, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
+}
+
+char *pn_strdup(const char *s) {
+    size_t n = strlen(s) + 1;
+    char *d = malloc(n);
+    if (d) memcpy(d, s, n);
+    return d;
+}

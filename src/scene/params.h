@@ -83,6 +83,15 @@ pn_status pn_params_vec3(const pn_params *ps, const char *name, vec3 def, vec3 *
 pn_status pn_params_array(const pn_params *ps, const char *name, pn_param_type type, int multiple_of,
                           const double **out, int *count, pn_err *err);
 
+struct pn_scene_s;
+
+/* Adds the warning "file:line:column: <message>" at loc to the scene (pn_scene_warn). */
+void pn_warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+/* A malloc'ed copy of s (NULL when out of memory). */
+char *pn_strdup(const char *s);
+
 /* Joins a relative path to base_dir (absolute paths are returned as they are). Caller frees. */
 char *pn_path_resolve(const char *base_dir, const char *path);
 

@@ -35,24 +35,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
 
-static void warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) {
-    char msg[768];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    pn_scene_warn(scene, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, msg);
-}
-
-static char *dup_string(const char *s) {
-    size_t n = strlen(s) + 1;
-    char *d = malloc(n);
-    if (d) memcpy(d, s, n);
-    return d;
-}
 
 /* ---- the shared image table ----------------------------------------------------------------- */
 
@@ -186,7 +169,7 @@ pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, co
                                      NULL, err);
         if (st != PN_OK) return st;
         if (use == PN_SPECTRUM_ALBEDO && (v3_max_component(c) > 1.0f || fminf(c.x, fminf(c.y, c.z)) < 0.0f)) {
-            warn_at(scene, p->loc, "\"%s\" (%g, %g, %g) is outside [0, 1]; clamped", name, (double)c.x,
+            pn_warn_at(scene, p->loc, "\"%s\" (%g, %g, %g) is outside [0, 1]; clamped", name, (double)c.x,
                     (double)c.y, (double)c.z);
             c = v3_min(v3(1, 1, 1), v3_max(v3(0, 0, 0), c));
         }
@@ -259,7 +242,7 @@ static pn_status read_mapping(struct pn_scene_s *scene, const pn_params *ps, pn_
     if (st != PN_OK) return st;
     if (strcmp(mapping, "uv") != 0) {
         const pn_param *p = pn_params_find(ps, "mapping");
-        warn_at(scene, p ? p->loc : ps->loc, "texture mapping \"%s\" is not supported; uv mapping used instead",
+        pn_warn_at(scene, p ? p->loc : ps->loc, "texture mapping \"%s\" is not supported; uv mapping used instead",
                 mapping);
         /* The parameters of the other mappings are consumed so they are not reported twice. */
         const char *extra[] = {"v1", "v2", "dimension"};
@@ -373,7 +356,7 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
             t.amount = constant_ref(half);
         if (st == PN_OK && strcmp(class_name, "mix") != 0) {
             consume_all(ps);
-            warn_at(scene, ps->loc, "texture \"%s\": %s texture approximated by an even mix of its two inputs", name,
+            pn_warn_at(scene, ps->loc, "texture \"%s\": %s texture approximated by an even mix of its two inputs", name,
                     class_name);
         }
     } else if (strcmp(class_name, "checkerboard") == 0) {
@@ -385,7 +368,7 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
                 snprintf(msg, sizeof msg, "checkerboard texture \"%s\": dimension %d (expected 2 or 3)", name, dim);
                 return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, msg);
             }
-            warn_at(scene, ps->loc, "texture \"%s\": 3D checkerboard approximated by a 2D checkerboard in uv", name);
+            pn_warn_at(scene, ps->loc, "texture \"%s\": 3D checkerboard approximated by a 2D checkerboard in uv", name);
         }
         if (st == PN_OK) st = pn_params_texref_use(scene, ps, "tex1", f, one, PN_SPECTRUM_UNBOUNDED, &t.a, err);
         if (st == PN_OK) st = pn_params_texref_use(scene, ps, "tex2", f, zero, PN_SPECTRUM_UNBOUNDED, &t.b, err);
@@ -402,14 +385,14 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
         t.kind = PN_TEXTURE_CONSTANT;
         t.value = v3_scale(sum, 0.25f);
         if (st == PN_OK)
-            warn_at(scene, ps->loc, "texture \"%s\": bilerp texture approximated by the average of its corners", name);
+            pn_warn_at(scene, ps->loc, "texture \"%s\": bilerp texture approximated by the average of its corners", name);
     } else if (strcmp(class_name, "fbm") == 0 || strcmp(class_name, "wrinkled") == 0 ||
                strcmp(class_name, "windy") == 0 || strcmp(class_name, "marble") == 0 ||
                strcmp(class_name, "ptex") == 0) {
         consume_all(ps);
         t.kind = PN_TEXTURE_CONSTANT;
         t.value = half;
-        warn_at(scene, ps->loc, "texture \"%s\": %s texture is not supported; constant 0.5 used instead", name,
+        pn_warn_at(scene, ps->loc, "texture \"%s\": %s texture is not supported; constant 0.5 used instead", name,
                 class_name);
     } else {
         snprintf(msg, sizeof msg, "unknown texture class \"%s\"", class_name);
@@ -417,7 +400,7 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
     }
     if (st != PN_OK) return st;
 
-    t.name = dup_string(name);
+    t.name = pn_strdup(name);
     if (!t.name || !pn_grow_for_append((void **)&scene->textures, scene->texture_count, sizeof *scene->textures)) {
         free(t.name);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for texture \"%s\"", name);
