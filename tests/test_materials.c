@@ -6,6 +6,7 @@
 #include "harness.h"
 
 #include "io/image.h"
+#include "shade/bsdf.h"
 #include "scene/build.h"
 
 #include <unistd.h>
@@ -173,7 +174,16 @@ static void test_coateddiffuse(void) {
         CHECK_NEAR(m->ks.value.x, 0.04, 1e-6);
         /* remaproughness: alpha = sqrt(0.1), n = 2 / alpha^2 - 2 = 18 */
         CHECK_NEAR(m->exponent, 18.0, 1e-3);
-        CHECK_STR_CONTAINS(m->description, "Floor: pbrt coateddiffuse -> Lambert kd=(0.2, 0.3, 0.4) + Blinn ks=0.04 n=18");
+        CHECK_STR_CONTAINS(m->description, "Floor: pbrt coateddiffuse -> Lambert kd=(0.2, 0.3, 0.4) under a coating");
+        CHECK_STR_CONTAINS(m->description, "+ Blinn ks=0.04 n=18");
+        /* The base seen through an eta = 1.5 coating: the external hemispherical Fresnel
+         * reflectance of n = 1.5 is 0.0918, so T = (1 - 0.0918)^2 / 2.25 = 0.3666 and the
+         * internal diffuse reflectance is 1 - 0.9082 / 2.25 = 0.5963 (the classic 0.596). */
+        CHECK(m->coated);
+        CHECK_NEAR(m->coat_transmission, 0.3666, 5e-4);
+        CHECK_NEAR(m->coat_internal, 0.5963, 5e-4);
+        vec3 seen = pn_coated_diffuse(v3(0.5f, 0.5f, 0.5f), m->coat_transmission, m->coat_internal);
+        CHECK_NEAR(seen.x, 0.5 * 0.3666 / (1.0 - 0.5 * 0.5963), 1e-3);
     }
     ps = make_params();
     add_float(&ps, "uroughness", 0.05);

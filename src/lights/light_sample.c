@@ -5,6 +5,9 @@
 
 #include "core/sampling.h"
 
+/* pbrt-v4's lower limit for spherical sampling of bilinear patches (MinSphericalSampleArea). */
+#define PN_MIN_SPHERICAL_SOLID_ANGLE 3e-4f
+
 static float spot_falloff(const pn_light *l, float cos_theta) {
     if (cos_theta >= l->cos_falloff_start) return 1.0f;
     if (cos_theta <= l->cos_total_width) return 0.0f;
@@ -66,8 +69,15 @@ bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, f
         /* One-sided: nothing reaches a point behind the emitting side. */
         float side = v3_dot(v3_sub(p, l->p), l->n);
         if (!l->two_sided && side <= 0.0f) return false;
+        /* Solid-angle sampling (Ureña et al. 2013) where the rectangle looks big; where it
+         * subtends less than PN_MIN_SPHERICAL_SOLID_ANGLE (estimated as A cos / d^2) both
+         * densities are nearly equal and the cheaper area sampling is used, as pbrt-v4 does. */
+        vec3 to_centre = v3_sub(v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 0.5f)), p);
+        float d2c = v3_length2(to_centre);
+        float approx_solid_angle = l->area * fabsf(side) / (d2c * sqrtf(d2c));
         pn_spherical_rectangle sr;
-        if (pn_spherical_rectangle_init(&sr, p, l->p, l->e1, l->e2) && sr.solid_angle > 1e-6f) {
+        if (approx_solid_angle >= PN_MIN_SPHERICAL_SOLID_ANGLE &&
+            pn_spherical_rectangle_init(&sr, p, l->p, l->e1, l->e2) && sr.solid_angle > 1e-6f) {
             vec3 y = pn_spherical_rectangle_sample(&sr, u1, u2);
             vec3 d = v3_sub(y, p);
             float dist = v3_length(d);

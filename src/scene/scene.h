@@ -81,6 +81,14 @@ typedef struct pn_material {
     float exponent;      /* Blinn–Phong exponent n */
     vec3 specular;       /* MIRROR / DIELECTRIC tint */
     float eta;           /* DIELECTRIC */
+    /* Lambert under a smooth dielectric coating (pbrt-v4 coateddiffuse): the diffuse reflectance
+     * seen from outside is kd * coat_transmission / (1 - kd * coat_internal) per channel, with
+     * coat_transmission = (1 - Fbar)^2 / eta^2 (in through the coating and out again, radiance
+     * compressed by eta^2) and coat_internal = 1 - (1 - Fbar) / eta^2 (the part of the diffuse
+     * light inside that the coating reflects back down); Fbar is the coating's cosine-weighted
+     * hemispherical Fresnel reflectance. */
+    bool coated;
+    float coat_transmission, coat_internal;
     char *name;          /* pbrt name ("" for anonymous Material directives) */
     char *description;   /* one line: "NAME: pbrt TYPE -> penumbra model (parameters)" */
 } pn_material;

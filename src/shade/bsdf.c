@@ -22,6 +22,7 @@ void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_b
     }
     out->kind = m->kind;
     out->kd = pn_texture_eval(scene, m->kd, hit->u, hit->v);
+    if (m->coated) out->kd = pn_coated_diffuse(out->kd, m->coat_transmission, m->coat_internal);
     out->ks = pn_texture_eval(scene, m->ks, hit->u, hit->v);
     out->exponent = m->exponent;
     out->specular = m->specular;
@@ -42,6 +43,11 @@ vec3 pn_bsdf_eval(const pn_bsdf *b, vec3 wo, vec3 wi) {
         }
     }
     return f;
+}
+
+vec3 pn_coated_diffuse(vec3 kd, float transmission, float internal) {
+    return v3(kd.x * transmission / (1.0f - kd.x * internal), kd.y * transmission / (1.0f - kd.y * internal),
+              kd.z * transmission / (1.0f - kd.z * internal));
 }
 
 float pn_fresnel_dielectric(float cos_i, float eta) {

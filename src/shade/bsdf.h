@@ -34,6 +34,11 @@ static inline bool pn_bsdf_is_shadable(const pn_bsdf *b) {
  * eta = eta_t / eta_i; returns 1 for total internal reflection. */
 float pn_fresnel_dielectric(float cos_i, float eta);
 
+/* The diffuse reflectance, seen from outside, of a Lambertian base of reflectance kd (each
+ * channel in [0, 1]) under a smooth dielectric coating (scene.h, pn_material.coated): the light
+ * that the coating reflects back down is reflected again by the base, a geometric series. */
+vec3 pn_coated_diffuse(vec3 kd, float transmission, float internal);
+
 /* Perfect reflection of wo about n. */
 static inline vec3 pn_reflect(vec3 wo, vec3 n) { return v3_sub(v3_scale(n, 2.0f * v3_dot(wo, n)), wo); }
 
