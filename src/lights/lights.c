@@ -92,6 +92,64 @@ vec3 pn_lights_environment_radiance(const pn_lights *lights, vec3 d) {
     return sum;
 }
 
+/* Real spherical harmonics up to order 2 at the unit direction d. */
+static void sh9(vec3 d, double y[9]) {
+    double x = (double)d.x, yy = (double)d.y, z = (double)d.z;
+    y[0] = 0.282095;
+    y[1] = 0.488603 * yy;
+    y[2] = 0.488603 * z;
+    y[3] = 0.488603 * x;
+    y[4] = 1.092548 * x * yy;
+    y[5] = 1.092548 * yy * z;
+    y[6] = 0.315392 * (3.0 * z * z - 1.0);
+    y[7] = 1.092548 * x * z;
+    y[8] = 0.546274 * (x * x - yy * yy);
+}
+
+/* Projects the luminance of the map onto 9 spherical harmonics (light space), so that the
+ * unoccluded irradiance for any normal follows from them (Ramamoorthi and Hanrahan 2001,
+ * "An Efficient Representation for Irradiance Environment Maps": E(n) = sum of A_l L_lm
+ * Y_lm(n) with A_0 = pi, A_1 = 2 pi / 3, A_2 = pi / 4; error a few percent). */
+static void env_project_sh(pn_env *env) {
+    double acc[9] = {0};
+    for (int y = 0; y < env->height; y++)
+        for (int x = 0; x < env->width; x++) {
+            float u = ((float)x + 0.5f) / (float)env->width, v = ((float)y + 0.5f) / (float)env->height;
+            vec3 d;
+            double solid_angle;
+            if (env->equal_area) {
+                d = pn_equal_area_square_to_sphere(u, v);
+                solid_angle = 4.0 * (double)PN_PI / ((double)env->width * (double)env->height);
+            } else {
+                float theta = v * PN_PI, phi = u * 2.0f * PN_PI;
+                d = v3(sinf(theta) * cosf(phi), sinf(theta) * sinf(phi), cosf(theta));
+                solid_angle = (2.0 * (double)PN_PI / env->width) * ((double)PN_PI / env->height) * sin((double)theta);
+            }
+            const float *px = env->rgb + 3 * ((size_t)y * (size_t)env->width + (size_t)x);
+            double lum = (double)fmaxf(0.0f, v3_luminance(v3_mul(v3(px[0], px[1], px[2]), env->scale)));
+            double b[9];
+            sh9(d, b);
+            for (int k = 0; k < 9; k++) acc[k] += lum * b[k] * solid_angle;
+        }
+    static const double band[9] = {1.0, 2.0 / 3.0, 2.0 / 3.0, 2.0 / 3.0, 0.25, 0.25, 0.25, 0.25, 0.25};
+    for (int k = 0; k < 9; k++) env->irradiance_sh[k] = (float)(acc[k] * band[k] * (double)PN_PI);
+    env->has_sh = true;
+}
+
+/* Unoccluded irradiance (luminance) from the environment on a surface with world normal n. */
+static float env_irradiance(const pn_env *env, vec3 n) {
+    float floor_value = 0.02f * PN_PI * env->average_luminance;
+    if (!env->has_sh) return PN_PI * env->average_luminance;
+    vec3 nl = v3_normalize(mat4_apply_vector(&env->light_from_world, n));
+    double b[9];
+    sh9(nl, b);
+    double e = 0.0;
+    for (int k = 0; k < 9; k++) e += (double)env->irradiance_sh[k] * b[k];
+    /* The harmonics ring and may dip to zero or below where the true value is small but not
+     * zero: a floor keeps every such direction sampleable. */
+    return fmaxf((float)e, floor_value);
+}
+
 static pn_status env_prepare(pn_env *env, pn_err *err) {
     if (!env->rgb) {
         env->average_luminance = v3_luminance(env->constant);
@@ -116,6 +174,7 @@ static pn_status env_prepare(pn_env *env, pn_err *err) {
         }
     }
     env->average_luminance = solid_sum > 0.0 ? (float)(lum_sum / solid_sum) : 0.0f;
+    env_project_sh(env);
     env->dist = pn_distribution2d_create(w, env->width, env->height);
     free(w);
     if (!env->dist && env->average_luminance > 0.0f)
@@ -523,7 +582,7 @@ float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, v
         return lum(l->emit) * PN_PI * sin2 * ceff;
     }
     case PN_LIGHT_ENVIRONMENT:
-        return lights->envs[l->env].average_luminance * PN_PI;
+        return env_irradiance(&lights->envs[l->env], n);
     case PN_LIGHT_KIND_COUNT:
         break;
     }

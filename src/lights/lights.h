@@ -50,6 +50,8 @@ typedef struct pn_env {
     mat4 world_from_light, light_from_world;
     struct pn_distribution2d *dist; /* over pixels, NULL for constant maps */
     float average_luminance;
+    bool has_sh;             /* irradiance_sh holds the map's irradiance in 9 harmonics */
+    float irradiance_sh[9];  /* light space; coefficients already multiplied by A_l */
 } pn_env;
 
 /* The lights again as plain arrays, for pn_lights_irradiance_all (light_pdf.c). */
