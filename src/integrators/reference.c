@@ -166,14 +166,15 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
                     vec3 direct = v3(0, 0, 0);
                     float eps = pn_accel_ray_epsilon(job->accel, path.hit.p);
                     vec3 origin = v3_madd(path.hit.p, b.ng, eps);
+                    pn_light_sample_cache cache = {0};
                     for (uint32_t j = 0; j < S; j++) {
                         uint32_t k = i * S + j;
                         float prob;
                         int c = choose_light(s, m, total, pn_sobol_sample(k, 5, scramble), &prob);
                         const pn_light *l = &job->lights->lights[s->index[c]];
                         pn_light_sample ls;
-                        if (!pn_light_sample_point(job->lights, l, origin, pn_sobol_sample(k, 6, scramble),
-                                                   pn_sobol_sample(k, 7, scramble), &ls))
+                        if (!pn_light_sample_point_cached(job->lights, l, origin, pn_sobol_sample(k, 6, scramble),
+                                                          pn_sobol_sample(k, 7, scramble), &cache, &ls))
                             continue;
                         vec3 f = pn_bsdf_eval(&b, path.wo, ls.wi);
                         if (v3_is_zero(f)) continue;

@@ -35,6 +35,11 @@ static bool finish_area_sample(const pn_light *l, vec3 p, vec3 y, float area_pdf
 
 bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
                            pn_light_sample *s) {
+    return pn_light_sample_point_cached(lights, l, p, u1, u2, NULL, s);
+}
+
+bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
+                                  pn_light_sample_cache *cache, pn_light_sample *s) {
     switch (l->kind) {
     case PN_LIGHT_POINT:
     case PN_LIGHT_SPOT: {
@@ -72,12 +77,21 @@ bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, f
         /* Solid-angle sampling (Ureña et al. 2013) where the rectangle looks big; where it
          * subtends less than PN_MIN_SPHERICAL_SOLID_ANGLE (estimated as A cos / d^2) both
          * densities are nearly equal and the cheaper area sampling is used, as pbrt-v4 does. */
-        vec3 to_centre = v3_sub(v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 0.5f)), p);
-        float d2c = v3_length2(to_centre);
-        float approx_solid_angle = l->area * fabsf(side) / (d2c * sqrtf(d2c));
-        pn_spherical_rectangle sr;
-        if (approx_solid_angle >= PN_MIN_SPHERICAL_SOLID_ANGLE &&
-            pn_spherical_rectangle_init(&sr, p, l->p, l->e1, l->e2) && sr.solid_angle > 1e-6f) {
+        pn_light_sample_cache local;
+        pn_light_sample_cache *c = cache ? cache : &local;
+        if (!cache || c->light != l || c->p.x != p.x || c->p.y != p.y || c->p.z != p.z) {
+            /* The set-up depends on the light and the receiver only: several shadow rays of one
+             * eye ray to the same light share it. */
+            vec3 to_centre = v3_sub(v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 0.5f)), p);
+            float d2c = v3_length2(to_centre);
+            float approx_solid_angle = l->area * fabsf(side) / (d2c * sqrtf(d2c));
+            c->light = l;
+            c->p = p;
+            c->spherical = approx_solid_angle >= PN_MIN_SPHERICAL_SOLID_ANGLE &&
+                           pn_spherical_rectangle_init(&c->sr, p, l->p, l->e1, l->e2) && c->sr.solid_angle > 1e-6f;
+        }
+        if (c->spherical) {
+            const pn_spherical_rectangle sr = c->sr;
             vec3 y = pn_spherical_rectangle_sample(&sr, u1, u2);
             vec3 d = v3_sub(y, p);
             float dist = v3_length(d);

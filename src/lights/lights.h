@@ -5,6 +5,7 @@
 #define PN_LIGHTS_LIGHTS_H
 
 #include "core/error.h"
+#include "core/sampling.h"
 #include "core/vecmath.h"
 
 #include <stdbool.h>
@@ -95,6 +96,19 @@ typedef struct pn_light_sample {
  * sample carries nothing (facing away, outside the spot cone, zero pdf). */
 bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
                            pn_light_sample *s);
+
+/* What sampling a rectangle light from one receiver sets up (the spherical rectangle), kept
+ * between calls for the same light and point. Zero-initialise before the first use. */
+typedef struct pn_light_sample_cache {
+    const pn_light *light;
+    vec3 p;
+    bool spherical;
+    pn_spherical_rectangle sr;
+} pn_light_sample_cache;
+
+/* pn_light_sample_point with a cache (may be NULL); the results are identical. */
+bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
+                                  pn_light_sample_cache *cache, pn_light_sample *s);
 
 /* Emitted radiance of an area light toward direction w (unit, from the light's surface point to
  * the viewer), for eye rays that hit an emitter. */
