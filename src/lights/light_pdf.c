@@ -26,11 +26,11 @@ enum { SOA_POINT = 0, SOA_PLANAR_ONE = 1, SOA_PLANAR_TWO = 2, SOA_EXACT = 3 };
 
 pn_status pn_lights_build_soa(pn_lights *L, pn_err *err) {
     size_t n = (size_t)L->count;
-    float *block = calloc(n * 9 + 1, sizeof *block);
-    int *cls = calloc(n + 1, sizeof *cls);
-    if (!block || !cls) {
+    float *block = calloc(n * 12 + 1, sizeof *block);
+    int *only_exact = calloc(n + 1, sizeof *only_exact);
+    if (!block || !only_exact) {
         free(block);
-        free(cls);
+        free(only_exact);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for %zu lights", n);
     }
     pn_light_soa *s = &L->soa;
@@ -43,7 +43,10 @@ pn_status pn_lights_build_soa(pn_lights *L, pn_err *err) {
     s->r2 = block + 6 * n;
     s->power = block + 7 * n;
     s->far2 = block + 8 * n;
-    s->cls = cls;
+    s->pointlike = block + 9 * n;
+    s->two_sided = block + 10 * n;
+    s->one_sided = block + 11 * n;
+    s->only_exact = only_exact;
     for (size_t i = 0; i < n; i++) {
         const pn_light *l = &L->lights[i];
         vec3 c = l->p, nn = v3(0, 0, 0);
@@ -90,40 +93,56 @@ pn_status pn_lights_build_soa(pn_lights *L, pn_err *err) {
         s->power[i] = power;
         /* Planar lights need the far field; spheres are exact once above the horizon. */
         s->far2[i] = (k == SOA_PLANAR_ONE || k == SOA_PLANAR_TWO) ? PN_PDF_FAR_FIELD * PN_PDF_FAR_FIELD * r2 : 0.0f;
-        s->cls[i] = k;
+        s->pointlike[i] = k == SOA_POINT ? 1.0f : 0.0f;
+        s->two_sided[i] = k == SOA_PLANAR_TWO ? 1.0f : 0.0f;
+        s->one_sided[i] = k == SOA_PLANAR_ONE ? 1.0f : 0.0f;
+        s->only_exact[i] = k == SOA_EXACT;
     }
     return PN_OK;
 }
 
 void pn_lights_free_soa(pn_lights *L) {
     free(L->soa.cx);
-    free(L->soa.cls);
+    free(L->soa.only_exact);
     memset(&L->soa, 0, sizeof L->soa);
+}
+
+static inline float max0(float x) { return x > 0.0f ? x : 0.0f; }
+
+/* Pass 1: far-field values, and a flag where they do not apply. No branches, and restrict
+ * parameters, so that the compiler vectorises it. */
+static void far_field(int count, const float *restrict cx, const float *restrict cy, const float *restrict cz,
+                      const float *restrict lnx, const float *restrict lny, const float *restrict lnz,
+                      const float *restrict r2, const float *restrict power, const float *restrict far2,
+                      const float *restrict pointlike, const float *restrict two, const float *restrict one,
+                      const int *restrict only_exact, float *restrict out, int *restrict exact, float px, float py,
+                      float pz, float nx, float ny, float nz) {
+    for (int i = 0; i < count; i++) {
+        float dx = cx[i] - px, dy = cy[i] - py, dz = cz[i] - pz;
+        float d2 = dx * dx + dy * dy + dz * dz;
+        float above = dx * nx + dy * ny + dz * nz;               /* d * cos_r */
+        float plane = -(dx * lnx[i] + dy * lny[i] + dz * lnz[i]); /* d * cos_l, > 0 in front */
+        float inv_d2 = 1.0f / (d2 + 1e-30f);                      /* the offset only matters at d = 0 */
+        float inv_d = sqrtf(inv_d2);
+        float a = max0(above);
+        float point_e = power[i] * a * inv_d2 * inv_d;
+        float cos_l = max0(plane) + two[i] * max0(-plane);
+        float planar_e = power[i] * cos_l * a * inv_d2 * inv_d2;
+        out[i] = pointlike[i] * point_e + (1.0f - pointlike[i]) * planar_e;
+        /* Valid when the light lies wholly above the horizon (or wholly below: then zero) and,
+         * for planar lights, is far enough away; exact zero behind a one-sided light. */
+        int straddles = (above * above <= r2[i]) & (r2[i] > 0.0f);
+        int near = d2 <= far2[i];
+        int behind = (one[i] > 0.0f) & (plane <= 0.0f);
+        exact[i] = only_exact[i] | ((behind ^ 1) & (straddles | near));
+    }
 }
 
 int pn_lights_irradiance_all(const pn_lights *L, vec3 p, vec3 n, float *out, int *exact) {
     const pn_light_soa *s = &L->soa;
     const int count = L->count;
-    /* Pass 1: far-field values and a flag where they do not apply (no branches). */
-    for (int i = 0; i < count; i++) {
-        float dx = s->cx[i] - p.x, dy = s->cy[i] - p.y, dz = s->cz[i] - p.z;
-        float d2 = dx * dx + dy * dy + dz * dz;
-        float above = dx * n.x + dy * n.y + dz * n.z;           /* d * cos_r */
-        float plane = -(dx * s->nx[i] + dy * s->ny[i] + dz * s->nz[i]); /* d * cos_l, > 0 in front */
-        int cls = s->cls[i];
-        float inv_d2 = 1.0f / fmaxf(d2, 1e-30f);
-        float inv_d = sqrtf(inv_d2);
-        float point_e = s->power[i] * fmaxf(above, 0.0f) * inv_d2 * inv_d;
-        float planar_cos_l = cls == SOA_PLANAR_TWO ? fabsf(plane) : fmaxf(plane, 0.0f);
-        float planar_e = s->power[i] * planar_cos_l * fmaxf(above, 0.0f) * inv_d2 * inv_d2;
-        out[i] = cls == SOA_POINT ? point_e : planar_e;
-        /* Valid when the light lies wholly above the horizon (or wholly below: then zero) and,
-         * for planar lights, is far enough away. */
-        int straddles = above * above <= s->r2[i] && s->r2[i] > 0.0f;
-        int near = d2 <= s->far2[i];
-        int behind = cls == SOA_PLANAR_ONE && plane <= 0.0f; /* exact zero */
-        exact[i] = cls == SOA_EXACT || (!behind && (straddles || near));
-    }
+    far_field(count, s->cx, s->cy, s->cz, s->nx, s->ny, s->nz, s->r2, s->power, s->far2, s->pointlike, s->two_sided,
+              s->one_sided, s->only_exact, out, exact, p.x, p.y, p.z, n.x, n.y, n.z);
     /* Pass 2: the exact estimate where the far field does not apply. */
     int flagged = 0;
     for (int i = 0; i < count; i++) {

@@ -62,7 +62,10 @@ typedef struct pn_light_soa {
     float *r2;           /* squared bounding radius (0 for points) */
     float *power;        /* luminance of the far-field source term (see light_pdf.c) */
     float *far2;         /* squared distance beyond which the far field is used */
-    int *cls;            /* point-like, planar one-sided, planar two-sided, or exact only */
+    float *pointlike;    /* 1 for points and spheres, else 0 */
+    float *two_sided;    /* 1 for two-sided planar lights, else 0 */
+    float *one_sided;    /* 1 for one-sided planar lights, else 0 */
+    int *only_exact;     /* 1 where only pn_light_irradiance_estimate applies (spot, ...) */
 } pn_light_soa;
 
 typedef struct pn_lights {
