@@ -1215,7 +1215,78 @@ static void test_setup(void) {
 
 static void test_teardown(void) { rmdir(tmpdir); }
 
+/* Goniometric light: I times the nearest texel of its square equal-area image, looked up in the
+ * light's frame with y and z swapped (pbrt-v4). The scene places it under Rotate -90 about x, so
+ * light-from-world is Rotate +90 about x: (x, y, z) -> (x, -z, y); the swap then gives
+ * (x, y, -z). The expected texel is computed from that, independently of the light code. */
+static void test_goniometric(void) {
+    enum { G = 16 };
+    float rgb[3 * G * G];
+    for (int i = 0; i < G * G; i++) {
+        float v = 1.0f + (float)i; /* a distinct value per texel, as the channel mean */
+        rgb[3 * i] = v * 0.5f;
+        rgb[3 * i + 1] = v;
+        rgb[3 * i + 2] = v * 1.5f;
+    }
+    CHECK(write_pfm("gonio.pfm", rgb, G, G));
+    pn_context ctx = pn_context_new();
+    pn_context_set_log(ctx, quiet_log, NULL);
+    pn_scene scene = load_env_scene(
+        ctx, "gonio.pbrt", "LightSource \"goniometric\" \"rgb I\" [ 2 2 2 ] \"string filename\" \"gonio.pfm\"");
+    CHECK(scene != NULL);
+    const pn_lights *L = scene ? scene->lights : NULL;
+    const pn_light *l = NULL;
+    for (int i = 0; L && i < L->count; i++)
+        if (L->lights[i].kind == PN_LIGHT_GONIOMETRIC) l = &L->lights[i];
+    CHECK(l != NULL);
+    if (l) {
+        pn_rng rng;
+        pn_rng_seed(&rng, 77, 1);
+        int checked = 0, wrong = 0;
+        for (int k = 0; k < 2000; k++) {
+            vec3 w = pn_sample_uniform_sphere(pn_rng_float(&rng), pn_rng_float(&rng)); /* light -> receiver */
+            float dist = 0.5f + 3.0f * pn_rng_float(&rng);
+            vec3 p = v3_add(l->p, v3_scale(w, dist));
+            float u, v;
+            pn_equal_area_sphere_to_square(v3(w.x, w.y, -w.z), &u, &v);
+            int tx = (int)(u * G), ty = (int)(v * G);
+            if (tx < 0 || ty < 0 || tx >= G || ty >= G) continue;
+            /* Skip directions within float rounding of a texel edge. */
+            if (fabsf(u * G - roundf(u * G)) < 1e-3f || fabsf(v * G - roundf(v * G)) < 1e-3f) continue;
+            double texel = 1.0 + (double)(ty * G + tx);
+            pn_light_sample s;
+            if (!pn_light_sample_point(L, l, p, 0.5f, 0.5f, &s)) {
+                wrong++;
+                continue;
+            }
+            double expected = 2.0 * texel / ((double)dist * (double)dist);
+            if (fabs((double)s.radiance.y - expected) > 1e-4 * expected) wrong++;
+            checked++;
+            /* The PDF weight is the same intensity times cos / d^2 (normal facing the light). */
+            double e = (double)pn_light_irradiance_estimate(L, l, p, v3_neg(w));
+            if (fabs(e - expected) > 1e-4 * expected) wrong++;
+        }
+        CHECK(checked > 1500);
+        CHECK_MSG(wrong == 0, "%d of %d goniometric samples off the expected texel", wrong, checked);
+    }
+    pn_scene_free(scene);
+    /* pbrt-v4's goniometric image must be square. */
+    float flat[3 * 4 * 2] = {0};
+    CHECK(write_pfm("gonio42.pfm", flat, 4, 2));
+    pn_scene bad = load_env_scene(
+        ctx, "gonio42.pbrt", "LightSource \"goniometric\" \"string filename\" \"gonio42.pfm\"");
+    CHECK(bad == NULL);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "must be square");
+    pn_scene_free(bad);
+    pn_context_free(ctx);
+    remove_file("gonio.pfm");
+    remove_file("gonio.pbrt");
+    remove_file("gonio42.pfm");
+    remove_file("gonio42.pbrt");
+}
+
 PN_TESTS(TEST(test_setup), TEST(test_chi2_machinery), TEST(test_triangle_light), TEST(test_rectangle_light),
          TEST(test_disk_light), TEST(test_disk_reference_solid_angle), TEST(test_sphere_light),
          TEST(test_spot_falloff), TEST(test_point_and_distant), TEST(test_equal_area_jacobian),
-         TEST(test_env_equal_area), TEST(test_env_latlong), TEST(test_env_constant), TEST(test_teardown))
+         TEST(test_env_equal_area), TEST(test_env_latlong), TEST(test_env_constant), TEST(test_goniometric),
+         TEST(test_teardown))

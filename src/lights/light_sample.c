@@ -42,7 +42,8 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
                                   pn_light_sample_cache *cache, pn_light_sample *s) {
     switch (l->kind) {
     case PN_LIGHT_POINT:
-    case PN_LIGHT_SPOT: {
+    case PN_LIGHT_SPOT:
+    case PN_LIGHT_GONIOMETRIC: {
         vec3 d = v3_sub(l->p, p);
         float d2 = v3_length2(d);
         if (!(d2 > 0.0f)) return false;
@@ -51,6 +52,7 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
         s->dist = dist;
         float k = 1.0f / d2;
         if (l->kind == PN_LIGHT_SPOT) k *= spot_falloff(l, -v3_dot(s->wi, l->n));
+        if (l->kind == PN_LIGHT_GONIOMETRIC) k *= pn_gonio_factor(lights, l, v3_neg(s->wi));
         if (k <= 0.0f) return false;
         s->radiance = v3_scale(l->emit, k);
         s->pdf = 1.0f;

@@ -336,8 +336,43 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
     return PN_OK;
 }
 
+float pn_gonio_factor(const pn_lights *lights, const pn_light *l, vec3 w) {
+    const pn_gonio *g = &lights->gonios[l->env];
+    if (!g->mono) return 1.0f;
+    vec3 wl = v3_normalize(mat4_apply_vector(&g->light_from_world, w));
+    float u, v;
+    pn_equal_area_sphere_to_square(wl, &u, &v);
+    int x = (int)(u * (float)g->width), y = (int)(v * (float)g->height);
+    x = x < 0 ? 0 : (x >= g->width ? g->width - 1 : x);
+    y = y < 0 ? 0 : (y >= g->height ? g->height - 1 : y);
+    return g->mono[(size_t)y * (size_t)g->width + (size_t)x];
+}
+
+/* A goniometric light's table entry: the image as one channel, and the frame with y and z
+ * swapped (pbrt-v4: render-from-light times the swap, so light-from-world is swap times it). */
+static pn_status gonio_prepare(const struct pn_scene_s *scene, const pn_light_def *d, pn_gonio *g, pn_err *err) {
+    mat4 swap = mat4_identity();
+    swap.m[1][1] = 0.0;
+    swap.m[1][2] = 1.0;
+    swap.m[2][1] = 1.0;
+    swap.m[2][2] = 0.0;
+    g->light_from_world = mat4_mul(swap, d->light_from_world);
+    if (d->image < 0) return PN_OK;
+    const pn_texture_image *img = &scene->images[d->image];
+    size_t n = (size_t)img->width * (size_t)img->height;
+    g->mono = malloc(n * sizeof *g->mono);
+    if (!g->mono) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a goniometric image");
+    for (size_t i = 0; i < n; i++)
+        g->mono[i] = (img->rgb[3 * i] + img->rgb[3 * i + 1] + img->rgb[3 * i + 2]) / 3.0f;
+    g->width = img->width;
+    g->height = img->height;
+    return PN_OK;
+}
+
 void pn_lights_free(pn_lights *lights) {
     if (!lights) return;
+    for (int i = 0; i < lights->gonio_count; i++) free(lights->gonios[i].mono);
+    free(lights->gonios);
     for (int i = 0; i < lights->env_count; i++) pn_distribution2d_free(lights->envs[i].dist);
     free(lights->envs);
     free(lights->lights);
@@ -363,12 +398,15 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         L->envs = calloc((size_t)env_defs, sizeof *L->envs);
         if (!L->envs) st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
     }
+    int gonio_defs = 0;
+    for (int i = 0; i < scene->light_def_count; i++)
+        if (scene->light_defs[i].kind == PN_LIGHTDEF_GONIOMETRIC) gonio_defs++;
+    if (gonio_defs && st == PN_OK) {
+        L->gonios = calloc((size_t)gonio_defs, sizeof *L->gonios);
+        if (!L->gonios) st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    }
     for (int i = 0; st == PN_OK && i < scene->light_def_count; i++) {
         const pn_light_def *d = &scene->light_defs[i];
-        if (d->kind == PN_LIGHTDEF_GONIOMETRIC) {
-            pn_scene_warn(scene, "%s: goniometric light rendered as an isotropic point light",
-                          d->source ? d->source : "LightSource");
-        }
         if (d->kind != PN_LIGHTDEF_INFINITE && v3_max_component(d->intensity) <= 0.0f) {
             pn_scene_warn(scene, "%s: light with zero power dropped", d->source ? d->source : "LightSource");
             continue;
@@ -380,10 +418,16 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         }
         switch (d->kind) {
         case PN_LIGHTDEF_POINT:
-        case PN_LIGHTDEF_GONIOMETRIC:
             l->kind = PN_LIGHT_POINT;
             l->p = d->position;
             l->emit = d->intensity;
+            break;
+        case PN_LIGHTDEF_GONIOMETRIC:
+            l->kind = PN_LIGHT_GONIOMETRIC;
+            l->p = d->position;
+            l->emit = d->intensity;
+            l->env = L->gonio_count;
+            st = gonio_prepare(scene, d, &L->gonios[L->gonio_count++], err);
             break;
         case PN_LIGHTDEF_SPOT:
             l->kind = PN_LIGHT_SPOT;
@@ -536,6 +580,15 @@ float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, v
         float e = lum(l->emit) * c / d2;
         if (l->kind == PN_LIGHT_SPOT) e *= spot_falloff(l, -v3_dot(wi, l->n));
         return e;
+    }
+    case PN_LIGHT_GONIOMETRIC: {
+        vec3 d = v3_sub(l->p, p);
+        float d2 = v3_length2(d);
+        if (!(d2 > 0.0f)) return 0.0f;
+        vec3 wi = v3_scale(d, 1.0f / sqrtf(d2));
+        float c = v3_dot(n, wi);
+        if (c <= 0.0f) return 0.0f;
+        return lum(l->emit) * pn_gonio_factor(lights, l, v3_neg(wi)) * c / d2;
     }
     case PN_LIGHT_DISTANT:
         return lum(l->emit) * fmaxf(0.0f, v3_dot(n, l->n));

@@ -23,7 +23,8 @@ typedef enum pn_light_kind {
     PN_LIGHT_DISK = 5,
     PN_LIGHT_SPHERE = 6,
     PN_LIGHT_ENVIRONMENT = 7,
-    PN_LIGHT_KIND_COUNT = 8
+    PN_LIGHT_GONIOMETRIC = 8,
+    PN_LIGHT_KIND_COUNT = 9
 } pn_light_kind;
 
 typedef struct pn_light {
@@ -37,7 +38,7 @@ typedef struct pn_light {
     vec3 emit;       /* radiance (area, distant: irradiance, env: scale), intensity (point/spot) */
     float cos_falloff_start, cos_total_width; /* SPOT */
     bool two_sided;
-    int env;         /* ENVIRONMENT: index into pn_lights.envs */
+    int env;         /* ENVIRONMENT: index into pn_lights.envs; GONIOMETRIC: into .gonios */
     int mesh, prim;  /* area lights from meshes: source triangle(s), for `info` and tests */
 } pn_light;
 
@@ -68,11 +69,22 @@ typedef struct pn_light_soa {
     int *only_exact;     /* 1 where only pn_light_irradiance_estimate applies (spot, ...) */
 } pn_light_soa;
 
+/* The angular distribution of a goniometric light (pbrt-v4): a square image in the equal-area
+ * octahedral mapping, looked up (nearest texel, mean of the channels) in the light's frame with
+ * y and z swapped, as goniometric diagrams have +y up. NULL mono: isotropic. */
+typedef struct pn_gonio {
+    int width, height;
+    float *mono;
+    mat4 light_from_world;
+} pn_gonio;
+
 typedef struct pn_lights {
     pn_light *lights;
     int count;
     pn_env *envs;
     int env_count;
+    pn_gonio *gonios;
+    int gonio_count;
     int count_by_kind[PN_LIGHT_KIND_COUNT];
     float scene_radius;
     vec3 scene_center;
@@ -116,6 +128,9 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
 /* Emitted radiance of an area light toward direction w (unit, from the light's surface point to
  * the viewer), for eye rays that hit an emitter. */
 vec3 pn_emission_radiance(const struct pn_scene_s *scene, int emission, vec3 ng, vec3 w);
+
+/* The goniometric factor of light l towards world direction w (unit, from the light outwards). */
+float pn_gonio_factor(const pn_lights *lights, const pn_light *l, vec3 w);
 
 /* Radiance of all environment lights for an escaping ray with unit direction d. */
 vec3 pn_lights_environment_radiance(const pn_lights *lights, vec3 d);

@@ -18,8 +18,10 @@
  *               a surface facing +z (in light space) receives illuminance E: L * scale * E /
  *               (pi luminance(L)) for a constant L, scale * E / (the image's upper-hemisphere
  *               illuminance) for an image. "portal" is ignored with a warning.
- *  goniometric  I * scale at world_from_light * origin, with its image recorded (the renderer
- *               treats it as a point light); "power" is ignored with a warning.
+ *  goniometric  I * scale at world_from_light * origin, modulated by its image: a square map in
+ *               pbrt-v4's equal-area octahedral mapping, of the light's frame with y and z
+ *               swapped (lights/lights.h, pn_gonio); "power" P gives I * scale * P / (4 pi
+ *               luminance(I) mean(image)).
  *  projection   rejected as unsupported.
  *
  * AreaLightSource "diffuse": radiance = L * scale (default L = 1), "twosided", and "power" left
@@ -166,9 +168,25 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             if (file[0]) {
                 st = load_image_param(scene, ps, file, &d.image, err);
                 if (st != PN_OK) return st;
+                const pn_texture_image *img = &scene->images[d.image];
+                if (img->width != img->height) {
+                    const pn_param *fp = pn_params_find(ps, "filename");
+                    return pn_param_error(fp, err,
+                                          "the image of a goniometric light must be square (pbrt-v4's equal-area "
+                                          "mapping); \"%s\" is %dx%d",
+                                          file, img->width, img->height);
+                }
             }
-            if (power > 0.0)
-                warn_ignored(scene, ps, "power", "of a goniometric light is not supported; ignored");
+            /* pbrt-v4: the power of a goniometric light is 4 pi I times the image's mean. */
+            double mean = 1.0;
+            if (d.image >= 0) {
+                const pn_texture_image *img = &scene->images[d.image];
+                double sum = 0.0;
+                size_t texels = (size_t)img->width * (size_t)img->height;
+                for (size_t i = 0; i < 3 * texels; i++) sum += (double)img->rgb[i];
+                mean = texels ? sum / (3.0 * (double)texels) : 0.0;
+            }
+            d.intensity = apply_power(d.intensity, I, power, 4.0 * PN_PI_D * mean);
         }
     } else if (strcmp(type, "distant") == 0) {
         vec3 L, from = v3(0, 0, 0), to = v3(0, 0, 1);

@@ -80,9 +80,8 @@ pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info) {
         info->lights_area_rectangle = (uint32_t)L->count_by_kind[PN_LIGHT_RECTANGLE];
         info->lights_area_disk = (uint32_t)L->count_by_kind[PN_LIGHT_DISK];
         info->lights_area_sphere = (uint32_t)L->count_by_kind[PN_LIGHT_SPHERE];
+        info->lights_goniometric = (uint32_t)L->count_by_kind[PN_LIGHT_GONIOMETRIC];
     }
-    for (int i = 0; i < scene->light_def_count; i++)
-        if (scene->light_defs[i].kind == PN_LIGHTDEF_GONIOMETRIC) info->lights_goniometric++;
     info->materials = (uint32_t)scene->material_count;
     info->textures = (uint32_t)scene->texture_count;
     info->warnings = (uint32_t)scene->warning_count;
