@@ -2,6 +2,8 @@
  * instances) and single-ray queries, with alpha cut-outs done in Embree filter callbacks. */
 #include "accel/accel.h"
 
+#include "core/rng.h"
+
 #include "scene/scene.h"
 
 #include <embree3/rtcore.h>
@@ -37,16 +39,6 @@ typedef struct alpha_user {
     const pn_mesh *mesh;
 } alpha_user;
 
-static float hash_to_unit(uint32_t a, uint32_t b) {
-    uint64_t x = ((uint64_t)a << 32) ^ b;
-    x ^= x >> 33;
-    x *= 0xff51afd7ed558ccdULL;
-    x ^= x >> 33;
-    x *= 0xc4ceb9fe1a85ec53ULL;
-    x ^= x >> 33;
-    return (float)(x >> 40) * (1.0f / 16777216.0f);
-}
-
 static void alpha_filter(const struct RTCFilterFunctionNArguments *args) {
     const alpha_user *au = args->geometryUserPtr;
     const pn_mesh *m = au->mesh;
@@ -79,7 +71,7 @@ static void alpha_filter(const struct RTCFilterFunctionNArguments *args) {
         memcpy(&h1, &ox, 4);
         float mix = dx * 0.7f + dy * 0.3f;
         memcpy(&h2, &mix, 4);
-        if (hash_to_unit(h1 ^ prim * 2654435761u, h2) > alpha) args->valid[i] = 0;
+        if (pn_hash_unit(pn_hash3(h1, prim, h2)) > alpha) args->valid[i] = 0;
     }
 }
 

@@ -2,21 +2,10 @@
  * first surface whose direct illumination is estimated. */
 #include "driver/render_job.h"
 
+#include "core/rng.h"
 #include "shade/bsdf.h"
 
 #include <string.h>
-
-/* A deterministic uniform number from a seed and a counter, for the specular choices after the
- * first (they are rare and need no stratification). */
-static float hash_uniform(uint64_t a, uint64_t b) {
-    uint64_t x = a * 0x9e3779b97f4a7c15ULL ^ (b + 0x632be59bd9b4e019ULL);
-    x ^= x >> 31;
-    x *= 0xbf58476d1ce4e5b9ULL;
-    x ^= x >> 27;
-    x *= 0x94d049bb133111ebULL;
-    x ^= x >> 33;
-    return (float)(x >> 40) * (1.0f / 16777216.0f);
-}
 
 void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specular, pn_eye_path *path) {
     memset(path, 0, sizeof *path);
@@ -69,7 +58,7 @@ void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specula
                 offset_n = v3_neg(b.ng);
             }
             path->throughput = v3_mul(path->throughput, b.specular);
-            u = hash_uniform(chain_seed, depth + 1);
+            u = pn_hash_unit(pn_hash3(chain_seed, depth + 1, 0x5eed)); /* rare: no stratification needed */
         } else {
             /* INTERFACE surfaces are skipped by the ray mask and never reach here. */
             return;

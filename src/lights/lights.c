@@ -570,7 +570,8 @@ static float lum(vec3 c) { return fmaxf(0.0f, v3_luminance(c)); }
 float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, vec3 p, vec3 n) {
     switch (l->kind) {
     case PN_LIGHT_POINT:
-    case PN_LIGHT_SPOT: {
+    case PN_LIGHT_SPOT:
+    case PN_LIGHT_GONIOMETRIC: {
         vec3 d = v3_sub(l->p, p);
         float d2 = v3_length2(d);
         if (!(d2 > 0.0f)) return 0.0f;
@@ -579,16 +580,8 @@ float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, v
         if (c <= 0.0f) return 0.0f;
         float e = lum(l->emit) * c / d2;
         if (l->kind == PN_LIGHT_SPOT) e *= spot_falloff(l, -v3_dot(wi, l->n));
+        if (l->kind == PN_LIGHT_GONIOMETRIC) e *= pn_gonio_factor(lights, l, v3_neg(wi));
         return e;
-    }
-    case PN_LIGHT_GONIOMETRIC: {
-        vec3 d = v3_sub(l->p, p);
-        float d2 = v3_length2(d);
-        if (!(d2 > 0.0f)) return 0.0f;
-        vec3 wi = v3_scale(d, 1.0f / sqrtf(d2));
-        float c = v3_dot(n, wi);
-        if (c <= 0.0f) return 0.0f;
-        return lum(l->emit) * pn_gonio_factor(lights, l, v3_neg(wi)) * c / d2;
     }
     case PN_LIGHT_DISTANT:
         return lum(l->emit) * fmaxf(0.0f, v3_dot(n, l->n));

@@ -79,6 +79,8 @@
  */
 #include "scene/build.h"
 
+#include "core/optics.h"
+
 #include "scene/parser_internal.h"
 
 #include <math.h>
@@ -283,16 +285,6 @@ static pn_status map_diffuse(builder *b, pn_err *err) {
     return PN_OK;
 }
 
-/* Fresnel reflectance of a smooth dielectric of relative index eta for light from outside. */
-static double fresnel_dielectric(double cos_i, double eta) {
-    double sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if (sin2_t >= 1.0) return 1.0;
-    double cos_t = sqrt(1.0 - sin2_t);
-    double r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    double r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    return 0.5 * (r_par * r_par + r_perp * r_perp);
-}
-
 /* Cosine-weighted hemispherical average of the Fresnel reflectance from outside,
  * Fbar = integral over mu in [0, 1] of F(mu) 2 mu dmu (midpoint rule, 1024 steps). */
 static double hemispherical_fresnel(double eta) {
@@ -300,7 +292,7 @@ static double hemispherical_fresnel(double eta) {
     double sum = 0.0;
     for (int i = 0; i < steps; i++) {
         double mu = ((double)i + 0.5) / steps;
-        sum += fresnel_dielectric(mu, eta) * 2.0 * mu;
+        sum += (double)pn_fresnel_dielectric((float)mu, (float)eta) * 2.0 * mu;
     }
     return sum / steps;
 }

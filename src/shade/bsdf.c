@@ -50,16 +50,6 @@ vec3 pn_coated_diffuse(vec3 kd, float transmission, float internal) {
               kd.z * transmission / (1.0f - kd.z * internal));
 }
 
-float pn_fresnel_dielectric(float cos_i, float eta) {
-    cos_i = fminf(1.0f, fmaxf(0.0f, cos_i));
-    float sin2_t = (1.0f - cos_i * cos_i) / (eta * eta);
-    if (sin2_t >= 1.0f) return 1.0f;
-    float cos_t = sqrtf(1.0f - sin2_t);
-    float r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    return 0.5f * (r_par * r_par + r_perp * r_perp);
-}
-
 bool pn_refract(vec3 wo, vec3 n, float eta, vec3 *wt) {
     float cos_i = v3_dot(n, wo);
     float sin2_i = fmaxf(0.0f, 1.0f - cos_i * cos_i);

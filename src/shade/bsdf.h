@@ -4,6 +4,7 @@
 #define PN_SHADE_BSDF_H
 
 #include "accel/accel.h"
+#include "core/optics.h"
 #include "core/vecmath.h"
 #include "scene/scene.h"
 
@@ -30,9 +31,6 @@ static inline bool pn_bsdf_is_shadable(const pn_bsdf *b) {
     return b->kind == PN_MATERIAL_LAMBERT_BLINN && (!v3_is_zero(b->kd) || !v3_is_zero(b->ks));
 }
 
-/* Fresnel reflectance of a smooth dielectric for cos_i (of the incident side) and relative index
- * eta = eta_t / eta_i; returns 1 for total internal reflection. */
-float pn_fresnel_dielectric(float cos_i, float eta);
 
 /* The diffuse reflectance, seen from outside, of a Lambertian base of reflectance kd (each
  * channel in [0, 1]) under a smooth dielectric coating (scene.h, pn_material.coated): the light

@@ -1,0 +1,21 @@
+/* optics.h — Fresnel reflectance of smooth dielectric interfaces, shared by the BSDFs and by the
+ * material mapping (which averages it over the hemisphere for coated materials). */
+#ifndef PN_CORE_OPTICS_H
+#define PN_CORE_OPTICS_H
+
+#include <math.h>
+
+/* Fresnel reflectance of unpolarised light at a smooth dielectric interface, for the cosine of
+ * the angle of incidence (on the incident side) and eta = eta_transmitted / eta_incident;
+ * 1 under total internal reflection. */
+static inline float pn_fresnel_dielectric(float cos_i, float eta) {
+    cos_i = fminf(1.0f, fmaxf(0.0f, cos_i));
+    float sin2_t = (1.0f - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0f) return 1.0f;
+    float cos_t = sqrtf(1.0f - sin2_t);
+    float r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5f * (r_par * r_par + r_perp * r_perp);
+}
+
+#endif
