@@ -6,6 +6,15 @@
  * threshold, with a maximum number of shadow rays per pixel (20,000) and a minimum number before
  * a pixel may be declared black (§5.9; 2,500 as for the paper's hard scenes) — or a fixed spp.
  *
+ * Details the paper leaves open, as done here: s^2 is the variance of the pixel's mean (the
+ * sample variance of the eye-ray values' luminance over their number, as in its eq. 7) and L the
+ * mean; at least 4 eye rays are taken before the test; eye rays that cast no shadow rays (they see
+ * an emitter, the sky, or nothing) count S shadow rays each against the 20,000 budget, so that no
+ * pixel runs unbounded; pixels whose eye rays all see nothing that reflects light stop as soon as
+ * the test allows. The light PDF comes from pn_lights_irradiance_all (lights/light_pdf.c): exact
+ * for points, spots, distant lights, spheres above the horizon and near polygons, a point
+ * approximation for small far polygons, spherical harmonics for environment maps.
+ *
  * Quasi-random dimensions per eye ray i of a block: 0-1 pixel filter, 2-3 lens, 4 specular
  * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light. */
 #include "integrators/integrator.h"
