@@ -1,5 +1,6 @@
-list(APPEND PN_SOURCES
-  src/lights/lights.c
-  src/lights/light_sample.c
-  src/lights/light_pdf.c
-)
+# lights files; a file is compiled once it exists.
+foreach(f lights.c light_sample.c light_pdf.c cluster_tree.c env_regions.c)
+  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
+    list(APPEND PN_SOURCES src/lights/${f})
+  endif()
+endforeach()
