@@ -1,3 +1,6 @@
-list(APPEND PN_SOURCES
-  src/integrators/reference.c
-)
+# integrators files; a file is compiled once it exists.
+foreach(f reference.c ias_math.c ias.c)
+  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
+    list(APPEND PN_SOURCES src/integrators/${f})
+  endif()
+endforeach()
