@@ -115,8 +115,9 @@ PN_API const char *pn_scene_warning(pn_scene scene, uint32_t index);
 /* Render settings: zero-initialise, then set what you need. Zero means the default. */
 
 typedef enum pn_integrator_kind {
-    PN_INTEGRATOR_DEFAULT = 0, /* reference */
-    PN_INTEGRATOR_REFERENCE = 1
+    PN_INTEGRATOR_DEFAULT = 0,   /* reference */
+    PN_INTEGRATOR_REFERENCE = 1, /* Monte Carlo reference, Donikian et al. 2006 §5.1 */
+    PN_INTEGRATOR_IAS = 2        /* Iterative Adaptive Sampling, Donikian et al. 2006 */
 } pn_integrator_kind;
 
 /* AOV layers written beside the beauty image. */
@@ -126,7 +127,11 @@ enum {
     PN_AOV_RELATIVE_VARIANCE = 1u << 2, /* s^2 / L^2 of the pixel estimate */
     PN_AOV_DEPTH = 1u << 3,             /* camera distance of the first hit */
     PN_AOV_NORMAL = 1u << 4,            /* shading normal of the first hit, world space */
-    PN_AOV_ALBEDO = 1u << 5             /* diffuse reflectance of the first hit */
+    PN_AOV_ALBEDO = 1u << 5,            /* diffuse reflectance of the first hit */
+    PN_AOV_PASSES = 1u << 6,            /* ias: passes per pixel (the paper's Fig. 11) */
+    PN_AOV_AA_REGIONS = 1u << 7,        /* ias: antialiasing regions per pixel */
+    PN_AOV_CLUSTERS = 1u << 8,          /* ias: clusters per shading point (pixel mean) */
+    PN_AOV_VISIBLE_FRACTION = 1u << 9   /* ias: fraction of shadow rays unoccluded (Fig. 9) */
 };
 
 typedef struct pn_render_settings {
@@ -144,6 +149,13 @@ typedef struct pn_render_settings {
     uint64_t seed;
     uint32_t max_specular_depth; /* perfect specular bounces of eye rays; default 8 */
     uint32_t aovs;             /* PN_AOV_* bits */
+    /* ias only (zero = the paper's values): maximum solid angle of a light cluster seen from a
+     * point (0.02 sr), eye rays per pixel grouped into antialiasing regions (32), regions of an
+     * environment map (300), passes per block (15). */
+    float cluster_solid_angle;
+    uint32_t aa_rays;
+    uint32_t env_regions;
+    uint32_t max_passes;
     /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
     void (*progress)(void *user, double fraction);
     void *progress_user;

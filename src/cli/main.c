@@ -63,7 +63,8 @@ static const char main_help[] =
 static const char render_help[] =
     "usage: penumbra render SCENE.pbrt [options]\n"
     "\n"
-    "Renders SCENE.pbrt with the reference integrator (direct lighting through specular chains).\n"
+    "Renders SCENE.pbrt: direct lighting through specular chains, with the reference integrator\n"
+    "or Iterative Adaptive Sampling (ias).\n"
     "\n"
     "output:\n"
     "  -o, --output FILE      image to write: .exr (beauty + AOV layers), .pfm or .png\n"
@@ -71,18 +72,27 @@ static const char render_help[] =
     "  --png FILE             also write an sRGB PNG preview\n"
     "  --exposure E           exposure of the PNG preview in stops (default 0)\n"
     "  --aov NAMES            extra EXR layers, comma-separated: shadow_rays, eye_rays,\n"
-    "                         relative_variance, depth, normal, albedo, or 'all'\n"
+    "                         relative_variance, depth, normal, albedo; for ias also passes,\n"
+    "                         aa_regions, clusters, visible_fraction; or 'all'\n"
     "  --stats FILE           write render statistics as JSON\n"
     "  --quiet                no progress bar and no summary (warnings are still shown)\n"
     "\n"
     "sampling:\n"
-    "  --integrator NAME      'reference' (the only one for now; the default)\n"
+    "  --integrator NAME      'reference' (the default: Donikian et al. 2006, section 5.1) or\n"
+    "                         'ias' (Iterative Adaptive Sampling, the same paper)\n"
     "  --spp N                fixed number of eye rays per pixel (N >= 1)\n"
     "  --threshold T          adaptive: add eye rays until the relative variance s^2/L^2 of the\n"
     "                         pixel is below T (T > 0; default 0.01); excludes --spp\n"
     "  --shadow-rays N        shadow rays per eye ray, 1..65536 (default 4)\n"
     "  --max-samples N        at most N shadow rays per pixel (default 20000)\n"
     "  --seed S               seed of the random sequences (unsigned 64-bit, default 0)\n"
+    "\n"
+    "ias only (the paper's values by default):\n"
+    "  --cluster-solid-angle A  largest solid angle of a light cluster seen from a point\n"
+    "                         (steradians, default 0.02)\n"
+    "  --aa-rays N            eye rays per pixel grouped into antialiasing regions (default 32)\n"
+    "  --env-regions N        regions of an environment map (default 300)\n"
+    "  --max-passes N         passes per block (default 15)\n"
     "\n"
     "image and machine:\n"
     "  --resolution WxH       override the film resolution (each 1..65536)\n"
@@ -339,6 +349,8 @@ static const struct {
     {"shadow_rays", PN_AOV_SHADOW_RAYS}, {"eye_rays", PN_AOV_EYE_RAYS},
     {"relative_variance", PN_AOV_RELATIVE_VARIANCE}, {"depth", PN_AOV_DEPTH},
     {"normal", PN_AOV_NORMAL}, {"albedo", PN_AOV_ALBEDO},
+    {"passes", PN_AOV_PASSES}, {"aa_regions", PN_AOV_AA_REGIONS},
+    {"clusters", PN_AOV_CLUSTERS}, {"visible_fraction", PN_AOV_VISIBLE_FRACTION},
 };
 #define AOV_NAME_COUNT (sizeof aov_names / sizeof aov_names[0])
 
@@ -748,6 +760,8 @@ static const char *integrator_name(pn_integrator_kind kind) {
     case PN_INTEGRATOR_DEFAULT:
     case PN_INTEGRATOR_REFERENCE:
         return "reference";
+    case PN_INTEGRATOR_IAS:
+        return "ias";
     }
     return "unknown";
 }
@@ -799,9 +813,40 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
         } else if (strcmp(name, "--integrator") == 0) {
             if ((value = scanner_value(&s)) == NULL)
                 return EXIT_USAGE;
-            if (strcmp(value, "reference") != 0)
-                return bad_value(cmd, name, value, "'reference'");
-            o->settings.integrator = PN_INTEGRATOR_REFERENCE;
+            if (strcmp(value, "reference") == 0)
+                o->settings.integrator = PN_INTEGRATOR_REFERENCE;
+            else if (strcmp(value, "ias") == 0)
+                o->settings.integrator = PN_INTEGRATOR_IAS;
+            else
+                return bad_value(cmd, name, value, "'reference' or 'ias'");
+        } else if (strcmp(name, "--cluster-solid-angle") == 0) {
+            double v;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_double(value, &v) || !(v > 0.0) || v > 12.6)
+                return bad_value(cmd, name, value, "a solid angle in steradians, > 0 and <= 4 pi");
+            o->settings.cluster_solid_angle = (float)v;
+        } else if (strcmp(name, "--aa-rays") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 4096, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 4096");
+            o->settings.aa_rays = (uint32_t)n;
+        } else if (strcmp(name, "--env-regions") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 100000, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 100000");
+            o->settings.env_regions = (uint32_t)n;
+        } else if (strcmp(name, "--max-passes") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 64, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 64");
+            o->settings.max_passes = (uint32_t)n;
         } else if (strcmp(name, "--spp") == 0) {
             long n;
             if ((value = scanner_value(&s)) == NULL)
@@ -871,6 +916,8 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
         return usage_error(cmd, "missing the scene file");
     if (o->has_spp && o->has_threshold)
         return usage_error(cmd, "--spp and --threshold exclude each other");
+    if (o->has_spp && o->settings.integrator == PN_INTEGRATOR_IAS)
+        return usage_error(cmd, "--spp does not apply to ias (it samples until --threshold; see --aa-rays)");
     if (o->settings.aovs && o->output_path && !ends_with(o->output_path, ".exr"))
         return usage_error(cmd, "--aov needs an .exr output (got '%s')", o->output_path);
     return -1;

@@ -119,6 +119,10 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     job->max_specular_depth = s->max_specular_depth > 0 ? s->max_specular_depth : 8;
     job->seed = s->seed;
     job->aovs = s->aovs;
+    job->cluster_solid_angle = s->cluster_solid_angle > 0.0f ? s->cluster_solid_angle : 0.02f;
+    job->aa_rays = s->aa_rays > 0 ? s->aa_rays : 32;
+    job->env_regions = s->env_regions > 0 ? s->env_regions : 300;
+    job->max_passes = s->max_passes > 0 ? s->max_passes : 15;
     job->cancel = &ctx->cancel;
     return PN_OK;
 }
@@ -136,6 +140,11 @@ static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *o
     if (aovs & PN_AOV_DEPTH) ok = ok && (depth = pn_image_add_layer(img, "depth", 1));
     if (aovs & PN_AOV_NORMAL) ok = ok && (normal = pn_image_add_layer(img, "normal", 3));
     if (aovs & PN_AOV_ALBEDO) ok = ok && (albedo = pn_image_add_layer(img, "albedo", 3));
+    float *passes = NULL, *regions = NULL, *clusters = NULL, *visible = NULL;
+    if (aovs & PN_AOV_PASSES) ok = ok && (passes = pn_image_add_layer(img, "passes", 1));
+    if (aovs & PN_AOV_AA_REGIONS) ok = ok && (regions = pn_image_add_layer(img, "aa_regions", 1));
+    if (aovs & PN_AOV_CLUSTERS) ok = ok && (clusters = pn_image_add_layer(img, "clusters", 1));
+    if (aovs & PN_AOV_VISIBLE_FRACTION) ok = ok && (visible = pn_image_add_layer(img, "visible_fraction", 1));
     if (!ok) {
         pn_image_free(img);
         return PN_ERROR_OUT_OF_MEMORY;
@@ -154,6 +163,10 @@ static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *o
             normal[3 * i + 1] = e->normal.y;
             normal[3 * i + 2] = e->normal.z;
         }
+        if (passes) passes[i] = (float)e->passes;
+        if (regions) regions[i] = (float)e->aa_regions;
+        if (clusters) clusters[i] = e->clusters;
+        if (visible) visible[i] = e->visible_fraction;
         if (albedo) {
             albedo[3 * i] = e->albedo.x;
             albedo[3 * i + 1] = e->albedo.y;
@@ -163,6 +176,9 @@ static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *o
     *out = img;
     return PN_OK;
 }
+
+static pn_status run_job(pn_context ctx, const pn_render_settings *settings, const pn_integrator *integ,
+                         pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats);
 
 pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
                     pn_render_stats *stats) {
@@ -177,6 +193,22 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     pn_render_job job;
     pn_status st = resolve_settings(ctx, scene, settings, &job);
     if (st != PN_OK) return st;
+    if (integ->prepare) {
+        pn_err perr;
+        pn_err_init(&perr);
+        st = integ->prepare(&job, &perr);
+        if (st != PN_OK) return pn_context_fail_from(ctx, &perr);
+    }
+    st = run_job(ctx, settings, integ, &job, out_image, stats);
+    if (integ->release) integ->release(&job);
+    return st;
+}
+
+/* Renders a prepared job: blocks over the thread pool, then the image and the statistics. */
+static pn_status run_job(pn_context ctx, const pn_render_settings *settings, const pn_integrator *integ,
+                         pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats) {
+    pn_render_job job = *job_in;
+    pn_status st;
     atomic_store(&ctx->cancel, 0);
 
     render_shared rs;

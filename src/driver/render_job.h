@@ -24,6 +24,10 @@ typedef struct pn_render_job {
     uint32_t max_specular_depth;
     uint64_t seed;
     uint32_t aovs;
+    /* ias */
+    float cluster_solid_angle;
+    uint32_t aa_rays, env_regions, max_passes;
+    void *integrator_data; /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
 } pn_render_job;
 

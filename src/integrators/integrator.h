@@ -24,10 +24,18 @@ typedef struct pn_pixel_estimate {
     vec3 normal;  /* first-hit shading normal */
     vec3 albedo;  /* first-hit diffuse reflectance */
     float embree_seconds; /* estimated time inside Embree calls for this pixel (sampled) */
+    /* ias statistics (zero for other integrators) */
+    uint32_t passes, aa_regions;
+    float clusters;          /* clusters per shading point, mean over the pixel's regions */
+    float visible_fraction;  /* unoccluded shadow rays / shadow rays */
 } pn_pixel_estimate;
 
 typedef struct pn_integrator {
     const char *name;
+    /* Optional: builds what the whole render shares (e.g. light cluster trees) into
+     * job->integrator_data, and frees it. */
+    pn_status (*prepare)(pn_render_job *job, pn_err *err);
+    void (*release)(pn_render_job *job);
     /* Per-worker scratch: created once per thread, freed at the end of the render. */
     void *(*scratch_create)(const pn_render_job *job);
     void (*scratch_free)(void *scratch);
@@ -40,5 +48,6 @@ typedef struct pn_integrator {
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 
 extern const pn_integrator pn_integrator_reference;
+extern const pn_integrator pn_integrator_ias;
 
 #endif

@@ -225,13 +225,14 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
 }
 
 const pn_integrator pn_integrator_reference = {
-    "reference", reference_scratch_create, reference_scratch_free, reference_render_batch,
+    "reference", NULL, NULL, reference_scratch_create, reference_scratch_free, reference_render_batch,
 };
 
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
     switch (kind) {
     case PN_INTEGRATOR_DEFAULT:
     case PN_INTEGRATOR_REFERENCE: return &pn_integrator_reference;
+    case PN_INTEGRATOR_IAS: return &pn_integrator_ias;
     }
     return NULL;
 }

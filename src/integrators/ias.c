@@ -1,0 +1,679 @@
+/* ias.c — Iterative Adaptive Sampling (Donikian, Walter, Bala, Fernandez, Greenberg, "Accurate
+ * Direct Illumination Using Iterative Adaptive Sampling", IEEE TVCG 2006).
+ *
+ * Each 8x8 block of the image is rendered on its own, in passes:
+ *
+ *  - Points (§4, §4.4). Every pixel shoots aa_rays eye rays (32) once; their shading points are
+ *    grouped into antialiasing regions: a ray joins a region of its pixel whose representative
+ *    point lies in the same plane, has the same material and is within the region radius (a
+ *    quarter of the pixel radius at that depth); otherwise it starts a region and represents it.
+ *    A region's weight is its share of the pixel's eye rays; regions are sampled in proportion.
+ *    The points are cached for all passes.
+ *  - Clusters (§4.3). Per region point, a cut through the light cluster trees (lights/cluster_tree.c:
+ *    one omnidirectional tree and six oriented trees, built greedily by smallest bounding sphere)
+ *    at clusters subtending less than cluster_solid_angle (0.02 sr, §5.7), after the standard
+ *    geometric tests; distant lights are clusters of their own; an environment map contributes
+ *    its static regions (lights/env_regions.c, 300 by default) that are not below the horizon.
+ *    A chosen cluster picks one of its lights in proportion to power.
+ *  - PDFs (§4.1). Running sums per block and per pixel, kept apart for the six normal classes
+ *    (±X, ±Y, ±Z), of every cluster's one-sample contribution estimates and visibility (eq. 3),
+ *    kept for every node on the path from the sampled light to its tree's root (each node's
+ *    estimate is the sample divided by the light's probability within that node). Feedback
+ *    weights C / sqrt(u) (eq. 4-5, ias_math.c) give the block and pixel PDFs, blended with the
+ *    uniform PDF by the pass's weights (eq. 6, Fig. 2).
+ *  - Samples per pass (§5.8). 1.5 N_C shadow rays per pixel (N_C: the pixel's area-weighted mean
+ *    number of clusters per point), at least 50, given to the regions by area, clusters chosen
+ *    stratified. A pixel within twice the target after a pass continues with the same PDFs in
+ *    steps of 25 shadow rays.
+ *  - Pass estimates (§4.2). Per pixel and pass the estimate of eq. 2 and the sample variance of
+ *    its mean; passes combined by inverse variance (eq. 7-8); a pixel is done when
+ *    s_p^2 / L_p^2 < threshold, a block when all its pixels are.
+ *  - Termination (§5.9). At most max_passes passes (15); a pixel with no visible sample after 3
+ *    passes and 250 shadow rays is black.
+ *
+ * What the paper leaves open, as done here: a pass whose samples all have the same value has a
+ * sample variance of zero, which would give it all the weight in eq. 7-8; its variance is
+ * floored at (y_max / N)^2 / 4, the variance a single sample of the largest value seen in the
+ * pixel would have added. Emitters seen directly are averaged over the eye rays and added to the
+ * pixel (they count in L_p for the threshold test). Quasi-random numbers: one scrambled Sobol
+ * sequence per block (as the reference integrator), eye ray dimensions 0-4, shadow ray dimensions
+ * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light). */
+#include "integrators/integrator.h"
+
+#include "core/rng.h"
+#include "core/sobol.h"
+#include "integrators/ias_math.h"
+#include "lights/cluster_tree.h"
+#include "lights/env_regions.h"
+#include "shade/bsdf.h"
+
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define IAS_MAX_PIXELS 64
+#define IAS_CLASSES 6
+#define IAS_MIN_SAMPLES 50
+#define IAS_STEP_SAMPLES 25
+#define IAS_MAX_STEPS 40
+#define IAS_BLACK_PASSES 3
+#define IAS_BLACK_RAYS 250
+#define IAS_MAX_PASSES_STORED 64
+
+/* ---- what the whole render shares -------------------------------------------------------- */
+
+typedef struct ias_shared {
+    pn_cluster_forest forest;
+    int env_count;
+    pn_env_regions *env;  /* one partition per environment light */
+    int *env_light;       /* the pn_lights index of each environment light */
+    int *env_base;        /* first cluster id of each partition */
+    int id_count;         /* cluster ids: forest nodes (distant lights are one-light nodes), then
+                             environment regions */
+    int max_cut;          /* capacity for one point's cut */
+} ias_shared;
+
+static void ias_release(pn_render_job *job) {
+    ias_shared *sh = job->integrator_data;
+    if (!sh) return;
+    pn_cluster_forest_free(&sh->forest);
+    for (int i = 0; i < sh->env_count; i++) pn_env_regions_free(&sh->env[i]);
+    free(sh->env);
+    free(sh->env_light);
+    free(sh->env_base);
+    free(sh);
+    job->integrator_data = NULL;
+}
+
+static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
+    ias_shared *sh = calloc(1, sizeof *sh);
+    if (!sh) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    job->integrator_data = sh;
+    const pn_lights *L = job->lights;
+    pn_status st = pn_cluster_forest_build(L, &sh->forest, err);
+    if (st != PN_OK) {
+        ias_release(job);
+        return st;
+    }
+    int next = sh->forest.node_count;
+    for (int i = 0; i < L->count; i++)
+        if (L->lights[i].kind == PN_LIGHT_ENVIRONMENT) sh->env_count++;
+    if (sh->env_count) {
+        sh->env = calloc((size_t)sh->env_count, sizeof *sh->env);
+        sh->env_light = calloc((size_t)sh->env_count, sizeof *sh->env_light);
+        sh->env_base = calloc((size_t)sh->env_count, sizeof *sh->env_base);
+        if (!sh->env || !sh->env_light || !sh->env_base) {
+            ias_release(job);
+            return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        }
+        int k = 0;
+        for (int i = 0; i < L->count && st == PN_OK; i++) {
+            if (L->lights[i].kind != PN_LIGHT_ENVIRONMENT) continue;
+            sh->env_light[k] = i;
+            st = pn_env_regions_build(&L->envs[L->lights[i].env], (int)job->env_regions, &sh->env[k], err);
+            sh->env_base[k] = next;
+            if (st == PN_OK) next += sh->env[k].count;
+            k++;
+        }
+        if (st != PN_OK) {
+            ias_release(job);
+            return st;
+        }
+    }
+    sh->id_count = next;
+    sh->max_cut = next > 0 ? next : 1;
+    return PN_OK;
+}
+
+/* ---- per worker ---------------------------------------------------------------------------- */
+
+typedef struct ias_region {
+    int pixel;          /* index in the batch */
+    pn_hit hit;
+    vec3 wo, throughput, origin;
+    float eps, radius;
+    pn_bsdf bsdf;
+    int cls;            /* normal class */
+    double weight;      /* summed filter weight of its eye rays */
+    int rays;
+    int cut_first, cut_count; /* ids in scratch->cut */
+} ias_region;
+
+/* A pass's samples go alternately to two halves; each half has its own mean and variance of the
+ * mean, so that eq. 7-8 can weight each half by the variance estimated from the other one. */
+typedef struct ias_pass {
+    double lum[2], s2[2]; /* luminance estimate and variance of its mean, per half */
+    vec3 rgb[2];
+    unsigned n[2];
+} ias_pass;
+
+typedef struct ias_pixel {
+    int first_region, region_count;
+    vec3 emitted;       /* filter-weighted mean of what the eye rays saw directly */
+    double weight_sum;  /* filter weights of all eye rays */
+    ias_pass passes[IAS_MAX_PASSES_STORED];
+    int pass_count;
+    double y_max;       /* largest luminance of one sample's pixel estimate so far */
+    uint32_t shadow_rays, visible;
+    bool done;
+    vec3 result;
+    double clusters;    /* area-weighted clusters per point */
+    pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
+} ias_pixel;
+
+typedef struct ias_scratch {
+    int id_count;
+    ias_region *regions;
+    int region_cap, region_count;
+    int *cut;
+    int cut_cap, cut_used;
+    pn_ias_stats *block_stats;   /* IAS_CLASSES x id_count */
+    bool block_class_used[IAS_CLASSES];
+    pn_ias_stats *pixel_pool;    /* IAS_MAX_PIXELS * IAS_CLASSES slots of id_count */
+    int pool_used;
+    ias_pixel pixels[IAS_MAX_PIXELS];
+    double *pdf;                 /* per cut entry */
+    double *cdf;
+} ias_scratch;
+
+static void ias_scratch_free(void *p) {
+    ias_scratch *s = p;
+    if (!s) return;
+    free(s->regions);
+    free(s->cut);
+    free(s->block_stats);
+    free(s->pixel_pool);
+    free(s->pdf);
+    free(s->cdf);
+    free(s);
+}
+
+static void *ias_scratch_create(const pn_render_job *job) {
+    const ias_shared *sh = job->integrator_data;
+    ias_scratch *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    size_t ids = (size_t)(sh->id_count > 0 ? sh->id_count : 1);
+    s->id_count = (int)ids;
+    s->region_cap = IAS_MAX_PIXELS * 8;
+    s->regions = malloc((size_t)s->region_cap * sizeof *s->regions);
+    s->cut_cap = (int)ids * 8;
+    s->cut = malloc((size_t)s->cut_cap * sizeof *s->cut);
+    s->block_stats = calloc(IAS_CLASSES * ids, sizeof *s->block_stats);
+    s->pixel_pool = calloc((size_t)IAS_MAX_PIXELS * IAS_CLASSES * ids, sizeof *s->pixel_pool);
+    s->pdf = malloc((ids + 1) * sizeof *s->pdf);
+    s->cdf = malloc((ids + 1) * sizeof *s->cdf);
+    if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf) {
+        ias_scratch_free(s);
+        return NULL;
+    }
+    return s;
+}
+
+/* ---- helpers ------------------------------------------------------------------------------- */
+
+static int normal_class(vec3 n) {
+    float ax = fabsf(n.x), ay = fabsf(n.y), az = fabsf(n.z);
+    if (ax >= ay && ax >= az) return n.x >= 0.0f ? 0 : 1;
+    if (ay >= az) return n.y >= 0.0f ? 2 : 3;
+    return n.z >= 0.0f ? 4 : 5;
+}
+
+static bool push_region(ias_scratch *s, ias_region **out) {
+    if (s->region_count == s->region_cap) {
+        int cap = s->region_cap * 2;
+        ias_region *r = realloc(s->regions, (size_t)cap * sizeof *r);
+        if (!r) return false;
+        s->regions = r;
+        s->region_cap = cap;
+    }
+    *out = &s->regions[s->region_count++];
+    return true;
+}
+
+static bool reserve_cut(ias_scratch *s, int more) {
+    if (s->cut_used + more <= s->cut_cap) return true;
+    int cap = s->cut_cap;
+    while (cap < s->cut_used + more) cap *= 2;
+    int *c = realloc(s->cut, (size_t)cap * sizeof *c);
+    if (!c) return false;
+    s->cut = c;
+    s->cut_cap = cap;
+    return true;
+}
+
+/* The clusters of a region's point: the tree cut, distant lights above the horizon, and the
+ * environment regions not below it, as cluster ids. */
+static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_region *r) {
+    vec3 n = r->bsdf.ng;
+    if (!reserve_cut(s, sh->max_cut)) return false;
+    int *out = s->cut + s->cut_used;
+    int k = pn_cluster_cut(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, out, sh->max_cut);
+    if (k > sh->max_cut) k = sh->max_cut;
+    for (int e = 0; e < sh->env_count; e++) {
+        const pn_env_regions *reg = &sh->env[e];
+        for (int q = 0; q < reg->count && k < sh->max_cut; q++) {
+            if (!(reg->regions[q].power > 0.0f) || pn_env_region_below(&reg->regions[q], n)) continue;
+            out[k++] = sh->env_base[e] + q;
+        }
+    }
+    r->cut_first = s->cut_used;
+    r->cut_count = k;
+    s->cut_used += k;
+    return true;
+}
+
+static pn_ias_stats *pixel_stats(ias_scratch *s, ias_pixel *px, int cls) {
+    if (!px->stats[cls]) {
+        if (s->pool_used >= IAS_MAX_PIXELS * IAS_CLASSES) return NULL;
+        px->stats[cls] = s->pixel_pool + (size_t)s->pool_used++ * (size_t)s->id_count;
+    }
+    return px->stats[cls];
+}
+
+/* One light evaluation through cluster id `id`: `value` is the luminance of the one-sample
+ * estimate of the chosen light's own contribution. For a tree node it is added to every node on
+ * the path from the light's leaf to the root as that node's contribution estimate, value divided
+ * by the light's probability within the node (power(light) / power(node)); distant lights and
+ * environment regions are clusters of their own. */
+static void record(const ias_shared *sh, pn_ias_stats *block, pn_ias_stats *pixel, int id, int light, double value,
+                   bool visible) {
+    if (id < sh->forest.node_count && light >= 0) {
+        int leaf = sh->forest.leaf_of_light[light];
+        double lp = (double)sh->forest.nodes[leaf].power;
+        for (int m = leaf; m >= 0; m = sh->forest.nodes[m].parent) {
+            double scale = lp > 0.0 ? (double)sh->forest.nodes[m].power / lp : 1.0;
+            pn_ias_stats_add(&block[m], value * scale, visible);
+            if (pixel) pn_ias_stats_add(&pixel[m], value * scale, visible);
+        }
+        return;
+    }
+    pn_ias_stats_add(&block[id], value, visible);
+    if (pixel) pn_ias_stats_add(&pixel[id], value, visible);
+}
+
+/* Eq. 6 for a region's point in pass j: fills s->pdf / s->cdf over its cut. */
+static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *block, const pn_ias_stats *pixel,
+                      int pass) {
+    double cu, cb, cp;
+    pn_ias_blend_weights(pass, &cu, &cb, &cp);
+    int nc = r->cut_count;
+    const int *cut = s->cut + r->cut_first;
+    double fb = 0.0, fp = 0.0;
+    for (int i = 0; i < nc; i++) {
+        fb += pn_ias_feedback(&block[cut[i]]);
+        if (pixel) fp += pn_ias_feedback(&pixel[cut[i]]);
+    }
+    /* A feedback PDF without data gives its weight to the uniform PDF. */
+    if (!(fb > 0.0)) {
+        cu += cb;
+        cb = 0.0;
+    }
+    if (!(fp > 0.0)) {
+        cu += cp;
+        cp = 0.0;
+    }
+    double acc = 0.0;
+    s->cdf[0] = 0.0;
+    for (int i = 0; i < nc; i++) {
+        double p = cu / (double)nc;
+        if (cb > 0.0) p += cb * pn_ias_feedback(&block[cut[i]]) / fb;
+        if (cp > 0.0) p += cp * pn_ias_feedback(&pixel[cut[i]]) / fp;
+        s->pdf[i] = p;
+        acc += p;
+        s->cdf[i + 1] = acc;
+    }
+    for (int i = 0; i <= nc; i++) s->cdf[i] /= acc;
+    for (int i = 0; i < nc; i++) s->pdf[i] /= acc;
+}
+
+static int choose(const double *cdf, int n, double u) {
+    int lo = 0, hi = n;
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (cdf[mid] <= u) lo = mid;
+        else hi = mid;
+    }
+    while (lo < n - 1 && !(cdf[lo + 1] > cdf[lo])) lo++; /* never a zero-probability entry */
+    return lo;
+}
+
+/* Eq. 7-8 over the pixel's passes. Weighting a pass by the inverse of its own sample variance
+ * biases the result low: with rare visible samples, a pass that happened to see less light also
+ * has a smaller sample variance and gets more weight (7% too dark on tests/test_ias.c's scene).
+ * So each half of a pass is weighted by the inverse variance estimated from the other half,
+ * which is independent of it. A variance of zero (all samples equal) is floored at
+ * (y_max / n)^2 / 4, the variance one sample of the largest value seen in the pixel would add. */
+static void combine_passes(const ias_pixel *px, double *L, double *s2, vec3 *rgb) {
+    double inv_sum = 0.0, lum = 0.0;
+    vec3 c = v3(0, 0, 0);
+    for (int j = 0; j < px->pass_count; j++) {
+        const ias_pass *p = &px->passes[j];
+        for (int h = 0; h < 2; h++) {
+            int o = 1 - h;
+            if (p->n[h] == 0 || p->n[o] == 0) continue;
+            double fl = px->y_max / (double)p->n[o];
+            double v = p->s2[o] > 0.25 * fl * fl ? p->s2[o] : 0.25 * fl * fl;
+            if (!(v > 0.0) || !isfinite(v)) v = 1e-300;
+            inv_sum += 1.0 / v;
+            lum += p->lum[h] / v;
+            c = v3_add(c, v3_scale(p->rgb[h], (float)(1.0 / v)));
+        }
+    }
+    if (inv_sum > 0.0) {
+        *s2 = 1.0 / inv_sum;
+        *L = lum * *s2;
+        *rgb = v3_scale(c, (float)*s2);
+    } else {
+        *s2 = INFINITY;
+        *L = 0.0;
+        *rgb = v3(0, 0, 0);
+    }
+}
+
+typedef struct sample_sums {
+    double sum[2], sum2[2];
+    vec3 rgb[2];
+    unsigned n[2];
+} sample_sums;
+
+/* Takes `count` shadow rays for pixel px with its regions' current PDFs (pass `pass`), adding
+ * the per-sample pixel estimates to acc and the light evaluations to the statistics. */
+static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px, int pass,
+                         unsigned count, uint32_t scramble, uint32_t *counter, sample_sums *acc, double *cluster_mean) {
+    double wsum = 0.0, ncl = 0.0;
+    for (int k = 0; k < px->region_count; k++) {
+        const ias_region *r = &s->regions[px->first_region + k];
+        wsum += r->weight;
+        ncl += r->weight * (double)r->cut_count;
+    }
+    if (cluster_mean) *cluster_mean = wsum > 0.0 ? ncl / wsum : 0.0;
+    if (!(wsum > 0.0)) return;
+    /* Samples to regions by area: floor shares, the rest to the largest remainders. */
+    unsigned given = 0;
+    unsigned n_of[IAS_MAX_PIXELS * 8];
+    int rc = px->region_count < IAS_MAX_PIXELS * 8 ? px->region_count : IAS_MAX_PIXELS * 8;
+    for (int k = 0; k < rc; k++) {
+        const ias_region *r = &s->regions[px->first_region + k];
+        n_of[k] = r->cut_count > 0 ? (unsigned)floor((double)count * r->weight / wsum) : 0u;
+        given += n_of[k];
+    }
+    while (given < count) {
+        int best = -1;
+        double best_rem = -1.0;
+        for (int k = 0; k < rc; k++) {
+            const ias_region *r = &s->regions[px->first_region + k];
+            if (r->cut_count == 0) continue;
+            double rem = (double)count * r->weight / wsum - (double)n_of[k];
+            if (rem > best_rem) {
+                best_rem = rem;
+                best = k;
+            }
+        }
+        if (best < 0) break;
+        n_of[best]++;
+        given++;
+    }
+    if (given == 0) return;
+    for (int k = 0; k < rc; k++) {
+        if (n_of[k] == 0) continue;
+        ias_region *r = &s->regions[px->first_region + k];
+        pn_ias_stats *block = s->block_stats + (size_t)r->cls * (size_t)s->id_count;
+        s->block_class_used[r->cls] = true;
+        pn_ias_stats *pix = pixel_stats(s, px, r->cls);
+        build_pdf(s, r, block, pix, pass);
+        const int *cut = s->cut + r->cut_first;
+        /* This region's samples stand for its share `weight` of the pixel's eye rays (the rest
+         * saw no shadable surface); scale so that the mean over all the pixel's samples of this
+         * pass is the area-weighted estimate. */
+        double region_scale = r->weight * (double)given / (double)n_of[k];
+        pn_light_sample_cache cache = {0};
+        for (unsigned i = 0; i < n_of[k]; i++) {
+            uint32_t q = (*counter)++;
+            double u = ((double)i + (double)pn_sobol_sample(q, 5, scramble)) / (double)n_of[k];
+            int c = choose(s->cdf, r->cut_count, u);
+            int id = cut[c];
+            double p_cluster = s->pdf[c];
+            float u1 = pn_sobol_sample(q, 7, scramble), u2 = pn_sobol_sample(q, 8, scramble);
+            int light = -1;
+            double p_light = 1.0;
+            vec3 wi, radiance;
+            float pdf, dist;
+            bool ok;
+            if (id < sh->forest.node_count) {
+                float pl;
+                light = pn_cluster_pick(&sh->forest, job->lights, id, pn_sobol_sample(q, 6, scramble), &pl);
+                p_light = (double)pl;
+                pn_light_sample ls;
+                ok = light >= 0 && pl > 0.0f &&
+                     pn_light_sample_point_cached(job->lights, &job->lights->lights[light], r->origin, u1, u2, &cache,
+                                                  &ls);
+                wi = ls.wi;
+                radiance = ls.radiance;
+                pdf = ls.pdf;
+                dist = ls.dist;
+            } else {
+                int e = 0;
+                while (e + 1 < sh->env_count && id >= sh->env_base[e + 1]) e++;
+                const pn_env *env = &job->lights->envs[job->lights->lights[sh->env_light[e]].env];
+                ok = pn_env_region_sample(&sh->env[e], env, id - sh->env_base[e], u1, u2, &wi, &radiance, &pdf);
+                dist = INFINITY;
+            }
+            vec3 v = v3(0, 0, 0);
+            bool visible = false;
+            if (ok && pdf > 0.0f) {
+                vec3 f = pn_bsdf_eval(&r->bsdf, r->wo, wi);
+                float cos_i = v3_dot(r->bsdf.ns, wi);
+                if (!v3_is_zero(f) && cos_i > 0.0f) {
+                    px->shadow_rays++;
+                    float tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-4f) - r->eps;
+                    visible = !pn_accel_occluded(job->accel, r->origin, wi, 0.0f, tmax);
+                    if (visible) {
+                        px->visible++;
+                        v = v3_scale(v3_mul(v3_mul(f, radiance), r->throughput), cos_i / pdf);
+                    }
+                }
+            }
+            /* Statistics: the cluster's contribution estimate (eq. 3), visibility. */
+            double lum_v = (double)v3_luminance(v);
+            record(sh, block, pix, id, light, lum_v, visible);
+            /* The pixel estimate of this sample (eq. 2 with this pass's PDF). */
+            double w = region_scale / (p_cluster * p_light);
+            vec3 y = v3_scale(v, (float)w);
+            double ly = lum_v * w;
+            int half = (int)((acc->n[0] + acc->n[1]) & 1u);
+            acc->sum[half] += ly;
+            acc->sum2[half] += ly * ly;
+            acc->rgb[half] = v3_add(acc->rgb[half], y);
+            acc->n[half]++;
+            if (ly > px->y_max) px->y_max = ly;
+        }
+    }
+}
+
+static void store_pass(ias_pixel *px, const sample_sums *a) {
+    if (a->n[0] + a->n[1] == 0 || px->pass_count >= IAS_MAX_PASSES_STORED) return;
+    ias_pass *p = &px->passes[px->pass_count++];
+    for (int h = 0; h < 2; h++) {
+        double n = (double)a->n[h];
+        p->n[h] = a->n[h];
+        p->lum[h] = n > 0.0 ? a->sum[h] / n : 0.0;
+        p->rgb[h] = n > 0.0 ? v3_scale(a->rgb[h], (float)(1.0 / n)) : v3(0, 0, 0);
+        p->s2[h] = n > 1.0 ? fmax(0.0, (a->sum2[h] - a->sum[h] * a->sum[h] / n) / (n - 1.0)) / n : (double)INFINITY;
+    }
+}
+
+/* ---- a block --------------------------------------------------------------------------------- */
+
+static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                                  void *scratch) {
+    const ias_shared *sh = job->integrator_data;
+    ias_scratch *s = scratch;
+    const uint32_t scramble =
+        (uint32_t)pn_hash3(job->seed ^ 0x1a5ull, (uint64_t)(uint32_t)batch->block_x, (uint64_t)(uint32_t)batch->block_y);
+    s->region_count = 0;
+    s->cut_used = 0;
+    s->pool_used = 0;
+    memset(s->block_class_used, 0, sizeof s->block_class_used);
+    const int np = batch->count < IAS_MAX_PIXELS ? batch->count : IAS_MAX_PIXELS;
+    const float pixel_angle = 2.0f * job->camera.tan_half_fov /
+                              (float)(job->camera.full_width < job->camera.full_height ? job->camera.full_width
+                                                                                       : job->camera.full_height);
+    uint32_t eye_index = 0;
+
+    /* Points and antialiasing regions (§4.4). */
+    for (int pi = 0; pi < np; pi++) {
+        ias_pixel *px = &s->pixels[pi];
+        memset(px, 0, offsetof(ias_pixel, stats));
+        memset(px->stats, 0, sizeof px->stats);
+        px->first_region = s->region_count;
+        int x = batch->pixels[pi][0], y = batch->pixels[pi][1];
+        memset(&out[pi], 0, sizeof out[pi]);
+        out[pi].depth = INFINITY;
+        vec3 emitted = v3(0, 0, 0);
+        for (uint32_t r = 0; r < job->aa_rays; r++) {
+            uint32_t i = eye_index++;
+            float rx, ry, fw;
+            pn_camera_filter_sample(&job->camera, x, y, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble),
+                                    &rx, &ry, &fw);
+            vec3 ro, rd;
+            pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro,
+                          &rd);
+            pn_eye_path path;
+            pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+            if (r == 0) {
+                out[pi].depth = path.first_depth;
+                out[pi].normal = path.first_normal;
+                out[pi].albedo = path.first_albedo;
+            }
+            out[pi].specular_rays += path.rays - 1;
+            emitted = v3_madd(emitted, path.emitted, fw);
+            px->weight_sum += (double)fw;
+            if (!path.has_point) continue;
+            pn_bsdf b;
+            pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+            /* Join a region of this pixel: same material, same plane, within its radius. */
+            ias_region *join = NULL;
+            for (int k = 0; k < px->region_count; k++) {
+                ias_region *g = &s->regions[px->first_region + k];
+                if (g->hit.material != path.hit.material) continue;
+                if (v3_dot(g->bsdf.ng, b.ng) < 0.999f) continue;
+                vec3 d = v3_sub(path.hit.p, g->hit.p);
+                if (fabsf(v3_dot(d, g->bsdf.ng)) > 4.0f * g->eps) continue;
+                if (v3_length(d) > g->radius) continue;
+                join = g;
+                break;
+            }
+            if (join) {
+                join->weight += (double)fw;
+                join->rays++;
+                continue;
+            }
+            ias_region *g;
+            if (!push_region(s, &g)) return PN_ERROR_OUT_OF_MEMORY;
+            memset(g, 0, sizeof *g);
+            g->pixel = pi;
+            g->hit = path.hit;
+            g->wo = path.wo;
+            g->throughput = path.throughput;
+            g->bsdf = b;
+            g->eps = pn_accel_ray_epsilon(job->accel, path.hit.p);
+            g->origin = v3_madd(path.hit.p, b.ng, g->eps);
+            /* A quarter of the pixel radius at this distance (the first hit's, through mirrors). */
+            g->radius = 0.25f * 0.5f * pixel_angle * (isfinite(path.first_depth) ? path.first_depth : path.hit.t);
+            g->cls = normal_class(b.ng);
+            g->weight = (double)fw;
+            g->rays = 1;
+            px->region_count++;
+        }
+        px->emitted = px->weight_sum != 0.0 ? v3_scale(emitted, (float)(1.0 / px->weight_sum)) : v3(0, 0, 0);
+        /* Region weights as shares of the pixel. */
+        for (int k = 0; k < px->region_count; k++) {
+            ias_region *g = &s->regions[px->first_region + k];
+            g->weight = px->weight_sum != 0.0 ? g->weight / px->weight_sum : 0.0;
+            if (!compute_cut(job, sh, s, g)) return PN_ERROR_OUT_OF_MEMORY;
+        }
+        out[pi].eye_rays = job->aa_rays;
+        out[pi].aa_regions = (uint32_t)px->region_count;
+        bool any_cluster = false;
+        for (int k = 0; k < px->region_count; k++) any_cluster |= s->regions[px->first_region + k].cut_count > 0;
+        if (!any_cluster) { /* nothing can light this pixel: only what its eye rays saw */
+            px->done = true;
+            px->result = px->emitted;
+        }
+    }
+
+    /* Passes (§4.1, §4.2, §5.8, §5.9). */
+    uint32_t counter = 0;
+    for (int pass = 0; pass < (int)job->max_passes; pass++) {
+        bool any = false;
+        for (int pi = 0; pi < np; pi++) {
+            ias_pixel *px = &s->pixels[pi];
+            if (px->done) continue;
+            any = true;
+            double ncl = 0.0;
+            sample_sums acc = {0};
+            /* N_C first (the weighted mean cut size), then 1.5 N_C samples, at least 50. */
+            sample_pixel(job, sh, s, px, pass, 0, scramble, &counter, &acc, &ncl);
+            unsigned count = (unsigned)ceil(1.5 * ncl);
+            if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
+            px->clusters = ncl;
+            sample_pixel(job, sh, s, px, pass, count, scramble, &counter, &acc, NULL);
+            store_pass(px, &acc);
+            double L, s2;
+            vec3 rgb;
+            combine_passes(px, &L, &s2, &rgb);
+            double Lt = L + (double)v3_luminance(px->emitted);
+            /* Close to the target (within 2x): more samples with the same PDFs, in steps of 25
+             * (§5.8). How many steps is decided once, from the variance falling as 1/n, instead of
+             * testing after every step: stopping the moment a noisy estimate first dips below the
+             * target made the image 5% too dark on tests/test_ias.c's scene (termination bias). */
+            if (Lt > 0.0 && s2 >= job->threshold * Lt * Lt && s2 < 2.0 * job->threshold * Lt * Lt) {
+                unsigned n_pass = acc.n[0] + acc.n[1];
+                double needed = (double)n_pass * (s2 / (job->threshold * Lt * Lt) - 1.0);
+                unsigned steps = (unsigned)ceil(needed / IAS_STEP_SAMPLES);
+                if (steps > IAS_MAX_STEPS) steps = IAS_MAX_STEPS;
+                if (steps > 0) {
+                    px->pass_count--; /* extend this pass */
+                    sample_pixel(job, sh, s, px, pass, steps * IAS_STEP_SAMPLES, scramble, &counter, &acc, NULL);
+                    store_pass(px, &acc);
+                    combine_passes(px, &L, &s2, &rgb);
+                    Lt = L + (double)v3_luminance(px->emitted);
+                }
+            }
+            bool converged = Lt > 0.0 && s2 < job->threshold * Lt * Lt;
+            bool black = px->visible == 0 && pass + 1 >= IAS_BLACK_PASSES && px->shadow_rays >= IAS_BLACK_RAYS;
+            if (black) rgb = v3(0, 0, 0);
+            if (converged || black || pass + 1 >= (int)job->max_passes || atomic_load(job->cancel)) {
+                px->done = true;
+                px->result = v3_add(px->emitted, rgb);
+            } else {
+                px->result = v3_add(px->emitted, rgb);
+            }
+        }
+        if (!any) break;
+    }
+
+    for (int pi = 0; pi < np; pi++) {
+        ias_pixel *px = &s->pixels[pi];
+        out[pi].radiance = v3_is_finite(px->result) ? px->result : v3(0, 0, 0);
+        out[pi].shadow_rays = px->shadow_rays;
+        out[pi].passes = (uint32_t)px->pass_count;
+        out[pi].clusters = (float)px->clusters;
+        out[pi].visible_fraction = px->shadow_rays ? (float)px->visible / (float)px->shadow_rays : 0.0f;
+        double L, s2;
+        vec3 rgb;
+        combine_passes(px, &L, &s2, &rgb);
+        double Lt = L + (double)v3_luminance(px->emitted);
+        out[pi].relative_variance = Lt > 0.0 && isfinite(s2) ? (float)(s2 / (Lt * Lt)) : 0.0f;
+    }
+    /* Block and pixel data are cleared when the block ends (§3.2). */
+    for (int c = 0; c < IAS_CLASSES; c++)
+        if (s->block_class_used[c])
+            memset(s->block_stats + (size_t)c * (size_t)s->id_count, 0, (size_t)s->id_count * sizeof *s->block_stats);
+    memset(s->pixel_pool, 0, (size_t)s->pool_used * (size_t)s->id_count * sizeof *s->pixel_pool);
+    return PN_OK;
+}
+
+const pn_integrator pn_integrator_ias = {
+    "ias", ias_prepare, ias_release, ias_scratch_create, ias_scratch_free, ias_render_batch,
+};

@@ -1,0 +1,946 @@
+/* cluster_tree.c — light cluster hierarchies of Donikian et al. 2006, "Iterative Adaptive
+ * Sampling for Accurate Direct Illumination", §4.3 / §4.3.1, and the per-point cut of §4.3.
+ *
+ * Construction (§4.3.1: "a greedy bottom up algorithm ... progressively pairing clusters together
+ * starting with the pair that has the smallest bounding sphere"), done exactly but fast:
+ *
+ *   cost(A, B) = radius of the smallest sphere enclosing A's and B's spheres
+ *              = max(rA, rB, (|cA - cB| + rA + rB) / 2).
+ *
+ * The cost is "reducible": the merged sphere of A and B contains both, so any sphere enclosing
+ * it and C also encloses A and C, hence cost(A+B, C) >= min(cost(A, C), cost(B, C)). So a merge
+ * never gives any other cluster a partner cheaper than the one it had. Every live cluster keeps
+ * its nearest partner (by cost) in a binary heap of (cost, cluster, partner) entries; the heap
+ * minimum is the globally cheapest pair. Entries are invalidated lazily: when popped, an entry of
+ * a dead cluster is dropped, and an entry whose partner has died is re-queried and pushed again
+ * (by reducibility its old cost is a lower bound of the new one, so the heap order stays valid).
+ *
+ * Nearest-partner queries run on a k-d tree over the live clusters' centres (median splits,
+ * leaves of <= 8 at build time), each node with the box of its centres, the smallest radius below
+ * it and a live count; a subtree is pruned when max(rC, rmin, (dist(cC, box) + rC + rmin) / 2)
+ * exceeds the best cost found, and a candidate when a float bound of its cost does. Merged
+ * clusters are inserted by descending the split planes (growing the boxes on the way; each k-d
+ * leaf keeps a linked list), dead ones unlinked; the tree is rebuilt whenever the live count has
+ * halved, so boxes and radii stay tight and the total rebuild work is O(n log n).
+ *
+ * After the merges, light_order is laid out depth-first so each subtree's lights are contiguous,
+ * and node aggregates (power, bounding box, normal cone with emission spread) are filled bottom-up.
+ */
+#include "lights/cluster_tree.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define PN_CLUSTER_KD_LEAF 8
+#define PN_CLUSTER_KD_STACK 128
+/* Slack on the k-d tree's lower bound, so float rounding never prunes the true nearest. */
+#define PN_CLUSTER_PRUNE_SLACK 1e-5f
+/* Angular margin (radians) of the conservative facing-away test of interior nodes. */
+#define PN_CLUSTER_ANGLE_MARGIN 1e-4f
+
+/* ---------------------------------------------------------------- per-light quantities */
+
+float pn_cluster_light_power(const pn_light *l) {
+    float lum = fmaxf(v3_luminance(l->emit), 0.0f); /* fmaxf also turns NaN into 0 */
+    switch (l->kind) {
+    case PN_LIGHT_POINT:
+    case PN_LIGHT_GONIOMETRIC:
+        return 4.0f * PN_PI * lum;
+    case PN_LIGHT_SPOT: {
+        float f = 1.0f - 0.5f * (l->cos_falloff_start + l->cos_total_width);
+        return 2.0f * PN_PI * lum * fmaxf(f, 0.0f);
+    }
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_RECTANGLE:
+    case PN_LIGHT_DISK:
+        return PN_PI * lum * fmaxf(l->area, 0.0f) * (l->two_sided ? 2.0f : 1.0f);
+    case PN_LIGHT_SPHERE:
+        return PN_PI * lum * 4.0f * PN_PI * l->radius * l->radius;
+    case PN_LIGHT_DISTANT:
+        return lum;
+    default:
+        return 0.0f;
+    }
+}
+
+static int dominant_tree(vec3 d) {
+    float ax = fabsf(d.x), ay = fabsf(d.y), az = fabsf(d.z);
+    if (ax >= ay && ax >= az) return d.x >= 0.0f ? PN_TREE_POS_X : PN_TREE_NEG_X;
+    if (ay >= az) return d.y >= 0.0f ? PN_TREE_POS_Y : PN_TREE_NEG_Y;
+    return d.z >= 0.0f ? PN_TREE_POS_Z : PN_TREE_NEG_Z;
+}
+
+int pn_cluster_light_tree(const pn_light *l) {
+    switch (l->kind) {
+    case PN_LIGHT_POINT:
+    case PN_LIGHT_SPHERE:
+    case PN_LIGHT_GONIOMETRIC:
+        return PN_TREE_OMNI;
+    case PN_LIGHT_SPOT:
+        return dominant_tree(l->n);
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_RECTANGLE:
+    case PN_LIGHT_DISK:
+        return l->two_sided ? PN_TREE_OMNI : dominant_tree(l->n);
+    case PN_LIGHT_DISTANT:
+        return PN_CLUSTER_SINGLE;
+    default:
+        return PN_CLUSTER_EXCLUDED;
+    }
+}
+
+/* The float at or above x. */
+static float round_up(double x) {
+    float f = (float)x;
+    if ((double)f < x) f = nextafterf(f, INFINITY);
+    return f;
+}
+
+static double dist_d(vec3 a, vec3 b) {
+    double dx = (double)a.x - (double)b.x, dy = (double)a.y - (double)b.y, dz = (double)a.z - (double)b.z;
+    return sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+/* Vertices of a triangle or rectangle light; returns their number. */
+static int planar_vertices(const pn_light *l, vec3 v[4]) {
+    v[0] = l->p;
+    v[1] = v3_add(l->p, l->e1);
+    v[2] = v3_add(l->p, l->e2);
+    if (l->kind == PN_LIGHT_TRIANGLE) return 3;
+    v[3] = v3_add(v3_add(l->p, l->e1), l->e2);
+    return 4;
+}
+
+void pn_cluster_light_sphere(const pn_light *l, vec3 *center, float *radius) {
+    switch (l->kind) {
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_RECTANGLE: {
+        vec3 v[4];
+        int k = planar_vertices(l, v);
+        double s[3] = {0.0, 0.0, 0.0};
+        for (int i = 0; i < k; i++) {
+            s[0] += (double)v[i].x;
+            s[1] += (double)v[i].y;
+            s[2] += (double)v[i].z;
+        }
+        vec3 c = v3((float)(s[0] / k), (float)(s[1] / k), (float)(s[2] / k));
+        double r = 0.0;
+        for (int i = 0; i < k; i++) r = fmax(r, dist_d(c, v[i]));
+        *center = c;
+        *radius = round_up(r);
+        return;
+    }
+    case PN_LIGHT_DISK:
+    case PN_LIGHT_SPHERE:
+        *center = l->p;
+        *radius = fmaxf(l->radius, 0.0f);
+        return;
+    case PN_LIGHT_DISTANT:
+        *center = l->n;
+        *radius = 0.0f;
+        return;
+    default:
+        *center = l->p;
+        *radius = 0.0f;
+        return;
+    }
+}
+
+static void light_box(const pn_light *l, vec3 *lo, vec3 *hi) {
+    switch (l->kind) {
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_RECTANGLE: {
+        vec3 v[4];
+        int k = planar_vertices(l, v);
+        *lo = *hi = v[0];
+        for (int i = 1; i < k; i++) {
+            *lo = v3_min(*lo, v[i]);
+            *hi = v3_max(*hi, v[i]);
+        }
+        return;
+    }
+    case PN_LIGHT_DISK: {
+        /* A disk's extent along axis i is r sqrt(1 - n_i^2). */
+        vec3 e = v3(l->radius * sqrtf(fmaxf(0.0f, 1.0f - l->n.x * l->n.x)),
+                    l->radius * sqrtf(fmaxf(0.0f, 1.0f - l->n.y * l->n.y)),
+                    l->radius * sqrtf(fmaxf(0.0f, 1.0f - l->n.z * l->n.z)));
+        e = v3_scale(e, 1.0f + 1e-6f);
+        *lo = v3_sub(l->p, e);
+        *hi = v3_add(l->p, e);
+        return;
+    }
+    case PN_LIGHT_SPHERE: {
+        vec3 e = v3(l->radius, l->radius, l->radius);
+        *lo = v3_sub(l->p, e);
+        *hi = v3_add(l->p, e);
+        return;
+    }
+    default:
+        *lo = *hi = l->p;
+        return;
+    }
+}
+
+/* Lexicographic order of spheres, so merging is symmetric bit for bit. */
+static bool sphere_before(vec3 a, float ra, vec3 b, float rb) {
+    if (ra != rb) return ra < rb;
+    if (a.x != b.x) return a.x < b.x;
+    if (a.y != b.y) return a.y < b.y;
+    return a.z < b.z;
+}
+
+void pn_cluster_merge_spheres(vec3 c1, float r1, vec3 c2, float r2, vec3 *center, float *radius) {
+    if (sphere_before(c2, r2, c1, r1)) {
+        vec3 tc = c1;
+        float tr = r1;
+        c1 = c2;
+        r1 = r2;
+        c2 = tc;
+        r2 = tr;
+    }
+    double d = dist_d(c1, c2);
+    if (d + (double)r2 <= (double)r1) {
+        *center = c1;
+        *radius = r1;
+        return;
+    }
+    if (d + (double)r1 <= (double)r2) {
+        *center = c2;
+        *radius = r2;
+        return;
+    }
+    double r = 0.5 * (d + (double)r1 + (double)r2);
+    double t = (r - (double)r1) / d; /* d > 0 here: with d = 0 one sphere contains the other */
+    vec3 c = v3((float)((double)c1.x + t * ((double)c2.x - (double)c1.x)),
+                (float)((double)c1.y + t * ((double)c2.y - (double)c1.y)),
+                (float)((double)c1.z + t * ((double)c2.z - (double)c1.z)));
+    /* The centre was rounded: make sure the sphere still holds both children. */
+    r = fmax(r, fmax(dist_d(c, c1) + (double)r1, dist_d(c, c2) + (double)r2));
+    *center = c;
+    *radius = round_up(r);
+}
+
+float pn_cluster_solid_angle(vec3 center, float radius, vec3 p) {
+    float d2 = v3_length2(v3_sub(center, p));
+    float r2 = radius * radius;
+    if (d2 <= r2) return 4.0f * PN_PI;
+    float x = r2 / d2;
+    /* 2 pi (1 - sqrt(1 - x)) without the cancellation for small x */
+    return 2.0f * PN_PI * x / (1.0f + sqrtf(1.0f - x));
+}
+
+bool pn_cluster_light_culled(const pn_light *l, vec3 p, vec3 n) {
+    bool horizon = !v3_is_zero(n);
+    switch (l->kind) {
+    case PN_LIGHT_POINT:
+    case PN_LIGHT_GONIOMETRIC:
+        return horizon && v3_dot(v3_sub(l->p, p), n) <= 0.0f;
+    case PN_LIGHT_SPOT: {
+        vec3 d = v3_sub(p, l->p);
+        float d2 = v3_length2(d);
+        if (!(d2 > 0.0f)) return true;
+        if (horizon && v3_dot(d, n) >= 0.0f) return true;
+        return v3_dot(d, l->n) <= l->cos_total_width * sqrtf(d2);
+    }
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_RECTANGLE: {
+        if (!l->two_sided && v3_dot(v3_sub(p, l->p), l->n) <= 0.0f) return true;
+        if (!horizon) return false;
+        vec3 v[4];
+        int k = planar_vertices(l, v);
+        for (int i = 0; i < k; i++)
+            if (v3_dot(v3_sub(v[i], p), n) > 0.0f) return false;
+        return true;
+    }
+    case PN_LIGHT_DISK: {
+        if (!l->two_sided && v3_dot(v3_sub(p, l->p), l->n) <= 0.0f) return true;
+        if (!horizon) return false;
+        float c = v3_dot(l->n, n);
+        float ext = l->radius * sqrtf(fmaxf(0.0f, 1.0f - c * c));
+        return v3_dot(v3_sub(l->p, p), n) + ext <= 0.0f;
+    }
+    case PN_LIGHT_SPHERE:
+        return horizon && v3_dot(v3_sub(l->p, p), n) + l->radius <= 0.0f;
+    case PN_LIGHT_DISTANT:
+        return horizon && v3_dot(l->n, n) <= 0.0f;
+    default:
+        return false;
+    }
+}
+
+/* ---------------------------------------------------------------- normal cones */
+
+static float clamp_unit(float x) { return fminf(1.0f, fmaxf(-1.0f, x)); }
+
+static float angle_between(vec3 a, vec3 b) {
+    return atan2f(v3_length(v3_cross(a, b)), v3_dot(a, b));
+}
+
+/* The cosine of angle t, rounded so that acos of it is never below t. */
+static float cos_conservative(float t) {
+    return nextafterf(nextafterf(cosf(t), -2.0f), -2.0f);
+}
+
+/* The smallest cone (as pbrt-v4's DirectionCone union) containing cones (wa, ca) and (wb, cb). */
+static void merge_cones(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c) {
+    if (ca <= -1.0f || cb <= -1.0f) {
+        *w = ca <= -1.0f ? wa : wb;
+        *c = -1.0f;
+        return;
+    }
+    float ta = acosf(clamp_unit(ca)), tb = acosf(clamp_unit(cb));
+    float td = angle_between(wa, wb);
+    if (fminf(td + tb, PN_PI) <= ta) {
+        *w = wa;
+        *c = ca;
+        return;
+    }
+    if (fminf(td + ta, PN_PI) <= tb) {
+        *w = wb;
+        *c = cb;
+        return;
+    }
+    float to = 0.5f * (ta + td + tb);
+    vec3 k = v3_cross(wa, wb);
+    if (to >= PN_PI || !(v3_length2(k) > 0.0f)) {
+        *w = wa;
+        *c = -1.0f;
+        return;
+    }
+    /* Rotate wa towards wb by to - ta about k (Rodrigues; k is orthogonal to wa). */
+    k = v3_normalize(k);
+    float tr = to - ta;
+    vec3 r = v3_add(v3_scale(wa, cosf(tr)), v3_scale(v3_cross(k, wa), sinf(tr)));
+    *w = v3_normalize(r);
+    *c = cos_conservative(to);
+}
+
+/* ---------------------------------------------------------------- greedy construction */
+
+/* Plain max/min (no NaN rules, so they compile to single instructions in the hot loops). */
+static inline float max_f(float a, float b) { return a > b ? a : b; }
+static inline float min_f(float a, float b) { return a < b ? a : b; }
+
+typedef struct pn_kd_node {
+    vec3 lo, hi;       /* box of the centres below (grows with insertions) */
+    float rmin;        /* smallest radius ever below */
+    int left, right;   /* -1 for a k-d leaf */
+    int parent;
+    int alive;         /* live clusters below */
+    int axis;          /* split: left when centre[axis] < split */
+    float split;
+    int head;          /* leaf: first cluster of its list */
+} pn_kd_node;
+
+typedef struct pn_heap_entry {
+    float cost;
+    int a, b;
+    unsigned stamp;
+} pn_heap_entry;
+
+typedef struct pn_builder {
+    pn_cluster_node *nodes;
+    unsigned char *alive;  /* per forest node */
+    int *slot;             /* per forest node: its k-d leaf, or -1 */
+    int *next_item, *prev_item; /* per forest node: the doubly linked list of its k-d leaf */
+    unsigned *stamp;       /* per forest node: bumped when its heap entry is replaced */
+    pn_kd_node *kd;
+    int kd_count, kd_root;
+    int *items;            /* scratch for building the k-d tree */
+    int alive_count, rebuild_below;
+    pn_heap_entry *heap;
+    int heap_count, heap_cap;
+    bool out_of_memory;
+} pn_builder;
+
+static bool heap_less(const pn_heap_entry *x, const pn_heap_entry *y) {
+    if (x->cost != y->cost) return x->cost < y->cost;
+    if (x->a != y->a) return x->a < y->a;
+    return x->b < y->b;
+}
+
+static bool heap_push(pn_builder *b, pn_heap_entry e) {
+    if (b->heap_count == b->heap_cap) {
+        int cap = b->heap_cap ? 2 * b->heap_cap : 1024;
+        pn_heap_entry *h = realloc(b->heap, (size_t)cap * sizeof *h);
+        if (!h) {
+            b->out_of_memory = true;
+            return false;
+        }
+        b->heap = h;
+        b->heap_cap = cap;
+    }
+    int i = b->heap_count++;
+    while (i > 0) {
+        int parent = (i - 1) / 2;
+        if (!heap_less(&e, &b->heap[parent])) break;
+        b->heap[i] = b->heap[parent];
+        i = parent;
+    }
+    b->heap[i] = e;
+    return true;
+}
+
+static pn_heap_entry heap_pop(pn_builder *b) {
+    pn_heap_entry top = b->heap[0];
+    pn_heap_entry last = b->heap[--b->heap_count];
+    int i = 0, count = b->heap_count;
+    for (;;) {
+        int c = 2 * i + 1;
+        if (c >= count) break;
+        if (c + 1 < count && heap_less(&b->heap[c + 1], &b->heap[c])) c++;
+        if (!heap_less(&b->heap[c], &last)) break;
+        b->heap[i] = b->heap[c];
+        i = c;
+    }
+    if (count > 0) b->heap[i] = last;
+    return top;
+}
+
+/* Moves the k-th smallest item (by centre coordinate `axis`) of items[0..n) to position k, with
+ * smaller or equal ones before it (three-way quickselect: many equal keys stay linear). */
+static void select_kth(int *items, int n, int k, const pn_cluster_node *nodes, int axis) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        float pivot = v3_get(nodes[items[lo + (hi - lo) / 2]].center, axis);
+        int lt = lo, i = lo, gt = hi;
+        while (i <= gt) {
+            float v = v3_get(nodes[items[i]].center, axis);
+            if (v < pivot) {
+                int t = items[lt];
+                items[lt++] = items[i];
+                items[i++] = t;
+            } else if (v > pivot) {
+                int t = items[gt];
+                items[gt--] = items[i];
+                items[i] = t;
+            } else {
+                i++;
+            }
+        }
+        if (k < lt) hi = lt - 1;
+        else if (k > gt) lo = gt + 1;
+        else return;
+    }
+}
+
+static int kd_build(pn_builder *b, int begin, int end, int parent) {
+    int id = b->kd_count++;
+    pn_kd_node *kn = &b->kd[id];
+    kn->parent = parent;
+    kn->alive = end - begin;
+    kn->left = kn->right = kn->head = -1;
+    kn->axis = 0;
+    kn->split = 0.0f;
+    const pn_cluster_node *first = &b->nodes[b->items[begin]];
+    kn->lo = kn->hi = first->center;
+    kn->rmin = first->radius;
+    for (int i = begin + 1; i < end; i++) {
+        const pn_cluster_node *c = &b->nodes[b->items[i]];
+        kn->lo = v3_min(kn->lo, c->center);
+        kn->hi = v3_max(kn->hi, c->center);
+        kn->rmin = min_f(kn->rmin, c->radius);
+    }
+    if (end - begin <= PN_CLUSTER_KD_LEAF) {
+        int prev = -1;
+        for (int i = begin; i < end; i++) {
+            int c = b->items[i];
+            b->slot[c] = id;
+            b->prev_item[c] = prev;
+            b->next_item[c] = -1;
+            if (prev >= 0) b->next_item[prev] = c;
+            else kn->head = c;
+            prev = c;
+        }
+        return id;
+    }
+    vec3 ext = v3_sub(kn->hi, kn->lo);
+    int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+    int mid = begin + (end - begin) / 2;
+    select_kth(b->items + begin, end - begin, mid - begin, b->nodes, axis);
+    float split = v3_get(b->nodes[b->items[mid]].center, axis);
+    int left = kd_build(b, begin, mid, id);
+    int right = kd_build(b, mid, end, id);
+    kn = &b->kd[id];
+    kn->left = left;
+    kn->right = right;
+    kn->axis = axis;
+    kn->split = split;
+    return id;
+}
+
+/* Rebuilds the k-d tree over the live clusters among nodes[base .. end): tight boxes and radii
+ * again, and a depth that follows the shrinking count. */
+static void kd_rebuild(pn_builder *b, int base, int end) {
+    int n = 0;
+    for (int i = base; i < end; i++)
+        if (b->alive[i]) b->items[n++] = i;
+    b->kd_count = 0;
+    b->kd_root = kd_build(b, 0, n, -1);
+    b->rebuild_below = n / 2;
+}
+
+static void kd_insert(pn_builder *b, int c) {
+    const pn_cluster_node *nd = &b->nodes[c];
+    int k = b->kd_root;
+    for (;;) {
+        pn_kd_node *kn = &b->kd[k];
+        kn->lo = v3_min(kn->lo, nd->center);
+        kn->hi = v3_max(kn->hi, nd->center);
+        kn->rmin = min_f(kn->rmin, nd->radius);
+        kn->alive++;
+        if (kn->left < 0) break;
+        k = v3_get(nd->center, kn->axis) < kn->split ? kn->left : kn->right;
+    }
+    pn_kd_node *leaf = &b->kd[k];
+    b->slot[c] = k;
+    b->prev_item[c] = -1;
+    b->next_item[c] = leaf->head;
+    if (leaf->head >= 0) b->prev_item[leaf->head] = c;
+    leaf->head = c;
+    b->alive[c] = 1;
+}
+
+static void kd_remove(pn_builder *b, int c) {
+    int s = b->slot[c];
+    int prev = b->prev_item[c], next = b->next_item[c];
+    if (prev >= 0) b->next_item[prev] = next;
+    else b->kd[s].head = next;
+    if (next >= 0) b->prev_item[next] = prev;
+    for (int k = s; k >= 0; k = b->kd[k].parent) b->kd[k].alive--;
+    b->slot[c] = -1;
+    b->alive[c] = 0;
+}
+
+/* A float lower bound of the merge cost (up to rounding), to skip the exact evaluation. */
+static float cost_bound(const pn_cluster_node *x, const pn_cluster_node *y) {
+    float d = v3_length(v3_sub(x->center, y->center));
+    return max_f(max_f(x->radius, y->radius), 0.5f * (d + x->radius + y->radius));
+}
+
+static float merge_cost(const pn_cluster_node *x, const pn_cluster_node *y) {
+    vec3 c;
+    float r;
+    pn_cluster_merge_spheres(x->center, x->radius, y->center, y->radius, &c, &r);
+    return r;
+}
+
+/* The live cluster (other than c) whose merge with c has the smallest sphere; -1 if none. Ties
+ * go to the lower index. */
+static int nearest_partner(const pn_builder *b, int c, float *best_cost) {
+    const pn_cluster_node *q = &b->nodes[c];
+    float best = INFINITY;
+    int best_id = -1;
+    int stack[PN_CLUSTER_KD_STACK];
+    int top = 0;
+    stack[top++] = b->kd_root;
+    while (top > 0) {
+        const pn_kd_node *kn = &b->kd[stack[--top]];
+        if (kn->alive == 0) continue;
+        float dx = max_f(max_f(kn->lo.x - q->center.x, q->center.x - kn->hi.x), 0.0f);
+        float dy = max_f(max_f(kn->lo.y - q->center.y, q->center.y - kn->hi.y), 0.0f);
+        float dz = max_f(max_f(kn->lo.z - q->center.z, q->center.z - kn->hi.z), 0.0f);
+        float dbox = sqrtf(dx * dx + dy * dy + dz * dz);
+        float lb = max_f(max_f(q->radius, kn->rmin), 0.5f * (dbox + q->radius + kn->rmin));
+        if (lb * (1.0f - PN_CLUSTER_PRUNE_SLACK) > best) continue;
+        if (kn->left < 0) {
+            for (int j = kn->head; j >= 0; j = b->next_item[j]) {
+                if (j == c) continue;
+                const pn_cluster_node *cand = &b->nodes[j];
+                if (cost_bound(q, cand) * (1.0f - PN_CLUSTER_PRUNE_SLACK) > best) continue;
+                float cost = merge_cost(q, cand);
+                if (cost < best || (cost == best && j < best_id)) {
+                    best = cost;
+                    best_id = j;
+                }
+            }
+            continue;
+        }
+        /* Visit the child on the query's side of the split first (pushed last). */
+        bool left_first = v3_get(q->center, kn->axis) < kn->split;
+        if (top + 2 > PN_CLUSTER_KD_STACK) continue; /* cannot happen: depth ~ log2(n / 8) */
+        stack[top++] = left_first ? kn->right : kn->left;
+        stack[top++] = left_first ? kn->left : kn->right;
+    }
+    *best_cost = best;
+    return best_id;
+}
+
+static bool push_nearest(pn_builder *b, int c) {
+    float cost;
+    int partner = nearest_partner(b, c, &cost);
+    if (partner < 0) return true;
+    b->stamp[c]++;
+    pn_heap_entry e = {cost, c, partner, b->stamp[c]};
+    return heap_push(b, e);
+}
+
+/* Merges the leaves nodes[base .. base+m) into internal nodes nodes[base+m .. base+2m-1), in
+ * merge order; the root is the last. */
+static bool build_tree(pn_builder *b, int base, int m, int tree) {
+    if (m <= 1) return true;
+    b->heap_count = 0;
+    for (int i = 0; i < m; i++) b->alive[base + i] = 1;
+    b->alive_count = m;
+    kd_rebuild(b, base, base + m);
+    for (int i = 0; i < m; i++)
+        if (!push_nearest(b, base + i)) return false;
+    int next = base + m;
+    while (b->alive_count > 1 && b->heap_count > 0) {
+        pn_heap_entry e = heap_pop(b);
+        if (!b->alive[e.a] || e.stamp != b->stamp[e.a]) continue;
+        if (!b->alive[e.b]) {
+            if (!push_nearest(b, e.a)) return false;
+            continue;
+        }
+        pn_cluster_node *nd = &b->nodes[next];
+        const pn_cluster_node *na = &b->nodes[e.a], *nb = &b->nodes[e.b];
+        pn_cluster_merge_spheres(na->center, na->radius, nb->center, nb->radius, &nd->center, &nd->radius);
+        nd->left = e.a < e.b ? e.a : e.b;
+        nd->right = e.a < e.b ? e.b : e.a;
+        nd->parent = -1;
+        nd->light = -1;
+        nd->tree = tree;
+        b->nodes[e.a].parent = next;
+        b->nodes[e.b].parent = next;
+        kd_remove(b, e.a);
+        kd_remove(b, e.b);
+        b->alive_count--;
+        if (b->alive_count < b->rebuild_below) {
+            b->alive[next] = 1;
+            kd_rebuild(b, base, next + 1);
+        } else {
+            kd_insert(b, next);
+        }
+        if (!push_nearest(b, next)) return false;
+        next++;
+    }
+    return next == base + 2 * m - 1;
+}
+
+/* ---------------------------------------------------------------- forest */
+
+void pn_cluster_forest_free(pn_cluster_forest *f) {
+    if (!f) return;
+    free(f->nodes);
+    free(f->light_order);
+    free(f->leaf_of_light);
+    free(f->singles);
+    free(f->power_prefix);
+    memset(f, 0, sizeof *f);
+    for (int t = 0; t < PN_TREE_COUNT; t++) f->roots[t] = -1;
+}
+
+static void init_leaf(pn_cluster_node *nd, const pn_light *l, int light, int tree) {
+    memset(nd, 0, sizeof *nd);
+    nd->left = nd->right = nd->parent = -1;
+    nd->light = light;
+    nd->tree = tree;
+    pn_cluster_light_sphere(l, &nd->center, &nd->radius);
+    light_box(l, &nd->bmin, &nd->bmax);
+    nd->power = pn_cluster_light_power(l);
+    if (tree == PN_TREE_OMNI) {
+        nd->axis = v3(0.0f, 0.0f, 0.0f);
+        nd->cos_spread = -1.0f;
+        nd->cos_emit = -1.0f;
+    } else {
+        nd->axis = tree < 0 ? l->n : v3_normalize(l->n);
+        nd->cos_spread = 1.0f;
+        nd->cos_emit = l->kind == PN_LIGHT_SPOT ? clamp_unit(l->cos_total_width) : 0.0f;
+    }
+}
+
+pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *out, pn_err *err) {
+    memset(out, 0, sizeof *out);
+    for (int t = 0; t < PN_TREE_COUNT; t++) out->roots[t] = -1;
+    if (!lights || lights->count < 0)
+        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "cluster forest: no lights");
+    int n = lights->count;
+    int tree_size[PN_TREE_COUNT] = {0};
+    int singles = 0, max_m = 0;
+    for (int i = 0; i < n; i++) {
+        const pn_light *l = &lights->lights[i];
+        int t = pn_cluster_light_tree(l);
+        if (t >= 0) {
+            vec3 c;
+            float r;
+            pn_cluster_light_sphere(l, &c, &r);
+            if (!v3_is_finite(c) || !isfinite(r))
+                return pn_err_set(err, PN_ERROR_BAD_INPUT, "cluster forest: light %d has a non-finite extent", i);
+            tree_size[t]++;
+        } else if (t == PN_CLUSTER_SINGLE) {
+            singles++;
+        }
+    }
+    int base[PN_TREE_COUNT];
+    int total = 0, tree_lights = 0;
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        base[t] = total;
+        if (tree_size[t] > 0) total += 2 * tree_size[t] - 1;
+        tree_lights += tree_size[t];
+        if (tree_size[t] > max_m) max_m = tree_size[t];
+    }
+    int single_base = total;
+    total += singles;
+    int order_count = tree_lights + singles;
+
+    out->light_count = n;
+    out->node_count = total;
+    out->order_count = order_count;
+    out->single_count = singles;
+    out->nodes = calloc((size_t)(total > 0 ? total : 1), sizeof *out->nodes);
+    out->light_order = malloc((size_t)(order_count > 0 ? order_count : 1) * sizeof *out->light_order);
+    out->leaf_of_light = malloc((size_t)(n > 0 ? n : 1) * sizeof *out->leaf_of_light);
+    out->singles = malloc((size_t)(singles > 0 ? singles : 1) * sizeof *out->singles);
+    out->power_prefix = malloc((size_t)(order_count + 1) * sizeof *out->power_prefix);
+    pn_builder b;
+    memset(&b, 0, sizeof b);
+    b.nodes = out->nodes;
+    b.alive = calloc((size_t)(total > 0 ? total : 1), 1);
+    b.slot = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.slot);
+    b.stamp = calloc((size_t)(total > 0 ? total : 1), sizeof *b.stamp);
+    b.items = malloc((size_t)(max_m > 0 ? max_m : 1) * sizeof *b.items);
+    b.next_item = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.next_item);
+    b.prev_item = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.prev_item);
+    b.kd = malloc((size_t)(2 * max_m + 1) * sizeof *b.kd);
+    pn_status status = PN_OK;
+    if (!out->nodes || !out->light_order || !out->leaf_of_light || !out->singles || !out->power_prefix ||
+        !b.alive || !b.slot || !b.stamp || !b.items || !b.next_item || !b.prev_item || !b.kd) {
+        status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
+        goto done;
+    }
+    for (int i = 0; i < total; i++) b.slot[i] = -1;
+
+    /* Leaves, in light order within each tree; singles after all trees. */
+    int fill[PN_TREE_COUNT] = {0};
+    int single_fill = 0;
+    for (int i = 0; i < n; i++) {
+        const pn_light *l = &lights->lights[i];
+        int t = pn_cluster_light_tree(l);
+        out->leaf_of_light[i] = -1;
+        if (t >= 0) {
+            int idx = base[t] + fill[t]++;
+            init_leaf(&out->nodes[idx], l, i, t);
+            out->leaf_of_light[i] = idx;
+        } else if (t == PN_CLUSTER_SINGLE) {
+            int idx = single_base + single_fill;
+            init_leaf(&out->nodes[idx], l, i, -1);
+            out->singles[single_fill++] = idx;
+            out->leaf_of_light[i] = idx;
+        }
+    }
+
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        if (tree_size[t] == 0) continue;
+        if (!build_tree(&b, base[t], tree_size[t], t)) {
+            status = b.out_of_memory
+                         ? pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees")
+                         : pn_err_set(err, PN_ERROR_INTERNAL, "light cluster tree %d: construction failed", t);
+            goto done;
+        }
+        out->roots[t] = base[t] + 2 * tree_size[t] - 2;
+    }
+
+    /* Aggregates bottom-up: children always have smaller indices than their parent. */
+    {
+        double *pw = malloc((size_t)(total > 0 ? total : 1) * sizeof *pw);
+        if (!pw) {
+            status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
+            goto done;
+        }
+        for (int i = 0; i < total; i++) {
+            pn_cluster_node *nd = &out->nodes[i];
+            if (nd->left < 0) {
+                pw[i] = (double)nd->power;
+                nd->count = 1;
+                continue;
+            }
+            const pn_cluster_node *l = &out->nodes[nd->left], *r = &out->nodes[nd->right];
+            pw[i] = pw[nd->left] + pw[nd->right];
+            nd->power = (float)pw[i];
+            nd->count = l->count + r->count;
+            nd->bmin = v3_min(l->bmin, r->bmin);
+            nd->bmax = v3_max(l->bmax, r->bmax);
+            if (nd->tree == PN_TREE_OMNI) {
+                nd->axis = v3(0.0f, 0.0f, 0.0f);
+                nd->cos_spread = -1.0f;
+                nd->cos_emit = -1.0f;
+            } else {
+                merge_cones(l->axis, l->cos_spread, r->axis, r->cos_spread, &nd->axis, &nd->cos_spread);
+                nd->cos_emit = fminf(l->cos_emit, r->cos_emit);
+            }
+        }
+        free(pw);
+    }
+    /* Depth-first layout: each root's range, then parents before children (descending index). */
+    {
+        int offset = 0;
+        for (int t = 0; t < PN_TREE_COUNT; t++) {
+            if (out->roots[t] < 0) continue;
+            out->nodes[out->roots[t]].first = offset;
+            offset += out->nodes[out->roots[t]].count;
+        }
+        for (int i = single_base - 1; i >= 0; i--) {
+            const pn_cluster_node *nd = &out->nodes[i];
+            if (nd->left < 0) {
+                out->light_order[nd->first] = nd->light;
+                continue;
+            }
+            out->nodes[nd->left].first = nd->first;
+            out->nodes[nd->right].first = nd->first + out->nodes[nd->left].count;
+        }
+        for (int s = 0; s < singles; s++) {
+            pn_cluster_node *nd = &out->nodes[single_base + s];
+            nd->first = offset + s;
+            out->light_order[offset + s] = nd->light;
+        }
+        out->power_prefix[0] = 0.0;
+        for (int i = 0; i < order_count; i++)
+            out->power_prefix[i + 1] =
+                out->power_prefix[i] + (double)pn_cluster_light_power(&lights->lights[out->light_order[i]]);
+    }
+
+done:
+    free(b.alive);
+    free(b.slot);
+    free(b.stamp);
+    free(b.items);
+    free(b.next_item);
+    free(b.prev_item);
+    free(b.kd);
+    free(b.heap);
+    if (status != PN_OK) pn_cluster_forest_free(out);
+    return status;
+}
+
+/* ---------------------------------------------------------------- cut */
+
+/* Conservative: true only if no light below interior node nd can light p. */
+static bool node_culled(const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon) {
+    vec3 pc = v3_sub(nd->center, p);
+    if (horizon) {
+        /* Below the tangent plane: the sphere, or the box (tighter for flat groups of lights). */
+        float s = v3_dot(pc, n);
+        if (s + nd->radius < -1e-5f * (fabsf(s) + nd->radius)) return true;
+        vec3 bc = v3_scale(v3_add(nd->bmin, nd->bmax), 0.5f), he = v3_scale(v3_sub(nd->bmax, nd->bmin), 0.5f);
+        float sb = v3_dot(v3_sub(bc, p), n);
+        float reach = fabsf(n.x) * he.x + fabsf(n.y) * he.y + fabsf(n.z) * he.z;
+        if (sb + reach < -1e-5f * (fabsf(sb) + reach)) return true;
+    }
+    if (nd->cos_spread > -1.0f && nd->cos_emit > -1.0f) {
+        float d = v3_length(pc);
+        if (d > nd->radius * (1.0f + 1e-5f) && d > 0.0f) {
+            /* Every emitting normal is within theta_o of the axis, every direction from a point of
+             * the sphere to p within theta_b of w: no light reaches p when the smallest possible
+             * angle between them still exceeds the emission half-angle theta_e. */
+            vec3 w = v3_scale(pc, -1.0f / d);
+            float theta_w = acosf(clamp_unit(v3_dot(nd->axis, w)));
+            float theta_b = asinf(fminf(nd->radius / d, 1.0f));
+            float theta_o = acosf(clamp_unit(nd->cos_spread));
+            float theta_e = acosf(clamp_unit(nd->cos_emit));
+            if (theta_w - theta_o - theta_b > theta_e + PN_CLUSTER_ANGLE_MARGIN) return true;
+        }
+    }
+    return false;
+}
+
+enum { PN_CUT_DESCEND, PN_CUT_TAKE, PN_CUT_CULL };
+
+static int classify(const pn_lights *lights, const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon,
+                    float max_solid_angle) {
+    if (nd->left < 0)
+        return pn_cluster_light_culled(&lights->lights[nd->light], p, n) ? PN_CUT_CULL : PN_CUT_TAKE;
+    if (node_culled(nd, p, n, horizon)) return PN_CUT_CULL;
+    return pn_cluster_solid_angle(nd->center, nd->radius, p) < max_solid_angle ? PN_CUT_TAKE : PN_CUT_DESCEND;
+}
+
+int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                      int *out, int capacity, int *culled, int culled_capacity, int *culled_count) {
+    int count = 0, ccount = 0;
+    bool horizon = !v3_is_zero(n);
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        int root = f->roots[t];
+        if (root < 0) continue;
+        /* Stackless depth-first walk with the parent links. */
+        int node = root;
+        for (;;) {
+            const pn_cluster_node *nd = &f->nodes[node];
+            int action = classify(lights, nd, p, n, horizon, max_solid_angle);
+            if (action == PN_CUT_DESCEND) {
+                node = nd->left;
+                continue;
+            }
+            if (action == PN_CUT_TAKE) {
+                if (count < capacity) out[count] = node;
+                count++;
+            } else {
+                if (ccount < culled_capacity) culled[ccount] = node;
+                ccount++;
+            }
+            while (node != root && f->nodes[f->nodes[node].parent].right == node) node = f->nodes[node].parent;
+            if (node == root) break;
+            node = f->nodes[f->nodes[node].parent].right;
+        }
+    }
+    for (int s = 0; s < f->single_count; s++) {
+        int node = f->singles[s];
+        if (pn_cluster_light_culled(&lights->lights[f->nodes[node].light], p, n)) {
+            if (ccount < culled_capacity) culled[ccount] = node;
+            ccount++;
+        } else {
+            if (count < capacity) out[count] = node;
+            count++;
+        }
+    }
+    if (culled_count) *culled_count = ccount;
+    return count;
+}
+
+int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                   int *out, int capacity) {
+    return pn_cluster_cut_ex(f, lights, p, n, max_solid_angle, out, capacity, NULL, 0, NULL);
+}
+
+/* ---------------------------------------------------------------- picking */
+
+int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int node, float u, float *prob) {
+    const pn_cluster_node *nd = &f->nodes[node];
+    int first = nd->first, count = nd->count;
+    if (count <= 1) {
+        if (prob) *prob = 1.0f;
+        return f->light_order[first];
+    }
+    const double *pre = f->power_prefix;
+    double total = pre[first + count] - pre[first];
+    if (!(total > 0.0)) {
+        int i = (int)(u * (float)count);
+        if (i < 0) i = 0;
+        if (i >= count) i = count - 1;
+        if (prob) *prob = 1.0f / (float)count;
+        return f->light_order[first + i];
+    }
+    double target = pre[first] + (double)u * total;
+    /* The first position whose running sum passes the target: never a zero-power light. */
+    int lo = first, hi = first + count - 1;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (pre[mid + 1] > target) hi = mid;
+        else lo = mid + 1;
+    }
+    while (lo > first && !(pre[lo + 1] > pre[lo])) lo--; /* rounding at the top end */
+    int light = f->light_order[lo];
+    if (prob) *prob = (float)((double)pn_cluster_light_power(&lights->lights[light]) / total);
+    return light;
+}
+
+float pn_cluster_pick_pdf(const pn_cluster_forest *f, const pn_lights *lights, int node, int light) {
+    if (light < 0 || light >= f->light_count) return 0.0f;
+    int leaf = f->leaf_of_light[light];
+    if (leaf < 0) return 0.0f;
+    const pn_cluster_node *nd = &f->nodes[node];
+    int pos = f->nodes[leaf].first;
+    if (pos < nd->first || pos >= nd->first + nd->count) return 0.0f;
+    double total = f->power_prefix[nd->first + nd->count] - f->power_prefix[nd->first];
+    if (!(total > 0.0)) return 1.0f / (float)nd->count;
+    return (float)((double)pn_cluster_light_power(&lights->lights[light]) / total);
+}
