@@ -31,10 +31,12 @@
  *  - Termination (§5.9). At most max_passes passes (15); a pixel with no visible sample after 3
  *    passes and 250 shadow rays is black.
  *
- * What the paper leaves open, as done here: a pass whose samples all have the same value has a
- * sample variance of zero, which would give it all the weight in eq. 7-8; its variance is
- * floored at (y_max / N)^2 / 4, the variance a single sample of the largest value seen in the
- * pixel would have added. Emitters seen directly are averaged over the eye rays and added to the
+ * What the paper leaves open, as done here: a pass's estimate is the area-weighted sum of its
+ * regions' means and its variance that of a stratified estimate, sum w_k^2 s_k^2 / n_k; a region
+ * whose samples all have the same value would report zero variance and take all the weight in
+ * eq. 7-8, so its variance of the mean is floored at (max / 2n)^2, as if one sample of the largest
+ * value seen in the region had been added; each pass is split into two halves and each half is
+ * weighted by the other half's variance (see combine_passes). Emitters seen directly are averaged over the eye rays and added to the
  * pixel (they count in L_p for the threshold test). Quasi-random numbers: one scrambled Sobol
  * sequence per block (as the reference integrator), eye ray dimensions 0-4, shadow ray dimensions
  * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light). */
@@ -137,6 +139,11 @@ typedef struct ias_region {
     double weight;      /* summed filter weight of its eye rays */
     int rays;
     int cut_first, cut_count; /* ids in scratch->cut */
+    /* This pass's samples of the region, alternately in two halves: sums of the luminance and
+     * RGB of v / (P(cluster) P(light)), squares, counts, and the largest luminance. */
+    double sum[2], sum2[2], max_value;
+    vec3 rgb[2];
+    unsigned n[2];
 } ias_region;
 
 /* A pass's samples go alternately to two halves; each half has its own mean and variance of the
@@ -153,7 +160,6 @@ typedef struct ias_pixel {
     double weight_sum;  /* filter weights of all eye rays */
     ias_pass passes[IAS_MAX_PASSES_STORED];
     int pass_count;
-    double y_max;       /* largest luminance of one sample's pixel estimate so far */
     uint32_t shadow_rays, visible;
     bool done;
     vec3 result;
@@ -341,9 +347,21 @@ static int choose(const double *cdf, int n, double u) {
  * biases the result low: with rare visible samples, a pass that happened to see less light also
  * has a smaller sample variance and gets more weight (7% too dark on tests/test_ias.c's scene).
  * So each half of a pass is weighted by the inverse variance estimated from the other half,
- * which is independent of it. A variance of zero (all samples equal) is floored at
- * (y_max / n)^2 / 4, the variance one sample of the largest value seen in the pixel would add. */
-static void combine_passes(const ias_pixel *px, double *L, double *s2, vec3 *rgb) {
+ * which is independent of it (zero variances were floored in store_pass). */
+static void combine_passes(const ias_scratch *sc, const ias_pixel *px, double *L, double *s2, vec3 *rgb) {
+    /* The largest single-sample contribution to the pixel seen so far: a half whose samples were
+     * all zero gets at least the variance one such sample would have added. */
+    double y_max = 0.0;
+    for (int k = 0; k < px->region_count; k++) {
+        const ias_region *r = &sc->regions[px->first_region + k];
+        y_max = fmax(y_max, r->weight * r->max_value);
+    }
+    if (!(y_max > 0.0)) { /* nothing lit this pixel yet: every pass says zero */
+        *L = 0.0;
+        *s2 = 0.0;
+        *rgb = v3(0, 0, 0);
+        return;
+    }
     double inv_sum = 0.0, lum = 0.0;
     vec3 c = v3(0, 0, 0);
     for (int j = 0; j < px->pass_count; j++) {
@@ -351,15 +369,14 @@ static void combine_passes(const ias_pixel *px, double *L, double *s2, vec3 *rgb
         for (int h = 0; h < 2; h++) {
             int o = 1 - h;
             if (p->n[h] == 0 || p->n[o] == 0) continue;
-            double fl = px->y_max / (double)p->n[o];
-            double v = p->s2[o] > 0.25 * fl * fl ? p->s2[o] : 0.25 * fl * fl;
-            if (!(v > 0.0) || !isfinite(v)) v = 1e-300;
+            double fl = 0.5 * y_max / (double)p->n[o];
+            double v = p->s2[o] > fl * fl ? p->s2[o] : fl * fl;
             inv_sum += 1.0 / v;
             lum += p->lum[h] / v;
             c = v3_add(c, v3_scale(p->rgb[h], (float)(1.0 / v)));
         }
     }
-    if (inv_sum > 0.0) {
+    if (inv_sum > 0.0 && isfinite(inv_sum)) {
         *s2 = 1.0 / inv_sum;
         *L = lum * *s2;
         *rgb = v3_scale(c, (float)*s2);
@@ -370,16 +387,11 @@ static void combine_passes(const ias_pixel *px, double *L, double *s2, vec3 *rgb
     }
 }
 
-typedef struct sample_sums {
-    double sum[2], sum2[2];
-    vec3 rgb[2];
-    unsigned n[2];
-} sample_sums;
-
 /* Takes `count` shadow rays for pixel px with its regions' current PDFs (pass `pass`), adding
- * the per-sample pixel estimates to acc and the light evaluations to the statistics. */
+ * the samples to the regions' sums and the light evaluations to the statistics. Every region that
+ * has clusters gets at least two (one per half) when count > 0. */
 static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px, int pass,
-                         unsigned count, uint32_t scramble, uint32_t *counter, sample_sums *acc, double *cluster_mean) {
+                         unsigned count, uint32_t scramble, uint32_t *counter, double *cluster_mean) {
     double wsum = 0.0, ncl = 0.0;
     for (int k = 0; k < px->region_count; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
@@ -395,6 +407,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
     for (int k = 0; k < rc; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
         n_of[k] = r->cut_count > 0 ? (unsigned)floor((double)count * r->weight / wsum) : 0u;
+        if (count > 0 && r->cut_count > 0 && r->n[0] + r->n[1] + n_of[k] < 2) n_of[k] = 2 - (r->n[0] + r->n[1]);
         given += n_of[k];
     }
     while (given < count) {
@@ -422,10 +435,6 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         pn_ias_stats *pix = pixel_stats(s, px, r->cls);
         build_pdf(s, r, block, pix, pass);
         const int *cut = s->cut + r->cut_first;
-        /* This region's samples stand for its share `weight` of the pixel's eye rays (the rest
-         * saw no shadable surface); scale so that the mean over all the pixel's samples of this
-         * pass is the area-weighted estimate. */
-        double region_scale = r->weight * (double)given / (double)n_of[k];
         pn_light_sample_cache cache = {0};
         for (unsigned i = 0; i < n_of[k]; i++) {
             uint32_t q = (*counter)++;
@@ -476,29 +485,55 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             /* Statistics: the cluster's contribution estimate (eq. 3), visibility. */
             double lum_v = (double)v3_luminance(v);
             record(sh, block, pix, id, light, lum_v, visible);
-            /* The pixel estimate of this sample (eq. 2 with this pass's PDF). */
-            double w = region_scale / (p_cluster * p_light);
-            vec3 y = v3_scale(v, (float)w);
+            /* The sample's estimate of the region's direct light (eq. 2 with this pass's PDF). */
+            double w = 1.0 / (p_cluster * p_light);
             double ly = lum_v * w;
-            int half = (int)((acc->n[0] + acc->n[1]) & 1u);
-            acc->sum[half] += ly;
-            acc->sum2[half] += ly * ly;
-            acc->rgb[half] = v3_add(acc->rgb[half], y);
-            acc->n[half]++;
-            if (ly > px->y_max) px->y_max = ly;
+            int half = (int)((r->n[0] + r->n[1]) & 1u);
+            r->sum[half] += ly;
+            r->sum2[half] += ly * ly;
+            r->rgb[half] = v3_add(r->rgb[half], v3_scale(v, (float)w));
+            r->n[half]++;
+            if (ly > r->max_value) r->max_value = ly;
         }
     }
 }
 
-static void store_pass(ias_pixel *px, const sample_sums *a) {
-    if (a->n[0] + a->n[1] == 0 || px->pass_count >= IAS_MAX_PASSES_STORED) return;
-    ias_pass *p = &px->passes[px->pass_count++];
+/* Stores the pass from the regions' sums: per half, the area-weighted estimate L = sum_k w_k m_k
+ * and the variance of a stratified estimate, V = sum_k w_k^2 s_k^2 / n_k (regions are sampled in
+ * proportion to their area, so differences between regions are not noise). */
+static void store_pass(ias_scratch *s, ias_pixel *px) {
+    if (px->pass_count >= IAS_MAX_PASSES_STORED) return;
+    ias_pass p;
+    memset(&p, 0, sizeof p);
+    bool any = false;
     for (int h = 0; h < 2; h++) {
-        double n = (double)a->n[h];
-        p->n[h] = a->n[h];
-        p->lum[h] = n > 0.0 ? a->sum[h] / n : 0.0;
-        p->rgb[h] = n > 0.0 ? v3_scale(a->rgb[h], (float)(1.0 / n)) : v3(0, 0, 0);
-        p->s2[h] = n > 1.0 ? fmax(0.0, (a->sum2[h] - a->sum[h] * a->sum[h] / n) / (n - 1.0)) / n : (double)INFINITY;
+        for (int k = 0; k < px->region_count; k++) {
+            const ias_region *r = &s->regions[px->first_region + k];
+            if (r->n[h] == 0) continue;
+            any = true;
+            double n = (double)r->n[h];
+            double mean = r->sum[h] / n;
+            double var = n > 1.0 ? fmax(0.0, (r->sum2[h] - r->sum[h] * mean) / (n - 1.0)) : 0.0;
+            /* The zero-variance floor: one sample of the largest value seen in the region. */
+            double fl = 0.5 * r->max_value / n;
+            if (var / n < fl * fl) var = fl * fl * n;
+            p.lum[h] += r->weight * mean;
+            p.rgb[h] = v3_add(p.rgb[h], v3_scale(r->rgb[h], (float)(r->weight / n)));
+            p.s2[h] += r->weight * r->weight * var / n;
+            p.n[h] += r->n[h];
+        }
+    }
+    if (any) px->passes[px->pass_count++] = p;
+}
+
+/* Clears the regions' sums before a pass. */
+static void reset_regions(ias_scratch *s, ias_pixel *px) {
+    for (int k = 0; k < px->region_count; k++) {
+        ias_region *r = &s->regions[px->first_region + k];
+        memset(r->sum, 0, sizeof r->sum);
+        memset(r->sum2, 0, sizeof r->sum2);
+        memset(r->n, 0, sizeof r->n);
+        r->rgb[0] = r->rgb[1] = v3(0, 0, 0);
     }
 }
 
@@ -578,8 +613,10 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             g->bsdf = b;
             g->eps = pn_accel_ray_epsilon(job->accel, path.hit.p);
             g->origin = v3_madd(path.hit.p, b.ng, g->eps);
-            /* A quarter of the pixel radius at this distance (the first hit's, through mirrors). */
-            g->radius = 0.25f * 0.5f * pixel_angle * (isfinite(path.first_depth) ? path.first_depth : path.hit.t);
+            /* The paper's "one-quarter of the pixel radius", read as a quarter of the pixel's
+             * width at this distance (the first hit's, through mirrors): with it a pixel without
+             * edges gets at least four regions, as §4.4.1 says. */
+            g->radius = 0.25f * pixel_angle * (isfinite(path.first_depth) ? path.first_depth : path.hit.t);
             g->cls = normal_class(b.ng);
             g->weight = (double)fw;
             g->rays = 1;
@@ -611,32 +648,32 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             if (px->done) continue;
             any = true;
             double ncl = 0.0;
-            sample_sums acc = {0};
+            reset_regions(s, px);
             /* N_C first (the weighted mean cut size), then 1.5 N_C samples, at least 50. */
-            sample_pixel(job, sh, s, px, pass, 0, scramble, &counter, &acc, &ncl);
+            sample_pixel(job, sh, s, px, pass, 0, scramble, &counter, &ncl);
             unsigned count = (unsigned)ceil(1.5 * ncl);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
             px->clusters = ncl;
-            sample_pixel(job, sh, s, px, pass, count, scramble, &counter, &acc, NULL);
-            store_pass(px, &acc);
+            sample_pixel(job, sh, s, px, pass, count, scramble, &counter, NULL);
+            store_pass(s, px);
             double L, s2;
             vec3 rgb;
-            combine_passes(px, &L, &s2, &rgb);
+            combine_passes(s, px, &L, &s2, &rgb);
             double Lt = L + (double)v3_luminance(px->emitted);
             /* Close to the target (within 2x): more samples with the same PDFs, in steps of 25
              * (§5.8). How many steps is decided once, from the variance falling as 1/n, instead of
              * testing after every step: stopping the moment a noisy estimate first dips below the
              * target made the image 5% too dark on tests/test_ias.c's scene (termination bias). */
             if (Lt > 0.0 && s2 >= job->threshold * Lt * Lt && s2 < 2.0 * job->threshold * Lt * Lt) {
-                unsigned n_pass = acc.n[0] + acc.n[1];
+                unsigned n_pass = px->passes[px->pass_count - 1].n[0] + px->passes[px->pass_count - 1].n[1];
                 double needed = (double)n_pass * (s2 / (job->threshold * Lt * Lt) - 1.0);
                 unsigned steps = (unsigned)ceil(needed / IAS_STEP_SAMPLES);
                 if (steps > IAS_MAX_STEPS) steps = IAS_MAX_STEPS;
                 if (steps > 0) {
                     px->pass_count--; /* extend this pass */
-                    sample_pixel(job, sh, s, px, pass, steps * IAS_STEP_SAMPLES, scramble, &counter, &acc, NULL);
-                    store_pass(px, &acc);
-                    combine_passes(px, &L, &s2, &rgb);
+                    sample_pixel(job, sh, s, px, pass, steps * IAS_STEP_SAMPLES, scramble, &counter, NULL);
+                    store_pass(s, px);
+                    combine_passes(s, px, &L, &s2, &rgb);
                     Lt = L + (double)v3_luminance(px->emitted);
                 }
             }
@@ -662,7 +699,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         out[pi].visible_fraction = px->shadow_rays ? (float)px->visible / (float)px->shadow_rays : 0.0f;
         double L, s2;
         vec3 rgb;
-        combine_passes(px, &L, &s2, &rgb);
+        combine_passes(s, px, &L, &s2, &rgb);
         double Lt = L + (double)v3_luminance(px->emitted);
         out[pi].relative_variance = Lt > 0.0 && isfinite(s2) ? (float)(s2 / (Lt * Lt)) : 0.0f;
     }
