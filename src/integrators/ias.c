@@ -32,11 +32,9 @@
  *    passes and 250 shadow rays is black.
  *
  * What the paper leaves open, as done here: a pass's estimate is the area-weighted sum of its
- * regions' means and its variance that of a stratified estimate, sum w_k^2 s_k^2 / n_k; a region
- * whose samples all have the same value would report zero variance and take all the weight in
- * eq. 7-8, so its variance of the mean is floored at (max / 2n)^2, as if one sample of the largest
- * value seen in the region had been added; each pass is split into two halves and each half is
- * weighted by the other half's variance (see combine_passes). Emitters seen directly are averaged over the eye rays and added to the
+ * regions' means and its variance that of a stratified estimate, sum w_k^2 s_k^2 / n_k; eq. 7-8
+ * weights passes by the block's pooled relative variance of each pass rather than by the pixel's
+ * own sample variance, which would bias the image dark (see combine_passes). Emitters seen directly are averaged over the eye rays and added to the
  * pixel (they count in L_p for the threshold test). Quasi-random numbers: one scrambled Sobol
  * sequence per block (as the reference integrator), eye ray dimensions 0-4, shadow ray dimensions
  * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light). */
@@ -139,19 +137,17 @@ typedef struct ias_region {
     double weight;      /* summed filter weight of its eye rays */
     int rays;
     int cut_first, cut_count; /* ids in scratch->cut */
-    /* This pass's samples of the region, alternately in two halves: sums of the luminance and
-     * RGB of v / (P(cluster) P(light)), squares, counts, and the largest luminance. */
-    double sum[2], sum2[2], max_value;
-    vec3 rgb[2];
-    unsigned n[2];
+    /* This pass's samples of the region: sums of the luminance and RGB of v / (P(cluster)
+     * P(light)), of the squared luminance, and their number. */
+    double sum, sum2;
+    vec3 rgb;
+    unsigned n;
 } ias_region;
 
-/* A pass's samples go alternately to two halves; each half has its own mean and variance of the
- * mean, so that eq. 7-8 can weight each half by the variance estimated from the other one. */
 typedef struct ias_pass {
-    double lum[2], s2[2]; /* luminance estimate and variance of its mean, per half */
-    vec3 rgb[2];
-    unsigned n[2];
+    double lum, s2;     /* luminance estimate and the variance of that estimate */
+    vec3 rgb;
+    unsigned n;
 } ias_pass;
 
 typedef struct ias_pixel {
@@ -178,6 +174,7 @@ typedef struct ias_scratch {
     pn_ias_stats *pixel_pool;    /* IAS_MAX_PIXELS * IAS_CLASSES slots of id_count */
     int pool_used;
     ias_pixel pixels[IAS_MAX_PIXELS];
+    int pixel_count;
     double *pdf;                 /* per cut entry */
     double *cdf;
 } ias_scratch;
@@ -343,53 +340,61 @@ static int choose(const double *cdf, int n, double u) {
     return lo;
 }
 
-/* Eq. 7-8 over the pixel's passes. Weighting a pass by the inverse of its own sample variance
- * biases the result low: with rare visible samples, a pass that happened to see less light also
- * has a smaller sample variance and gets more weight (7% too dark on tests/test_ias.c's scene).
- * So each half of a pass is weighted by the inverse variance estimated from the other half,
- * which is independent of it (zero variances were floored in store_pass). */
+/* Eq. 7-8 over the pixel's passes: L_p = sum_j L_j / s_j^2 / sum_j 1 / s_j^2.
+ *
+ * Taking s_j^2 as the pixel's own sample variance of pass j makes the result biased: with few
+ * visible samples, a pass that happened to see less light also has a smaller sample variance and
+ * gets more weight (measured 7-15% too dark on hall-many-matte; splitting passes in halves that
+ * weight each other only moved the bias around). So the weights use the pass's variance as the
+ * whole block saw it: s_j^2 = L_j^2 r_j, with r_j the block's pooled relative variance of pass j
+ * (sum of its pixels' variances over the sum of their squared estimates). The weights then follow
+ * how good pass j's PDFs were for the block, which is what the paper's weighting is for, and
+ * hardly depend on this pixel's noise. The variance of the combination, for the convergence test,
+ * is sum_j w_j^2 s_j^2 / (sum_j w_j)^2 with the pixel's own s_j^2. */
+static double block_relative_variance(const ias_scratch *sc, int pass) {
+    double num = 0.0, den = 0.0;
+    for (int q = 0; q < sc->pixel_count; q++) {
+        const ias_pixel *o = &sc->pixels[q];
+        if (o->pass_count <= pass) continue;
+        num += o->passes[pass].s2;
+        den += o->passes[pass].lum * o->passes[pass].lum;
+    }
+    return den > 0.0 && num > 0.0 ? num / den : 0.0;
+}
+
 static void combine_passes(const ias_scratch *sc, const ias_pixel *px, double *L, double *s2, vec3 *rgb) {
-    /* The largest single-sample contribution to the pixel seen so far: a half whose samples were
-     * all zero gets at least the variance one such sample would have added. */
-    double y_max = 0.0;
-    for (int k = 0; k < px->region_count; k++) {
-        const ias_region *r = &sc->regions[px->first_region + k];
-        y_max = fmax(y_max, r->weight * r->max_value);
-    }
-    if (!(y_max > 0.0)) { /* nothing lit this pixel yet: every pass says zero */
-        *L = 0.0;
-        *s2 = 0.0;
-        *rgb = v3(0, 0, 0);
-        return;
-    }
-    double inv_sum = 0.0, lum = 0.0;
+    double wsum = 0.0, lum = 0.0, var = 0.0;
     vec3 c = v3(0, 0, 0);
+    double r[IAS_MAX_PASSES_STORED];
+    double r_min = INFINITY;
+    for (int j = 0; j < px->pass_count; j++) {
+        r[j] = block_relative_variance(sc, j);
+        if (r[j] > 0.0 && r[j] < r_min) r_min = r[j];
+    }
     for (int j = 0; j < px->pass_count; j++) {
         const ias_pass *p = &px->passes[j];
-        for (int h = 0; h < 2; h++) {
-            int o = 1 - h;
-            if (p->n[h] == 0 || p->n[o] == 0) continue;
-            double fl = 0.5 * y_max / (double)p->n[o];
-            double v = p->s2[o] > fl * fl ? p->s2[o] : fl * fl;
-            inv_sum += 1.0 / v;
-            lum += p->lum[h] / v;
-            c = v3_add(c, v3_scale(p->rgb[h], (float)(1.0 / v)));
-        }
+        /* A pass in which the block saw no variance at all: as good as the best pass. */
+        double rj = r[j] > 0.0 ? r[j] : (isfinite(r_min) ? r_min : 1.0);
+        double w = 1.0 / rj;
+        wsum += w;
+        lum += w * p->lum;
+        var += w * w * p->s2;
+        c = v3_madd(c, p->rgb, (float)w);
     }
-    if (inv_sum > 0.0 && isfinite(inv_sum)) {
-        *s2 = 1.0 / inv_sum;
-        *L = lum * *s2;
-        *rgb = v3_scale(c, (float)*s2);
+    if (wsum > 0.0) {
+        *L = lum / wsum;
+        *s2 = var / (wsum * wsum);
+        *rgb = v3_scale(c, (float)(1.0 / wsum));
     } else {
-        *s2 = INFINITY;
         *L = 0.0;
+        *s2 = INFINITY;
         *rgb = v3(0, 0, 0);
     }
 }
 
 /* Takes `count` shadow rays for pixel px with its regions' current PDFs (pass `pass`), adding
  * the samples to the regions' sums and the light evaluations to the statistics. Every region that
- * has clusters gets at least two (one per half) when count > 0. */
+ * has clusters gets at least two per pass (for a variance) when count > 0. */
 static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px, int pass,
                          unsigned count, uint32_t scramble, uint32_t *counter, double *cluster_mean) {
     double wsum = 0.0, ncl = 0.0;
@@ -407,7 +412,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
     for (int k = 0; k < rc; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
         n_of[k] = r->cut_count > 0 ? (unsigned)floor((double)count * r->weight / wsum) : 0u;
-        if (count > 0 && r->cut_count > 0 && r->n[0] + r->n[1] + n_of[k] < 2) n_of[k] = 2 - (r->n[0] + r->n[1]);
+        if (count > 0 && r->cut_count > 0 && r->n + n_of[k] < 2) n_of[k] = 2 - r->n;
         given += n_of[k];
     }
     while (given < count) {
@@ -488,52 +493,43 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             /* The sample's estimate of the region's direct light (eq. 2 with this pass's PDF). */
             double w = 1.0 / (p_cluster * p_light);
             double ly = lum_v * w;
-            int half = (int)((r->n[0] + r->n[1]) & 1u);
-            r->sum[half] += ly;
-            r->sum2[half] += ly * ly;
-            r->rgb[half] = v3_add(r->rgb[half], v3_scale(v, (float)w));
-            r->n[half]++;
-            if (ly > r->max_value) r->max_value = ly;
+            r->sum += ly;
+            r->sum2 += ly * ly;
+            r->rgb = v3_add(r->rgb, v3_scale(v, (float)w));
+            r->n++;
         }
     }
 }
 
-/* Stores the pass from the regions' sums: per half, the area-weighted estimate L = sum_k w_k m_k
- * and the variance of a stratified estimate, V = sum_k w_k^2 s_k^2 / n_k (regions are sampled in
+/* Stores the pass from the regions' sums: the area-weighted estimate L = sum_k w_k m_k and the
+ * variance of a stratified estimate, V = sum_k w_k^2 s_k^2 / n_k (regions are sampled in
  * proportion to their area, so differences between regions are not noise). */
 static void store_pass(ias_scratch *s, ias_pixel *px) {
     if (px->pass_count >= IAS_MAX_PASSES_STORED) return;
     ias_pass p;
     memset(&p, 0, sizeof p);
-    bool any = false;
-    for (int h = 0; h < 2; h++) {
-        for (int k = 0; k < px->region_count; k++) {
-            const ias_region *r = &s->regions[px->first_region + k];
-            if (r->n[h] == 0) continue;
-            any = true;
-            double n = (double)r->n[h];
-            double mean = r->sum[h] / n;
-            double var = n > 1.0 ? fmax(0.0, (r->sum2[h] - r->sum[h] * mean) / (n - 1.0)) : 0.0;
-            /* The zero-variance floor: one sample of the largest value seen in the region. */
-            double fl = 0.5 * r->max_value / n;
-            if (var / n < fl * fl) var = fl * fl * n;
-            p.lum[h] += r->weight * mean;
-            p.rgb[h] = v3_add(p.rgb[h], v3_scale(r->rgb[h], (float)(r->weight / n)));
-            p.s2[h] += r->weight * r->weight * var / n;
-            p.n[h] += r->n[h];
-        }
+    for (int k = 0; k < px->region_count; k++) {
+        const ias_region *r = &s->regions[px->first_region + k];
+        unsigned nk = r->n;
+        if (nk == 0) continue;
+        double n = (double)nk, sum = r->sum, sum2 = r->sum2;
+        double mean = sum / n;
+        double var = n > 1.0 ? fmax(0.0, (sum2 - sum * mean) / (n - 1.0)) : 0.0;
+        p.lum += r->weight * mean;
+        p.rgb = v3_add(p.rgb, v3_scale(r->rgb, (float)(r->weight / n)));
+        p.s2 += r->weight * r->weight * var / n;
+        p.n += nk;
     }
-    if (any) px->passes[px->pass_count++] = p;
+    if (p.n > 0) px->passes[px->pass_count++] = p;
 }
 
 /* Clears the regions' sums before a pass. */
 static void reset_regions(ias_scratch *s, ias_pixel *px) {
     for (int k = 0; k < px->region_count; k++) {
         ias_region *r = &s->regions[px->first_region + k];
-        memset(r->sum, 0, sizeof r->sum);
-        memset(r->sum2, 0, sizeof r->sum2);
-        memset(r->n, 0, sizeof r->n);
-        r->rgb[0] = r->rgb[1] = v3(0, 0, 0);
+        r->sum = r->sum2 = 0.0;
+        r->n = 0;
+        r->rgb = v3(0, 0, 0);
     }
 }
 
@@ -550,6 +546,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     s->pool_used = 0;
     memset(s->block_class_used, 0, sizeof s->block_class_used);
     const int np = batch->count < IAS_MAX_PIXELS ? batch->count : IAS_MAX_PIXELS;
+    s->pixel_count = np;
     const float pixel_angle = 2.0f * job->camera.tan_half_fov /
                               (float)(job->camera.full_width < job->camera.full_height ? job->camera.full_width
                                                                                        : job->camera.full_height);
@@ -665,7 +662,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
              * testing after every step: stopping the moment a noisy estimate first dips below the
              * target made the image 5% too dark on tests/test_ias.c's scene (termination bias). */
             if (Lt > 0.0 && s2 >= job->threshold * Lt * Lt && s2 < 2.0 * job->threshold * Lt * Lt) {
-                unsigned n_pass = px->passes[px->pass_count - 1].n[0] + px->passes[px->pass_count - 1].n[1];
+                unsigned n_pass = px->passes[px->pass_count - 1].n;
                 double needed = (double)n_pass * (s2 / (job->threshold * Lt * Lt) - 1.0);
                 unsigned steps = (unsigned)ceil(needed / IAS_STEP_SAMPLES);
                 if (steps > IAS_MAX_STEPS) steps = IAS_MAX_STEPS;
