@@ -10,7 +10,7 @@
  *
  * Config lines: NAME SCENE REFERENCE CROP SETTINGS, where SCENE and REFERENCE may start with
  * "shared/" for ../shared, CROP is x0,x1,y0,y1 in fractions, SETTINGS is a comma list of spp=N,
- * threshold=T, shadow=N, seed=S. '#' starts a comment.
+ * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias. '#' starts a comment.
  */
 #include "penumbra/penumbra.h"
 
@@ -67,6 +67,11 @@ static int parse_settings(const char *text, pn_render_settings *s) {
         else if (strcmp(tok, "shadow") == 0) s->shadow_rays = (uint32_t)strtoul(v, NULL, 10);
         else if (strcmp(tok, "seed") == 0) s->seed = strtoull(v, NULL, 10);
         else if (strcmp(tok, "max") == 0) s->max_shadow_rays = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "integrator") == 0) {
+            if (strcmp(v, "reference") == 0) s->integrator = PN_INTEGRATOR_REFERENCE;
+            else if (strcmp(v, "ias") == 0) s->integrator = PN_INTEGRATOR_IAS;
+            else return 0;
+        }
         else return 0;
     }
     return 1;

@@ -34,7 +34,10 @@
  * What the paper leaves open, as done here: a pass's estimate is the area-weighted sum of its
  * regions' means and its variance that of a stratified estimate, sum w_k^2 s_k^2 / n_k; eq. 7-8
  * weights passes by the block's pooled relative variance of each pass rather than by the pixel's
- * own sample variance, which would bias the image dark (see combine_passes). Emitters seen directly are averaged over the eye rays and added to the
+ * own sample variance, which would bias the image dark (see combine_passes); the convergence test
+ * uses the larger of the pixel's own variance and the one its block's relative variance predicts,
+ * against termination bias; the 25-ray steps near the target are counted once from the variance
+ * instead of testing after each step. Emitters seen directly are averaged over the eye rays and added to the
  * pixel (they count in L_p for the threshold test). Quasi-random numbers: one scrambled Sobol
  * sequence per block (as the reference integrator), eye ray dimensions 0-4, shadow ray dimensions
  * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light). */
