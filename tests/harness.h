@@ -91,6 +91,18 @@ static inline void pn_test_skip(const char *why) {
         return failed ? 1 : (passed == 0 && skipped > 0 ? 77 : 0);                         \
     }
 
+/* Writes `text` to dir/name and returns the path (static storage, valid until the next call),
+ * or NULL if the file cannot be written. */
+static inline const char *pn_test_write_file(const char *dir, const char *name, const char *text) {
+    static char path[1024];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "w");
+    if (!f) return NULL;
+    fputs(text, f);
+    fclose(f);
+    return path;
+}
+
 /* Path of the shared data folder (../shared from the source tree), or NULL if absent. */
 #ifndef PN_SHARED_DIR
 #define PN_SHARED_DIR ""

@@ -10,13 +10,7 @@
 static char tmpdir[256];
 
 static const char *write_scene(const char *name, const char *text) {
-    static char path[512];
-    snprintf(path, sizeof path, "%s/%s", tmpdir, name);
-    FILE *f = fopen(path, "w");
-    if (!f) return NULL;
-    fputs(text, f);
-    fclose(f);
-    return path;
+    return pn_test_write_file(tmpdir, name, text);
 }
 
 /* A 10 x 10 diffuse floor (reflectance 0.5) at z = 0 seen from the side (so the light does not
