@@ -180,6 +180,7 @@ typedef struct ias_scratch {
     int pixel_count;
     double *pdf;                 /* per cut entry */
     double *cdf;
+    double *fpix;
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -191,6 +192,7 @@ static void ias_scratch_free(void *p) {
     free(s->pixel_pool);
     free(s->pdf);
     free(s->cdf);
+    free(s->fpix);
     free(s);
 }
 
@@ -208,7 +210,8 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->pixel_pool = calloc((size_t)IAS_MAX_PIXELS * IAS_CLASSES * ids, sizeof *s->pixel_pool);
     s->pdf = malloc((ids + 1) * sizeof *s->pdf);
     s->cdf = malloc((ids + 1) * sizeof *s->cdf);
-    if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf) {
+    s->fpix = malloc((ids + 1) * sizeof *s->fpix);
+    if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -304,11 +307,12 @@ static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *b
     pn_ias_blend_weights(pass, &cu, &cb, &cp);
     int nc = r->cut_count;
     const int *cut = s->cut + r->cut_first;
+    double *fblock = s->pdf, *fpixel = s->fpix; /* feedback weights, each computed once */
     double fb = 0.0, fp = 0.0;
-    for (int i = 0; i < nc; i++) {
-        fb += pn_ias_feedback(&block[cut[i]]);
-        if (pixel) fp += pn_ias_feedback(&pixel[cut[i]]);
-    }
+    if (cb > 0.0)
+        for (int i = 0; i < nc; i++) fb += (fblock[i] = pn_ias_feedback(&block[cut[i]]));
+    if (cp > 0.0 && pixel)
+        for (int i = 0; i < nc; i++) fp += (fpixel[i] = pn_ias_feedback(&pixel[cut[i]]));
     /* A feedback PDF without data gives its weight to the uniform PDF. */
     if (!(fb > 0.0)) {
         cu += cb;
@@ -318,18 +322,20 @@ static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *b
         cu += cp;
         cp = 0.0;
     }
+    const double u = cu / (double)nc, kb = cb > 0.0 ? cb / fb : 0.0, kp = cp > 0.0 ? cp / fp : 0.0;
     double acc = 0.0;
     s->cdf[0] = 0.0;
     for (int i = 0; i < nc; i++) {
-        double p = cu / (double)nc;
-        if (cb > 0.0) p += cb * pn_ias_feedback(&block[cut[i]]) / fb;
-        if (cp > 0.0) p += cp * pn_ias_feedback(&pixel[cut[i]]) / fp;
+        double p = u;
+        if (kb > 0.0) p += kb * fblock[i];
+        if (kp > 0.0) p += kp * fpixel[i];
         s->pdf[i] = p;
         acc += p;
         s->cdf[i + 1] = acc;
     }
-    for (int i = 0; i <= nc; i++) s->cdf[i] /= acc;
-    for (int i = 0; i < nc; i++) s->pdf[i] /= acc;
+    const double inv = 1.0 / acc;
+    for (int i = 0; i <= nc; i++) s->cdf[i] *= inv;
+    for (int i = 0; i < nc; i++) s->pdf[i] *= inv;
 }
 
 static int choose(const double *cdf, int n, double u) {
