@@ -177,6 +177,11 @@ typedef struct pn_render_stats {
     double mrays_per_second;
     uint64_t peak_memory_bytes;
     int partial; /* 1 when cancelled: only finished tiles hold values */
+    /* ias only (zero otherwise), means over the rendered pixels, as the paper's Tables 3-6:
+     * passes and antialiasing regions per pixel, clusters per shading point, and the fraction of
+     * shadow rays that were unoccluded. */
+    double passes_per_pixel_mean, aa_regions_per_pixel_mean, clusters_per_point_mean;
+    double visible_fraction_mean;
     int threads;
     int width, height; /* of the rendered (cropped) image */
 } pn_render_stats;

@@ -1046,6 +1046,13 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
     json_double(&w, "mrays_per_second", stats->mrays_per_second);
     json_u64(&w, "peak_memory_bytes", stats->peak_memory_bytes);
     json_bool(&w, "partial", stats->partial);
+    if (o->settings.integrator == PN_INTEGRATOR_IAS) {
+        /* The paper's Tables 3-6 (per-pixel means). */
+        json_double(&w, "passes_per_pixel_mean", stats->passes_per_pixel_mean);
+        json_double(&w, "aa_regions_per_pixel_mean", stats->aa_regions_per_pixel_mean);
+        json_double(&w, "clusters_per_point_mean", stats->clusters_per_point_mean);
+        json_double(&w, "visible_fraction_mean", stats->visible_fraction_mean);
+    }
     json_end_object(&w);
 
     write_scene_info_json(&w, info, scene);

@@ -266,13 +266,19 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     }
     if (stats) {
         uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
-        double embree_seconds = 0.0;
+        double embree_seconds = 0.0, passes = 0.0, regions = 0.0, clusters = 0.0, visible = 0.0;
+        uint64_t visible_rays = 0;
         for (size_t i = 0; i < n; i++) {
             const pn_pixel_estimate *e = &rs.pixels[i];
             eye += e->eye_rays;
             shadow += e->shadow_rays;
             spec += e->specular_rays;
             embree_seconds += (double)e->embree_seconds;
+            passes += (double)e->passes;
+            regions += (double)e->aa_regions;
+            clusters += (double)e->clusters;
+            visible += (double)e->visible_fraction * (double)e->shadow_rays;
+            visible_rays += e->shadow_rays;
             if (e->eye_rays > max_eye) max_eye = e->eye_rays;
             if (e->shadow_rays > max_shadow) max_shadow = e->shadow_rays;
         }
@@ -290,6 +296,10 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
                                       ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
         stats->peak_memory_bytes = peak_memory_bytes();
         stats->partial = cancelled ? 1 : 0;
+        stats->passes_per_pixel_mean = passes / (double)n;
+        stats->aa_regions_per_pixel_mean = regions / (double)n;
+        stats->clusters_per_point_mean = clusters / (double)n;
+        stats->visible_fraction_mean = visible_rays ? visible / (double)visible_rays : 0.0;
         stats->threads = workers;
         stats->width = rs.width;
         stats->height = rs.height;
