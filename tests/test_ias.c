@@ -326,6 +326,54 @@ static void test_ias_thread_determinism(void) {
     if (path) unlink(path);
 }
 
+/* The AOVs reproduce the paper's figures as false-colour pictures with a colour bar. */
+static void test_false_color_aov(void) {
+    const char *path = write_scene("many_fc.pbrt", many_light_scene());
+    pn_context ctx = pn_context_new();
+    pn_scene scene = NULL;
+    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_render_settings s = {0};
+    s.integrator = PN_INTEGRATOR_IAS;
+    s.aovs = PN_AOV_PASSES | PN_AOV_VISIBLE_FRACTION | PN_AOV_NORMAL;
+    pn_image img = NULL, fc = NULL;
+    CHECK(scene && pn_render(ctx, scene, &s, &img, NULL) == PN_OK);
+    if (img) {
+        int w = pn_image_width(img), h = pn_image_height(img), passes = -1;
+        for (int l = 0; l < pn_image_layer_count(img); l++)
+            if (strcmp(pn_image_layer_name(img, l), "passes") == 0) passes = l;
+        CHECK(passes > 0);
+        CHECK(pn_image_false_color(ctx, img, "passes", 0.0, 0.0, &fc) == PN_OK);
+        if (fc && passes > 0) {
+            CHECK(pn_image_width(fc) == w && pn_image_height(fc) > h);
+            const float *src = pn_image_layer_data(img, passes), *rgb = pn_image_layer_data(fc, 0);
+            float lo = src[0], hi = src[0];
+            for (int i = 0; i < w * h; i++) {
+                lo = fminf(lo, src[i]);
+                hi = fmaxf(hi, src[i]);
+            }
+            CHECK(hi > lo);
+            for (int i = 0; i < w * h; i++) {
+                const float *c = rgb + 3 * i;
+                if (src[i] == lo) CHECK(c[2] > c[0]);  /* the minimum is blue */
+                if (src[i] == hi) CHECK(c[0] > c[2]);  /* the maximum is red */
+            }
+            /* The bar runs from blue (left) to red (right) under the picture. */
+            int bar_y = h + 3;
+            const float *left = rgb + 3 * (bar_y * w), *right = rgb + 3 * (bar_y * w + w - 1);
+            CHECK(left[2] > left[0] && right[0] > right[2]);
+        }
+        pn_image_free(fc);
+        fc = NULL;
+        CHECK(pn_image_false_color(ctx, img, "no_such_layer", 0.0, 0.0, &fc) == PN_ERROR_INVALID_ARGUMENT);
+        CHECK(pn_image_false_color(ctx, img, "normal", 0.0, 0.0, &fc) == PN_ERROR_INVALID_ARGUMENT); /* 3 channels */
+        CHECK(fc == NULL);
+    }
+    pn_image_free(img);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+    if (path) unlink(path);
+}
+
 static void test_setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_ias_XXXXXX");
     CHECK(mkdtemp(tmpdir) != NULL);
@@ -342,5 +390,5 @@ static void test_teardown(void) {
 
 PN_TESTS(TEST(test_feedback_minimises_variance), TEST(test_blend_weights), TEST(test_inverse_variance),
          TEST(test_setup), TEST(test_ias_matches_reference), TEST(test_black_detection_keeps_lit_pixels),
-         TEST(test_ias_thread_determinism),
+         TEST(test_ias_thread_determinism), TEST(test_false_color_aov),
          TEST(test_teardown))

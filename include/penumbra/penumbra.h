@@ -222,6 +222,14 @@ PN_API pn_status pn_image_write(pn_context ctx, pn_image image, const char *path
 PN_API pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, int width, int height,
                                pn_image *out_image);
 
+/* A false-colour picture of one single-channel layer (e.g. "passes", "shadow_rays"), as the IAS
+ * paper's Figs. 9 and 11 show them: values mapped linearly from [vmin, vmax] (both 0: the layer's
+ * finite minimum and maximum) onto a blue-cyan-green-yellow-red scale, with a colour bar and its
+ * two end values drawn below the image. The new image has the layer's width and a taller height;
+ * write it with pn_image_write(..., ".png", 0). */
+PN_API pn_status pn_image_false_color(pn_context ctx, pn_image image, const char *layer, double vmin, double vmax,
+                                      pn_image *out_image);
+
 /* Image comparison for `penumbra diff`. */
 typedef struct pn_image_metrics {
     double rmse;

@@ -74,6 +74,8 @@ static const char render_help[] =
     "  --aov NAMES            extra EXR layers, comma-separated: shadow_rays, eye_rays,\n"
     "                         relative_variance, depth, normal, albedo; for ias also passes,\n"
     "                         aa_regions, clusters, visible_fraction; or 'all'\n"
+    "  --aov-png              also write each single-channel AOV as a false-colour PNG with a\n"
+    "                         colour bar: OUT.passes.png, OUT.shadow_rays.png, ...\n"
     "  --stats FILE           write render statistics as JSON\n"
     "  --quiet                no progress bar and no summary (warnings are still shown)\n"
     "\n"
@@ -749,6 +751,7 @@ typedef struct render_options {
     const char *output_path;
     const char *png_path;
     const char *stats_path;
+    int aov_png; /* --aov-png: false-colour PNGs of the single-channel AOV layers */
     double exposure;
     int quiet;
     int has_spp, has_threshold;
@@ -793,6 +796,10 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             if (!is_writable_image_name(value))
                 return bad_value(cmd, name, value, "a file name ending in .exr, .pfm or .png");
             o->output_path = value;
+        } else if (strcmp(name, "--aov-png") == 0) {
+            if (!scanner_no_value(&s))
+                return EXIT_USAGE;
+            o->aov_png = 1;
         } else if (strcmp(name, "--png") == 0) {
             if ((value = scanner_value(&s)) == NULL)
                 return EXIT_USAGE;
@@ -1105,6 +1112,25 @@ static void print_render_summary(const render_options *o, const pn_scene_info *i
     printf("\n");
 }
 
+/* --aov-png: every single-channel AOV layer as a false-colour PNG with a colour bar, named
+ * after the output image: out.exr -> out.passes.png, out.shadow_rays.png, ... */
+static int write_aov_pngs(pn_context ctx, pn_image image, const char *image_path) {
+    const char *dot = strrchr(image_path, '.');
+    size_t stem = dot ? (size_t)(dot - image_path) : strlen(image_path);
+    for (int l = 1; l < pn_image_layer_count(image); l++) {
+        if (pn_image_layer_channels(image, l) != 1) continue;
+        const char *name = pn_image_layer_name(image, l);
+        char path[4096];
+        snprintf(path, sizeof path, "%.*s.%s.png", (int)stem, image_path, name);
+        pn_image fc = NULL;
+        pn_status st = pn_image_false_color(ctx, image, name, 0.0, 0.0, &fc);
+        if (st == PN_OK) st = pn_image_write(ctx, fc, path, 0.0f);
+        pn_image_free(fc);
+        if (st != PN_OK) return report_failure(ctx, st);
+    }
+    return EXIT_OK;
+}
+
 static int command_render(int argc, char **argv) {
     render_options o;
     memset(&o, 0, sizeof o);
@@ -1219,6 +1245,8 @@ static int command_render(int argc, char **argv) {
         code = report_failure(ctx, status);
         goto done;
     }
+    if (o.aov_png && (code = write_aov_pngs(ctx, image, image_path)) != EXIT_OK)
+        goto done;
     if (o.stats_path &&
         (code = write_stats_json(&o, image_path, scene, &info, &stats, 0)) != EXIT_OK)
         goto done;
