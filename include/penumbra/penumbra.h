@@ -182,6 +182,10 @@ typedef struct pn_render_stats {
      * shadow rays that were unoccluded. */
     double passes_per_pixel_mean, aa_regions_per_pixel_mean, clusters_per_point_mean;
     double visible_fraction_mean;
+    /* ias, the paper's Table 5: lights (and environment-map regions) with at least one unoccluded
+     * shadow ray anywhere in the image, and per pixel on average. */
+    uint32_t lights_visible_viewpoint, env_regions_visible_viewpoint;
+    double visible_lights_per_pixel_mean;
     int threads;
     int width, height; /* of the rendered (cropped) image */
 } pn_render_stats;

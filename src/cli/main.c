@@ -1054,11 +1054,14 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
     json_u64(&w, "peak_memory_bytes", stats->peak_memory_bytes);
     json_bool(&w, "partial", stats->partial);
     if (o->settings.integrator == PN_INTEGRATOR_IAS) {
-        /* The paper's Tables 3-6 (per-pixel means). */
+        /* The paper's Tables 4-6: per-pixel means, and visibility per viewpoint and per pixel. */
         json_double(&w, "passes_per_pixel_mean", stats->passes_per_pixel_mean);
         json_double(&w, "aa_regions_per_pixel_mean", stats->aa_regions_per_pixel_mean);
         json_double(&w, "clusters_per_point_mean", stats->clusters_per_point_mean);
         json_double(&w, "visible_fraction_mean", stats->visible_fraction_mean);
+        json_u64(&w, "lights_visible_viewpoint", stats->lights_visible_viewpoint);
+        json_u64(&w, "env_regions_visible_viewpoint", stats->env_regions_visible_viewpoint);
+        json_double(&w, "visible_lights_per_pixel_mean", stats->visible_lights_per_pixel_mean);
     }
     json_end_object(&w);
 

@@ -266,7 +266,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     }
     if (stats) {
         uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
-        double embree_seconds = 0.0, passes = 0.0, regions = 0.0, clusters = 0.0, visible = 0.0;
+        double embree_seconds = 0.0, passes = 0.0, regions = 0.0, clusters = 0.0, visible = 0.0, vis_lights = 0.0;
         uint64_t visible_rays = 0;
         for (size_t i = 0; i < n; i++) {
             const pn_pixel_estimate *e = &rs.pixels[i];
@@ -275,6 +275,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
             spec += e->specular_rays;
             embree_seconds += (double)e->embree_seconds;
             passes += (double)e->passes;
+            vis_lights += (double)e->visible_lights;
             regions += (double)e->aa_regions;
             clusters += (double)e->clusters;
             visible += (double)e->visible_fraction * (double)e->shadow_rays;
@@ -300,6 +301,8 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         stats->aa_regions_per_pixel_mean = regions / (double)n;
         stats->clusters_per_point_mean = clusters / (double)n;
         stats->visible_fraction_mean = visible_rays ? visible / (double)visible_rays : 0.0;
+        stats->visible_lights_per_pixel_mean = vis_lights / (double)n;
+        if (integ->report) integ->report(&job, stats);
         stats->threads = workers;
         stats->width = rs.width;
         stats->height = rs.height;

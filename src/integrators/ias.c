@@ -51,9 +51,11 @@
 #include "lights/env_regions.h"
 #include "shade/bsdf.h"
 
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #define IAS_MAX_PIXELS 64
 #define IAS_CLASSES 6
@@ -80,6 +82,10 @@ typedef struct ias_shared {
     int id_count;         /* cluster ids: forest nodes (distant lights are one-light nodes), then
                              environment regions */
     int max_cut;          /* capacity for one point's cut */
+    /* Table 5: which lights (indices 0 .. light_count) and environment regions (then, by id
+     * offset) were seen unoccluded anywhere in the image; bytes set by any thread. */
+    int light_count, visible_slots;
+    atomic_uchar *seen;
 } ias_shared;
 
 static void ias_release(pn_render_job *job) {
@@ -90,6 +96,7 @@ static void ias_release(pn_render_job *job) {
     free(sh->env);
     free(sh->env_light);
     free(sh->env_base);
+    free(sh->seen);
     free(sh);
     job->integrator_data = NULL;
 }
@@ -131,6 +138,13 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     }
     sh->id_count = next;
     sh->max_cut = next > 0 ? next : 1;
+    sh->light_count = L->count;
+    sh->visible_slots = L->count + (next - sh->forest.node_count);
+    sh->seen = calloc((size_t)sh->visible_slots + 1, sizeof *sh->seen);
+    if (!sh->seen) {
+        ias_release(job);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    }
     return PN_OK;
 }
 
@@ -170,6 +184,8 @@ typedef struct ias_pixel {
     bool done;
     vec3 result;
     double clusters;    /* area-weighted clusters per point */
+    double embree_seconds; /* sampled estimate of the time inside Embree */
+    uint32_t visible_lights; /* distinct lights / environment regions seen unoccluded */
     pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
 } ias_pixel;
 
@@ -185,6 +201,8 @@ typedef struct ias_scratch {
     int pool_used;
     ias_pixel pixels[IAS_MAX_PIXELS];
     int pixel_count;
+    unsigned char *pixel_seen;   /* IAS_MAX_PIXELS x visible_slots flags (Table 5) */
+    int visible_slots;
     double *pdf;                 /* per cut entry */
     double *cdf;
     double *fpix;
@@ -200,6 +218,7 @@ static void ias_scratch_free(void *p) {
     free(s->pdf);
     free(s->cdf);
     free(s->fpix);
+    free(s->pixel_seen);
     free(s);
 }
 
@@ -218,7 +237,10 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->pdf = malloc((ids + 1) * sizeof *s->pdf);
     s->cdf = malloc((ids + 1) * sizeof *s->cdf);
     s->fpix = malloc((ids + 1) * sizeof *s->fpix);
-    if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix) {
+    s->visible_slots = sh->visible_slots;
+    s->pixel_seen = calloc((size_t)IAS_MAX_PIXELS * (size_t)(sh->visible_slots + 1), 1);
+    if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix ||
+        !s->pixel_seen) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -226,6 +248,16 @@ static void *ias_scratch_create(const pn_render_job *job) {
 }
 
 /* ---- helpers ------------------------------------------------------------------------------- */
+
+/* Every IAS_TIMING_STRIDE-th ray has its Embree call timed; the sum, scaled by the stride,
+ * estimates the time spent in Embree (as the reference integrator does). */
+#define IAS_TIMING_STRIDE 8u
+
+static double clock_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 static int normal_class(vec3 n) {
     float ax = fabsf(n.x), ay = fabsf(n.y), az = fabsf(n.z);
@@ -505,9 +537,22 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 if (!v3_is_zero(f) && cos_i > 0.0f) {
                     px->shadow_rays++;
                     float tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-4f) - r->eps;
+                    bool timed = q % IAS_TIMING_STRIDE == 0u;
+                    double t0 = timed ? clock_seconds() : 0.0;
                     visible = !pn_accel_occluded(job->accel, r->origin, wi, 0.0f, tmax);
+                    if (timed) px->embree_seconds += (clock_seconds() - t0) * IAS_TIMING_STRIDE;
                     if (visible) {
                         px->visible++;
+                        /* Table 5: this light (or environment region) is visible here. */
+                        int slot = id < sh->forest.node_count ? light : sh->light_count + (id - sh->forest.node_count);
+                        if (slot >= 0 && slot < s->visible_slots) {
+                            unsigned char *mine = s->pixel_seen + (size_t)(px - s->pixels) * (size_t)s->visible_slots;
+                            if (!mine[slot]) {
+                                mine[slot] = 1;
+                                px->visible_lights++;
+                                atomic_store_explicit(&sh->seen[slot], 1, memory_order_relaxed);
+                            }
+                        }
                         v = v3_scale(v3_mul(v3_mul(f, radiance), r->throughput), cos_i / pdf);
                     }
                 }
@@ -596,7 +641,10 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro,
                           &rd);
             pn_eye_path path;
+            bool timed = i % IAS_TIMING_STRIDE == 0u;
+            double t0 = timed ? clock_seconds() : 0.0;
             pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+            if (timed) px->embree_seconds += (clock_seconds() - t0) * IAS_TIMING_STRIDE;
             if (r == 0) {
                 out[pi].depth = path.first_depth;
                 out[pi].normal = path.first_normal;
@@ -726,6 +774,8 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         out[pi].passes = (uint32_t)px->pass_count;
         out[pi].clusters = (float)px->clusters;
         out[pi].visible_fraction = px->shadow_rays ? (float)px->visible / (float)px->shadow_rays : 0.0f;
+        out[pi].visible_lights = px->visible_lights;
+        out[pi].embree_seconds = (float)px->embree_seconds;
         double L, s2, brv;
         vec3 rgb;
         combine_passes(s, px, &L, &s2, &rgb, &brv);
@@ -738,9 +788,23 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         if (s->block_class_used[c])
             memset(s->block_stats + (size_t)c * (size_t)s->id_count, 0, (size_t)s->id_count * sizeof *s->block_stats);
     memset(s->pixel_pool, 0, (size_t)s->pool_used * (size_t)s->id_count * sizeof *s->pixel_pool);
+    memset(s->pixel_seen, 0, (size_t)np * (size_t)s->visible_slots);
     return PN_OK;
 }
 
+/* Table 5 "per viewpoint": lights and environment regions seen unoccluded anywhere. */
+static void ias_report(const pn_render_job *job, pn_render_stats *stats) {
+    const ias_shared *sh = job->integrator_data;
+    uint32_t lights = 0, regions = 0;
+    for (int i = 0; i < sh->visible_slots; i++) {
+        if (!atomic_load_explicit(&sh->seen[i], memory_order_relaxed)) continue;
+        if (i < sh->light_count) lights++;
+        else regions++;
+    }
+    stats->lights_visible_viewpoint = lights;
+    stats->env_regions_visible_viewpoint = regions;
+}
+
 const pn_integrator pn_integrator_ias = {
-    "ias", ias_prepare, ias_release, ias_scratch_create, ias_scratch_free, ias_render_batch,
+    "ias", ias_prepare, ias_release, ias_report, ias_scratch_create, ias_scratch_free, ias_render_batch,
 };

@@ -26,6 +26,7 @@ typedef struct pn_pixel_estimate {
     float embree_seconds; /* estimated time inside Embree calls for this pixel (sampled) */
     /* ias statistics (zero for other integrators) */
     uint32_t passes, aa_regions;
+    uint32_t visible_lights;  /* distinct lights (and environment regions) seen unoccluded */
     float clusters;          /* clusters per shading point, mean over the pixel's regions */
     float visible_fraction;  /* unoccluded shadow rays / shadow rays */
 } pn_pixel_estimate;
@@ -36,6 +37,8 @@ typedef struct pn_integrator {
      * job->integrator_data, and frees it. */
     pn_status (*prepare)(pn_render_job *job, pn_err *err);
     void (*release)(pn_render_job *job);
+    /* Optional: adds what only the integrator knows to the statistics (before release). */
+    void (*report)(const pn_render_job *job, pn_render_stats *stats);
     /* Per-worker scratch: created once per thread, freed at the end of the render. */
     void *(*scratch_create)(const pn_render_job *job);
     void (*scratch_free)(void *scratch);

@@ -225,7 +225,7 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
 }
 
 const pn_integrator pn_integrator_reference = {
-    "reference", NULL, NULL, reference_scratch_create, reference_scratch_free, reference_render_batch,
+    "reference", NULL, NULL, NULL, reference_scratch_create, reference_scratch_free, reference_render_batch,
 };
 
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
