@@ -294,6 +294,10 @@ static void test_black_detection_keeps_lit_pixels(void) {
                 lit, wrongly_black, edge_black);
         CHECK(lit > 0 && lit < w * h);
         CHECK(wrongly_black == 0);
+        /* Table 5's visibility statistics: only the light over the hole is ever unoccluded. */
+        CHECK(is.lights_visible_viewpoint == 1);
+        CHECK(is.env_regions_visible_viewpoint == 0);
+        CHECK(is.visible_lights_per_pixel_mean > 0.0 && is.visible_lights_per_pixel_mean <= 1.0);
     }
     pn_image_free(ref);
     pn_image_free(img);
