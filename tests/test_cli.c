@@ -330,6 +330,13 @@ static void test_usage_errors(void) {
         {{"render", "x.pbrt", "--spp"}, "option '--spp' needs a value"},
         {{"render", "x.pbrt", "-o"}, "option '-o' needs a value"},
         {{"render", "x.pbrt", "--spp", "abc"}, "invalid value 'abc' for --spp"},
+        {{"render", "x.pbrt", "--integrator", "foo"}, "expected 'reference' or 'ias'"},
+        {{"render", "x.pbrt", "--integrator", "ias", "--spp", "4"}, "--spp does not apply to ias"},
+        {{"render", "x.pbrt", "--cluster-solid-angle", "-1"}, "invalid value '-1' for --cluster-solid-angle"},
+        {{"render", "x.pbrt", "--aa-rays", "0"}, "invalid value '0' for --aa-rays"},
+        {{"render", "x.pbrt", "--max-passes", "65"}, "invalid value '65' for --max-passes"},
+        {{"render", "x.pbrt", "--env-regions", "x"}, "invalid value 'x' for --env-regions"},
+        {{"render", "x.pbrt", "--aov-png=yes"}, "--aov-png"},
         {{"render", "x.pbrt", "--spp", "0"}, "invalid value '0' for --spp"},
         {{"render", "x.pbrt", "--spp", "4x"}, "invalid value '4x' for --spp"},
         {{"render", "x.pbrt", "--spp", "-3"}, "invalid value '-3' for --spp"},
@@ -533,6 +540,23 @@ static void test_render_outputs(void) {
     CHECK(r.out && r.out[0] == '\0');
     run_free(&r);
     remove_file("tiny.exr");
+
+    /* ias: its statistics layers as false-colour PNGs, its tables in the JSON. */
+    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--integrator", "ias", "-o", "out/ias.exr", "--aov",
+               "passes,visible_fraction", "--aov-png", "--stats", "out/ias.json", "--quiet");
+    run_free(&r);
+    char *fc = read_file("out/ias.passes.png", &size);
+    CHECK(fc != NULL && size > 8 && memcmp(fc, "\x89PNG", 4) == 0);
+    free(fc);
+    CHECK(file_exists("out/ias.visible_fraction.png"));
+    json = read_file("out/ias.json", &size);
+    CHECK(json != NULL);
+    if (json) {
+        CHECK_STR_CONTAINS(json, "\"integrator\": \"ias\"");
+        CHECK_STR_CONTAINS(json, "\"passes_per_pixel_mean\"");
+        CHECK_STR_CONTAINS(json, "\"lights_visible_viewpoint\"");
+    }
+    free(json);
 }
 
 static void test_info(void) {
