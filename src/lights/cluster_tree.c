@@ -801,6 +801,11 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
     }
 
 done:
+    /* The normal-cone half-angles the cut's facing-away test adds up, once per node. */
+    for (int i = 0; status == PN_OK && i < out->node_count; i++) {
+        pn_cluster_node *nd = &out->nodes[i];
+        nd->cone_angle = acosf(clamp_unit(nd->cos_spread)) + acosf(clamp_unit(nd->cos_emit));
+    }
     free(b.alive);
     free(b.slot);
     free(b.stamp);
@@ -836,9 +841,7 @@ static bool node_culled(const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon)
             vec3 w = v3_scale(pc, -1.0f / d);
             float theta_w = acosf(clamp_unit(v3_dot(nd->axis, w)));
             float theta_b = asinf(fminf(nd->radius / d, 1.0f));
-            float theta_o = acosf(clamp_unit(nd->cos_spread));
-            float theta_e = acosf(clamp_unit(nd->cos_emit));
-            if (theta_w - theta_o - theta_b > theta_e + PN_CLUSTER_ANGLE_MARGIN) return true;
+            if (theta_w - theta_b > nd->cone_angle + PN_CLUSTER_ANGLE_MARGIN) return true;
         }
     }
     return false;

@@ -37,6 +37,7 @@ typedef struct pn_cluster_node {
                                   cos_total_width for spots, -1 in the omni tree */
     vec3 bmin, bmax;           /* axis-aligned box of the lights' geometry below */
     int tree;                  /* pn_tree_kind of the node's tree, or -1 for a single */
+    float cone_angle;          /* acos(cos_spread) + acos(cos_emit), precomputed for the cut */
 } pn_cluster_node;
 
 typedef enum pn_tree_kind {
