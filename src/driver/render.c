@@ -2,6 +2,7 @@
  * which also seeds each block's quasi-random sequence), blocks handed to worker threads by an
  * atomic counter, per-pixel estimates gathered into the film, AOVs, statistics. The image does
  * not depend on the thread count: every block is computed by one thread from its own seed. */
+#include "core/clock.h"
 #include "core/context.h"
 #include "core/threadpool.h"
 #include "integrators/integrator.h"
@@ -11,15 +12,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
-#include <time.h>
 
 #define PN_BLOCK 8
-
-static double now_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 typedef struct render_shared {
     const pn_render_job *job;
@@ -238,9 +232,9 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     atomic_init(&rs.failed, 0);
     atomic_init(&rs.blocks_done, 0);
     pthread_mutex_init(&rs.progress_lock, NULL);
-    double t0 = now_seconds();
+    double t0 = pn_clock_seconds();
     pn_threadpool_run(pool, (size_t)rs.block_count, render_block, &rs);
-    double t1 = now_seconds();
+    double t1 = pn_clock_seconds();
     pthread_mutex_destroy(&rs.progress_lock);
     for (int w = 0; w <= workers; w++)
         if (rs.scratch[w] && integ->scratch_free) integ->scratch_free(rs.scratch[w]);

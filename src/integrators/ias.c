@@ -44,6 +44,7 @@
  * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light). */
 #include "integrators/integrator.h"
 
+#include "core/clock.h"
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "integrators/ias_math.h"
@@ -55,7 +56,6 @@
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #define IAS_MAX_PIXELS 64
 #define IAS_CLASSES 6
@@ -252,12 +252,6 @@ static void *ias_scratch_create(const pn_render_job *job) {
 /* Every IAS_TIMING_STRIDE-th ray has its Embree call timed; the sum, scaled by the stride,
  * estimates the time spent in Embree (as the reference integrator does). */
 #define IAS_TIMING_STRIDE 8u
-
-static double clock_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static int normal_class(vec3 n) {
     float ax = fabsf(n.x), ay = fabsf(n.y), az = fabsf(n.z);
@@ -538,9 +532,9 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                     px->shadow_rays++;
                     float tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-4f) - r->eps;
                     bool timed = q % IAS_TIMING_STRIDE == 0u;
-                    double t0 = timed ? clock_seconds() : 0.0;
+                    double t0 = timed ? pn_clock_seconds() : 0.0;
                     visible = !pn_accel_occluded(job->accel, r->origin, wi, 0.0f, tmax);
-                    if (timed) px->embree_seconds += (clock_seconds() - t0) * IAS_TIMING_STRIDE;
+                    if (timed) px->embree_seconds += (pn_clock_seconds() - t0) * IAS_TIMING_STRIDE;
                     if (visible) {
                         px->visible++;
                         /* Table 5: this light (or environment region) is visible here. */
@@ -642,9 +636,9 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                           &rd);
             pn_eye_path path;
             bool timed = i % IAS_TIMING_STRIDE == 0u;
-            double t0 = timed ? clock_seconds() : 0.0;
+            double t0 = timed ? pn_clock_seconds() : 0.0;
             pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
-            if (timed) px->embree_seconds += (clock_seconds() - t0) * IAS_TIMING_STRIDE;
+            if (timed) px->embree_seconds += (pn_clock_seconds() - t0) * IAS_TIMING_STRIDE;
             if (r == 0) {
                 out[pi].depth = path.first_depth;
                 out[pi].normal = path.first_normal;

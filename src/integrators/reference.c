@@ -19,23 +19,17 @@
  * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light. */
 #include "integrators/integrator.h"
 
+#include "core/clock.h"
 #include "core/sobol.h"
 #include "core/rng.h"
 #include "shade/bsdf.h"
 
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 /* Every PN_TIMING_STRIDE-th eye ray of a block has its Embree calls timed; the sum, scaled by the
  * stride, estimates the time spent in Embree without timing every ray. */
 #define PN_TIMING_STRIDE 8u
-
-static double clock_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 typedef struct reference_scratch {
     float *cdf;    /* light_count + 1 */
@@ -158,10 +152,10 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
             pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble),
                           &ro, &rd);
             const bool timed = i % PN_TIMING_STRIDE == 0u;
-            double t_start = timed ? clock_seconds() : 0.0;
+            double t_start = timed ? pn_clock_seconds() : 0.0;
             pn_eye_path path;
             pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
-            if (timed) embree_seconds += clock_seconds() - t_start;
+            if (timed) embree_seconds += pn_clock_seconds() - t_start;
             if (ps.n == 0) {
                 o->depth = path.first_depth;
                 o->normal = path.first_normal;
@@ -193,9 +187,9 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
                         float cos_i = v3_dot(b.ns, ls.wi);
                         ps.shadow_rays++;
                         float tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f) - eps;
-                        double t_ray = timed ? clock_seconds() : 0.0;
+                        double t_ray = timed ? pn_clock_seconds() : 0.0;
                         bool blocked = pn_accel_occluded(job->accel, origin, ls.wi, 0.0f, tmax);
-                        if (timed) embree_seconds += clock_seconds() - t_ray;
+                        if (timed) embree_seconds += pn_clock_seconds() - t_ray;
                         if (blocked) continue;
                         float w = cos_i / (ls.pdf * prob);
                         direct = v3_add(direct, v3_scale(v3_mul(f, ls.radiance), w));

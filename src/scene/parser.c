@@ -1791,16 +1791,10 @@ static void parser_cleanup(pn_parser *p) {
     free(p->strings);
 }
 
-static double monotonic_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 pn_status pn_scene_parse(pn_context ctx, const char *path, struct pn_scene_s **out, pn_err *err) {
     if (out) *out = NULL;
     if (!path || !out) return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "pn_scene_parse: NULL argument");
-    double t0 = monotonic_seconds();
     struct pn_scene_s *scene = calloc(1, sizeof *scene);
     pn_parser *p = calloc(1, sizeof *p);
     if (!scene || !p) {
@@ -1835,7 +1829,6 @@ pn_status pn_scene_parse(pn_context ctx, const char *path, struct pn_scene_s **o
         pn_scene_parse_free(scene);
         return st;
     }
-    scene->parse_seconds = monotonic_seconds() - t0;
     *out = scene;
     return PN_OK;
 }

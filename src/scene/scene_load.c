@@ -1,18 +1,12 @@
 /* scene_load.c — the public scene API: parse, build light records and the BVH, report. */
 #include "accel/accel.h"
+#include "core/clock.h"
 #include "core/context.h"
 #include "lights/lights.h"
 #include "scene/scene.h"
 
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
-
-static double now_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 pn_status pn_scene_load(pn_context ctx, const char *path, pn_scene *out_scene) {
     if (out_scene) *out_scene = NULL;
@@ -23,15 +17,15 @@ pn_status pn_scene_load(pn_context ctx, const char *path, pn_scene *out_scene) {
     pn_err err;
     pn_err_init(&err);
     struct pn_scene_s *scene = NULL;
-    double t0 = now_seconds();
+    double t0 = pn_clock_seconds();
     pn_status st = pn_scene_parse(ctx, path, &scene, &err);
     if (st != PN_OK) return pn_context_fail_from(ctx, &err);
-    scene->parse_seconds = now_seconds() - t0;
+    scene->parse_seconds = pn_clock_seconds() - t0;
     st = pn_lights_build(scene, &scene->lights, &err);
     if (st == PN_OK) {
-        double t1 = now_seconds();
+        double t1 = pn_clock_seconds();
         st = pn_accel_build(scene, &scene->accel, &err);
-        scene->bvh_seconds = now_seconds() - t1;
+        scene->bvh_seconds = pn_clock_seconds() - t1;
     }
     if (st != PN_OK) {
         pn_scene_free(scene);
