@@ -158,8 +158,7 @@ typedef struct ias_region {
     float raster_x, raster_y; /* where the representative eye ray crossed the image */
     pn_bsdf bsdf;
     int cls;            /* normal class */
-    double weight;      /* summed filter weight of its eye rays */
-    int rays;
+    double weight;      /* its share of the pixel's eye rays (summed filter weights) */
     int cut_first, cut_count; /* ids in scratch->cut */
     /* This pass's samples of the region: sums of the luminance and RGB of v / (P(cluster)
      * P(light)), of the squared luminance, and their number. */
@@ -183,7 +182,8 @@ typedef struct ias_pixel {
     uint32_t shadow_rays, visible;
     bool done;
     vec3 result;
-    double clusters;    /* area-weighted clusters per point */
+    double clusters;    /* N_C: clusters per point, weighted by region area */
+    double region_weight; /* sum of the regions' weights (the share of rays that hit a surface) */
     double embree_seconds; /* sampled estimate of the time inside Embree */
     uint32_t visible_lights; /* distinct lights / environment regions seen unoccluded */
     pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
@@ -203,6 +203,7 @@ typedef struct ias_scratch {
     int pixel_count;
     unsigned char *pixel_seen;   /* IAS_MAX_PIXELS x visible_slots flags (Table 5) */
     int visible_slots;
+    unsigned *n_of;              /* samples per region of one pixel (aa_rays entries) */
     double *pdf;                 /* per cut entry */
     double *cdf;
     double *fpix;
@@ -218,6 +219,7 @@ static void ias_scratch_free(void *p) {
     free(s->pdf);
     free(s->cdf);
     free(s->fpix);
+    free(s->n_of);
     free(s->pixel_seen);
     free(s);
 }
@@ -237,10 +239,11 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->pdf = malloc((ids + 1) * sizeof *s->pdf);
     s->cdf = malloc((ids + 1) * sizeof *s->cdf);
     s->fpix = malloc((ids + 1) * sizeof *s->fpix);
+    s->n_of = malloc(((size_t)job->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
     s->pixel_seen = calloc((size_t)IAS_MAX_PIXELS * (size_t)(sh->visible_slots + 1), 1);
     if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix ||
-        !s->pixel_seen) {
+        !s->n_of || !s->pixel_seen) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -443,23 +446,27 @@ static void combine_passes(const ias_scratch *sc, const ias_pixel *px, double *L
     }
 }
 
+/* The pixel's combined estimate, and the variance its convergence test uses: the larger of the
+ * pixel's own variance and the one its block's relative variance predicts, so that a pixel whose
+ * few samples happened to agree does not stop early with a low estimate (termination bias, 7% on
+ * hall-many-matte with the pixel's own variance alone). */
+static void pixel_estimate(const ias_scratch *s, const ias_pixel *px, double *L, double *s2, vec3 *rgb) {
+    double block_relvar;
+    combine_passes(s, px, L, s2, rgb, &block_relvar);
+    *s2 = fmax(*s2, block_relvar * *L * *L);
+}
+
 /* Takes `count` shadow rays for pixel px with its regions' current PDFs (pass `pass`), adding
  * the samples to the regions' sums and the light evaluations to the statistics. Every region that
  * has clusters gets at least two per pass (for a variance) when count > 0. */
 static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px, int pass,
-                         unsigned count, uint32_t scramble, uint32_t *counter, double *cluster_mean) {
-    double wsum = 0.0, ncl = 0.0;
-    for (int k = 0; k < px->region_count; k++) {
-        const ias_region *r = &s->regions[px->first_region + k];
-        wsum += r->weight;
-        ncl += r->weight * (double)r->cut_count;
-    }
-    if (cluster_mean) *cluster_mean = wsum > 0.0 ? ncl / wsum : 0.0;
-    if (!(wsum > 0.0)) return;
+                         unsigned count, uint32_t scramble, uint32_t *counter) {
+    const double wsum = px->region_weight;
+    if (!(wsum > 0.0) || count == 0) return;
     /* Samples to regions by area: floor shares, the rest to the largest remainders. */
     unsigned given = 0;
-    unsigned n_of[IAS_MAX_PIXELS * 8];
-    int rc = px->region_count < IAS_MAX_PIXELS * 8 ? px->region_count : IAS_MAX_PIXELS * 8;
+    unsigned *n_of = s->n_of;
+    const int rc = px->region_count;
     for (int k = 0; k < rc; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
         n_of[k] = r->cut_count > 0 ? (unsigned)floor((double)count * r->weight / wsum) : 0u;
@@ -665,7 +672,6 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             }
             if (join) {
                 join->weight += (double)fw;
-                join->rays++;
                 continue;
             }
             ias_region *g;
@@ -684,16 +690,19 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             g->raster_y = ry;
             g->cls = normal_class(b.ng);
             g->weight = (double)fw;
-            g->rays = 1;
             px->region_count++;
         }
         px->emitted = px->weight_sum != 0.0 ? v3_scale(emitted, (float)(1.0 / px->weight_sum)) : v3(0, 0, 0);
         /* Region weights as shares of the pixel. */
+        double ncl = 0.0;
         for (int k = 0; k < px->region_count; k++) {
             ias_region *g = &s->regions[px->first_region + k];
             g->weight = px->weight_sum != 0.0 ? g->weight / px->weight_sum : 0.0;
             if (!compute_cut(job, sh, s, g)) return PN_ERROR_OUT_OF_MEMORY;
+            px->region_weight += g->weight;
+            ncl += g->weight * (double)g->cut_count;
         }
+        px->clusters = px->region_weight > 0.0 ? ncl / px->region_weight : 0.0;
         out[pi].eye_rays = job->aa_rays;
         out[pi].aa_regions = (uint32_t)px->region_count;
         bool any_cluster = false;
@@ -712,23 +721,15 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             ias_pixel *px = &s->pixels[pi];
             if (px->done) continue;
             any = true;
-            double ncl = 0.0;
             reset_regions(s, px);
-            /* N_C first (the weighted mean cut size), then 1.5 N_C samples, at least 50. */
-            sample_pixel(job, sh, s, px, pass, 0, scramble, &counter, &ncl);
-            unsigned count = (unsigned)ceil(1.5 * ncl);
+            /* 1.5 N_C samples, at least 50. */
+            unsigned count = (unsigned)ceil(1.5 * px->clusters);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
-            px->clusters = ncl;
-            sample_pixel(job, sh, s, px, pass, count, scramble, &counter, NULL);
+            sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
-            double L, s2, brv;
+            double L, s2;
             vec3 rgb;
-            combine_passes(s, px, &L, &s2, &rgb, &brv);
-            /* The convergence test takes the larger of the pixel's own variance and the one its
-             * block's relative variance predicts: a pixel whose few samples happened to agree
-             * must not stop early with a low estimate (termination bias, 7% on hall-many-matte
-             * with the pixel's own variance alone). */
-            s2 = fmax(s2, brv * L * L);
+            pixel_estimate(s, px, &L, &s2, &rgb);
             double Lt = L + (double)v3_luminance(px->emitted);
             /* Close to the target (within 2x): more samples with the same PDFs, in steps of 25
              * (§5.8). How many steps is decided once, from the variance falling as 1/n, instead of
@@ -741,22 +742,17 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                 if (steps > IAS_MAX_STEPS) steps = IAS_MAX_STEPS;
                 if (steps > 0) {
                     px->pass_count--; /* extend this pass */
-                    sample_pixel(job, sh, s, px, pass, steps * IAS_STEP_SAMPLES, scramble, &counter, NULL);
+                    sample_pixel(job, sh, s, px, pass, steps * IAS_STEP_SAMPLES, scramble, &counter);
                     store_pass(s, px);
-                    combine_passes(s, px, &L, &s2, &rgb, &brv);
-                    s2 = fmax(s2, brv * L * L);
+                    pixel_estimate(s, px, &L, &s2, &rgb);
                     Lt = L + (double)v3_luminance(px->emitted);
                 }
             }
             bool converged = Lt > 0.0 && s2 < job->threshold * Lt * Lt;
             bool black = px->visible == 0 && pass + 1 >= IAS_BLACK_PASSES && px->shadow_rays >= IAS_BLACK_RAYS;
             if (black) rgb = v3(0, 0, 0);
-            if (converged || black || pass + 1 >= (int)job->max_passes || atomic_load(job->cancel)) {
-                px->done = true;
-                px->result = v3_add(px->emitted, rgb);
-            } else {
-                px->result = v3_add(px->emitted, rgb);
-            }
+            px->result = v3_add(px->emitted, rgb);
+            px->done = converged || black || pass + 1 >= (int)job->max_passes || atomic_load(job->cancel);
         }
         if (!any) break;
     }
@@ -770,10 +766,9 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         out[pi].visible_fraction = px->shadow_rays ? (float)px->visible / (float)px->shadow_rays : 0.0f;
         out[pi].visible_lights = px->visible_lights;
         out[pi].embree_seconds = (float)px->embree_seconds;
-        double L, s2, brv;
+        double L, s2;
         vec3 rgb;
-        combine_passes(s, px, &L, &s2, &rgb, &brv);
-        s2 = fmax(s2, brv * L * L);
+        pixel_estimate(s, px, &L, &s2, &rgb);
         double Lt = L + (double)v3_luminance(px->emitted);
         out[pi].relative_variance = Lt > 0.0 && isfinite(s2) ? (float)(s2 / (Lt * Lt)) : 0.0f;
     }
