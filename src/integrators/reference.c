@@ -1,8 +1,9 @@
 /* reference.c — the Monte Carlo reference of Donikian et al. 2006, §5.1 ("Reference Solution
  * Implementation"): at each eye-ray hit, a fixed PDF over all lights proportional to each light's
  * unoccluded irradiance at the point (zero behind the surface or facing away); a fixed number of
- * shadow rays per eye ray; scrambled Sobol numbers whose sequence is reset once per 8x8 block
- * (footnote 1); eye rays added to a pixel until its relative variance s^2/L^2 falls below the
+ * shadow rays per eye ray; scrambled Sobol numbers (footnote 1 resets the sequence once per 8x8
+ * block; here it restarts for every pixel, with its own Owen scrambling — see below); eye rays
+ * added to a pixel until its relative variance s^2/L^2 falls below the
  * threshold, with a maximum number of shadow rays per pixel (20,000) and a minimum number before
  * a pixel may be declared black (§5.9; 2,500 as for the paper's hard scenes) — or a fixed spp.
  *
@@ -15,7 +16,12 @@
  * for points, spots, distant lights, spheres above the horizon and near polygons, a point
  * approximation for small far polygons, spherical harmonics for environment maps.
  *
- * Quasi-random dimensions per eye ray i of a block: 0-1 pixel filter, 2-3 lens, 4 specular
+ * Departure from footnote 1: a pixel's value must not depend on which other pixels were evaluated
+ * before it in the same batch, so that a progressive driver (dcm) that evaluates scattered pixels
+ * in its own order gets exactly the pixels of the full render. Each pixel therefore draws from
+ * its own Owen-scrambled Sobol sequence (scramble = hash(seed, pixel x, pixel y)), index 0 up.
+ *
+ * Quasi-random dimensions per eye ray i of a pixel: 0-1 pixel filter, 2-3 lens, 4 specular
  * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light. */
 #include "integrators/integrator.h"
 
@@ -27,7 +33,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Every PN_TIMING_STRIDE-th eye ray of a block has its Embree calls timed; the sum, scaled by the
+/* Every PN_TIMING_STRIDE-th eye ray of a pixel has its Embree calls timed; the sum, scaled by the
  * stride, estimates the time spent in Embree without timing every ray. */
 #define PN_TIMING_STRIDE 8u
 
@@ -131,12 +137,11 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
                                         void *scratch) {
     reference_scratch *s = scratch;
     const uint32_t S = job->shadow_rays;
-    /* One scrambled Sobol sequence per block (footnote 1 of §5.1). */
-    uint32_t scramble = (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)batch->block_x,
-                                           (uint64_t)(uint32_t)batch->block_y);
-    uint32_t index = 0;
     for (int pi = 0; pi < batch->count; pi++) {
         int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
+        /* One scrambled Sobol sequence per pixel: the value is independent of the batch. */
+        uint32_t scramble = (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+        uint32_t index = 0;
         pixel_state ps;
         memset(&ps, 0, sizeof ps);
         pn_pixel_estimate *o = &out[pi];
