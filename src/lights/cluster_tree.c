@@ -805,6 +805,9 @@ done:
     for (int i = 0; status == PN_OK && i < out->node_count; i++) {
         pn_cluster_node *nd = &out->nodes[i];
         nd->cone_angle = acosf(clamp_unit(nd->cos_spread)) + acosf(clamp_unit(nd->cos_emit));
+        double a = (double)nd->cone_angle + (double)PN_CLUSTER_ANGLE_MARGIN;
+        nd->cut_cos = a < (double)PN_PI ? (float)cos(a) : -2.0f;
+        nd->cut_sin = a < (double)PN_PI ? (float)sin(a) : 0.0f;
     }
     free(b.alive);
     free(b.slot);
@@ -839,9 +842,18 @@ static bool node_culled(const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon)
              * the sphere to p within theta_b of w: no light reaches p when the smallest possible
              * angle between them still exceeds the emission half-angle theta_e. */
             vec3 w = v3_scale(pc, -1.0f / d);
-            float theta_w = acosf(clamp_unit(v3_dot(nd->axis, w)));
-            float theta_b = asinf(fminf(nd->radius / d, 1.0f));
-            if (theta_w - theta_b > nd->cone_angle + PN_CLUSTER_ANGLE_MARGIN) return true;
+            /* theta_w - theta_b > A (A = the cone angle plus the margin) is tested as
+             * cos(theta_w) < cos(A + theta_b), which holds only while A + theta_b < pi; with
+             * sin(theta_b) = r/d that is A <= pi/2 or r/d < sin(A). The cosine side keeps a
+             * small margin of its own for the rounding of the dot product. */
+            if (nd->cut_cos > -1.5f) {
+                float sb = fminf(nd->radius / d, 1.0f);
+                if (nd->cut_cos >= 0.0f || sb < nd->cut_sin) {
+                    float cb = sqrtf(fmaxf(0.0f, 1.0f - sb * sb));
+                    float limit = nd->cut_cos * cb - nd->cut_sin * sb;
+                    if (v3_dot(nd->axis, w) < limit - 2e-6f) return true;
+                }
+            }
         }
     }
     return false;

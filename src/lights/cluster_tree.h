@@ -37,7 +37,10 @@ typedef struct pn_cluster_node {
                                   cos_total_width for spots, -1 in the omni tree */
     vec3 bmin, bmax;           /* axis-aligned box of the lights' geometry below */
     int tree;                  /* pn_tree_kind of the node's tree, or -1 for a single */
-    float cone_angle;          /* acos(cos_spread) + acos(cos_emit), precomputed for the cut */
+    float cone_angle;          /* acos(cos_spread) + acos(cos_emit) */
+    float cut_cos, cut_sin;    /* cos and sin of cone_angle plus a safety margin, for the cut's
+                                  facing-away test without inverse trigonometry; cut_cos = -2
+                                  when that angle reaches pi (the test can never cull) */
 } pn_cluster_node;
 
 typedef enum pn_tree_kind {
