@@ -6,11 +6,16 @@
  * rays per pixel, peak memory, the fraction of render time spent inside Embree, and relMSE of the
  * image against the pbrt-v4 reference of the same pixels. Uses only the public header.
  *
- *   penumbra_bench [--config FILE] [--runs N] [--threads N] [--out DIR] [--only NAME]
+ *   penumbra_bench [--config FILE] [--runs N] [--threads N] [--out DIR] [--only NAME|PREFIX*]
  *
  * Config lines: NAME SCENE REFERENCE CROP SETTINGS, where SCENE and REFERENCE may start with
  * "shared/" for ../shared, CROP is x0,x1,y0,y1 in fractions, SETTINGS is a comma list of spp=N,
- * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias. '#' starts a comment.
+ * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias, group=NAME. '#' starts a comment.
+ *
+ * Cases that share a group are one scene rendered by several integrators at several settings. For
+ * every non-reference case of a group the bench adds an equal-quality row (the reference's time
+ * and shadow rays at the same relMSE, interpolated log-log between the two reference cases whose
+ * relMSE brackets it) and an equal-time row (the reference's relMSE at the same time).
  */
 #include "penumbra/penumbra.h"
 
@@ -28,6 +33,7 @@
 
 typedef struct bench_case {
     char name[128], scene[1024], reference[1024], crop_text[64], settings_text[256];
+    char group[64]; /* "" when the case is not part of an equal-quality comparison */
     float crop[4];
     pn_render_settings settings;
 } bench_case;
@@ -54,7 +60,7 @@ static void resolve(const char *in, char *out, size_t n) {
     else snprintf(out, n, "%s", in);
 }
 
-static int parse_settings(const char *text, pn_render_settings *s) {
+static int parse_settings(const char *text, pn_render_settings *s, char *group, size_t group_size) {
     char buf[256];
     snprintf(buf, sizeof buf, "%s", text);
     for (char *tok = strtok(buf, ","); tok; tok = strtok(NULL, ",")) {
@@ -67,6 +73,7 @@ static int parse_settings(const char *text, pn_render_settings *s) {
         else if (strcmp(tok, "shadow") == 0) s->shadow_rays = (uint32_t)strtoul(v, NULL, 10);
         else if (strcmp(tok, "seed") == 0) s->seed = strtoull(v, NULL, 10);
         else if (strcmp(tok, "max") == 0) s->max_shadow_rays = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "group") == 0) snprintf(group, group_size, "%s", v);
         else if (strcmp(tok, "integrator") == 0) {
             if (strcmp(v, "reference") == 0) s->integrator = PN_INTEGRATOR_REFERENCE;
             else if (strcmp(v, "ias") == 0) s->integrator = PN_INTEGRATOR_IAS;
@@ -183,7 +190,7 @@ static int read_config(const char *path, bench_case **out, int *count) {
         int k = sscanf(line, "%127s %1023s %1023s %63s %255s", bc.name, scene, ref, bc.crop_text, bc.settings_text);
         if (k <= 0) continue;
         if (k != 5 || sscanf(bc.crop_text, "%f,%f,%f,%f", &bc.crop[0], &bc.crop[1], &bc.crop[2], &bc.crop[3]) != 4 ||
-            !parse_settings(bc.settings_text, &bc.settings)) {
+            !parse_settings(bc.settings_text, &bc.settings, bc.group, sizeof bc.group)) {
             fprintf(stderr, "penumbra_bench: %s:%d: expected NAME SCENE REFERENCE x0,x1,y0,y1 SETTINGS\n", path,
                     lineno);
             fclose(f);
@@ -208,6 +215,141 @@ static int read_config(const char *path, bench_case **out, int *count) {
     *out = cases;
     *count = n;
     return 1;
+}
+
+/* --only NAME selects one case; NAME ending in '*' selects every case whose name starts with
+ * the rest. */
+static int name_matches(const char *pattern, const char *name) {
+    size_t n = strlen(pattern);
+    if (n > 0 && pattern[n - 1] == '*') return strncmp(pattern, name, n - 1) == 0;
+    return strcmp(pattern, name) == 0;
+}
+
+/* ---- equal quality and equal time within a group ----------------------------------------- */
+
+typedef struct quality_point {
+    double relmse, seconds, rays;
+} quality_point;
+
+static int cmp_relmse_desc(const void *a, const void *b) {
+    double x = ((const quality_point *)a)->relmse, y = ((const quality_point *)b)->relmse;
+    return (x < y) - (x > y);
+}
+
+static int cmp_seconds(const void *a, const void *b) {
+    double x = ((const quality_point *)a)->seconds, y = ((const quality_point *)b)->seconds;
+    return (x > y) - (x < y);
+}
+
+/* y at x, on the straight line through (xa, ya) and (xb, yb) in log-log coordinates. */
+static double loglog(double x, double xa, double ya, double xb, double yb) {
+    if (!(xa > 0.0 && xb > 0.0 && ya > 0.0 && yb > 0.0) || xa == xb) return 0.5 * (ya + yb);
+    double t = (log(x) - log(xa)) / (log(xb) - log(xa));
+    return exp(log(ya) + t * (log(yb) - log(ya)));
+}
+
+static int is_reference(const pn_render_settings *s) {
+    return s->integrator == PN_INTEGRATOR_REFERENCE || s->integrator == PN_INTEGRATOR_DEFAULT;
+}
+
+/* The reference's cost at relMSE e from its points sorted by decreasing relMSE. Returns 0 when e
+ * lies between two points (interpolated), +1 when every point is worse than e (the reference
+ * would need more than the most accurate point: the values are lower bounds), -1 when every point
+ * is better (upper bounds from the cheapest point). */
+static int reference_at_relmse(const quality_point *p, int n, double e, double *seconds, double *rays) {
+    if (e < p[n - 1].relmse) {
+        *seconds = p[n - 1].seconds;
+        *rays = p[n - 1].rays;
+        return 1;
+    }
+    if (e > p[0].relmse) {
+        *seconds = p[0].seconds;
+        *rays = p[0].rays;
+        return -1;
+    }
+    for (int i = 0; i + 1 < n; i++)
+        if (p[i].relmse >= e && e >= p[i + 1].relmse) {
+            *seconds = loglog(e, p[i].relmse, p[i].seconds, p[i + 1].relmse, p[i + 1].seconds);
+            *rays = loglog(e, p[i].relmse, p[i].rays, p[i + 1].relmse, p[i + 1].rays);
+            return 0;
+        }
+    *seconds = p[n - 1].seconds;
+    *rays = p[n - 1].rays;
+    return 0;
+}
+
+/* The reference's relMSE at time t from its points sorted by increasing time. Returns 0 when
+ * interpolated, -1 when t is shorter than the fastest point (the reference had no image that
+ * fast: its error at t would be higher, the value is a lower bound), +1 when t is longer than the
+ * slowest point (an upper bound). */
+static int reference_at_seconds(const quality_point *p, int n, double t, double *relmse) {
+    if (t < p[0].seconds) {
+        *relmse = p[0].relmse;
+        return -1;
+    }
+    if (t > p[n - 1].seconds) {
+        *relmse = p[n - 1].relmse;
+        return 1;
+    }
+    for (int i = 0; i + 1 < n; i++)
+        if (p[i].seconds <= t && t <= p[i + 1].seconds) {
+            *relmse = loglog(t, p[i].seconds, p[i].relmse, p[i + 1].seconds, p[i + 1].relmse);
+            return 0;
+        }
+    *relmse = p[n - 1].relmse;
+    return 0;
+}
+
+static void equal_quality(FILE *md, FILE *js, const bench_case *cases, const int *which, const bench_result *res,
+                          int n) {
+    quality_point *pts = malloc((size_t)(n > 0 ? n : 1) * sizeof *pts);
+    if (!pts) return;
+    fprintf(md, "\n### Equal quality and equal time against `reference` (per group)\n\n"
+                "| group | case | relMSE | time (s) | shadow rays/px | reference time at equal relMSE (s) | "
+                "reference shadow rays/px | speed-up | shadow-ray ratio | reference relMSE at equal time | "
+                "relMSE ratio at equal time |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    fprintf(js, ",\n  \"equal_quality\": [");
+    int first = 1;
+    for (int i = 0; i < n; i++) {
+        const bench_case *ci = &cases[which[i]];
+        const bench_result *ri = &res[i];
+        if (!ci->group[0] || is_reference(&ci->settings) || !ri->has_metrics) continue;
+        int m = 0;
+        for (int j = 0; j < n; j++) {
+            const bench_case *cj = &cases[which[j]];
+            if (j == i || strcmp(cj->group, ci->group) != 0 || !is_reference(&cj->settings) || !res[j].has_metrics)
+                continue;
+            pts[m].relmse = res[j].metrics.relmse;
+            pts[m].seconds = res[j].median;
+            pts[m].rays = res[j].stats.shadow_rays_per_pixel_mean;
+            m++;
+        }
+        if (m == 0) continue;
+        double e = ri->metrics.relmse, t = ri->median, rays = ri->stats.shadow_rays_per_pixel_mean;
+        double ref_t, ref_rays, ref_e;
+        qsort(pts, (size_t)m, sizeof *pts, cmp_relmse_desc);
+        int q = reference_at_relmse(pts, m, e, &ref_t, &ref_rays);
+        qsort(pts, (size_t)m, sizeof *pts, cmp_seconds);
+        int qt = reference_at_seconds(pts, m, t, &ref_e);
+        const char *qmark = q > 0 ? "> " : q < 0 ? "< " : "";
+        const char *tmark = qt < 0 ? "> " : qt > 0 ? "< " : "";
+        fprintf(md, "| %s | %s | %.3g | %.3f | %.1f | %s%.3f | %s%.1f | %s%.2f× | %s%.2f× | %s%.3g | %s%.2f× |\n",
+                ci->group, ci->name, e, t, rays, qmark, ref_t, qmark, ref_rays, qmark, t > 0 ? ref_t / t : 0.0,
+                qmark, rays > 0 ? ref_rays / rays : 0.0, tmark, ref_e, tmark, e > 0 ? ref_e / e : 0.0);
+        fprintf(js,
+                "%s\n    {\"group\": \"%s\", \"case\": \"%s\", \"relmse\": %.6g, \"seconds\": %.4f, "
+                "\"shadow_rays_per_pixel\": %.3f, \"reference_seconds_equal_relmse\": %.4f, "
+                "\"reference_shadow_rays_equal_relmse\": %.3f, \"equal_relmse_bound\": \"%s\", "
+                "\"reference_relmse_equal_time\": %.6g, \"equal_time_bound\": \"%s\"}",
+                first ? "" : ",", ci->group, ci->name, e, t, rays, ref_t, ref_rays,
+                q > 0 ? "lower" : q < 0 ? "upper" : "interpolated", ref_e,
+                qt < 0 ? "lower" : qt > 0 ? "upper" : "interpolated");
+        first = 0;
+    }
+    fprintf(js, "\n  ]");
+    fprintf(md, "\nA `>` or `<` marks a bound: no reference case of the group reached that relMSE (or ran "
+                "that fast), so the nearest one is shown.\n");
+    free(pts);
 }
 
 int main(int argc, char **argv) {
@@ -248,9 +390,13 @@ int main(int argc, char **argv) {
     fprintf(js, "{\n  \"penumbra\": \"%s\",\n  \"runs\": %d,\n  \"threads\": %d,\n  \"cases\": [", pn_version_string(),
             runs, threads);
     int first = 1;
+    int *done_case = malloc((size_t)(count > 0 ? count : 1) * sizeof *done_case);
+    bench_result *done = malloc((size_t)(count > 0 ? count : 1) * sizeof *done);
+    int done_count = 0;
+    if (!done_case || !done) return 4;
     for (int c = 0; c < count; c++) {
         const bench_case *bc = &cases[c];
-        if (only && strcmp(only, bc->name) != 0) continue;
+        if (only && !name_matches(only, bc->name)) continue;
         if (access(bc->scene, R_OK) != 0) {
             fprintf(stderr, "penumbra_bench: %s: skipped (%s not found)\n", bc->name, bc->scene);
             continue;
@@ -304,10 +450,16 @@ int main(int argc, char **argv) {
                 r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
                 (unsigned long long)r.stats.peak_memory_bytes, embree_share, relmse_json, rmse_json, r.bit_identical ? "true" : "false");
         first = 0;
+        done_case[done_count] = c;
+        done[done_count++] = r;
         fprintf(stderr, "penumbra_bench: %s: %.3f s median, relMSE %s\n", bc->name, r.median,
                 r.has_metrics ? relmse : "n/a");
     }
-    fprintf(js, "\n  ]\n}\n");
+    fprintf(js, "\n  ]");
+    equal_quality(md, js, cases, done_case, done, done_count);
+    fprintf(js, "\n}\n");
+    free(done_case);
+    free(done);
     fclose(md);
     fclose(js);
     free(cases);
