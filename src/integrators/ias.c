@@ -207,6 +207,14 @@ typedef struct ias_scratch {
     double *pdf;                 /* per cut entry */
     double *cdf;
     double *fpix;
+    /* Feedback weights F = C / sqrt(u) (eq. 4) computed once instead of per region and pass:
+     * the block's for every cluster of every class at the start of each pass (from the previous
+     * passes' data, as §4.1 says), the current pixel's for the clusters of its regions' cuts at
+     * the start of its pass (kept for the 25-ray steps, which continue "with the current PDFs"). */
+    double *fb_cache;            /* IAS_CLASSES x id_count */
+    double *fp_cache;            /* IAS_CLASSES x id_count, valid where fp_stamp == fp_now */
+    uint32_t *fp_stamp;
+    uint32_t fp_now;
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -219,6 +227,9 @@ static void ias_scratch_free(void *p) {
     free(s->pdf);
     free(s->cdf);
     free(s->fpix);
+    free(s->fb_cache);
+    free(s->fp_cache);
+    free(s->fp_stamp);
     free(s->n_of);
     free(s->pixel_seen);
     free(s);
@@ -239,11 +250,14 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->pdf = malloc((ids + 1) * sizeof *s->pdf);
     s->cdf = malloc((ids + 1) * sizeof *s->cdf);
     s->fpix = malloc((ids + 1) * sizeof *s->fpix);
+    s->fb_cache = calloc(IAS_CLASSES * ids, sizeof *s->fb_cache);
+    s->fp_cache = calloc(IAS_CLASSES * ids, sizeof *s->fp_cache);
+    s->fp_stamp = calloc(IAS_CLASSES * ids, sizeof *s->fp_stamp);
     s->n_of = malloc(((size_t)job->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
     s->pixel_seen = calloc((size_t)IAS_MAX_PIXELS * (size_t)(sh->visible_slots + 1), 1);
     if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix ||
-        !s->n_of || !s->pixel_seen) {
+        !s->fb_cache || !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -336,19 +350,29 @@ static void record(const ias_shared *sh, pn_ias_stats *block, pn_ias_stats *pixe
     if (pixel) pn_ias_stats_add(&pixel[id], value, visible);
 }
 
+/* The current pixel's feedback weight of cluster `id` in class `cls` (see fp_cache). */
+static double pixel_feedback(ias_scratch *s, const pn_ias_stats *pixel, int cls, int id) {
+    size_t k = (size_t)cls * (size_t)s->id_count + (size_t)id;
+    if (s->fp_stamp[k] != s->fp_now) {
+        s->fp_cache[k] = pixel ? pn_ias_feedback(&pixel[id]) : 0.0;
+        s->fp_stamp[k] = s->fp_now;
+    }
+    return s->fp_cache[k];
+}
+
 /* Eq. 6 for a region's point in pass j: fills s->pdf / s->cdf over its cut. */
-static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *block, const pn_ias_stats *pixel,
-                      int pass) {
+static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *pixel, int pass) {
     double cu, cb, cp;
     pn_ias_blend_weights(pass, &cu, &cb, &cp);
     int nc = r->cut_count;
     const int *cut = s->cut + r->cut_first;
-    double *fblock = s->pdf, *fpixel = s->fpix; /* feedback weights, each computed once */
+    const double *fb_class = s->fb_cache + (size_t)r->cls * (size_t)s->id_count;
+    double *fblock = s->pdf, *fpixel = s->fpix; /* feedback weights of the cut's clusters */
     double fb = 0.0, fp = 0.0;
     if (cb > 0.0)
-        for (int i = 0; i < nc; i++) fb += (fblock[i] = pn_ias_feedback(&block[cut[i]]));
+        for (int i = 0; i < nc; i++) fb += (fblock[i] = fb_class[cut[i]]);
     if (cp > 0.0 && pixel)
-        for (int i = 0; i < nc; i++) fp += (fpixel[i] = pn_ias_feedback(&pixel[cut[i]]));
+        for (int i = 0; i < nc; i++) fp += (fpixel[i] = pixel_feedback(s, pixel, r->cls, cut[i]));
     /* A feedback PDF without data gives its weight to the uniform PDF. */
     if (!(fb > 0.0)) {
         cu += cb;
@@ -372,6 +396,34 @@ static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *b
     const double inv = 1.0 / acc;
     for (int i = 0; i <= nc; i++) s->cdf[i] *= inv;
     for (int i = 0; i < nc; i++) s->pdf[i] *= inv;
+}
+
+/* The block's feedback weights from all passes so far, at the start of a pass. */
+static void refresh_block_feedback(ias_scratch *s) {
+    for (int c = 0; c < IAS_CLASSES; c++) {
+        double *f = s->fb_cache + (size_t)c * (size_t)s->id_count;
+        if (!s->block_class_used[c]) {
+            memset(f, 0, (size_t)s->id_count * sizeof *f);
+            continue;
+        }
+        const pn_ias_stats *b = s->block_stats + (size_t)c * (size_t)s->id_count;
+        for (int i = 0; i < s->id_count; i++) f[i] = pn_ias_feedback(&b[i]);
+    }
+}
+
+/* A new pixel pass: its feedback weights are taken from the pixel's data before any of this
+ * pass's samples (the 25-ray steps keep them). */
+static void begin_pixel_feedback(ias_scratch *s, const ias_pixel *px) {
+    if (++s->fp_now == 0) {
+        memset(s->fp_stamp, 0, (size_t)IAS_CLASSES * (size_t)s->id_count * sizeof *s->fp_stamp);
+        s->fp_now = 1;
+    }
+    for (int k = 0; k < px->region_count; k++) {
+        const ias_region *r = &s->regions[px->first_region + k];
+        const pn_ias_stats *pixel = px->stats[r->cls]; /* NULL: no data yet, F = 0 */
+        const int *cut = s->cut + r->cut_first;
+        for (int i = 0; i < r->cut_count; i++) (void)pixel_feedback(s, pixel, r->cls, cut[i]);
+    }
 }
 
 static int choose(const double *cdf, int n, double u) {
@@ -496,7 +548,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         pn_ias_stats *block = s->block_stats + (size_t)r->cls * (size_t)s->id_count;
         s->block_class_used[r->cls] = true;
         pn_ias_stats *pix = pixel_stats(s, px, r->cls);
-        build_pdf(s, r, block, pix, pass);
+        build_pdf(s, r, pix, pass);
         const int *cut = s->cut + r->cut_first;
         pn_light_sample_cache cache = {0};
         for (unsigned i = 0; i < n_of[k]; i++) {
@@ -717,11 +769,13 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     uint32_t counter = 0;
     for (int pass = 0; pass < (int)job->max_passes; pass++) {
         bool any = false;
+        if (pass > 0) refresh_block_feedback(s);
         for (int pi = 0; pi < np; pi++) {
             ias_pixel *px = &s->pixels[pi];
             if (px->done) continue;
             any = true;
             reset_regions(s, px);
+            begin_pixel_feedback(s, px);
             /* 1.5 N_C samples, at least 50. */
             unsigned count = (unsigned)ceil(1.5 * px->clusters);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;

@@ -830,11 +830,14 @@ static bool node_culled(const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon)
         /* Below the tangent plane: the sphere, or the box (tighter for flat groups of lights). */
         float s = v3_dot(pc, n);
         if (s + nd->radius < -1e-5f * (fabsf(s) + nd->radius)) return true;
+        /* A sphere wholly above the plane holds lights above it: the box cannot be below. */
+        if (s > nd->radius) goto cone;
         vec3 bc = v3_scale(v3_add(nd->bmin, nd->bmax), 0.5f), he = v3_scale(v3_sub(nd->bmax, nd->bmin), 0.5f);
         float sb = v3_dot(v3_sub(bc, p), n);
         float reach = fabsf(n.x) * he.x + fabsf(n.y) * he.y + fabsf(n.z) * he.z;
         if (sb + reach < -1e-5f * (fabsf(sb) + reach)) return true;
     }
+cone:
     if (nd->cos_spread > -1.0f && nd->cos_emit > -1.0f) {
         float d = v3_length(pc);
         if (d > nd->radius * (1.0f + 1e-5f) && d > 0.0f) {
@@ -861,18 +864,45 @@ static bool node_culled(const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon)
 
 enum { PN_CUT_DESCEND, PN_CUT_TAKE, PN_CUT_CULL };
 
+/* The solid-angle test without a square root where it is clear: a sphere of radius r at
+ * distance d subtends 2 pi (1 - sqrt(1 - x)), x = r^2 / d^2, which is below the limit exactly when
+ * x is below x_limit = 1 - (1 - limit / 2 pi)^2. Within a relative 1e-4 of x_limit the exact
+ * function decides, so that the cut agrees with pn_cluster_solid_angle everywhere. */
+typedef struct cut_limit {
+    float max_solid_angle;
+    float x_low, x_high;
+} cut_limit;
+
+static cut_limit make_cut_limit(float max_solid_angle) {
+    cut_limit c = {max_solid_angle, 0.0f, 0.0f};
+    double a = 1.0 - (double)max_solid_angle / (2.0 * (double)PN_PI);
+    if (!(a > 0.0)) {
+        /* Limits of 2 pi and more: the exact function decides every case. */
+        c.x_high = INFINITY;
+        return c;
+    }
+    double x = 1.0 - a * a;
+    c.x_low = (float)(x * (1.0 - 1e-4));
+    c.x_high = (float)(x * (1.0 + 1e-4));
+    return c;
+}
+
 static int classify(const pn_lights *lights, const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon,
-                    float max_solid_angle) {
+                    const cut_limit *lim) {
     if (nd->left < 0)
         return pn_cluster_light_culled(&lights->lights[nd->light], p, n) ? PN_CUT_CULL : PN_CUT_TAKE;
     if (node_culled(nd, p, n, horizon)) return PN_CUT_CULL;
-    return pn_cluster_solid_angle(nd->center, nd->radius, p) < max_solid_angle ? PN_CUT_TAKE : PN_CUT_DESCEND;
+    float d2 = v3_length2(v3_sub(nd->center, p)), r2 = nd->radius * nd->radius;
+    if (r2 < lim->x_low * d2) return PN_CUT_TAKE;
+    if (r2 > lim->x_high * d2) return PN_CUT_DESCEND;
+    return pn_cluster_solid_angle(nd->center, nd->radius, p) < lim->max_solid_angle ? PN_CUT_TAKE : PN_CUT_DESCEND;
 }
 
 int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                       int *out, int capacity, int *culled, int culled_capacity, int *culled_count) {
     int count = 0, ccount = 0;
     bool horizon = !v3_is_zero(n);
+    const cut_limit lim = make_cut_limit(max_solid_angle);
     for (int t = 0; t < PN_TREE_COUNT; t++) {
         int root = f->roots[t];
         if (root < 0) continue;
@@ -880,7 +910,7 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
         int node = root;
         for (;;) {
             const pn_cluster_node *nd = &f->nodes[node];
-            int action = classify(lights, nd, p, n, horizon, max_solid_angle);
+            int action = classify(lights, nd, p, n, horizon, &lim);
             if (action == PN_CUT_DESCEND) {
                 node = nd->left;
                 continue;
