@@ -10,7 +10,7 @@
  *
  * Config lines: NAME SCENE REFERENCE CROP SETTINGS, where SCENE and REFERENCE may start with
  * "shared/" for ../shared, CROP is x0,x1,y0,y1 in fractions, SETTINGS is a comma list of spp=N,
- * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias, group=NAME. '#' starts a comment.
+ * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias, sampler=irradiance|bvh (reference), group=NAME. '#' starts a comment.
  *
  * Cases that share a group are one scene rendered by several integrators at several settings. For
  * every non-reference case of a group the bench adds an equal-quality row (the reference's time
@@ -73,6 +73,11 @@ static int parse_settings(const char *text, pn_render_settings *s, char *group, 
         else if (strcmp(tok, "shadow") == 0) s->shadow_rays = (uint32_t)strtoul(v, NULL, 10);
         else if (strcmp(tok, "seed") == 0) s->seed = strtoull(v, NULL, 10);
         else if (strcmp(tok, "max") == 0) s->max_shadow_rays = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "sampler") == 0) {
+            if (strcmp(v, "irradiance") == 0) s->light_sampler = PN_LIGHT_SAMPLER_IRRADIANCE;
+            else if (strcmp(v, "bvh") == 0) s->light_sampler = PN_LIGHT_SAMPLER_BVH;
+            else return 0;
+        }
         else if (strcmp(tok, "group") == 0) snprintf(group, group_size, "%s", v);
         else if (strcmp(tok, "integrator") == 0) {
             if (strcmp(v, "reference") == 0) s->integrator = PN_INTEGRATOR_REFERENCE;
@@ -252,6 +257,11 @@ static int is_reference(const pn_render_settings *s) {
     return s->integrator == PN_INTEGRATOR_REFERENCE || s->integrator == PN_INTEGRATOR_DEFAULT;
 }
 
+/* The reference's light sampler, defaults resolved. */
+static pn_light_sampler sampler_of(const pn_render_settings *s) {
+    return s->light_sampler == PN_LIGHT_SAMPLER_BVH ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
+}
+
 /* The reference's cost at relMSE e from its points sorted by decreasing relMSE. Returns 0 when e
  * lies between two points (interpolated), +1 when every point is worse than e (the reference
  * would need more than the most accurate point: the values are lower bounds), -1 when every point
@@ -304,47 +314,52 @@ static void equal_quality(FILE *md, FILE *js, const bench_case *cases, const int
                           int n) {
     quality_point *pts = malloc((size_t)(n > 0 ? n : 1) * sizeof *pts);
     if (!pts) return;
-    fprintf(md, "\n### Equal quality and equal time against `reference` (per group)\n\n"
-                "| group | case | relMSE | time (s) | shadow rays/px | reference time at equal relMSE (s) | "
+    fprintf(md, "\n### Equal quality and equal time against `reference` (per group and light sampler)\n\n"
+                "| group | case | baseline | relMSE | time (s) | shadow rays/px | reference time at equal relMSE (s) | "
                 "reference shadow rays/px | speed-up | shadow-ray ratio | reference relMSE at equal time | "
-                "relMSE ratio at equal time |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+                "relMSE ratio at equal time |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     fprintf(js, ",\n  \"equal_quality\": [");
     int first = 1;
     for (int i = 0; i < n; i++) {
         const bench_case *ci = &cases[which[i]];
         const bench_result *ri = &res[i];
         if (!ci->group[0] || is_reference(&ci->settings) || !ri->has_metrics) continue;
-        int m = 0;
-        for (int j = 0; j < n; j++) {
-            const bench_case *cj = &cases[which[j]];
-            if (j == i || strcmp(cj->group, ci->group) != 0 || !is_reference(&cj->settings) || !res[j].has_metrics)
-                continue;
-            pts[m].relmse = res[j].metrics.relmse;
-            pts[m].seconds = res[j].median;
-            pts[m].rays = res[j].stats.shadow_rays_per_pixel_mean;
-            m++;
+        for (int kind = 0; kind < 2; kind++) {
+            const pn_light_sampler sampler = kind ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
+            const char *baseline = kind ? "reference, light BVH" : "reference";
+            int m = 0;
+            for (int j = 0; j < n; j++) {
+                const bench_case *cj = &cases[which[j]];
+                if (j == i || strcmp(cj->group, ci->group) != 0 || !is_reference(&cj->settings) || !res[j].has_metrics ||
+                    sampler_of(&cj->settings) != sampler)
+                    continue;
+                pts[m].relmse = res[j].metrics.relmse;
+                pts[m].seconds = res[j].median;
+                pts[m].rays = res[j].stats.shadow_rays_per_pixel_mean;
+                m++;
+            }
+            if (m == 0) continue;
+            double e = ri->metrics.relmse, t = ri->median, rays = ri->stats.shadow_rays_per_pixel_mean;
+            double ref_t, ref_rays, ref_e;
+            qsort(pts, (size_t)m, sizeof *pts, cmp_relmse_desc);
+            int q = reference_at_relmse(pts, m, e, &ref_t, &ref_rays);
+            qsort(pts, (size_t)m, sizeof *pts, cmp_seconds);
+            int qt = reference_at_seconds(pts, m, t, &ref_e);
+            const char *qmark = q > 0 ? "> " : q < 0 ? "< " : "";
+            const char *tmark = qt < 0 ? "> " : qt > 0 ? "< " : "";
+            fprintf(md, "| %s | %s | %s | %.3g | %.3f | %.1f | %s%.3f | %s%.1f | %s%.2f× | %s%.2f× | %s%.3g | %s%.2f× |\n",
+                    ci->group, ci->name, baseline, e, t, rays, qmark, ref_t, qmark, ref_rays, qmark, t > 0 ? ref_t / t : 0.0,
+                    qmark, rays > 0 ? ref_rays / rays : 0.0, tmark, ref_e, tmark, e > 0 ? ref_e / e : 0.0);
+            fprintf(js,
+                    "%s\n    {\"group\": \"%s\", \"case\": \"%s\", \"baseline\": \"%s\", \"relmse\": %.6g, \"seconds\": %.4f, "
+                    "\"shadow_rays_per_pixel\": %.3f, \"reference_seconds_equal_relmse\": %.4f, "
+                    "\"reference_shadow_rays_equal_relmse\": %.3f, \"equal_relmse_bound\": \"%s\", "
+                    "\"reference_relmse_equal_time\": %.6g, \"equal_time_bound\": \"%s\"}",
+                    first ? "" : ",", ci->group, ci->name, baseline, e, t, rays, ref_t, ref_rays,
+                    q > 0 ? "lower" : q < 0 ? "upper" : "interpolated", ref_e,
+                    qt < 0 ? "lower" : qt > 0 ? "upper" : "interpolated");
+            first = 0;
         }
-        if (m == 0) continue;
-        double e = ri->metrics.relmse, t = ri->median, rays = ri->stats.shadow_rays_per_pixel_mean;
-        double ref_t, ref_rays, ref_e;
-        qsort(pts, (size_t)m, sizeof *pts, cmp_relmse_desc);
-        int q = reference_at_relmse(pts, m, e, &ref_t, &ref_rays);
-        qsort(pts, (size_t)m, sizeof *pts, cmp_seconds);
-        int qt = reference_at_seconds(pts, m, t, &ref_e);
-        const char *qmark = q > 0 ? "> " : q < 0 ? "< " : "";
-        const char *tmark = qt < 0 ? "> " : qt > 0 ? "< " : "";
-        fprintf(md, "| %s | %s | %.3g | %.3f | %.1f | %s%.3f | %s%.1f | %s%.2f× | %s%.2f× | %s%.3g | %s%.2f× |\n",
-                ci->group, ci->name, e, t, rays, qmark, ref_t, qmark, ref_rays, qmark, t > 0 ? ref_t / t : 0.0,
-                qmark, rays > 0 ? ref_rays / rays : 0.0, tmark, ref_e, tmark, e > 0 ? ref_e / e : 0.0);
-        fprintf(js,
-                "%s\n    {\"group\": \"%s\", \"case\": \"%s\", \"relmse\": %.6g, \"seconds\": %.4f, "
-                "\"shadow_rays_per_pixel\": %.3f, \"reference_seconds_equal_relmse\": %.4f, "
-                "\"reference_shadow_rays_equal_relmse\": %.3f, \"equal_relmse_bound\": \"%s\", "
-                "\"reference_relmse_equal_time\": %.6g, \"equal_time_bound\": \"%s\"}",
-                first ? "" : ",", ci->group, ci->name, e, t, rays, ref_t, ref_rays,
-                q > 0 ? "lower" : q < 0 ? "upper" : "interpolated", ref_e,
-                qt < 0 ? "lower" : qt > 0 ? "upper" : "interpolated");
-        first = 0;
     }
     fprintf(js, "\n  ]");
     fprintf(md, "\nA `>` or `<` marks a bound: no reference case of the group reached that relMSE (or ran "

@@ -336,6 +336,8 @@ static void test_usage_errors(void) {
         {{"render", "x.pbrt", "--aa-rays", "0"}, "invalid value '0' for --aa-rays"},
         {{"render", "x.pbrt", "--max-passes", "65"}, "invalid value '65' for --max-passes"},
         {{"render", "x.pbrt", "--env-regions", "x"}, "invalid value 'x' for --env-regions"},
+        {{"render", "x.pbrt", "--light-sampler", "tree"}, "expected 'irradiance' or 'bvh'"},
+        {{"render", "x.pbrt", "--integrator", "ias", "--light-sampler", "bvh"}, "applies to the reference integrator"},
         {{"render", "x.pbrt", "--aov-png=yes"}, "--aov-png"},
         {{"render", "x.pbrt", "--spp", "0"}, "invalid value '0' for --spp"},
         {{"render", "x.pbrt", "--spp", "4x"}, "invalid value '4x' for --spp"},

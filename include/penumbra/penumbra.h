@@ -120,6 +120,13 @@ typedef enum pn_integrator_kind {
     PN_INTEGRATOR_IAS = 2        /* Iterative Adaptive Sampling, Donikian et al. 2006 */
 } pn_integrator_kind;
 
+/* How the reference integrator chooses a light for a shadow ray. */
+typedef enum pn_light_sampler {
+    PN_LIGHT_SAMPLER_DEFAULT = 0,    /* irradiance */
+    PN_LIGHT_SAMPLER_IRRADIANCE = 1, /* PDF over all lights by unoccluded irradiance (IAS §5.1) */
+    PN_LIGHT_SAMPLER_BVH = 2         /* pbrt-v4's light BVH (Conty Estevez & Kulla 2018) */
+} pn_light_sampler;
+
 /* AOV layers written beside the beauty image. */
 enum {
     PN_AOV_SHADOW_RAYS = 1u << 0,       /* shadow rays per pixel */
@@ -156,6 +163,8 @@ typedef struct pn_render_settings {
     uint32_t aa_rays;
     uint32_t env_regions;
     uint32_t max_passes;
+    /* reference only: how a light is chosen for each shadow ray. */
+    pn_light_sampler light_sampler;
     /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
     void (*progress)(void *user, double fraction);
     void *progress_user;

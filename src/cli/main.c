@@ -88,6 +88,8 @@ static const char render_help[] =
     "  --shadow-rays N        shadow rays per eye ray, 1..65536 (default 4)\n"
     "  --max-samples N        at most N shadow rays per pixel (default 20000)\n"
     "  --seed S               seed of the random sequences (unsigned 64-bit, default 0)\n"
+    "  --light-sampler NAME   reference only: 'irradiance' (the default: a PDF over all lights by\n"
+    "                         unoccluded irradiance, section 5.1) or 'bvh' (pbrt-v4's light BVH)\n"
     "\n"
     "ias only (the paper's values by default):\n"
     "  --cluster-solid-angle A  largest solid angle of a light cluster seen from a point\n"
@@ -826,6 +828,15 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 o->settings.integrator = PN_INTEGRATOR_IAS;
             else
                 return bad_value(cmd, name, value, "'reference' or 'ias'");
+        } else if (strcmp(name, "--light-sampler") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (strcmp(value, "irradiance") == 0)
+                o->settings.light_sampler = PN_LIGHT_SAMPLER_IRRADIANCE;
+            else if (strcmp(value, "bvh") == 0)
+                o->settings.light_sampler = PN_LIGHT_SAMPLER_BVH;
+            else
+                return bad_value(cmd, name, value, "'irradiance' or 'bvh'");
         } else if (strcmp(name, "--cluster-solid-angle") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)
@@ -923,6 +934,8 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
         return usage_error(cmd, "missing the scene file");
     if (o->has_spp && o->has_threshold)
         return usage_error(cmd, "--spp and --threshold exclude each other");
+    if (o->settings.light_sampler != PN_LIGHT_SAMPLER_DEFAULT && o->settings.integrator == PN_INTEGRATOR_IAS)
+        return usage_error(cmd, "--light-sampler applies to the reference integrator only (ias samples light clusters)");
     if (o->has_spp && o->settings.integrator == PN_INTEGRATOR_IAS)
         return usage_error(cmd, "--spp does not apply to ias (it samples until --threshold; see --aa-rays)");
     if (o->settings.aovs && o->output_path && !ends_with(o->output_path, ".exr"))
@@ -1004,6 +1017,8 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
 
     json_begin_object(&w, "settings");
     json_string(&w, "integrator", integrator_name(st->integrator));
+    if (st->integrator != PN_INTEGRATOR_IAS)
+        json_string(&w, "light_sampler", st->light_sampler == PN_LIGHT_SAMPLER_BVH ? "bvh" : "irradiance");
     if (st->spp) {
         json_u64(&w, "spp", st->spp);
         json_null(&w, "threshold");

@@ -117,6 +117,10 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     job->aa_rays = s->aa_rays > 0 ? s->aa_rays : 32;
     job->env_regions = s->env_regions > 0 ? s->env_regions : 300;
     job->max_passes = s->max_passes > 0 ? s->max_passes : 15;
+    if (s->light_sampler != PN_LIGHT_SAMPLER_DEFAULT && s->light_sampler != PN_LIGHT_SAMPLER_IRRADIANCE &&
+        s->light_sampler != PN_LIGHT_SAMPLER_BVH)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown light sampler %d", (int)s->light_sampler);
+    job->light_sampler = s->light_sampler == PN_LIGHT_SAMPLER_BVH ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
     job->cancel = &ctx->cancel;
     return PN_OK;
 }

@@ -27,6 +27,8 @@ typedef struct pn_render_job {
     /* ias */
     float cluster_solid_angle;
     uint32_t aa_rays, env_regions, max_passes;
+    /* reference */
+    pn_light_sampler light_sampler; /* IRRADIANCE or BVH, never DEFAULT */
     void *integrator_data; /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
 } pn_render_job;

@@ -21,6 +21,11 @@
  * in its own order gets exactly the pixels of the full render. Each pixel therefore draws from
  * its own Owen-scrambled Sobol sequence (scramble = hash(seed, pixel x, pixel y)), index 0 up.
  *
+ * A second light sampler replaces the PDF over all lights when asked (--light-sampler bvh):
+ * pbrt-v4's light BVH (lights/light_bvh.c), which descends a tree of light bounds by importance
+ * instead of evaluating every light, so that IAS can also be compared with the sampler pbrt-v4
+ * renders with. Everything else is the same.
+ *
  * Quasi-random dimensions per eye ray i of a pixel: 0-1 pixel filter, 2-3 lens, 4 specular
  * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light. */
 #include "integrators/integrator.h"
@@ -28,6 +33,7 @@
 #include "core/clock.h"
 #include "core/sobol.h"
 #include "core/rng.h"
+#include "lights/light_bvh.h"
 #include "shade/bsdf.h"
 
 #include <stdlib.h>
@@ -171,9 +177,10 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
             if (path.has_point) {
                 pn_bsdf b;
                 pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
-                float total;
-                int m = build_light_pdf(job, path.hit.p, b.ng, s, &total);
-                if (m > 0 && total > 0.0f) {
+                const pn_light_bvh *bvh = job->integrator_data; /* set only with the BVH sampler */
+                float total = 0.0f;
+                int m = bvh ? 0 : build_light_pdf(job, path.hit.p, b.ng, s, &total);
+                if (bvh || (m > 0 && total > 0.0f)) {
                     vec3 direct = v3(0, 0, 0);
                     float eps = pn_accel_ray_epsilon(job->accel, path.hit.p);
                     vec3 origin = v3_madd(path.hit.p, b.ng, eps);
@@ -181,8 +188,15 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
                     for (uint32_t j = 0; j < S; j++) {
                         uint32_t k = i * S + j;
                         float prob;
-                        int c = choose_light(s, m, total, pn_sobol_sample(k, 5, scramble), &prob);
-                        const pn_light *l = &job->lights->lights[s->index[c]];
+                        const pn_light *l;
+                        if (bvh) {
+                            int li = pn_light_bvh_sample(bvh, path.hit.p, b.ng, pn_sobol_sample(k, 5, scramble), &prob);
+                            if (li < 0 || !(prob > 0.0f)) continue;
+                            l = &job->lights->lights[li];
+                        } else {
+                            int c = choose_light(s, m, total, pn_sobol_sample(k, 5, scramble), &prob);
+                            l = &job->lights->lights[s->index[c]];
+                        }
                         pn_light_sample ls;
                         if (!pn_light_sample_point_cached(job->lights, l, origin, pn_sobol_sample(k, 6, scramble),
                                                           pn_sobol_sample(k, 7, scramble), &cache, &ls))
@@ -223,8 +237,31 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
     return PN_OK;
 }
 
+/* With the BVH light sampler, the tree is built once per render. */
+static pn_status reference_prepare(pn_render_job *job, pn_err *err) {
+    job->integrator_data = NULL;
+    if (job->light_sampler != PN_LIGHT_SAMPLER_BVH) return PN_OK;
+    pn_light_bvh *bvh = calloc(1, sizeof *bvh);
+    if (!bvh) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light BVH");
+    pn_status st = pn_light_bvh_build(job->lights, bvh, err);
+    if (st != PN_OK) {
+        free(bvh);
+        return st;
+    }
+    job->integrator_data = bvh;
+    return PN_OK;
+}
+
+static void reference_release(pn_render_job *job) {
+    pn_light_bvh *bvh = job->integrator_data;
+    if (bvh) pn_light_bvh_free(bvh);
+    free(bvh);
+    job->integrator_data = NULL;
+}
+
 const pn_integrator pn_integrator_reference = {
-    "reference", NULL, NULL, NULL, reference_scratch_create, reference_scratch_free, reference_render_batch,
+    "reference", reference_prepare, reference_release, NULL, reference_scratch_create, reference_scratch_free,
+    reference_render_batch,
 };
 
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {

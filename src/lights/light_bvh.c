@@ -1,0 +1,421 @@
+/* light_bvh.c — pbrt-v4's light BVH (see light_bvh.h): light bounds, their union, the importance
+ * of a node at a receiving point, the top-down build with the surface-area-orientation heuristic
+ * (12 buckets per axis), and stochastic descent. */
+#include "lights/light_bvh.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define BVH_BUCKETS 12
+
+/* ---- direction cones ------------------------------------------------------------------------ */
+
+static float safe_sqrt(float x) { return sqrtf(fmaxf(0.0f, x)); }
+static float safe_acos(float x) { return acosf(fminf(1.0f, fmaxf(-1.0f, x))); }
+
+/* Angle between unit vectors, accurate for nearly equal and nearly opposite ones. */
+static float angle_between(vec3 a, vec3 b) {
+    if (v3_dot(a, b) < 0.0f) return PN_PI - 2.0f * asinf(fminf(1.0f, 0.5f * v3_length(v3_add(a, b))));
+    return 2.0f * asinf(fminf(1.0f, 0.5f * v3_length(v3_sub(b, a))));
+}
+
+/* v rotated by angle t about the unit axis k (Rodrigues). */
+static vec3 rotate(vec3 v, vec3 k, float t) {
+    float c = cosf(t), s = sinf(t);
+    return v3_add(v3_add(v3_scale(v, c), v3_scale(v3_cross(k, v), s)), v3_scale(k, v3_dot(k, v) * (1.0f - c)));
+}
+
+/* The smallest cone (w, cos) holding the cones (wa, ca) and (wb, cb). */
+static void cone_union(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c) {
+    float ta = safe_acos(ca), tb = safe_acos(cb), td = angle_between(wa, wb);
+    if (fminf(td + tb, PN_PI) <= ta) {
+        *w = wa;
+        *c = ca;
+        return;
+    }
+    if (fminf(td + ta, PN_PI) <= tb) {
+        *w = wb;
+        *c = cb;
+        return;
+    }
+    float to = 0.5f * (ta + td + tb);
+    vec3 axis = v3_cross(wa, wb);
+    if (to >= PN_PI || v3_length2(axis) == 0.0f) {
+        *w = wa;
+        *c = -1.0f;
+        return;
+    }
+    *w = v3_normalize(rotate(wa, v3_normalize(axis), to - ta));
+    *c = cosf(to);
+}
+
+static pn_light_bounds bounds_union(const pn_light_bounds *a, const pn_light_bounds *b) {
+    if (a->phi == 0.0f) return *b;
+    if (b->phi == 0.0f) return *a;
+    pn_light_bounds u;
+    u.bmin = v3_min(a->bmin, b->bmin);
+    u.bmax = v3_max(a->bmax, b->bmax);
+    cone_union(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
+    u.cos_e = fminf(a->cos_e, b->cos_e);
+    u.phi = a->phi + b->phi;
+    u.two_sided = a->two_sided || b->two_sided;
+    return u;
+}
+
+/* ---- bounds of one light ------------------------------------------------------------------ */
+
+static void box_of_points(const vec3 *v, int n, pn_light_bounds *b) {
+    b->bmin = b->bmax = v[0];
+    for (int i = 1; i < n; i++) {
+        b->bmin = v3_min(b->bmin, v[i]);
+        b->bmax = v3_max(b->bmax, v[i]);
+    }
+}
+
+bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bounds *b) {
+    memset(b, 0, sizeof *b);
+    b->w = v3(0, 0, 1);
+    b->cos_o = -1.0f; /* any direction */
+    b->cos_e = 0.0f;  /* cos(pi / 2) */
+    float lum = v3_luminance(l->emit);
+    switch (l->kind) {
+    case PN_LIGHT_POINT:
+    case PN_LIGHT_GONIOMETRIC: {
+        float peak = 1.0f;
+        if (l->kind == PN_LIGHT_GONIOMETRIC && l->env >= 0 && l->env < lights->gonio_count) {
+            const pn_gonio *g = &lights->gonios[l->env];
+            if (g->mono) {
+                peak = 0.0f;
+                for (int i = 0; i < g->width * g->height; i++) peak = fmaxf(peak, g->mono[i]);
+            }
+        }
+        b->bmin = b->bmax = l->p;
+        b->phi = 4.0f * PN_PI * lum * peak;
+        break;
+    }
+    case PN_LIGHT_SPOT:
+        b->bmin = b->bmax = l->p;
+        b->w = l->n;
+        b->phi = 4.0f * PN_PI * lum;
+        b->cos_o = l->cos_falloff_start;
+        b->cos_e = cosf(safe_acos(l->cos_total_width) - safe_acos(l->cos_falloff_start));
+        break;
+    case PN_LIGHT_TRIANGLE: {
+        vec3 v[3] = {l->p, v3_add(l->p, l->e1), v3_add(l->p, l->e2)};
+        box_of_points(v, 3, b);
+        goto planar;
+    }
+    case PN_LIGHT_RECTANGLE: {
+        vec3 v[4] = {l->p, v3_add(l->p, l->e1), v3_add(l->p, l->e2), v3_add(v3_add(l->p, l->e1), l->e2)};
+        box_of_points(v, 4, b);
+        goto planar;
+    }
+    case PN_LIGHT_DISK: {
+        vec3 e = v3(l->radius * safe_sqrt(1.0f - l->n.x * l->n.x), l->radius * safe_sqrt(1.0f - l->n.y * l->n.y),
+                    l->radius * safe_sqrt(1.0f - l->n.z * l->n.z));
+        b->bmin = v3_sub(l->p, e);
+        b->bmax = v3_add(l->p, e);
+        goto planar;
+    }
+    case PN_LIGHT_SPHERE:
+        b->bmin = v3_sub(l->p, v3(l->radius, l->radius, l->radius));
+        b->bmax = v3_add(l->p, v3(l->radius, l->radius, l->radius));
+        b->phi = lum * l->area * PN_PI;
+        break;
+    case PN_LIGHT_DISTANT:
+    case PN_LIGHT_ENVIRONMENT:
+    case PN_LIGHT_KIND_COUNT:
+        return false;
+    }
+    if (!(b->phi > 0.0f) || !isfinite(b->phi)) return false;
+    return true;
+planar:
+    b->w = l->n;
+    b->cos_o = 1.0f;
+    b->two_sided = l->two_sided;
+    b->phi = lum * l->area * PN_PI * (l->two_sided ? 2.0f : 1.0f);
+    return b->phi > 0.0f && isfinite(b->phi);
+}
+
+/* ---- importance --------------------------------------------------------------------------- */
+
+/* cos and sin of max(0, a - b) from the cosines and sines of a and b. */
+static float cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+    if (cos_a > cos_b) return 1.0f;
+    return cos_a * cos_b + sin_a * sin_b;
+}
+
+static float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+    if (cos_a > cos_b) return 0.0f;
+    return sin_a * cos_b - cos_a * sin_b;
+}
+
+float pn_light_bounds_importance(const pn_light_bounds *b, vec3 p, vec3 n) {
+    vec3 pc = v3_scale(v3_add(b->bmin, b->bmax), 0.5f);
+    float d2 = v3_length2(v3_sub(p, pc));
+    /* pbrt's guard against huge 1/d^2 near or inside big boxes: d^2 at least half the
+     * diagonal's length (the units do not match; the rule is pbrt's). */
+    d2 = fmaxf(d2, 0.5f * v3_length(v3_sub(b->bmax, b->bmin)));
+    if (!(d2 > 0.0f)) return 0.0f;
+    vec3 wi = v3_scale(v3_sub(p, pc), 1.0f / sqrtf(fmaxf(v3_length2(v3_sub(p, pc)), 1e-30f)));
+    float cos_w = v3_dot(b->w, wi);
+    if (b->two_sided) cos_w = fabsf(cos_w);
+    float sin_w = safe_sqrt(1.0f - cos_w * cos_w);
+    /* The angle the box subtends from p (its bounding sphere); everything if p is inside. */
+    float r2 = 0.25f * v3_length2(v3_sub(b->bmax, b->bmin));
+    float dc2 = v3_length2(v3_sub(pc, p));
+    float cos_b = dc2 < r2 ? -1.0f : safe_sqrt(1.0f - r2 / dc2);
+    float sin_b = safe_sqrt(1.0f - cos_b * cos_b);
+    /* theta' = max(0, theta_w - theta_o - theta_b): the smallest angle between an emitting
+     * normal and the direction to p. */
+    float sin_o = safe_sqrt(1.0f - b->cos_o * b->cos_o);
+    float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, b->cos_o);
+    float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, b->cos_o);
+    float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+    if (cos_p <= b->cos_e) return 0.0f;
+    float importance = b->phi * cos_p / d2;
+    if (!v3_is_zero(n)) {
+        /* The largest incident cosine over the box: theta_i' = max(0, theta_i - theta_b). */
+        float cos_i = fabsf(v3_dot(wi, n));
+        float sin_i = safe_sqrt(1.0f - cos_i * cos_i);
+        importance *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+    }
+    return fmaxf(importance, 0.0f);
+}
+
+/* ---- build -------------------------------------------------------------------------------- */
+
+typedef struct bvh_item {
+    int light;
+    pn_light_bounds b;
+} bvh_item;
+
+typedef struct bvh_builder {
+    pn_light_bvh *bvh;
+    int capacity;
+} bvh_builder;
+
+/* pbrt's cost of a cluster: phi times the orientation measure M_Omega times the box's surface
+ * area, with Kr penalising splits across the box's short axes. */
+static float orientation_measure(float cos_o, float cos_e) {
+    float to = safe_acos(cos_o), te = safe_acos(cos_e);
+    float tw = fminf(to + te, PN_PI);
+    float sin_o = safe_sqrt(1.0f - cos_o * cos_o);
+    return 2.0f * PN_PI * (1.0f - cos_o) +
+           0.5f * PN_PI * (2.0f * tw * sin_o - cosf(to - 2.0f * tw) - 2.0f * to * sin_o + cos_o);
+}
+
+static float surface_area(vec3 lo, vec3 hi) {
+    vec3 d = v3_sub(hi, lo);
+    return 2.0f * (d.x * d.y + d.y * d.z + d.z * d.x);
+}
+
+static float split_cost(const pn_light_bounds *b, float kr) {
+    return b->phi * orientation_measure(b->cos_o, b->cos_e) * kr * surface_area(b->bmin, b->bmax);
+}
+
+static int push_node(bvh_builder *bb) {
+    pn_light_bvh *t = bb->bvh;
+    if (t->node_count == bb->capacity) return -1; /* sized up front: 2 n - 1 nodes */
+    return t->node_count++;
+}
+
+static int build_range(bvh_builder *bb, bvh_item *items, int start, int end, int parent) {
+    pn_light_bvh *t = bb->bvh;
+    int me = push_node(bb);
+    if (me < 0) return -1;
+    pn_light_bvh_node *nd = &t->nodes[me];
+    nd->parent = parent;
+    if (end - start == 1) {
+        nd->leaf = true;
+        nd->second = items[start].light;
+        nd->b = items[start].b;
+        t->node_of_light[items[start].light] = me;
+        return me;
+    }
+    pn_light_bounds all = items[start].b;
+    vec3 cmin = v3_scale(v3_add(items[start].b.bmin, items[start].b.bmax), 0.5f), cmax = cmin;
+    for (int i = start + 1; i < end; i++) {
+        all = bounds_union(&all, &items[i].b);
+        vec3 c = v3_scale(v3_add(items[i].b.bmin, items[i].b.bmax), 0.5f);
+        cmin = v3_min(cmin, c);
+        cmax = v3_max(cmax, c);
+    }
+    /* The cheapest bucket boundary over the three axes. */
+    float best_cost = INFINITY;
+    int best_dim = -1, best_bucket = -1;
+    vec3 diag = v3_sub(all.bmax, all.bmin);
+    float max_extent = fmaxf(diag.x, fmaxf(diag.y, diag.z));
+    for (int dim = 0; dim < 3; dim++) {
+        float lo = v3_get(cmin, dim), hi = v3_get(cmax, dim);
+        if (!(hi > lo)) continue;
+        pn_light_bounds bucket[BVH_BUCKETS];
+        memset(bucket, 0, sizeof bucket);
+        for (int i = start; i < end; i++) {
+            float c = 0.5f * (v3_get(items[i].b.bmin, dim) + v3_get(items[i].b.bmax, dim));
+            int k = (int)((float)BVH_BUCKETS * (c - lo) / (hi - lo));
+            if (k >= BVH_BUCKETS) k = BVH_BUCKETS - 1;
+            if (k < 0) k = 0;
+            bucket[k] = bounds_union(&bucket[k], &items[i].b);
+        }
+        float extent = v3_get(diag, dim);
+        float kr = extent > 0.0f ? max_extent / extent : 1.0f;
+        for (int split = 0; split < BVH_BUCKETS - 1; split++) {
+            pn_light_bounds below, above;
+            memset(&below, 0, sizeof below);
+            memset(&above, 0, sizeof above);
+            for (int k = 0; k <= split; k++) below = bounds_union(&below, &bucket[k]);
+            for (int k = split + 1; k < BVH_BUCKETS; k++) above = bounds_union(&above, &bucket[k]);
+            if (below.phi == 0.0f || above.phi == 0.0f) continue;
+            float cost = split_cost(&below, kr) + split_cost(&above, kr);
+            if (cost < best_cost) {
+                best_cost = cost;
+                best_dim = dim;
+                best_bucket = split;
+            }
+        }
+    }
+    int mid = -1;
+    if (best_dim >= 0) {
+        float lo = v3_get(cmin, best_dim), hi = v3_get(cmax, best_dim);
+        int i = start, j = end - 1;
+        while (i <= j) {
+            float c = 0.5f * (v3_get(items[i].b.bmin, best_dim) + v3_get(items[i].b.bmax, best_dim));
+            int k = (int)((float)BVH_BUCKETS * (c - lo) / (hi - lo));
+            if (k >= BVH_BUCKETS) k = BVH_BUCKETS - 1;
+            if (k < 0) k = 0;
+            if (k <= best_bucket) i++;
+            else {
+                bvh_item tmp = items[i];
+                items[i] = items[j];
+                items[j] = tmp;
+                j--;
+            }
+        }
+        mid = i;
+    }
+    if (mid <= start || mid >= end) mid = start + (end - start) / 2; /* no useful split */
+    nd->leaf = false;
+    nd->b = all;
+    if (build_range(bb, items, start, mid, me) < 0) return -1;
+    int second = build_range(bb, items, mid, end, me);
+    if (second < 0) return -1;
+    t->nodes[me].second = second;
+    return me;
+}
+
+pn_status pn_light_bvh_build(const pn_lights *lights, pn_light_bvh *out, pn_err *err) {
+    memset(out, 0, sizeof *out);
+    int n = lights->count;
+    out->light_count = n;
+    out->node_of_light = malloc((size_t)(n > 0 ? n : 1) * sizeof *out->node_of_light);
+    out->infinite = malloc((size_t)(n > 0 ? n : 1) * sizeof *out->infinite);
+    bvh_item *items = malloc((size_t)(n > 0 ? n : 1) * sizeof *items);
+    out->nodes = malloc((size_t)(n > 0 ? 2 * n : 1) * sizeof *out->nodes);
+    if (!out->node_of_light || !out->infinite || !items || !out->nodes) {
+        free(items);
+        pn_light_bvh_free(out);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light BVH");
+    }
+    int bounded = 0;
+    for (int i = 0; i < n; i++) {
+        out->node_of_light[i] = -1;
+        const pn_light *l = &lights->lights[i];
+        if (l->kind == PN_LIGHT_DISTANT || l->kind == PN_LIGHT_ENVIRONMENT) {
+            out->infinite[out->infinite_count++] = i;
+            continue;
+        }
+        if (pn_light_bounds_of(lights, l, &items[bounded].b)) items[bounded++].light = i;
+    }
+    if (bounded > 0) {
+        bvh_builder bb = {out, 2 * n};
+        if (build_range(&bb, items, 0, bounded, -1) < 0) {
+            free(items);
+            pn_light_bvh_free(out);
+            return pn_err_set(err, PN_ERROR_INTERNAL, "light BVH: node budget exceeded");
+        }
+    }
+    free(items);
+    return PN_OK;
+}
+
+void pn_light_bvh_free(pn_light_bvh *bvh) {
+    if (!bvh) return;
+    free(bvh->nodes);
+    free(bvh->node_of_light);
+    free(bvh->infinite);
+    memset(bvh, 0, sizeof *bvh);
+}
+
+/* ---- sampling ------------------------------------------------------------------------------ */
+
+static double infinite_share(const pn_light_bvh *t) {
+    int parts = t->infinite_count + (t->node_count > 0 ? 1 : 0);
+    return parts > 0 ? (double)t->infinite_count / (double)parts : 0.0;
+}
+
+int pn_light_bvh_sample(const pn_light_bvh *t, vec3 p, vec3 n, float u_in, float *pmf) {
+    *pmf = 0.0f;
+    double u = (double)u_in;
+    double p_inf = infinite_share(t);
+    if (u < p_inf) {
+        /* Distant and environment lights, uniformly. */
+        double v = u / p_inf;
+        int k = (int)(v * (double)t->infinite_count);
+        if (k >= t->infinite_count) k = t->infinite_count - 1;
+        *pmf = (float)(p_inf / (double)t->infinite_count);
+        return t->infinite[k];
+    }
+    if (t->node_count == 0) return -1;
+    u = p_inf > 0.0 ? (u - p_inf) / (1.0 - p_inf) : u;
+    if (u >= 1.0) u = nextafter(1.0, 0.0);
+    double prob = 1.0 - p_inf;
+    int node = 0;
+    for (;;) {
+        const pn_light_bvh_node *nd = &t->nodes[node];
+        if (nd->leaf) {
+            if (!(pn_light_bounds_importance(&nd->b, p, n) > 0.0f)) return -1;
+            *pmf = (float)prob;
+            return nd->second;
+        }
+        double i0 = (double)pn_light_bounds_importance(&t->nodes[node + 1].b, p, n);
+        double i1 = (double)pn_light_bounds_importance(&t->nodes[nd->second].b, p, n);
+        double sum = i0 + i1;
+        if (!(sum > 0.0)) return -1;
+        double p0 = i0 / sum;
+        /* The choice, and u rescaled to [0,1) within the chosen child for the next level. */
+        if (u < p0) {
+            u = u / p0;
+            prob *= p0;
+            node = node + 1;
+        } else {
+            u = (u - p0) / (1.0 - p0);
+            prob *= 1.0 - p0;
+            node = nd->second;
+        }
+        if (u >= 1.0) u = nextafter(1.0, 0.0);
+    }
+}
+
+float pn_light_bvh_pmf(const pn_light_bvh *t, vec3 p, vec3 n, int light) {
+    if (light < 0 || light >= t->light_count) return 0.0f;
+    double p_inf = infinite_share(t);
+    int node = t->node_of_light[light];
+    if (node < 0) {
+        for (int k = 0; k < t->infinite_count; k++)
+            if (t->infinite[k] == light) return (float)(p_inf / (double)t->infinite_count);
+        return 0.0f;
+    }
+    if (!(pn_light_bounds_importance(&t->nodes[node].b, p, n) > 0.0f)) return 0.0f;
+    double prob = 1.0;
+    while (t->nodes[node].parent >= 0) {
+        int parent = t->nodes[node].parent;
+        double i0 = (double)pn_light_bounds_importance(&t->nodes[parent + 1].b, p, n);
+        double i1 = (double)pn_light_bounds_importance(&t->nodes[t->nodes[parent].second].b, p, n);
+        double mine = node == parent + 1 ? i0 : i1;
+        if (!(i0 + i1 > 0.0)) return 0.0f;
+        prob *= mine / (i0 + i1);
+        node = parent;
+    }
+    return (float)(prob * (1.0 - p_inf));
+}
