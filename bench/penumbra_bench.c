@@ -400,8 +400,8 @@ int main(int argc, char **argv) {
         return 4;
     }
     fprintf(md, "| case | crop | settings | triangles | lights | time median (s) [min, max] | Mrays/s | "
-                "shadow rays/px | eye rays/px | peak MiB | relMSE vs pbrt-v4 | Embree share | identical runs |\n");
-    fprintf(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+                "shadow rays/px | eye rays/px | peak MiB | relMSE vs pbrt-v4 | Embree share | ias cut + PDF share | identical runs |\n");
+    fprintf(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     fprintf(js, "{\n  \"penumbra\": \"%s\",\n  \"runs\": %d,\n  \"threads\": %d,\n  \"cases\": [", pn_version_string(),
             runs, threads);
     int first = 1;
@@ -436,22 +436,26 @@ int main(int argc, char **argv) {
         waitpid(pid, &status, 0);
         if (got != (ssize_t)sizeof r || !r.ok) {
             fprintf(stderr, "penumbra_bench: %s: failed: %s\n", bc->name, got == (ssize_t)sizeof r ? r.error : "crashed");
-            fprintf(md, "| %s | %s | %s | failed: %s |||||||||\n", bc->name, bc->crop_text, bc->settings_text,
+            fprintf(md, "| %s | %s | %s | failed: %s ||||||||||\n", bc->name, bc->crop_text, bc->settings_text,
                     r.error);
             continue;
         }
         double px = (double)r.stats.width * (double)r.stats.height;
         double embree_share = r.stats.render_seconds > 0 ? r.stats.embree_seconds_estimate / r.stats.render_seconds : 0;
+        /* ias: cluster cuts and PDF upkeep (zero for the reference). */
+        double upkeep_share = r.stats.render_seconds > 0
+                                  ? (r.stats.cut_seconds_estimate + r.stats.pdf_seconds_estimate) / r.stats.render_seconds
+                                  : 0;
         char relmse[64] = "n/a", relmse_json[64] = "null", rmse_json[64] = "null";
         if (r.has_metrics) {
             snprintf(relmse, sizeof relmse, "%.3g", r.metrics.relmse);
             snprintf(relmse_json, sizeof relmse_json, "%.6g", r.metrics.relmse);
             snprintf(rmse_json, sizeof rmse_json, "%.6g", r.metrics.rmse);
         }
-        fprintf(md, "| %s | %s | %s | %llu | %u | %.3f [%.3f, %.3f] | %.2f | %.1f | %.1f | %.0f | %s | %.0f%% | %s |\n",
+        fprintf(md, "| %s | %s | %s | %llu | %u | %.3f [%.3f, %.3f] | %.2f | %.1f | %.1f | %.0f | %s | %.0f%% | %.0f%% | %s |\n",
                 bc->name, bc->crop_text, bc->settings_text, (unsigned long long)r.triangles, r.lights, r.median, r.min,
                 r.max, r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
-                (double)r.stats.peak_memory_bytes / 1048576.0, relmse, 100.0 * embree_share,
+                (double)r.stats.peak_memory_bytes / 1048576.0, relmse, 100.0 * embree_share, 100.0 * upkeep_share,
                 r.bit_identical ? "yes" : "NO");
         fprintf(js,
                 "%s\n    {\"name\": \"%s\", \"scene\": \"%s\", \"crop\": \"%s\", \"settings\": \"%s\", "
@@ -459,11 +463,11 @@ int main(int argc, char **argv) {
                 "\"parse_seconds\": %.4f, \"bvh_seconds\": %.4f, \"render_seconds_median\": %.4f, "
                 "\"render_seconds_min\": %.4f, \"render_seconds_max\": %.4f, \"mrays_per_second\": %.3f, "
                 "\"shadow_rays_per_pixel\": %.3f, \"eye_rays_per_pixel\": %.3f, \"peak_memory_bytes\": %llu, "
-                "\"embree_share\": %.4f, \"relmse\": %s, \"rmse\": %s, \"bit_identical_runs\": %s}",
+                "\"embree_share\": %.4f, \"upkeep_share\": %.4f, \"relmse\": %s, \"rmse\": %s, \"bit_identical_runs\": %s}",
                 first ? "" : ",", bc->name, bc->scene, bc->crop_text, bc->settings_text, r.stats.width, r.stats.height,
                 px, (unsigned long long)r.triangles, r.lights, r.parse_seconds, r.bvh_seconds, r.median, r.min, r.max,
                 r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
-                (unsigned long long)r.stats.peak_memory_bytes, embree_share, relmse_json, rmse_json, r.bit_identical ? "true" : "false");
+                (unsigned long long)r.stats.peak_memory_bytes, embree_share, upkeep_share, relmse_json, rmse_json, r.bit_identical ? "true" : "false");
         first = 0;
         done_case[done_count] = c;
         done[done_count++] = r;

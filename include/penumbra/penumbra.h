@@ -195,6 +195,10 @@ typedef struct pn_render_stats {
      * shadow ray anywhere in the image, and per pixel on average. */
     uint32_t lights_visible_viewpoint, env_regions_visible_viewpoint;
     double visible_lights_per_pixel_mean;
+    /* ias, where its own time goes (summed over threads, divided by their number, as the
+     * Embree estimate): computing cluster cuts, and keeping PDFs (feedback weights, eq. 6,
+     * choosing clusters and lights, recording samples). */
+    double cut_seconds_estimate, pdf_seconds_estimate;
     int threads;
     int width, height; /* of the rendered (cropped) image */
 } pn_render_stats;

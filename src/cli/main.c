@@ -1077,6 +1077,8 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         json_u64(&w, "lights_visible_viewpoint", stats->lights_visible_viewpoint);
         json_u64(&w, "env_regions_visible_viewpoint", stats->env_regions_visible_viewpoint);
         json_double(&w, "visible_lights_per_pixel_mean", stats->visible_lights_per_pixel_mean);
+        json_double(&w, "cut_seconds_estimate", stats->cut_seconds_estimate);
+        json_double(&w, "pdf_seconds_estimate", stats->pdf_seconds_estimate);
     }
     json_end_object(&w);
 

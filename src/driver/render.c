@@ -264,6 +264,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     }
     if (stats) {
         uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
+        double cut_seconds = 0.0, pdf_seconds = 0.0;
         double embree_seconds = 0.0, passes = 0.0, regions = 0.0, clusters = 0.0, visible = 0.0, vis_lights = 0.0;
         uint64_t visible_rays = 0;
         for (size_t i = 0; i < n; i++) {
@@ -272,6 +273,8 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
             shadow += e->shadow_rays;
             spec += e->specular_rays;
             embree_seconds += (double)e->embree_seconds;
+            cut_seconds += (double)e->cut_seconds;
+            pdf_seconds += (double)e->pdf_seconds;
             passes += (double)e->passes;
             vis_lights += (double)e->visible_lights;
             regions += (double)e->aa_regions;
@@ -284,6 +287,8 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         stats->render_seconds = t1 - t0;
         /* Summed over threads: divide by the worker count to compare with wall-clock time. */
         stats->embree_seconds_estimate = embree_seconds / (double)(workers > 0 ? workers : 1);
+        stats->cut_seconds_estimate = cut_seconds / (double)(workers > 0 ? workers : 1);
+        stats->pdf_seconds_estimate = pdf_seconds / (double)(workers > 0 ? workers : 1);
         stats->eye_rays = eye;
         stats->shadow_rays = shadow;
         stats->specular_rays = spec;

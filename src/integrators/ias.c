@@ -86,7 +86,27 @@ typedef struct ias_shared {
      * offset) were seen unoccluded anywhere in the image; bytes set by any thread. */
     int light_count, visible_slots;
     atomic_uchar *seen;
+    double clock_cost; /* what one timed interval adds by itself (two clock reads), subtracted */
+    int *post_order;   /* the trees' interior nodes, every node after its children */
+    int post_count;
 } ias_shared;
+
+/* The smallest of many empty intervals: the cost a timed interval carries for its own clock
+ * reads, which the sampled timings (scaled by IAS_TIMING_STRIDE) would otherwise multiply. */
+static double measure_clock_cost(void) {
+    double best = INFINITY;
+    for (int i = 0; i < 200; i++) {
+        double a = pn_clock_seconds(), b = pn_clock_seconds();
+        if (b - a < best) best = b - a;
+    }
+    return isfinite(best) && best > 0.0 ? best : 0.0;
+}
+
+/* A timed interval [t0, now] without the clock's own cost. */
+static double elapsed_since(const ias_shared *sh, double t0) {
+    double d = pn_clock_seconds() - t0 - sh->clock_cost;
+    return d > 0.0 ? d : 0.0;
+}
 
 static void ias_release(pn_render_job *job) {
     ias_shared *sh = job->integrator_data;
@@ -97,14 +117,56 @@ static void ias_release(pn_render_job *job) {
     free(sh->env_light);
     free(sh->env_base);
     free(sh->seen);
+    free(sh->post_order);
     free(sh);
     job->integrator_data = NULL;
+}
+
+/* The interior nodes of the cluster trees in an order that puts every node after its two
+ * children (iterative depth-first walks), for aggregate_stats. */
+static bool build_post_order(ias_shared *sh) {
+    const pn_cluster_forest *f = &sh->forest;
+    sh->post_order = malloc((size_t)(f->node_count > 0 ? f->node_count : 1) * sizeof *sh->post_order);
+    int *stack = malloc((size_t)(f->node_count > 0 ? f->node_count : 1) * sizeof *stack);
+    unsigned char *expanded = calloc((size_t)(f->node_count > 0 ? f->node_count : 1), 1);
+    if (!sh->post_order || !stack || !expanded) {
+        free(stack);
+        free(expanded);
+        return false;
+    }
+    sh->post_count = 0;
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        if (f->roots[t] < 0) continue;
+        int top = 0;
+        stack[top++] = f->roots[t];
+        while (top > 0) {
+            int m = stack[top - 1];
+            const pn_cluster_node *nd = &f->nodes[m];
+            if (nd->left < 0) {
+                top--;
+                continue;
+            }
+            if (!expanded[m]) {
+                /* At most one entry per node is on the stack: a tree has node_count nodes. */
+                expanded[m] = 1;
+                stack[top++] = nd->right;
+                stack[top++] = nd->left;
+                continue;
+            }
+            top--;
+            sh->post_order[sh->post_count++] = m;
+        }
+    }
+    free(stack);
+    free(expanded);
+    return true;
 }
 
 static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     ias_shared *sh = calloc(1, sizeof *sh);
     if (!sh) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
     job->integrator_data = sh;
+    sh->clock_cost = measure_clock_cost();
     const pn_lights *L = job->lights;
     pn_status st = pn_cluster_forest_build(L, &sh->forest, err);
     if (st != PN_OK) {
@@ -141,7 +203,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->light_count = L->count;
     sh->visible_slots = L->count + (next - sh->forest.node_count);
     sh->seen = calloc((size_t)sh->visible_slots + 1, sizeof *sh->seen);
-    if (!sh->seen) {
+    if (!sh->seen || !build_post_order(sh)) {
         ias_release(job);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
     }
@@ -185,6 +247,9 @@ typedef struct ias_pixel {
     double clusters;    /* N_C: clusters per point, weighted by region area */
     double region_weight; /* sum of the regions' weights (the share of rays that hit a surface) */
     double embree_seconds; /* sampled estimate of the time inside Embree */
+    double cut_seconds;    /* time computing the cluster cuts of its regions */
+    double pdf_seconds;    /* time keeping PDFs: feedback weights, eq. 6, choosing clusters and
+                              lights, recording samples (the per-sample part sampled) */
     uint32_t visible_lights; /* distinct lights / environment regions seen unoccluded */
     pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
 } ias_pixel;
@@ -330,24 +395,34 @@ static pn_ias_stats *pixel_stats(ias_scratch *s, ias_pixel *px, int cls) {
 }
 
 /* One light evaluation through cluster id `id`: `value` is the luminance of the one-sample
- * estimate of the chosen light's own contribution. For a tree node it is added to every node on
- * the path from the light's leaf to the root as that node's contribution estimate, value divided
- * by the light's probability within the node (power(light) / power(node)); distant lights and
- * environment regions are clusters of their own. */
+ * estimate of the chosen light's own contribution. For a tree node it is recorded at the light's
+ * leaf only; aggregate_stats derives every interior node's statistics from its leaves when
+ * feedback weights are computed. Distant lights and environment regions are clusters of their
+ * own. */
 static void record(const ias_shared *sh, pn_ias_stats *block, pn_ias_stats *pixel, int id, int light, double value,
                    bool visible) {
-    if (id < sh->forest.node_count && light >= 0) {
-        int leaf = sh->forest.leaf_of_light[light];
-        double lp = (double)sh->forest.nodes[leaf].power;
-        for (int m = leaf; m >= 0; m = sh->forest.nodes[m].parent) {
-            double scale = lp > 0.0 ? (double)sh->forest.nodes[m].power / lp : 1.0;
-            pn_ias_stats_add(&block[m], value * scale, visible);
-            if (pixel) pn_ias_stats_add(&pixel[m], value * scale, visible);
-        }
-        return;
-    }
+    if (id < sh->forest.node_count && light >= 0) id = sh->forest.leaf_of_light[light];
     pn_ias_stats_add(&block[id], value, visible);
     if (pixel) pn_ias_stats_add(&pixel[id], value, visible);
+}
+
+/* Interior nodes' statistics from their leaves: a node's contribution estimate of a sample of
+ * light l is the sample divided by l's probability within the node, power(l) / power(node), so
+ * sum(node) = sum over children c of sum(c) * power(node) / power(c); counts add up. The same
+ * numbers as adding every sample along its leaf-to-root path, for one pass over the nodes instead
+ * of a path walk per sample. */
+static void aggregate_stats(const ias_shared *sh, pn_ias_stats *stats) {
+    const pn_cluster_node *nodes = sh->forest.nodes;
+    for (int k = 0; k < sh->post_count; k++) {
+        int m = sh->post_order[k];
+        const pn_cluster_node *nd = &nodes[m];
+        const pn_ias_stats *a = &stats[nd->left], *b = &stats[nd->right];
+        double pm = (double)nd->power, pa = (double)nodes[nd->left].power, pb = (double)nodes[nd->right].power;
+        pn_ias_stats *o = &stats[m];
+        o->sum = a->sum * (pa > 0.0 ? pm / pa : 1.0) + b->sum * (pb > 0.0 ? pm / pb : 1.0);
+        o->count = a->count + b->count;
+        o->visible = a->visible + b->visible;
+    }
 }
 
 /* The current pixel's feedback weight of cluster `id` in class `cls` (see fp_cache). */
@@ -399,25 +474,28 @@ static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *p
 }
 
 /* The block's feedback weights from all passes so far, at the start of a pass. */
-static void refresh_block_feedback(ias_scratch *s) {
+static void refresh_block_feedback(const ias_shared *sh, ias_scratch *s) {
     for (int c = 0; c < IAS_CLASSES; c++) {
         double *f = s->fb_cache + (size_t)c * (size_t)s->id_count;
         if (!s->block_class_used[c]) {
             memset(f, 0, (size_t)s->id_count * sizeof *f);
             continue;
         }
-        const pn_ias_stats *b = s->block_stats + (size_t)c * (size_t)s->id_count;
+        pn_ias_stats *b = s->block_stats + (size_t)c * (size_t)s->id_count;
+        aggregate_stats(sh, b);
         for (int i = 0; i < s->id_count; i++) f[i] = pn_ias_feedback(&b[i]);
     }
 }
 
 /* A new pixel pass: its feedback weights are taken from the pixel's data before any of this
  * pass's samples (the 25-ray steps keep them). */
-static void begin_pixel_feedback(ias_scratch *s, const ias_pixel *px) {
+static void begin_pixel_feedback(const ias_shared *sh, ias_scratch *s, ias_pixel *px) {
     if (++s->fp_now == 0) {
         memset(s->fp_stamp, 0, (size_t)IAS_CLASSES * (size_t)s->id_count * sizeof *s->fp_stamp);
         s->fp_now = 1;
     }
+    for (int c = 0; c < IAS_CLASSES; c++)
+        if (px->stats[c]) aggregate_stats(sh, px->stats[c]);
     for (int k = 0; k < px->region_count; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
         const pn_ias_stats *pixel = px->stats[r->cls]; /* NULL: no data yet, F = 0 */
@@ -548,24 +626,33 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         pn_ias_stats *block = s->block_stats + (size_t)r->cls * (size_t)s->id_count;
         s->block_class_used[r->cls] = true;
         pn_ias_stats *pix = pixel_stats(s, px, r->cls);
+        double t_pdf = pn_clock_seconds();
         build_pdf(s, r, pix, pass);
+        px->pdf_seconds += elapsed_since(sh, t_pdf);
         const int *cut = s->cut + r->cut_first;
         pn_light_sample_cache cache = {0};
         for (unsigned i = 0; i < n_of[k]; i++) {
             uint32_t q = (*counter)++;
+            /* Every IAS_TIMING_STRIDE-th sample times its PDF upkeep: choosing the cluster and
+             * the light in it, and recording the result. */
+            const bool timed_upkeep = q % IAS_TIMING_STRIDE == 1u;
             double u = ((double)i + (double)pn_sobol_sample(q, 5, scramble)) / (double)n_of[k];
+            float u_pick = pn_sobol_sample(q, 6, scramble);
+            float u1 = pn_sobol_sample(q, 7, scramble), u2 = pn_sobol_sample(q, 8, scramble);
+            double t_upkeep = timed_upkeep ? pn_clock_seconds() : 0.0;
             int c = choose(s->cdf, r->cut_count, u);
             int id = cut[c];
             double p_cluster = s->pdf[c];
-            float u1 = pn_sobol_sample(q, 7, scramble), u2 = pn_sobol_sample(q, 8, scramble);
             int light = -1;
             double p_light = 1.0;
             vec3 wi, radiance;
             float pdf, dist;
             bool ok;
+            float pl = 1.0f;
+            if (id < sh->forest.node_count)
+                light = pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
+            if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
             if (id < sh->forest.node_count) {
-                float pl;
-                light = pn_cluster_pick(&sh->forest, job->lights, id, pn_sobol_sample(q, 6, scramble), &pl);
                 p_light = (double)pl;
                 pn_light_sample ls;
                 ok = light >= 0 && pl > 0.0f &&
@@ -612,7 +699,9 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             }
             /* Statistics: the cluster's contribution estimate (eq. 3), visibility. */
             double lum_v = (double)v3_luminance(v);
+            if (timed_upkeep) t_upkeep = pn_clock_seconds();
             record(sh, block, pix, id, light, lum_v, visible);
+            if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
             /* The sample's estimate of the region's direct light (eq. 2 with this pass's PDF). */
             double w = 1.0 / (p_cluster * p_light);
             double ly = lum_v * w;
@@ -750,7 +839,9 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         for (int k = 0; k < px->region_count; k++) {
             ias_region *g = &s->regions[px->first_region + k];
             g->weight = px->weight_sum != 0.0 ? g->weight / px->weight_sum : 0.0;
+            double t_cut = pn_clock_seconds();
             if (!compute_cut(job, sh, s, g)) return PN_ERROR_OUT_OF_MEMORY;
+            px->cut_seconds += elapsed_since(sh, t_cut);
             px->region_weight += g->weight;
             ncl += g->weight * (double)g->cut_count;
         }
@@ -769,13 +860,19 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     uint32_t counter = 0;
     for (int pass = 0; pass < (int)job->max_passes; pass++) {
         bool any = false;
-        if (pass > 0) refresh_block_feedback(s);
+        if (pass > 0) {
+            double t_pdf = pn_clock_seconds();
+            refresh_block_feedback(sh, s);
+            s->pixels[0].pdf_seconds += elapsed_since(sh, t_pdf); /* the block's share, on its first pixel */
+        }
         for (int pi = 0; pi < np; pi++) {
             ias_pixel *px = &s->pixels[pi];
             if (px->done) continue;
             any = true;
             reset_regions(s, px);
-            begin_pixel_feedback(s, px);
+            double t_pdf = pn_clock_seconds();
+            begin_pixel_feedback(sh, s, px);
+            px->pdf_seconds += elapsed_since(sh, t_pdf);
             /* 1.5 N_C samples, at least 50. */
             unsigned count = (unsigned)ceil(1.5 * px->clusters);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
@@ -820,6 +917,8 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         out[pi].visible_fraction = px->shadow_rays ? (float)px->visible / (float)px->shadow_rays : 0.0f;
         out[pi].visible_lights = px->visible_lights;
         out[pi].embree_seconds = (float)px->embree_seconds;
+        out[pi].cut_seconds = (float)px->cut_seconds;
+        out[pi].pdf_seconds = (float)px->pdf_seconds;
         double L, s2;
         vec3 rgb;
         pixel_estimate(s, px, &L, &s2, &rgb);

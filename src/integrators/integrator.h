@@ -29,6 +29,7 @@ typedef struct pn_pixel_estimate {
     uint32_t visible_lights;  /* distinct lights (and environment regions) seen unoccluded */
     float clusters;          /* clusters per shading point, mean over the pixel's regions */
     float visible_fraction;  /* unoccluded shadow rays / shadow rays */
+    float cut_seconds, pdf_seconds; /* time in cluster cuts and in PDF upkeep (estimates) */
 } pn_pixel_estimate;
 
 typedef struct pn_integrator {
