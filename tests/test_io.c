@@ -427,6 +427,28 @@ static void test_exr_round_trip(void) {
     remove_dir(dir);
 }
 
+/* A 64x16 chunk of a real render whose ZIP-compressed size equals its packed size: OpenEXR
+ * 3.1's encoder wrote it so that it read back as garbage (see src/io/exr.c). */
+static void test_exr_zip_equal_size(void) {
+    char dir[64], path[128];
+    make_dir(dir, sizeof dir);
+    snprintf(path, sizeof path, "%s/chunk.exr", dir);
+    pn_err err;
+    pn_err_init(&err);
+    pn_image src = NULL, back = NULL;
+    CHECK(pn_image_read_file(PN_SOURCE_DIR "/tests/data/exr_zip_equal_size.pfm", 0.0f, &src, &err) == PN_OK);
+    CHECK_MSG(src != NULL, "%s", err.message);
+    if (!src) return;
+    CHECK(src->width == 64 && src->height == 16);
+    CHECK(pn_image_write_file(src, path, 0.0f, &err) == PN_OK);
+    CHECK(pn_image_read_file(path, 0.0f, &back, &err) == PN_OK);
+    if (back) CHECK(floats_equal(back->layers[0].data, src->layers[0].data, (size_t)64 * 16 * 3));
+    pn_image_free(back);
+    pn_image_free(src);
+    unlink(path);
+    rmdir(dir);
+}
+
 static void test_exr_other_layouts(void) {
     char dir[64], path[128];
     make_dir(dir, sizeof dir);
@@ -969,7 +991,7 @@ static void test_shared_reference(void) {
     pn_image_free(img);
 }
 
-PN_TESTS(TEST(test_image_layers), TEST(test_exr_round_trip), TEST(test_exr_other_layouts),
+PN_TESTS(TEST(test_image_layers), TEST(test_exr_round_trip), TEST(test_exr_zip_equal_size), TEST(test_exr_other_layouts),
          TEST(test_pfm), TEST(test_png), TEST(test_atomic_write), TEST(test_truncated_files),
          TEST(test_garbage_files), TEST(test_metrics), TEST(test_compare),
          TEST(test_shared_reference))

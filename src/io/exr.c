@@ -35,6 +35,31 @@ typedef struct pn_exr_stream {
 } pn_exr_stream;
 
 /* ---------------------------------------------------------------------------------------- */
+/* A workaround for the ZIP encoder of OpenEXR 3.1 (Debian 12 ships 3.1.5) */
+
+/* When zlib's output is exactly as long as the packed chunk, that encoder stores the zlib bytes
+ * with a size equal to the uncompressed size; every reader (its own included) takes a chunk of
+ * that size for uncompressed data and decodes garbage (upstream issue 2306, fixed in 2026). The
+ * format allows storing any chunk uncompressed when compression does not make it smaller, so in
+ * that case the packed bytes are stored instead. The library's own compression routine is kept
+ * and called first. */
+typedef exr_result_t (*pn_exr_compress_fn)(exr_encode_pipeline_t *encode);
+
+typedef struct pn_exr_compress_guard {
+    pn_exr_compress_fn inner;
+} pn_exr_compress_guard;
+
+static exr_result_t pn_exr_compress_guarded(exr_encode_pipeline_t *encode) {
+    const pn_exr_compress_guard *g = encode->encoding_user_data;
+    exr_result_t rv = g->inner(encode);
+    if (rv == EXR_ERR_SUCCESS && encode->compressed_buffer && encode->packed_buffer &&
+        encode->compressed_buffer != encode->packed_buffer && encode->compressed_bytes == encode->packed_bytes &&
+        encode->compressed_alloc_size >= encode->packed_bytes)
+        memcpy(encode->compressed_buffer, encode->packed_buffer, (size_t)encode->packed_bytes);
+    return rv;
+}
+
+/* ---------------------------------------------------------------------------------------- */
 /* Stream callbacks */
 
 static int64_t pn_exr_read_fn(exr_const_context_t ctxt, void *user, void *buffer, uint64_t size,
@@ -520,6 +545,7 @@ pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err
 
     exr_encode_pipeline_t encode;
     memset(&encode, 0, sizeof encode);
+    pn_exr_compress_guard guard = {NULL};
     int encode_ready = 0;
     for (int y = 0; y < height && status == PN_OK; y += lines) {
         exr_chunk_info_t cinfo;
@@ -556,6 +582,11 @@ pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err
         }
         if (status != PN_OK) break;
         rv = exr_encoding_choose_default_routines(ex, part, &encode);
+        if (rv == EXR_ERR_SUCCESS && encode.compress_fn) {
+            guard.inner = encode.compress_fn;
+            encode.compress_fn = pn_exr_compress_guarded;
+            encode.encoding_user_data = &guard;
+        }
         if (rv == EXR_ERR_SUCCESS) rv = exr_encoding_run(ex, part, &encode);
         if (rv != EXR_ERR_SUCCESS) {
             status = pn_exr_write_fail(&stream, rv, name, "compressing scanlines", err);
