@@ -1,0 +1,121 @@
+/* bounds.c — M_max and G_max of Lightcuts / Multidimensional Lightcuts (see bounds.h). */
+#include "shade/bounds.h"
+
+#include "lights/vpl.h"
+
+static float clampf(float x, float lo, float hi) { return fminf(hi, fmaxf(lo, x)); }
+
+float pn_bound_cos(vec3 lo, vec3 hi, vec3 axis, float half) {
+    if (half >= PN_PI) return 1.0f;
+    if (lo.x <= 0.0f && hi.x >= 0.0f && lo.y <= 0.0f && hi.y >= 0.0f && lo.z <= 0.0f && hi.z >= 0.0f) return 1.0f;
+    vec3 t, b;
+    v3_basis(axis, &t, &b);
+    /* The box rotated into the frame (t, b, axis), re-boxed. */
+    float x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY, z0 = INFINITY, z1 = -INFINITY;
+    for (int c = 0; c < 8; c++) {
+        vec3 v = v3((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+        float x = v3_dot(v, t), y = v3_dot(v, b), z = v3_dot(v, axis);
+        x0 = fminf(x0, x), x1 = fmaxf(x1, x);
+        y0 = fminf(y0, y), y1 = fmaxf(y1, y);
+        z0 = fminf(z0, z), z1 = fmaxf(z1, z);
+    }
+    (void)z0;
+    float cos_max;
+    if (z1 > 0.0f) {
+        float dx = (x0 <= 0.0f && x1 >= 0.0f) ? 0.0f : fminf(x0 * x0, x1 * x1);
+        float dy = (y0 <= 0.0f && y1 >= 0.0f) ? 0.0f : fminf(y0 * y0, y1 * y1);
+        float d2 = dx + dy;
+        cos_max = d2 <= 0.0f ? 1.0f : z1 / sqrtf(d2 + z1 * z1);
+    } else {
+        float d2 = fmaxf(x0 * x0, x1 * x1) + fmaxf(y0 * y0, y1 * y1);
+        float l2 = d2 + z1 * z1;
+        cos_max = l2 > 0.0f ? z1 / sqrtf(l2) : 1.0f;
+    }
+    /* Float rounding in the rotation: widen a little so the bound stays a bound. */
+    cos_max = clampf(cos_max + 1e-5f, -1.0f, 1.0f);
+    if (half <= 0.0f) return cos_max;
+    float theta = acosf(cos_max) - half;
+    return theta <= 0.0f ? 1.0f : cosf(theta);
+}
+
+float pn_box_distance2(vec3 alo, vec3 ahi, vec3 blo, vec3 bhi) {
+    float dx = fmaxf(0.0f, fmaxf(blo.x - ahi.x, alo.x - bhi.x));
+    float dy = fmaxf(0.0f, fmaxf(blo.y - ahi.y, alo.y - bhi.y));
+    float dz = fmaxf(0.0f, fmaxf(blo.z - ahi.z, alo.z - bhi.z));
+    return dx * dx + dy * dy + dz * dz;
+}
+
+float pn_bound_geometric(const pn_receiver_bounds *r, const pn_light_bounds *q, float min_dist2) {
+    if (q->kind == PN_VPL_DIRECTIONAL) return 1.0f;
+    float d2 = fmaxf(pn_box_distance2(r->lo, r->hi, q->lo, q->hi), min_dist2);
+    if (!(d2 > 0.0f)) return INFINITY;
+    float g = 1.0f / d2;
+    if (q->kind == PN_VPL_ORIENTED) {
+        /* phi: between the VPL normal and light-to-point vectors p - s. */
+        float c = pn_bound_cos(v3_sub(r->lo, q->hi), v3_sub(r->hi, q->lo), q->axis, q->half);
+        if (c <= 0.0f) return 0.0f;
+        g *= c;
+    }
+    return g;
+}
+
+vec3 pn_bound_material(const pn_receiver_bounds *r, const pn_light_bounds *q) {
+    vec3 lo, hi; /* point-to-light vectors s - p */
+    if (q->kind == PN_VPL_DIRECTIONAL) {
+        lo = q->lo;
+        hi = q->hi;
+    } else {
+        lo = v3_sub(q->lo, r->hi);
+        hi = v3_sub(q->hi, r->lo);
+    }
+    float cos_theta = pn_bound_cos(lo, hi, r->n_axis, r->n_half);
+    if (cos_theta <= 0.0f) return v3(0, 0, 0);
+    vec3 m = v3_scale(r->kd_max, PN_INV_PI);
+    if (!v3_is_zero(r->ks_max)) {
+        float cb = fmaxf(0.0f, pn_bound_cos(lo, hi, r->r_axis, r->r_half));
+        /* cos^n is largest for the smallest n (cos <= 1), (n + 2) for the largest. */
+        float lobe = (r->n_max + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, r->n_min);
+        m = v3_madd(m, r->ks_max, lobe);
+    }
+    return v3_scale(m, cos_theta);
+}
+
+float pn_bound_error(const pn_receiver_bounds *r, const pn_light_bounds *q, vec3 intensity_sum, float min_dist2) {
+    float g = pn_bound_geometric(r, q, min_dist2);
+    if (g <= 0.0f) return 0.0f;
+    vec3 m = pn_bound_material(r, q);
+    return v3_luminance(v3_mul(m, intensity_sum)) * g;
+}
+
+void pn_cone_merge(vec3 a1, float h1, vec3 a2, float h2, vec3 *axis, float *half) {
+    if (h1 >= PN_PI || h2 >= PN_PI) {
+        *axis = a1;
+        *half = PN_PI;
+        return;
+    }
+    float theta = acosf(clampf(v3_dot(a1, a2), -1.0f, 1.0f));
+    if (theta + h2 <= h1) {
+        *axis = a1;
+        *half = h1;
+        return;
+    }
+    if (theta + h1 <= h2) {
+        *axis = a2;
+        *half = h2;
+        return;
+    }
+    float h = 0.5f * (theta + h1 + h2);
+    if (h >= PN_PI) {
+        *axis = a1;
+        *half = PN_PI;
+        return;
+    }
+    /* Rotate a1 towards a2 by (h - h1). */
+    float phi = h - h1;
+    float s = sinf(theta);
+    vec3 a;
+    if (s < 1e-6f) a = a1;
+    else a = v3_add(v3_scale(a1, sinf(theta - phi) / s), v3_scale(a2, sinf(phi) / s));
+    *axis = v3_normalize(a);
+    *half = fminf(PN_PI, h * (1.0f + 1e-5f) + 1e-6f);
+}
