@@ -774,11 +774,6 @@ pn_render_image_fn pn_integrator_render_image(const pn_integrator *integrator) {
 
 /* ---- for the tests ------------------------------------------------------------------------ */
 
-/* Builds a point tree over `count` receivers and checks its invariants: every node's points are
- * the contiguous sub-array [first, first+count), the children partition it, every point is in
- * exactly one leaf, and the node boxes / cones / BRDF ranges contain their points. Returns the
- * node count, or -1 on a violated invariant, -2 when out of memory. */
-int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, uint64_t seed);
 int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, uint64_t seed) {
     ic_tree t;
     memset(&t, 0, sizeof t);

@@ -43,4 +43,24 @@ typedef struct pn_shading_point {
 void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t sample, pn_shading_point *sp,
                        pn_pixel_estimate *est);
 
+/* Lightcuts for one receiver outside a render (lightcuts.c; used by the tests): the estimate, the
+ * sum of the final cut's error bounds (the guarantee: |estimate - exact| <= that sum), the cut
+ * size and the shadow rays. */
+typedef struct pn_lightcut_context {
+    const pn_lights *lights;
+    const pn_accel *accel;
+    const pn_vpl_set *set;
+    const pn_light_tree *tree;
+    float error_bound;
+    uint32_t max_cut;
+} pn_lightcut_context;
+bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, vec3 *radiance, float *bound_sum,
+                      uint32_t *cut_size, uint32_t *shadow_rays);
+
+/* Builds an illumcut point tree over the receivers and checks its invariants (illumcut.c): node
+ * ranges contiguous, children partitioning their parent, every point in exactly one leaf, boxes,
+ * cones and BRDF ranges containing the node's points. Returns the node count, -1 on a violated
+ * invariant, -2 when out of memory. */
+int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, uint64_t seed);
+
 #endif

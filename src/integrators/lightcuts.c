@@ -84,20 +84,21 @@ static cut_entry heap_pop(lc_scratch *s, size_t *n) {
 }
 
 /* M · G · V of VPL `rep` at the receiver per unit intensity (one shadow ray when non-zero). */
-static vec3 unit_value(const pn_render_job *job, const pn_vpl_data *d, int32_t rep, const pn_vpl_receiver *r,
-                       uint32_t *shadow_rays) {
+static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_receiver *r, uint32_t *shadow_rays) {
     vec3 wi;
     float dist;
-    vec3 c = pn_vpl_contribution_with(job->lights, &d->set.vpls[rep], v3(1, 1, 1), r, d->set.min_dist2, &wi, &dist);
-    if (v3_is_zero(c)) return c;
+    vec3 v = pn_vpl_contribution_with(c->lights, &c->set->vpls[rep], v3(1, 1, 1), r, c->set->min_dist2, &wi, &dist);
+    if (v3_is_zero(v)) return v;
     (*shadow_rays)++;
-    return pn_vpl_visible(job->accel, r, wi, dist) ? c : v3(0, 0, 0);
+    return pn_vpl_visible(c->accel, r, wi, dist) ? v : v3(0, 0, 0);
 }
 
-/* The radiance at one receiver by a lightcut; adds bound evaluations and the cut size. */
-static bool lightcut_point(const pn_render_job *job, const pn_vpl_data *d, lc_scratch *s, const pn_vpl_receiver *r,
-                           vec3 *out, uint32_t *shadow_rays, uint64_t *bounds, uint64_t *cut_size) {
-    const pn_light_tree *t = &d->tree;
+/* The radiance at one receiver by a lightcut; adds bound evaluations and the cut size, and the
+ * sum of the final cut's error bounds to *bound_sum (may be NULL). */
+static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const pn_vpl_receiver *r, vec3 *out,
+                           uint32_t *shadow_rays, uint64_t *bounds, uint64_t *cut_size, float *bound_sum) {
+    const pn_light_tree *t = cx->tree;
+    const pn_vpl_set *set = cx->set;
     pn_receiver_bounds rb = {r->p, r->p, r->ns, 0.0f, pn_reflect(r->wo, r->ns), 0.0f, r->kd, r->ks, r->exponent, r->exponent};
     size_t n = 0;
     vec3 total = v3(0, 0, 0);
@@ -106,11 +107,11 @@ static bool lightcut_point(const pn_render_job *job, const pn_vpl_data *d, lc_sc
         int32_t root = t->roots[k];
         if (root < 0) continue;
         const pn_light_node *nd = &t->nodes[root];
-        cut_entry e = {0.0f, root, k, unit_value(job, d, nd->rep, r, shadow_rays)};
+        cut_entry e = {0.0f, root, k, unit_value(cx, nd->rep, r, shadow_rays)};
         total = v3_add(total, v3_mul(e.unit, nd->intensity));
         if (nd->left >= 0) {
             pn_light_bounds lb = pn_light_node_bounds(nd, k);
-            e.bound = pn_bound_error(&rb, &lb, nd->intensity, d->set.min_dist2);
+            e.bound = pn_bound_error(&rb, &lb, nd->intensity, set->min_dist2);
             (*bounds)++;
         }
         if (e.bound > 0.0f) {
@@ -119,10 +120,10 @@ static bool lightcut_point(const pn_render_job *job, const pn_vpl_data *d, lc_sc
             finished++;
         }
     }
-    const float delta = job->error_bound;
+    const float delta = cx->error_bound;
     while (n > 0) {
         if (s->heap[0].bound <= delta * v3_luminance(total)) break;
-        if (job->max_cut > 0 && n + finished >= job->max_cut) break;
+        if (cx->max_cut > 0 && n + finished >= cx->max_cut) break;
         cut_entry e = heap_pop(s, &n);
         const pn_light_node *nd = &t->nodes[e.node];
         total = v3_sub(total, v3_mul(e.unit, nd->intensity));
@@ -130,11 +131,11 @@ static bool lightcut_point(const pn_render_job *job, const pn_vpl_data *d, lc_sc
         for (int c = 0; c < 2; c++) {
             const pn_light_node *ch = &t->nodes[kids[c]];
             cut_entry ce = {0.0f, kids[c], e.kind, v3(0, 0, 0)};
-            ce.unit = ch->rep == nd->rep ? e.unit : unit_value(job, d, ch->rep, r, shadow_rays);
+            ce.unit = ch->rep == nd->rep ? e.unit : unit_value(cx, ch->rep, r, shadow_rays);
             total = v3_add(total, v3_mul(ce.unit, ch->intensity));
             if (ch->left >= 0) {
                 pn_light_bounds lb = pn_light_node_bounds(ch, e.kind);
-                ce.bound = pn_bound_error(&rb, &lb, ch->intensity, d->set.min_dist2);
+                ce.bound = pn_bound_error(&rb, &lb, ch->intensity, set->min_dist2);
                 (*bounds)++;
             }
             if (ce.bound > 0.0f) {
@@ -145,6 +146,11 @@ static bool lightcut_point(const pn_render_job *job, const pn_vpl_data *d, lc_sc
         }
     }
     *cut_size += n + finished;
+    if (bound_sum) {
+        float b = 0.0f;
+        for (size_t i = 0; i < n; i++) b += s->heap[i].bound;
+        *bound_sum = b;
+    }
     *out = v3(fmaxf(0.0f, total.x), fmaxf(0.0f, total.y), fmaxf(0.0f, total.z));
     return true;
 }
@@ -155,6 +161,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
                                  void *scratch) {
     pn_vpl_data *d = job->integrator_data;
     lc_scratch *s = scratch;
+    pn_lightcut_context cx = {job->lights, job->accel, &d->set, &d->tree, job->error_bound, job->max_cut};
     const uint32_t spp = pn_vpl_spp(job);
     uint64_t bounds_total = 0, cut_total = 0, points = 0;
     for (int pi = 0; pi < batch->count; pi++) {
@@ -172,7 +179,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
             vec3 value = sp.emitted;
             if (sp.has_point) {
                 vec3 L;
-                if (!lightcut_point(job, d, s, &sp.r, &L, &o->shadow_rays, &bounds, &cut)) return PN_ERROR_OUT_OF_MEMORY;
+                if (!lightcut_point(&cx, s, &sp.r, &L, &o->shadow_rays, &bounds, &cut, NULL)) return PN_ERROR_OUT_OF_MEMORY;
                 pts++;
                 value = v3_add(value, v3_mul(sp.throughput, L));
             }
@@ -196,3 +203,16 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
 const pn_integrator pn_integrator_lightcuts = {
     "lightcuts", lc_prepare, pn_vpl_release, pn_vpl_report, lc_scratch_create, lc_scratch_free, lc_render_batch,
 };
+
+bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, vec3 *radiance, float *bound_sum,
+                      uint32_t *cut_size, uint32_t *shadow_rays) {
+    lc_scratch *s = lc_scratch_create(NULL);
+    if (!s) return false;
+    uint64_t bounds = 0, cut = 0;
+    uint32_t rays = 0;
+    bool ok = lightcut_point(cx, s, r, radiance, &rays, &bounds, &cut, bound_sum);
+    lc_scratch_free(s);
+    if (cut_size) *cut_size = (uint32_t)cut;
+    if (shadow_rays) *shadow_rays = rays;
+    return ok;
+}
