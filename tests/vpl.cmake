@@ -1,1 +1,2 @@
 pn_add_test(test_vpl)
+pn_add_test(test_lightcuts)
