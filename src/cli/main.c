@@ -852,7 +852,7 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             else if (strcmp(value, "illumcut") == 0)
                 o->settings.integrator = PN_INTEGRATOR_ILLUMCUT;
             else
-                return bad_value(cmd, name, value, "'reference', 'ias', 'vpl', 'lightcuts' or 'illumcut'");
+                return bad_value(cmd, name, value, "'reference' or 'ias' (or a VPL integrator: 'vpl', 'lightcuts', 'illumcut')");
         } else if (strcmp(name, "--cluster-solid-angle") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)

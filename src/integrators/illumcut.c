@@ -53,6 +53,7 @@
 #include "core/threadpool.h"
 #include "shade/bsdf.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -789,33 +790,34 @@ int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, ui
         free(t.nodes);
         return -2;
     }
-    int bad = 0;
+    int bad = 0, why = 0;
     int *seen = calloc((size_t)count + 1, sizeof *seen);
     if (!seen) bad = 1;
     for (int32_t i = 0; i < t.node_count && !bad; i++) {
         const ic_node *n = &t.nodes[i];
-        if (n->first < 0 || n->count <= 0 || n->first + n->count > count) bad = 1;
+        if (n->first < 0 || n->count <= 0 || n->first + n->count > count) bad = why = 1;
         if (n->left >= 0) {
             const ic_node *a = &t.nodes[n->left], *b = &t.nodes[n->right];
-            if (a->first != n->first || b->first != a->first + a->count || a->count + b->count != n->count) bad = 1;
-            if (n->left <= i || n->right <= i) bad = 1;
+            if (a->first != n->first || b->first != a->first + a->count || a->count + b->count != n->count) bad = why = 2;
+            if (n->left <= i || n->right <= i) bad = why = 3;
         } else {
             for (int32_t j = n->first; j < n->first + n->count; j++) seen[t.points[j].sample]++;
         }
-        if (n->rep < n->first || n->rep >= n->first + n->count) bad = 1;
+        if (n->rep < n->first || n->rep >= n->first + n->count) bad = why = 4;
         for (int32_t j = n->first; j < n->first + n->count && !bad; j++) {
             const pn_vpl_receiver *r = &t.points[j].r;
             vec3 p = r->p;
-            if (p.x < n->lo.x || p.y < n->lo.y || p.z < n->lo.z || p.x > n->hi.x || p.y > n->hi.y || p.z > n->hi.z) bad = 1;
-            if (acosf(fminf(1.0f, v3_dot(r->ns, n->n_axis))) > n->n_half + 1e-3f) bad = 1;
+            if (p.x < n->lo.x || p.y < n->lo.y || p.z < n->lo.z || p.x > n->hi.x || p.y > n->hi.y || p.z > n->hi.z) bad = why = 5;
+            if (atan2f(v3_length(v3_cross(r->ns, n->n_axis)), v3_dot(r->ns, n->n_axis)) > n->n_half + 1e-4f) bad = why = 6;
             vec3 refl = pn_reflect(r->wo, r->ns);
-            if (acosf(fminf(1.0f, v3_dot(refl, n->r_axis))) > n->r_half + 1e-3f) bad = 1;
-            if (r->kd.x > n->kd_max.x || r->ks.y > n->ks_max.y || r->exponent < n->n_min || r->exponent > n->n_max) bad = 1;
+            if (atan2f(v3_length(v3_cross(refl, n->r_axis)), v3_dot(refl, n->r_axis)) > n->r_half + 1e-4f) bad = why = 7;
+            if (r->kd.x > n->kd_max.x || r->ks.y > n->ks_max.y || r->exponent < n->n_min || r->exponent > n->n_max) bad = why = 8;
         }
     }
     for (int i = 0; i < count && !bad; i++)
-        if (seen[i] != 1) bad = 1;
+        if (seen[i] != 1) bad = why = 9;
     int nodes = t.node_count;
+    if (bad) fprintf(stderr, "point tree invariant %d violated\n", why);
     free(seen);
     free(t.points);
     free(t.nodes);

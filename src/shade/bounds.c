@@ -93,7 +93,8 @@ void pn_cone_merge(vec3 a1, float h1, vec3 a2, float h2, vec3 *axis, float *half
         *half = PN_PI;
         return;
     }
-    float theta = acosf(clampf(v3_dot(a1, a2), -1.0f, 1.0f));
+    /* atan2 keeps small angles accurate (acos of a cosine near 1 does not). */
+    float theta = atan2f(v3_length(v3_cross(a1, a2)), v3_dot(a1, a2));
     if (theta + h2 <= h1) {
         *axis = a1;
         *half = h1;
@@ -114,6 +115,11 @@ void pn_cone_merge(vec3 a1, float h1, vec3 a2, float h2, vec3 *axis, float *half
     float phi = h - h1;
     float s = sinf(theta);
     vec3 a;
+    if (s < 1e-6f && theta > 1.0f) { /* opposite axes: no preferred rotation, take everything */
+        *axis = a1;
+        *half = PN_PI;
+        return;
+    }
     if (s < 1e-6f) a = a1;
     else a = v3_add(v3_scale(a1, sinf(theta - phi) / s), v3_scale(a2, sinf(phi) / s));
     *axis = v3_normalize(a);
