@@ -263,7 +263,6 @@ typedef struct ic_render {
     int32_t group_count;
     int32_t *group_of_node; /* group index of a node at or below a group root, -1 above */
     atomic_int failed;
-    uint64_t phase1_rays;
 } ic_render;
 
 static float light_radius(const ic_render *ir, const pn_light_node *q, int kind) {
@@ -315,15 +314,31 @@ static bool stack_push(pair_stack *s, ic_pair p) {
     return true;
 }
 
-static pn_status phase1(ic_render *ir) {
+/* A shading job: the points [a, b) (inside one group) with light node q. */
+typedef struct ic_item {
+    int32_t a, b, q;
+} ic_item;
+
+typedef struct ic_group {
+    int32_t root;    /* point-tree node */
+    ic_item *items;
+    size_t n, cap;
+    pair_stack pending; /* pairs below the group root, descended by the group's worker */
+    pair_stack pending1; /* the same for Phase I */
+} ic_group;
+
+/* Phase I's descent over a stack of pairs. With group < 0 (the top, one thread), pairs whose R
+ * lies inside a group are queued to that group instead (see phase2 for why). */
+static bool phase1_descend(ic_render *ir, pair_stack *st, int32_t group) {
     const pn_light_tree *lt = &ir->d->tree;
     ic_tree *t = &ir->tree;
-    pair_stack st = {0};
     float clamp = ir->d->set.clamp_distance;
-    for (int k = 0; k < PN_VPL_KIND_COUNT; k++)
-        if (lt->roots[k] >= 0 && !stack_push(&st, (ic_pair){0, lt->roots[k], k})) goto oom;
-    while (st.n > 0) {
-        ic_pair pr = st.v[--st.n];
+    while (st->n > 0) {
+        ic_pair pr = st->v[--st->n];
+        if (group < 0 && ir->group_of_node[pr.r] >= 0) {
+            if (!stack_push(&ir->groups[ir->group_of_node[pr.r]].pending1, pr)) return false;
+            continue;
+        }
         ic_node *R = &t->nodes[pr.r];
         const pn_light_node *Q = &lt->nodes[pr.q];
         float rR = node_radius(R), rQ = light_radius(ir, Q, pr.kind);
@@ -337,22 +352,53 @@ static pn_status phase1(ic_render *ir) {
         bool r_leaf = R->left < 0, q_leaf = Q->left < 0;
         bool close_enough = fmaxf(rR, rQ) < IC_PHASE1_RATIO * dRQ && light_aperture(Q, pr.kind) < IC_PHASE1_APERTURE;
         if (close_enough || (r_leaf && q_leaf)) {
-            ic_point *p = &t->points[R->rep];
-            uint32_t before = p->shadow_rays;
-            R->acc = v3_add(R->acc, shade_point(ir, p, Q, 0));
-            ir->phase1_rays += p->shadow_rays - before;
+            R->acc = v3_add(R->acc, shade_point(ir, &t->points[R->rep], Q, 0));
             continue;
         }
         bool refine_q = r_leaf || (!q_leaf && rQ > rR);
         if (refine_q) {
-            if (!stack_push(&st, (ic_pair){pr.r, Q->left, pr.kind}) || !stack_push(&st, (ic_pair){pr.r, Q->right, pr.kind}))
-                goto oom;
+            if (!stack_push(st, (ic_pair){pr.r, Q->left, pr.kind}) || !stack_push(st, (ic_pair){pr.r, Q->right, pr.kind}))
+                return false;
         } else {
-            if (!stack_push(&st, (ic_pair){R->left, pr.q, pr.kind}) || !stack_push(&st, (ic_pair){R->right, pr.q, pr.kind}))
-                goto oom;
+            if (!stack_push(st, (ic_pair){R->left, pr.q, pr.kind}) || !stack_push(st, (ic_pair){R->right, pr.q, pr.kind}))
+                return false;
         }
     }
+    return true;
+}
+
+static void reverse_pairs(pair_stack *st) {
+    for (size_t i = 0, j = st->n; i + 1 < j; i++, j--) {
+        ic_pair tmp = st->v[i];
+        st->v[i] = st->v[j - 1];
+        st->v[j - 1] = tmp;
+    }
+}
+
+static void phase1_group(void *user, size_t gi, int worker) {
+    (void)worker;
+    ic_render *ir = user;
+    ic_group *g = &ir->groups[gi];
+    reverse_pairs(&g->pending1);
+    if (!phase1_descend(ir, &g->pending1, (int32_t)gi)) atomic_store(&ir->failed, PN_ERROR_OUT_OF_MEMORY);
+}
+
+/* Phase I: the top of the descent on one thread, the groups in parallel (as Phase II), then the
+ * accumulations pushed to the points and the minimum radiance (`color`) pulled up. */
+static pn_status phase1(ic_render *ir, pn_threadpool *pool) {
+    const pn_light_tree *lt = &ir->d->tree;
+    ic_tree *t = &ir->tree;
+    pair_stack st = {0};
+    for (int k = 0; k < PN_VPL_KIND_COUNT; k++)
+        if (lt->roots[k] >= 0 && !stack_push(&st, (ic_pair){0, lt->roots[k], k})) {
+            free(st.v);
+            return PN_ERROR_OUT_OF_MEMORY;
+        }
+    bool ok = phase1_descend(ir, &st, -1);
     free(st.v);
+    if (!ok) return PN_ERROR_OUT_OF_MEMORY;
+    pn_threadpool_run(pool, (size_t)ir->group_count, phase1_group, ir);
+    if (atomic_load(&ir->failed)) return (pn_status)atomic_load(&ir->failed);
     /* Push the accumulations down (nodes are in pre-order: parents before children), then the
      * minimum luminance up. */
     for (int32_t i = 0; i < t->node_count; i++) {
@@ -375,9 +421,6 @@ static pn_status phase1(ic_render *ir) {
         }
     }
     return PN_OK;
-oom:
-    free(st.v);
-    return PN_ERROR_OUT_OF_MEMORY;
 }
 
 /* ---- Phase II ----------------------------------------------------------------------------- */
@@ -416,18 +459,6 @@ static void adaptive_sampling(const ic_render *ir, int32_t a, int32_t b, const p
         }
     }
 }
-
-/* A shading job: the points [a, b) (inside one group) with light node q. */
-typedef struct ic_item {
-    int32_t a, b, q;
-} ic_item;
-
-typedef struct ic_group {
-    int32_t root;    /* point-tree node */
-    ic_item *items;
-    size_t n, cap;
-    pair_stack pending; /* pairs below the group root, descended by the group's worker */
-} ic_group;
 
 static bool group_add_item(ic_group *g, ic_item it) {
     if (g->n == g->cap) {
@@ -528,11 +559,7 @@ static void phase2_group(void *user, size_t gi, int worker) {
     }
     /* The pending pairs were pushed in Algorithm 1's order; reverse them so that popping the
      * stack visits them in that order. */
-    for (size_t i = 0, j = g->pending.n; i + 1 < j; i++, j--) {
-        ic_pair tmp = g->pending.v[i];
-        g->pending.v[i] = g->pending.v[j - 1];
-        g->pending.v[j - 1] = tmp;
-    }
+    reverse_pairs(&g->pending);
     if (!algorithm1(ir, &g->pending, (int32_t)gi, &pj->per_group[gi].bound_evals, &pj->per_group[gi].pairs))
         atomic_store(&ir->failed, PN_ERROR_OUT_OF_MEMORY);
 }
@@ -577,10 +604,6 @@ static bool make_groups(ic_render *ir, int32_t limit) {
  * that is part of a larger R works on that part only. */
 static pn_status phase2(ic_render *ir, pn_threadpool *pool, uint64_t *bound_evals, uint64_t *pairs) {
     const pn_light_tree *lt = &ir->d->tree;
-    /* Independent of the thread count, so that the image is too. */
-    int32_t limit = ir->tree.point_count / 256 + 1;
-    if (limit < 256) limit = 256;
-    if (!make_groups(ir, limit)) return PN_ERROR_OUT_OF_MEMORY;
     pair_stack W = {0};
     for (int k = PN_VPL_KIND_COUNT - 1; k >= 0; k--)
         if (lt->roots[k] >= 0 && !stack_push(&W, (ic_pair){0, lt->roots[k], k})) return PN_ERROR_OUT_OF_MEMORY;
@@ -636,6 +659,7 @@ static void free_render(ic_render *ir) {
     for (int32_t g = 0; g < ir->group_count; g++) {
         free(ir->groups[g].items);
         free(ir->groups[g].pending.v);
+        free(ir->groups[g].pending1.v);
     }
     free(ir->groups);
     free(ir->group_of_node);
@@ -680,7 +704,11 @@ static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *
     /* The build permuted the points (Morton order): re-link the samples. */
     for (int32_t j = 0; j < ir.tree.point_count; j++) ir.samples[ir.tree.points[j].sample].point = j;
     uint64_t bound_evals = 0, pairs = 0;
-    if (st == PN_OK && m > 0) st = phase1(&ir);
+    /* Groups (independent of the thread count, so that the image is too). */
+    int32_t limit = m / 256 + 1;
+    if (limit < 256) limit = 256;
+    if (st == PN_OK && m > 0 && !make_groups(&ir, limit)) st = PN_ERROR_OUT_OF_MEMORY;
+    if (st == PN_OK && m > 0) st = phase1(&ir, pool);
     double t2 = pn_clock_seconds();
     if (st == PN_OK && m > 0) st = phase2(&ir, pool, &bound_evals, &pairs);
     double t3 = pn_clock_seconds();
