@@ -413,7 +413,9 @@ static void test_lightcuts_image_against_vpl(void) {
         int n = pn_image_width(lc) * pn_image_height(lc) * 3;
         CHECK(memcmp(pn_image_layer_data(lc, 0), pn_image_layer_data(lc1, 0), (size_t)n * sizeof(float)) == 0);
         /* Fig. 4's layer: the bound evaluations per pixel, consistent with the statistics. */
-        CHECK(pn_image_layer_count(lc) == 3 && strcmp(pn_image_layer_name(lc, 1), "bound_evaluations") == 0);
+        CHECK(pn_image_layer_count(lc) == 4 && strcmp(pn_image_layer_name(lc, 1), "bound_evaluations") == 0);
+        CHECK(strcmp(pn_image_layer_name(lc, 2), "log10_bound_evaluations") == 0);
+        CHECK(strcmp(pn_image_layer_name(lc, 3), "cut_size") == 0);
         const float *be = pn_image_layer_data(lc, 1);
         double sum = 0.0;
         for (int i = 0; i < n / 3; i++) sum += (double)be[i];
@@ -424,6 +426,47 @@ static void test_lightcuts_image_against_vpl(void) {
     pn_image_free(lc1);
     pn_image_free(fine);
     pn_image_free(coarse);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* Every kind of light at once (environment, distant, spot, sphere; the directional and omni trees
+ * as well as the oriented one) and a glossy sphere: lightcuts and illumcut against vpl. */
+static void test_all_light_kinds(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load(ctx, "kinds.pbrt",
+                          "LookAt 0 -6 3  0 0 0.5  0 0 1\nCamera \"perspective\" \"float fov\" [ 50 ]\n"
+                          "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 24 ]\nWorldBegin\n"
+                          "LightSource \"infinite\" \"rgb L\" [ 0.2 0.25 0.3 ]\n"
+                          "LightSource \"distant\" \"point3 from\" [ 1 -1 3 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 0.8 0.7 0.6 ]\n"
+                          "LightSource \"spot\" \"point3 from\" [ -1 -1 3 ] \"point3 to\" [ -1 0 0 ] \"float coneangle\" [ 30 ]\n"
+                          "    \"float conedelta\" [ 10 ] \"rgb I\" [ 4 4 3 ]\n"
+                          "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [ 5 4 3 ]\n  Translate 1.5 0 1.2\n"
+                          "  Shape \"sphere\" \"float radius\" [ 0.15 ]\nAttributeEnd\n"
+                          "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                          "Material \"diffuse\" \"rgb reflectance\" [ 0.3 0.5 0.7 ]\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -2 1 0  2 1 0  2 1 2  -2 1 2 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                          "Material \"coateddiffuse\" \"rgb reflectance\" [ 0.5 0.3 0.2 ] \"float roughness\" [ 0.2 ]\n"
+                          "AttributeBegin\n  Translate 0 -0.5 0.5\n  Shape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n");
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_render_stats s_ref, s_lc, s_ic;
+    pn_image ref = render(ctx, scene, PN_INTEGRATOR_VPL, 0.0f, 2, &s_ref);
+    pn_image lc = render(ctx, scene, PN_INTEGRATOR_LIGHTCUTS, 0.01f, 2, &s_lc);
+    pn_image ic = render(ctx, scene, PN_INTEGRATOR_ILLUMCUT, 0.015f, 2, &s_ic);
+    if (ref && lc && ic) {
+        double mx_lc, mx_ic;
+        double e_lc = mean_rel_error(lc, ref, &mx_lc), e_ic = mean_rel_error(ic, ref, &mx_ic);
+        CHECK_MSG(e_lc < 0.01 && mx_lc < 0.05, "lightcuts: mean %g max %g", e_lc, mx_lc);
+        CHECK_MSG(e_ic < 0.015 && mx_ic < 0.08, "illumcut: mean %g max %g", e_ic, mx_ic);
+        CHECK(s_lc.shadow_rays_per_pixel_mean < 0.5 * s_ref.shadow_rays_per_pixel_mean);
+    }
+    pn_image_free(ref);
+    pn_image_free(lc);
+    pn_image_free(ic);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }
@@ -440,5 +483,5 @@ static void teardown(void) {
 }
 
 PN_TESTS(TEST(setup), TEST(test_bound_cos), TEST(test_bounds_never_below_truth), TEST(test_light_tree_structure),
-         TEST(test_representative_probability), TEST(test_lightcut_guarantee), TEST(test_lightcuts_image_against_vpl),
+         TEST(test_representative_probability), TEST(test_lightcut_guarantee), TEST(test_lightcuts_image_against_vpl), TEST(test_all_light_kinds),
          TEST(teardown))

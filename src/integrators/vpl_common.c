@@ -97,9 +97,11 @@ void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t i, pn_
 }
 
 bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img) {
-    float *bounds = NULL, *cut = NULL, *phase1 = NULL;
+    float *bounds = NULL, *log_bounds = NULL, *cut = NULL, *phase1 = NULL;
     if (aovs & PN_AOV_BOUND_EVALUATIONS) {
+        /* And its logarithm, IlluminationCut's Fig. 4 (with --aov-png: the false-colour picture). */
         if (!(bounds = pn_image_add_layer(img, "bound_evaluations", 1))) return false;
+        if (!(log_bounds = pn_image_add_layer(img, "log10_bound_evaluations", 1))) return false;
     }
     if (aovs & PN_AOV_CUT_SIZE) {
         if (!(cut = pn_image_add_layer(img, "cut_size", 1))) return false;
@@ -109,6 +111,7 @@ bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t a
     }
     for (size_t i = 0; i < count; i++) {
         if (bounds) bounds[i] = pixels[i].bound_evaluations;
+        if (log_bounds) log_bounds[i] = log10f(1.0f + pixels[i].bound_evaluations);
         if (cut) cut[i] = pixels[i].cut_size;
         if (phase1) {
             phase1[3 * i] = pixels[i].phase1.x;
