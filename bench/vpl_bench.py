@@ -9,7 +9,7 @@ relative error against `vpl`, peak memory. Then render time against the VPL coun
 first scene, without a reference. Every render is a separate `penumbra render` process, so the
 peak memory is that render's.
 
-usage: bench/vpl_bench.py [--build DIR] [--out DIR] [--res WxH] [--vpls N] [--threads N]
+usage: bench/vpl_bench.py [--build DIR] [--out DIR] [--scale F] [--vpls N] [--threads N]
                           [--scenes a,b,c] [--scaling 5000,20000,...] [--spp N]
 Writes OUT/vpl-bench.md (tables) and OUT/vpl-bench.json (every number).
 """
@@ -91,7 +91,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--build", default="build")
     ap.add_argument("--out", default=os.path.join(HERE, "results", "vpl"))
-    ap.add_argument("--res", default="96x96")
+    ap.add_argument("--scale", type=float, default=0.09, help="fraction of each scene's film resolution")
     ap.add_argument("--vpls", type=int, default=20000)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--spp", type=int, default=1)
@@ -100,23 +100,30 @@ def main():
     a = ap.parse_args()
     penumbra = os.path.join(a.build, "penumbra")
     os.makedirs(a.out, exist_ok=True)
-    w, h = a.res.split("x")
-    common = ["--resolution", a.res, "--threads", str(a.threads), "--seed", "0", "--spp", str(a.spp)]
-    results = {"resolution": a.res, "vpls": a.vpls, "spp": a.spp, "threads": a.threads, "scenes": {}, "scaling": {}}
-    lines = ["# IlluminationCut bench (%s, %d spp, %d VPLs, %d threads)" % (a.res, a.spp, a.vpls, a.threads), ""]
+    results = {"scale": a.scale, "vpls": a.vpls, "spp": a.spp, "threads": a.threads, "scenes": {}, "scaling": {}}
+    lines = ["# IlluminationCut bench (%g of the film resolution, %d spp, %d VPLs, %d threads)" % (a.scale, a.spp, a.vpls, a.threads), ""]
+
+    def common_for(scene):
+        info = subprocess.run([penumbra, "info", scene], capture_output=True, text=True).stdout
+        film = [l for l in info.splitlines() if l.startswith("film")][0].split()[1]
+        fw, fh = (int(x) for x in film.split("x"))
+        res = "%dx%d" % (max(1, round(fw * a.scale)), max(1, round(fh * a.scale)))
+        return res, ["--resolution", res, "--threads", str(a.threads), "--seed", "0", "--spp", str(a.spp)]
+
     lines.append("Table 1 (ours). Speed-up: LC render time / method render time.")
     lines.append("")
     lines.append("| scene | method | preproc s | render s | shadow rays/px | bounds/px | RMSE | rel. error | speed-up | peak MiB |")
     lines.append("|---|---|---|---|---|---|---|---|---|---|")
     for s in a.scenes.split(","):
         scene = os.path.join(SHARED, "scenes", s, s + ".pbrt")
-        base = os.path.join(a.out, "%s-%s" % (s, a.res))
+        res, common = common_for(scene)
+        base = os.path.join(a.out, "%s-%s" % (s, res))
         vcount = ["--vpls", str(a.vpls)]
         ref = run(penumbra, scene, base + "-vpl", ["--integrator", "vpl"] + vcount, common)
         row = {"vpl": ref}
         refimg = read_pfm(base + "-vpl.pfm")
-        lines.append("| %s | all VPLs | %.2f | %.2f | %.0f | - | 0 | 0 | - | %.0f |" % (
-            s, ref["preprocess_seconds"], ref["render_seconds"], ref["shadow_rays_per_pixel_mean"],
+        lines.append("| %s %s | all VPLs | %.2f | %.2f | %.0f | - | 0 | 0 | - | %.0f |" % (
+            s, res, ref["preprocess_seconds"], ref["render_seconds"], ref["shadow_rays_per_pixel_mean"],
             ref["peak_memory_bytes"] / 2**20))
         lc_time = None
         for name, args in METHODS:
@@ -139,11 +146,12 @@ def main():
     # Fig. 5: render time against the VPL count (first scene, no reference).
     s = a.scenes.split(",")[0]
     scene = os.path.join(SHARED, "scenes", s, s + ".pbrt")
-    lines += ["", "Fig. 5 (ours): render seconds against the VPL count, %s." % s, ""]
+    res, common = common_for(scene)
+    lines += ["", "Fig. 5 (ours): render seconds against the VPL count, %s at %s." % (s, res), ""]
     lines.append("| VPLs | " + " | ".join(n for n, _ in METHODS) + " | preproc s | peak MiB (IC) |")
     lines.append("|---" * (len(METHODS) + 3) + "|")
     for n in [int(x) for x in a.scaling.split(",") if x]:
-        base = os.path.join(a.out, "%s-%s-n%d" % (s, a.res, n))
+        base = os.path.join(a.out, "%s-%s-n%d" % (s, res, n))
         times, pre, mem = [], 0.0, 0.0
         for name, args in METHODS:
             tag = name.split("(")[0].lower()
