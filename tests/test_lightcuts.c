@@ -108,7 +108,7 @@ static void test_bounds_never_below_truth(void) {
             r->exponent = 1.0f + 200.0f * pn_rng_float(&rng);
             vec3 refl = pn_reflect(r->wo, r->ns);
             if (i == 0) {
-                rb = (pn_receiver_bounds){r->p, r->p, r->ns, 0.0f, refl, 0.0f, r->kd, r->ks, r->exponent, r->exponent};
+                rb = (pn_receiver_bounds){r->p, r->p, r->ns, 0.0f, refl, 0.0f, r->kd, r->ks, r->exponent, r->exponent, 1, 0, 1, 0};
             } else {
                 rb.lo = v3_min(rb.lo, r->p);
                 rb.hi = v3_max(rb.hi, r->p);
@@ -138,13 +138,15 @@ static void test_bounds_never_below_truth(void) {
             v->intensity = v3(pn_rng_float(&rng), pn_rng_float(&rng), pn_rng_float(&rng));
             isum = v3_add(isum, v->intensity);
             if (j == 0) {
-                lb = (pn_light_bounds){kind, v->p, v->p, kind == PN_VPL_ORIENTED ? v->n : v3(0, 0, 1), 0.0f};
+                lb = (pn_light_bounds){kind, v->p, v->p, kind == PN_VPL_ORIENTED ? v->n : v3(0, 0, 1), 0.0f, 1.0f, 0.0f};
             } else {
                 lb.lo = v3_min(lb.lo, v->p);
                 lb.hi = v3_max(lb.hi, v->p);
                 if (kind == PN_VPL_ORIENTED) pn_cone_merge(lb.axis, lb.half, v->n, 0.0f, &lb.axis, &lb.half);
             }
         }
+        pn_receiver_bounds_set_cones(&rb);
+        pn_light_bounds_set_cone(&lb);
         float dmin2 = (t % 5 == 0) ? 0.0f : 0.2f * pn_rng_float(&rng);
         float ub = pn_bound_error(&rb, &lb, isum, dmin2);
         vec3 mmax = pn_bound_material(&rb, &lb);

@@ -78,6 +78,7 @@ typedef struct ic_node {
     float n_half, r_half;
     vec3 kd_max, ks_max;
     float n_min, n_max;
+    float n_cos, n_sin, r_cos, r_sin; /* of n_half, r_half */
     int32_t first, count, left, right, rep;
     float color; /* min Phase I luminance of the node's points */
     vec3 acc;    /* Phase I contributions to all points of the node */
@@ -237,11 +238,20 @@ static pn_status build_point_tree(ic_tree *t, uint64_t seed) {
     cell.phi = v3_add(cell.plo, v3(e, e, e));
     cell.split = 0;
     t->node_capacity = 0;
-    return build_node(t, 0, t->point_count, cell, seed) < 0 ? PN_ERROR_OUT_OF_MEMORY : PN_OK;
+    if (build_node(t, 0, t->point_count, cell, seed) < 0) return PN_ERROR_OUT_OF_MEMORY;
+    for (int32_t i = 0; i < t->node_count; i++) {
+        ic_node *n = &t->nodes[i];
+        pn_receiver_bounds b = {n->lo, n->hi, n->n_axis, n->n_half, n->r_axis, n->r_half, n->kd_max, n->ks_max, n->n_min,
+                                n->n_max, 0.0f, 0.0f, 0.0f, 0.0f};
+        pn_receiver_bounds_set_cones(&b);
+        n->n_cos = b.n_cos, n->n_sin = b.n_sin, n->r_cos = b.r_cos, n->r_sin = b.r_sin;
+    }
+    return PN_OK;
 }
 
 static pn_receiver_bounds node_bounds(const ic_node *n) {
-    pn_receiver_bounds b = {n->lo, n->hi, n->n_axis, n->n_half, n->r_axis, n->r_half, n->kd_max, n->ks_max, n->n_min, n->n_max};
+    pn_receiver_bounds b = {n->lo, n->hi, n->n_axis, n->n_half, n->r_axis, n->r_half, n->kd_max, n->ks_max, n->n_min, n->n_max,
+                            n->n_cos, n->n_sin, n->r_cos, n->r_sin};
     return b;
 }
 

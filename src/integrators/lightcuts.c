@@ -99,7 +99,8 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
                            uint32_t *shadow_rays, uint64_t *bounds, uint64_t *cut_size, float *bound_sum) {
     const pn_light_tree *t = cx->tree;
     const pn_vpl_set *set = cx->set;
-    pn_receiver_bounds rb = {r->p, r->p, r->ns, 0.0f, pn_reflect(r->wo, r->ns), 0.0f, r->kd, r->ks, r->exponent, r->exponent};
+    pn_receiver_bounds rb = {r->p, r->p, r->ns, 0.0f, pn_reflect(r->wo, r->ns), 0.0f, r->kd, r->ks, r->exponent, r->exponent,
+                             1.0f, 0.0f, 1.0f, 0.0f};
     size_t n = 0;
     vec3 total = v3(0, 0, 0);
     uint64_t finished = 0; /* clusters of the cut outside the heap (exact leaves, zero bounds) */

@@ -188,6 +188,11 @@ pn_status pn_light_tree_build(const pn_vpl_set *set, float scene_diagonal, uint6
     free(list);
     free(best);
     free(best_cost);
+    for (int32_t i = 0; i < out->node_count; i++) {
+        pn_light_node *nd = &out->nodes[i];
+        nd->cos_half = nd->half >= PN_PI ? -1.0f : cosf(nd->half);
+        nd->sin_half = nd->half >= PN_PI ? 0.0f : sinf(nd->half);
+    }
     out->seconds = pn_clock_seconds() - t0;
     return PN_OK;
 }

@@ -42,6 +42,7 @@ typedef struct pn_light_node {
     int32_t left, right; /* children, -1 for a leaf */
     int32_t rep;      /* representative VPL (index into the set) */
     int32_t count;    /* VPLs below */
+    float cos_half, sin_half; /* of half */
 } pn_light_node;
 
 typedef struct pn_light_tree {
@@ -61,7 +62,7 @@ float pn_light_tree_metric(int kind, vec3 lo, vec3 hi, float half, float weight,
 
 /* The bounds record of a node (kind of its tree). */
 static inline pn_light_bounds pn_light_node_bounds(const pn_light_node *n, int kind) {
-    pn_light_bounds b = {kind, n->lo, n->hi, n->axis, n->half};
+    pn_light_bounds b = {kind, n->lo, n->hi, n->axis, n->half, n->cos_half, n->sin_half};
     return b;
 }
 

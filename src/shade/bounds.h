@@ -28,6 +28,7 @@ typedef struct pn_receiver_bounds {
     float r_half;   /* radians */
     vec3 kd_max, ks_max;
     float n_min, n_max;
+    float n_cos, n_sin, r_cos, r_sin; /* cos and sin of n_half and r_half (pn_receiver_bounds_set_cones) */
 } pn_receiver_bounds;
 
 /* A cluster of VPLs of one kind (pn_vpl_kind): OMNI and ORIENTED: box of positions; ORIENTED:
@@ -37,11 +38,26 @@ typedef struct pn_light_bounds {
     vec3 lo, hi;
     vec3 axis;
     float half; /* radians */
+    float cos_half, sin_half; /* of half (pn_light_bounds_set_cone) */
 } pn_light_bounds;
 
 /* Upper bound of cos(angle(v, a)) for v in [lo, hi] and a within `half` radians of the unit
- * vector `axis`; 1 when the box contains the origin. */
+ * vector `axis`; 1 when the box contains the origin. pn_bound_cos_cs takes cos and sin of the
+ * half-angle instead (no trigonometry in the hot path). */
 float pn_bound_cos(vec3 lo, vec3 hi, vec3 axis, float half);
+float pn_bound_cos_cs(vec3 lo, vec3 hi, vec3 axis, float cos_half, float sin_half);
+
+/* Fill the cos / sin fields from the half-angles. */
+static inline void pn_receiver_bounds_set_cones(pn_receiver_bounds *r) {
+    r->n_cos = r->n_half >= PN_PI ? -1.0f : cosf(r->n_half);
+    r->n_sin = r->n_half >= PN_PI ? 0.0f : sinf(r->n_half);
+    r->r_cos = r->r_half >= PN_PI ? -1.0f : cosf(r->r_half);
+    r->r_sin = r->r_half >= PN_PI ? 0.0f : sinf(r->r_half);
+}
+static inline void pn_light_bounds_set_cone(pn_light_bounds *q) {
+    q->cos_half = q->half >= PN_PI ? -1.0f : cosf(q->half);
+    q->sin_half = q->half >= PN_PI ? 0.0f : sinf(q->half);
+}
 
 /* Squared distance between two boxes (0 when they overlap). */
 float pn_box_distance2(vec3 alo, vec3 ahi, vec3 blo, vec3 bhi);
