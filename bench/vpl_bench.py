@@ -97,6 +97,7 @@ def main():
     ap.add_argument("--spp", type=int, default=1)
     ap.add_argument("--scenes", default="bathroom,staircase,living-room")
     ap.add_argument("--scaling", default="5000,20000,80000,320000")
+    ap.add_argument("--resolution-sweep", default="", help="scales for a resolution sweep of the first scene")
     a = ap.parse_args()
     penumbra = os.path.join(a.build, "penumbra")
     os.makedirs(a.out, exist_ok=True)
@@ -163,6 +164,27 @@ def main():
             results["scaling"].setdefault(str(n), {})[name] = st
         lines.append("| %d | " % n + " | ".join("%.2f" % t for t in times) + " | %.2f | %.0f |" % (pre, mem))
         print(lines[-1], flush=True)
+    # Amortisation against resolution: the same view at growing resolution (no reference).
+    sweep = [float(x) for x in a.resolution_sweep.split(",") if x]
+    if sweep:
+        lines += ["", "Resolution sweep (ours), %s, %d VPLs: render s, shadow rays/px, bounds/px." % (s, a.vpls), ""]
+        lines.append("| resolution | " + " | ".join(n for n, _ in METHODS) + " | IC speed-up | IC-S speed-up |")
+        lines.append("|---" * (len(METHODS) + 3) + "|")
+        saved = a.scale
+        for f in sweep:
+            a.scale = f
+            res, common = common_for(scene)
+            cells, times = [], []
+            for name, args in METHODS:
+                tag = name.split("(")[0].lower()
+                st = run(penumbra, scene, os.path.join(a.out, "%s-%s-sweep-%s" % (s, res, tag)), args + ["--vpls", str(a.vpls)], common)
+                times.append(st["render_seconds"])
+                cells.append("%.2f s, %.0f, %.0f" % (st["render_seconds"], st["shadow_rays_per_pixel_mean"],
+                                                   st["bound_evaluations_per_pixel_mean"]))
+                results.setdefault("sweep", {}).setdefault(res, {})[name] = st
+            lines.append("| %s | " % res + " | ".join(cells) + " | %.2f | %.2f |" % (times[0] / times[1], times[0] / times[2]))
+            print(lines[-1], flush=True)
+        a.scale = saved
     with open(os.path.join(a.out, "vpl-bench.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     with open(os.path.join(a.out, "vpl-bench.json"), "w") as f:
