@@ -10,6 +10,7 @@
 #include "core/rng.h"
 #include "integrators/illumcut.h"
 #include "penumbra/penumbra.h"
+#include "scene/scene.h"
 #include "shade/bsdf.h"
 #include "vpl_scenes.h"
 
@@ -171,6 +172,81 @@ static void test_illumcut_against_vpl(void) {
     pn_context_free(ctx);
 }
 
+/* The batch interface (for drivers that hand out pixel sets): the whole window as one batch gives
+ * the whole-image hook's pixels bit for bit; an 8x8 block alone stays within the error of vpl. */
+static void test_batch_interface(void) {
+    pn_context ctx = pn_context_new();
+    const int W = 24, H = 16;
+    const char *path = pn_test_write_file(tmpdir, "room_batch.pbrt", pn_test_room_scene(0, W, H));
+    pn_scene scene = NULL;
+    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_render_stats st;
+    pn_image whole = render(ctx, scene, PN_INTEGRATOR_ILLUMCUT, 0.015f, 0, 2, 1, &st);
+    pn_image ref = render(ctx, scene, PN_INTEGRATOR_VPL, 0.0f, 0, 2, 1, &st);
+    pn_render_job job;
+    memset(&job, 0, sizeof job);
+    job.scene = scene;
+    job.accel = scene->accel;
+    job.lights = scene->lights;
+    float crop[4] = {0, 1, 0, 1};
+    CHECK(pn_camera_setup(&scene->camera, W, H, crop, &job.camera));
+    job.spp = 1;
+    job.max_specular_depth = 8;
+    job.vpls = 2000;
+    job.vpl_max_depth = 10;
+    job.vpl_clamp_fraction = 0.05f;
+    job.error_bound = 0.015f;
+    atomic_int cancel;
+    atomic_init(&cancel, 0);
+    job.cancel = &cancel;
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_integrator_illumcut.prepare(&job, &err) == PN_OK);
+    int32_t(*px)[2] = malloc((size_t)W * H * sizeof *px);
+    pn_pixel_estimate *est = calloc((size_t)W * H, sizeof *est);
+    for (int i = 0; i < W * H; i++) {
+        px[i][0] = i % W;
+        px[i][1] = i / W;
+    }
+    pn_batch all = {0, 0, W * H, (const int32_t(*)[2])px};
+    CHECK(pn_integrator_illumcut.render_batch(&job, &all, est, NULL) == PN_OK);
+    if (whole && ref) {
+        const float *w = pn_image_layer_data(whole, 0), *r = pn_image_layer_data(ref, 0);
+        int same = 0;
+        for (int i = 0; i < W * H; i++)
+            same += memcmp(&est[i].radiance, &w[3 * i], sizeof(vec3)) == 0;
+        CHECK_MSG(same == W * H, "%d of %d pixels identical", same, W * H);
+        /* One 8x8 block on its own. */
+        int n = 0;
+        for (int y = 8; y < 16; y++)
+            for (int x = 8; x < 16; x++) {
+                px[n][0] = x;
+                px[n][1] = y;
+                n++;
+            }
+        pn_batch block = {1, 1, n, (const int32_t(*)[2])px};
+        CHECK(pn_integrator_illumcut.render_batch(&job, &block, est, NULL) == PN_OK);
+        double rel = 0.0;
+        for (int i = 0; i < n; i++) {
+            int k = px[i][1] * W + px[i][0];
+            double a = (double)v3_luminance(est[i].radiance), b = lum(r, k);
+            if (b > 0.0) rel += fabs(a - b) / b;
+        }
+        CHECK_MSG(rel / n < 0.015, "block: mean relative error %g", rel / n);
+    }
+    pn_integrator_illumcut.release(&job);
+    free(px);
+    free(est);
+    pn_image_free(whole);
+    pn_image_free(ref);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 static void setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_illumcut_XXXXXX");
     CHECK(mkdtemp(tmpdir) != NULL);
@@ -182,4 +258,4 @@ static void teardown(void) {
     CHECK(system(cmd) == 0);
 }
 
-PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_illumcut_against_vpl), TEST(teardown))
+PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_illumcut_against_vpl), TEST(test_batch_interface), TEST(teardown))

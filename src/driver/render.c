@@ -249,6 +249,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
         if (ws != PN_OK) atomic_store(&rs.failed, (int)ws);
         else memset(rs.block_finished, 1, (size_t)rs.block_count);
+        if (ws == PN_OK && settings->progress) settings->progress(settings->progress_user, 1.0);
     } else {
         pn_threadpool_run(pool, (size_t)rs.block_count, render_block, &rs);
     }

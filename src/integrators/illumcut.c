@@ -4,7 +4,10 @@
  * visibility sampling (Algorithm 2, "IlluminationCut-Sampling").
  *
  * The whole image window is one batch: every eye sample of every pixel becomes a shading point
- * of one point tree (the driver calls pn_integrator_render_image's hook).
+ * of one point tree (the driver calls pn_integrator_render_image's hook). A driver that hands
+ * out pixel sets gets one point tree per set (render_batch); a crop window's pixels therefore
+ * differ slightly from the same pixels of the full image (other trees, other pairs), within the
+ * error bound.
  *
  * Point tree (§3 "Light and point trees"): a compressed octree whose first three levels split the
  * space of normals (the cube [-1,1]^3) and the remaining levels split space (the points' box).
@@ -265,7 +268,9 @@ typedef struct ic_render {
     ic_tree tree;
     ic_sample *samples;
     pn_pixel_estimate *pixels;
-    int width, height;
+    const int32_t (*coords)[2]; /* the batch's pixels, or NULL: the window in raster order */
+    int32_t count;              /* pixels */
+    int width;                  /* of the window (coords == NULL) */
     uint32_t spp;
     float scene_diameter;
     /* Phase II work items, grouped by point sub-tree (see run_phase2). */
@@ -638,19 +643,28 @@ typedef struct ic_eye_job {
     ic_render *ir;
 } ic_eye_job;
 
-static void eye_row(void *user, size_t row, int worker) {
+#define IC_EYE_CHUNK 64
+
+static void eye_chunk(void *user, size_t chunk, int worker) {
     (void)worker;
     ic_render *ir = ((ic_eye_job *)user)->ir;
     const pn_render_job *job = ir->job;
-    int y = (int)row;
-    for (int x = 0; x < ir->width; x++) {
-        size_t pix = (size_t)y * (size_t)ir->width + (size_t)x;
+    size_t end = (chunk + 1) * IC_EYE_CHUNK < (size_t)ir->count ? (chunk + 1) * IC_EYE_CHUNK : (size_t)ir->count;
+    for (size_t pix = chunk * IC_EYE_CHUNK; pix < end; pix++) {
+        int px, py;
+        if (ir->coords) {
+            px = ir->coords[pix][0];
+            py = ir->coords[pix][1];
+        } else {
+            px = job->camera.x0 + (int)(pix % (size_t)ir->width);
+            py = job->camera.y0 + (int)(pix / (size_t)ir->width);
+        }
         pn_pixel_estimate *o = &ir->pixels[pix];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
         for (uint32_t s = 0; s < ir->spp; s++) {
             pn_shading_point sp;
-            pn_vpl_eye_sample(job, job->camera.x0 + x, job->camera.y0 + y, s, &sp, o);
+            pn_vpl_eye_sample(job, px, py, s, &sp, o);
             ic_sample *smp = &ir->samples[pix * ir->spp + s];
             smp->emitted = sp.emitted;
             smp->throughput = sp.throughput;
@@ -675,20 +689,24 @@ static void free_render(ic_render *ir) {
     free(ir->group_of_node);
 }
 
-static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *pool, pn_pixel_estimate *pixels,
-                                       int width, int height) {
+/* IlluminationCut over a set of pixels: the window in raster order (coords NULL, `width` wide)
+ * or a batch's pixels. The whole render's statistics are stored (whole window) or added (batches,
+ * possibly from several threads). */
+static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool *pool, const int32_t (*coords)[2],
+                                        int32_t count, int width, pn_pixel_estimate *pixels) {
     pn_vpl_data *d = job->integrator_data;
     ic_render ir;
     memset(&ir, 0, sizeof ir);
     ir.job = job;
     ir.d = d;
     ir.pixels = pixels;
+    ir.coords = coords;
+    ir.count = count;
     ir.width = width;
-    ir.height = height;
     ir.spp = pn_vpl_spp(job);
     ir.scene_diameter = 2.0f * job->lights->scene_radius;
     atomic_init(&ir.failed, 0);
-    size_t n = (size_t)width * (size_t)height * ir.spp;
+    size_t n = (size_t)count * ir.spp;
     if (n > (size_t)INT32_MAX) return PN_ERROR_UNSUPPORTED;
     ir.samples = malloc(n * sizeof *ir.samples);
     ir.tree.points = calloc(n, sizeof *ir.tree.points);
@@ -696,9 +714,9 @@ static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *
         free_render(&ir);
         return PN_ERROR_OUT_OF_MEMORY;
     }
-    /* Eye samples (parallel by rows), then the points compacted in sample order. */
+    /* Eye samples (parallel by chunks of pixels), then the points compacted in sample order. */
     ic_eye_job ej = {&ir};
-    pn_threadpool_run(pool, (size_t)height, eye_row, &ej);
+    pn_threadpool_run(pool, ((size_t)count + IC_EYE_CHUNK - 1) / IC_EYE_CHUNK, eye_chunk, &ej);
     int32_t m = 0;
     for (size_t i = 0; i < n; i++) {
         if (ir.samples[i].point < 0) continue;
@@ -745,62 +763,71 @@ static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *
     /* Pixels from their samples. */
     uint64_t points_total = 0;
     double pair_total = 0.0;
-    for (int y = 0; y < height; y++)
-        for (int x = 0; x < width; x++) {
-            size_t pix = (size_t)y * (size_t)width + (size_t)x;
-            pn_pixel_estimate *o = &pixels[pix];
-            vec3 sum = v3(0, 0, 0), approx = v3(0, 0, 0);
-            double wsum = 0.0;
-            float bounds = 0.0f, pr = 0.0f;
-            int pts = 0;
-            for (uint32_t s = 0; s < ir.spp; s++) {
-                const ic_sample *smp = &ir.samples[pix * ir.spp + s];
-                vec3 value = smp->emitted, a = smp->emitted;
-                if (smp->point >= 0) {
-                    const ic_point *p = &t->points[smp->point];
-                    value = v3_add(value, v3_mul(smp->throughput, p->L));
-                    a = v3_add(a, v3_mul(smp->throughput, p->approx));
-                    o->shadow_rays += p->shadow_rays;
-                    bounds += p->bounds;
-                    pr += p->pairs;
-                    pts++;
-                }
-                if (!v3_is_finite(value)) value = v3(0, 0, 0);
-                if (!v3_is_finite(a)) a = v3(0, 0, 0);
-                sum = v3_madd(sum, value, smp->weight);
-                approx = v3_madd(approx, a, smp->weight);
-                wsum += (double)smp->weight;
+    for (int32_t ip = 0; ip < count; ip++) {
+        size_t pix = (size_t)ip;
+        pn_pixel_estimate *o = &pixels[pix];
+        vec3 sum = v3(0, 0, 0), approx = v3(0, 0, 0);
+        double wsum = 0.0;
+        float bounds = 0.0f, pr = 0.0f;
+        int pts = 0;
+        for (uint32_t s = 0; s < ir.spp; s++) {
+            const ic_sample *smp = &ir.samples[pix * ir.spp + s];
+            vec3 value = smp->emitted, a = smp->emitted;
+            if (smp->point >= 0) {
+                const ic_point *p = &t->points[smp->point];
+                value = v3_add(value, v3_mul(smp->throughput, p->L));
+                a = v3_add(a, v3_mul(smp->throughput, p->approx));
+                o->shadow_rays += p->shadow_rays;
+                bounds += p->bounds;
+                pr += p->pairs;
+                pts++;
             }
-            if (wsum != 0.0) {
-                o->radiance = v3_scale(sum, (float)(1.0 / wsum));
-                o->phase1 = v3_scale(approx, (float)(1.0 / wsum));
-            }
-            o->bound_evaluations = bounds;
-            o->cut_size = pts ? pr / (float)pts : 0.0f;
-            points_total += (uint64_t)pts;
-            pair_total += (double)pr;
+            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            if (!v3_is_finite(a)) a = v3(0, 0, 0);
+            sum = v3_madd(sum, value, smp->weight);
+            approx = v3_madd(approx, a, smp->weight);
+            wsum += (double)smp->weight;
         }
-    d->point_tree_seconds = t1 - t0;
-    d->phase1_seconds = t2 - t1;
-    d->phase2_seconds = t3 - t2;
-    d->pairs = pairs;
-    atomic_store(&d->bound_evaluations, bound_evals);
-    atomic_store(&d->points, points_total);
-    atomic_store(&d->cut_nodes, (uint64_t)(pair_total + 0.5));
+        if (wsum != 0.0) {
+            o->radiance = v3_scale(sum, (float)(1.0 / wsum));
+            o->phase1 = v3_scale(approx, (float)(1.0 / wsum));
+        }
+        o->bound_evaluations = bounds;
+        o->cut_size = pts ? pr / (float)pts : 0.0f;
+        points_total += (uint64_t)pts;
+        pair_total += (double)pr;
+    }
+    if (!coords) {
+        d->point_tree_seconds = t1 - t0;
+        d->phase1_seconds = t2 - t1;
+        d->phase2_seconds = t3 - t2;
+        d->pairs = pairs;
+        atomic_store(&d->bound_evaluations, bound_evals);
+        atomic_store(&d->points, points_total);
+        atomic_store(&d->cut_nodes, (uint64_t)(pair_total + 0.5));
+    } else {
+        /* Batches: counters only (the phase times of concurrent batches do not add up). */
+        atomic_fetch_add(&d->bound_evaluations, bound_evals);
+        atomic_fetch_add(&d->points, points_total);
+        atomic_fetch_add(&d->cut_nodes, (uint64_t)(pair_total + 0.5));
+    }
     free_render(&ir);
     return PN_OK;
 }
 
+static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *pool, pn_pixel_estimate *pixels,
+                                       int width, int height) {
+    return illumcut_render_pixels(job, pool, NULL, (int32_t)width * height, width, pixels);
+}
+
 static pn_status illumcut_prepare(pn_render_job *job, pn_err *err) { return pn_vpl_prepare(job, true, err); }
 
+/* For drivers that hand out batches (the default driver uses the whole-image hook instead): the
+ * point tree spans the batch, on the calling thread. */
 static pn_status illumcut_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                        void *scratch) {
-    /* Never called: the driver uses the whole-image hook. */
-    (void)job;
-    (void)batch;
-    (void)out;
     (void)scratch;
-    return PN_ERROR_INTERNAL;
+    return illumcut_render_pixels(job, NULL, batch->pixels, batch->count, 0, out);
 }
 
 const pn_integrator pn_integrator_illumcut = {
