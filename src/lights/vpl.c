@@ -204,6 +204,8 @@ pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const
         const uint64_t max_paths = (uint64_t)s->count * 64u + 4096u;
         float R = L->scene_radius;
         while (buf.count < s->count && paths < max_paths) {
+            /* Light that reaches nothing (an open scene, black surfaces): give up early. */
+            if (paths >= 65536 && buf.count == exact) break;
             pn_rng rng;
             pn_rng_seed(&rng, pn_hash64(s->seed ^ UINT64_C(0x5bd1e995)), paths);
             paths++;
