@@ -117,7 +117,12 @@ PN_API const char *pn_scene_warning(pn_scene scene, uint32_t index);
 typedef enum pn_integrator_kind {
     PN_INTEGRATOR_DEFAULT = 0,   /* reference */
     PN_INTEGRATOR_REFERENCE = 1, /* Monte Carlo reference, Donikian et al. 2006 §5.1 */
-    PN_INTEGRATOR_IAS = 2        /* Iterative Adaptive Sampling, Donikian et al. 2006 */
+    PN_INTEGRATOR_IAS = 2,       /* Iterative Adaptive Sampling, Donikian et al. 2006 */
+    /* VPL integrators (issue 5): every shading point against every VPL (the reference of the
+     * IlluminationCut paper), Lightcuts (Walter et al. 2005), IlluminationCut (Bus et al. 2015) */
+    PN_INTEGRATOR_VPL = 4,
+    PN_INTEGRATOR_LIGHTCUTS = 5,
+    PN_INTEGRATOR_ILLUMCUT = 6
 } pn_integrator_kind;
 
 /* How the reference integrator chooses a light for a shadow ray. */
@@ -138,7 +143,13 @@ enum {
     PN_AOV_PASSES = 1u << 6,            /* ias: passes per pixel (the paper's Fig. 11) */
     PN_AOV_AA_REGIONS = 1u << 7,        /* ias: antialiasing regions per pixel */
     PN_AOV_CLUSTERS = 1u << 8,          /* ias: clusters per shading point (pixel mean) */
-    PN_AOV_VISIBLE_FRACTION = 1u << 9   /* ias: fraction of shadow rays unoccluded (Fig. 9) */
+    PN_AOV_VISIBLE_FRACTION = 1u << 9,  /* ias: fraction of shadow rays unoccluded (Fig. 9) */
+    /* VPL integrators (issue 5) */
+    PN_AOV_BOUND_EVALUATIONS = 1u << 11, /* lightcuts / illumcut: L_UB evaluations per pixel
+                                            (IlluminationCut Fig. 4; illumcut: amortised) */
+    PN_AOV_CUT_SIZE = 1u << 12,          /* lightcuts: cut size per shading point (pixel mean);
+                                            illumcut: pairs touching the pixel's points */
+    PN_AOV_PHASE1 = 1u << 13             /* illumcut: the Phase I approximate image (RGB) */
 };
 
 typedef struct pn_render_settings {
@@ -168,6 +179,16 @@ typedef struct pn_render_settings {
     /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
     void (*progress)(void *user, double fraction);
     void *progress_user;
+    /* VPL integrators (issue 5; zero = default): VPL count (600,000), light path depth (10),
+     * clamping distance as a fraction of the scene radius (0.05), the relative error bound of
+     * lightcuts / illumcut (0.01), lightcuts' maximum cut size (0 = none), and illumcut's
+     * adaptive visibility sampling (Algorithm 2) when non-zero. Eye rays per pixel: spp (1). */
+    uint32_t vpls;
+    uint32_t vpl_max_depth;
+    float vpl_clamp_fraction;
+    float error_bound;
+    uint32_t max_cut;
+    int visibility_sampling;
 } pn_render_settings;
 
 /* ---------------------------------------------------------------------------------------- */
@@ -201,6 +222,15 @@ typedef struct pn_render_stats {
     double cut_seconds_estimate, pdf_seconds_estimate;
     int threads;
     int width, height; /* of the rendered (cropped) image */
+    /* VPL integrators (issue 5): preprocessing (VPL tracing + light tree build) and its parts,
+     * the VPLs and light paths, L_UB evaluations per pixel (the paper's "upper bound" rows),
+     * cut size per shading point (lightcuts) or product-space pairs per pixel (illumcut), and
+     * illumcut's phases (point tree, Phase I, Phase II) in seconds. */
+    double preprocess_seconds, vpl_seconds, light_tree_seconds;
+    uint64_t vpl_count, vpl_paths;
+    double bound_evaluations_per_pixel_mean, cut_size_mean;
+    double point_tree_seconds, phase1_seconds, phase2_seconds;
+    uint64_t illumcut_pairs;
 } pn_render_stats;
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the

@@ -98,6 +98,18 @@ static const char render_help[] =
     "  --env-regions N        regions of an environment map (default 300)\n"
     "  --max-passes N         passes per block (default 15)\n"
     "\n"
+    "VPL integrators: 'vpl' (every point against every VPL, the reference of IlluminationCut),\n"
+    "'lightcuts' (Walter et al. 2005) and 'illumcut' (Bus et al. 2015); --spp N eye rays per\n"
+    "pixel (default 1):\n"
+    "  --vpls N               virtual point lights to trace (default 600000)\n"
+    "  --vpl-depth N          light path bounces that leave VPLs (default 10)\n"
+    "  --vpl-clamp F          minimum point-VPL distance, fraction of the scene radius (0.05)\n"
+    "  --error E              relative error bound of lightcuts and illumcut (default 0.01)\n"
+    "  --max-cut N            lightcuts: at most N clusters per point (default: no limit)\n"
+    "  --visibility MODE      illumcut: 'exact' (a shadow ray per point and pair, the default)\n"
+    "                         or 'sampling' (adaptive visibility sampling, Algorithm 2)\n"
+    "  AOVs: bound_evaluations, cut_size, phase1 (illumcut's approximate image)\n"
+    "\n"
     "image and machine:\n"
     "  --resolution WxH       override the film resolution (each 1..65536)\n"
     "  --crop x0,x1,y0,y1     render only this window, in fractions of the image as pbrt's\n"
@@ -355,6 +367,8 @@ static const struct {
     {"normal", PN_AOV_NORMAL}, {"albedo", PN_AOV_ALBEDO},
     {"passes", PN_AOV_PASSES}, {"aa_regions", PN_AOV_AA_REGIONS},
     {"clusters", PN_AOV_CLUSTERS}, {"visible_fraction", PN_AOV_VISIBLE_FRACTION},
+    /* VPL integrators (issue 5) */
+    {"bound_evaluations", PN_AOV_BOUND_EVALUATIONS}, {"cut_size", PN_AOV_CUT_SIZE}, {"phase1", PN_AOV_PHASE1},
 };
 #define AOV_NAME_COUNT (sizeof aov_names / sizeof aov_names[0])
 
@@ -767,6 +781,13 @@ static const char *integrator_name(pn_integrator_kind kind) {
         return "reference";
     case PN_INTEGRATOR_IAS:
         return "ias";
+    /* VPL integrators (issue 5) */
+    case PN_INTEGRATOR_VPL:
+        return "vpl";
+    case PN_INTEGRATOR_LIGHTCUTS:
+        return "lightcuts";
+    case PN_INTEGRATOR_ILLUMCUT:
+        return "illumcut";
     }
     return "unknown";
 }
@@ -826,8 +847,14 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 o->settings.integrator = PN_INTEGRATOR_REFERENCE;
             else if (strcmp(value, "ias") == 0)
                 o->settings.integrator = PN_INTEGRATOR_IAS;
+            else if (strcmp(value, "vpl") == 0) /* VPL integrators (issue 5) */
+                o->settings.integrator = PN_INTEGRATOR_VPL;
+            else if (strcmp(value, "lightcuts") == 0)
+                o->settings.integrator = PN_INTEGRATOR_LIGHTCUTS;
+            else if (strcmp(value, "illumcut") == 0)
+                o->settings.integrator = PN_INTEGRATOR_ILLUMCUT;
             else
-                return bad_value(cmd, name, value, "'reference' or 'ias'");
+                return bad_value(cmd, name, value, "'reference' or 'ias' (or a VPL integrator: 'vpl', 'lightcuts', 'illumcut')");
         } else if (strcmp(name, "--light-sampler") == 0) {
             if ((value = scanner_value(&s)) == NULL)
                 return EXIT_USAGE;
@@ -865,6 +892,51 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             if (!parse_long(value, 1, 64, &n))
                 return bad_value(cmd, name, value, "an integer from 1 to 64");
             o->settings.max_passes = (uint32_t)n;
+        /* VPL integrators (issue 5): vpl, lightcuts, illumcut */
+        } else if (strcmp(name, "--vpls") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 100000000, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 100000000");
+            o->settings.vpls = (uint32_t)n;
+        } else if (strcmp(name, "--vpl-depth") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 1000, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 1000");
+            o->settings.vpl_max_depth = (uint32_t)n;
+        } else if (strcmp(name, "--vpl-clamp") == 0) {
+            double v;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_double(value, &v) || !(v > 0.0) || !(v < 1.0))
+                return bad_value(cmd, name, value, "a fraction of the scene radius, > 0 and < 1");
+            o->settings.vpl_clamp_fraction = (float)v;
+        } else if (strcmp(name, "--error") == 0) {
+            double v;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_double(value, &v) || !(v > 0.0) || !(v < 1.0))
+                return bad_value(cmd, name, value, "a relative error, > 0 and < 1 (e.g. 0.01)");
+            o->settings.error_bound = (float)v;
+        } else if (strcmp(name, "--max-cut") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 100000000, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 100000000");
+            o->settings.max_cut = (uint32_t)n;
+        } else if (strcmp(name, "--visibility") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (strcmp(value, "sampling") == 0)
+                o->settings.visibility_sampling = 1;
+            else if (strcmp(value, "exact") == 0)
+                o->settings.visibility_sampling = 0;
+            else
+                return bad_value(cmd, name, value, "'exact' or 'sampling'");
         } else if (strcmp(name, "--spp") == 0) {
             long n;
             if ((value = scanner_value(&s)) == NULL)
@@ -934,8 +1006,9 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
         return usage_error(cmd, "missing the scene file");
     if (o->has_spp && o->has_threshold)
         return usage_error(cmd, "--spp and --threshold exclude each other");
-    if (o->settings.light_sampler != PN_LIGHT_SAMPLER_DEFAULT && o->settings.integrator == PN_INTEGRATOR_IAS)
-        return usage_error(cmd, "--light-sampler applies to the reference integrator only (ias samples light clusters)");
+    if (o->settings.light_sampler != PN_LIGHT_SAMPLER_DEFAULT && o->settings.integrator != PN_INTEGRATOR_DEFAULT &&
+        o->settings.integrator != PN_INTEGRATOR_REFERENCE)
+        return usage_error(cmd, "--light-sampler applies to the reference integrator only");
     if (o->has_spp && o->settings.integrator == PN_INTEGRATOR_IAS)
         return usage_error(cmd, "--spp does not apply to ias (it samples until --threshold; see --aa-rays)");
     if (o->settings.aovs && o->output_path && !ends_with(o->output_path, ".exr"))
@@ -1080,6 +1153,21 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         json_double(&w, "cut_seconds_estimate", stats->cut_seconds_estimate);
         json_double(&w, "pdf_seconds_estimate", stats->pdf_seconds_estimate);
     }
+    if (o->settings.integrator == PN_INTEGRATOR_VPL || o->settings.integrator == PN_INTEGRATOR_LIGHTCUTS ||
+        o->settings.integrator == PN_INTEGRATOR_ILLUMCUT) {
+        /* VPL integrators (issue 5): IlluminationCut Table 1's rows. */
+        json_double(&w, "preprocess_seconds", stats->preprocess_seconds);
+        json_double(&w, "vpl_seconds", stats->vpl_seconds);
+        json_double(&w, "light_tree_seconds", stats->light_tree_seconds);
+        json_u64(&w, "vpl_count", stats->vpl_count);
+        json_u64(&w, "vpl_paths", stats->vpl_paths);
+        json_double(&w, "bound_evaluations_per_pixel_mean", stats->bound_evaluations_per_pixel_mean);
+        json_double(&w, "cut_size_mean", stats->cut_size_mean);
+        json_double(&w, "point_tree_seconds", stats->point_tree_seconds);
+        json_double(&w, "phase1_seconds", stats->phase1_seconds);
+        json_double(&w, "phase2_seconds", stats->phase2_seconds);
+        json_u64(&w, "illumcut_pairs", stats->illumcut_pairs);
+    }
     json_end_object(&w);
 
     write_scene_info_json(&w, info, scene);
@@ -1123,6 +1211,11 @@ static void print_render_summary(const render_options *o, const pn_scene_info *i
     printf("shadow/pixel   mean %.1f, max %llu\n", stats->shadow_rays_per_pixel_mean,
            (unsigned long long)stats->shadow_rays_per_pixel_max);
     printf("speed          %.2f Mrays/s\n", stats->mrays_per_second);
+    if (stats->vpl_count) /* VPL integrators (issue 5) */
+        printf("VPLs           %llu (%llu paths), preprocessing %.2f s (VPLs %.2f s, light tree %.2f s), "
+               "bounds/pixel %.1f\n", (unsigned long long)stats->vpl_count, (unsigned long long)stats->vpl_paths,
+               stats->preprocess_seconds, stats->vpl_seconds, stats->light_tree_seconds,
+               stats->bound_evaluations_per_pixel_mean);
     printf("peak memory    %.1f MiB\n", (double)stats->peak_memory_bytes / (1024.0 * 1024.0));
     printf("wrote          %s", image_path);
     if (o->png_path)

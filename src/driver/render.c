@@ -121,6 +121,15 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
         s->light_sampler != PN_LIGHT_SAMPLER_BVH)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown light sampler %d", (int)s->light_sampler);
     job->light_sampler = s->light_sampler == PN_LIGHT_SAMPLER_BVH ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
+    /* VPL integrators (issue 5) */
+    if (!(s->vpl_clamp_fraction >= 0.0f && s->vpl_clamp_fraction < 1.0f) || !(s->error_bound >= 0.0f && s->error_bound < 1.0f))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "VPL clamp fraction and error bound must lie in [0, 1)");
+    job->vpls = s->vpls > 0 ? s->vpls : 600000;
+    job->vpl_max_depth = s->vpl_max_depth > 0 ? s->vpl_max_depth : 10;
+    job->vpl_clamp_fraction = s->vpl_clamp_fraction > 0.0f ? s->vpl_clamp_fraction : 0.05f;
+    job->error_bound = s->error_bound > 0.0f ? s->error_bound : 0.01f;
+    job->max_cut = s->max_cut;
+    job->visibility_sampling = s->visibility_sampling != 0;
     job->cancel = &ctx->cancel;
     return PN_OK;
 }
@@ -143,6 +152,7 @@ static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *o
     if (aovs & PN_AOV_AA_REGIONS) ok = ok && (regions = pn_image_add_layer(img, "aa_regions", 1));
     if (aovs & PN_AOV_CLUSTERS) ok = ok && (clusters = pn_image_add_layer(img, "clusters", 1));
     if (aovs & PN_AOV_VISIBLE_FRACTION) ok = ok && (visible = pn_image_add_layer(img, "visible_fraction", 1));
+    ok = ok && pn_vpl_write_aovs(rs->pixels, n, aovs, img); /* VPL integrators (issue 5) */
     if (!ok) {
         pn_image_free(img);
         return PN_ERROR_OUT_OF_MEMORY;
@@ -237,7 +247,16 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     atomic_init(&rs.blocks_done, 0);
     pthread_mutex_init(&rs.progress_lock, NULL);
     double t0 = pn_clock_seconds();
-    pn_threadpool_run(pool, (size_t)rs.block_count, render_block, &rs);
+    /* VPL integrators (issue 5): illumcut renders the whole window in one call. */
+    pn_render_image_fn whole_image = pn_integrator_render_image(integ);
+    if (whole_image) {
+        pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
+        if (ws != PN_OK) atomic_store(&rs.failed, (int)ws);
+        else memset(rs.block_finished, 1, (size_t)rs.block_count);
+        if (ws == PN_OK && settings->progress) settings->progress(settings->progress_user, 1.0);
+    } else {
+        pn_threadpool_run(pool, (size_t)rs.block_count, render_block, &rs);
+    }
     double t1 = pn_clock_seconds();
     pthread_mutex_destroy(&rs.progress_lock);
     for (int w = 0; w <= workers; w++)

@@ -29,6 +29,10 @@ typedef struct pn_render_job {
     uint32_t aa_rays, env_regions, max_passes;
     /* reference */
     pn_light_sampler light_sampler; /* IRRADIANCE or BVH, never DEFAULT */
+    /* VPL integrators (issue 5) */
+    uint32_t vpls, vpl_max_depth, max_cut;
+    float vpl_clamp_fraction, error_bound;
+    bool visibility_sampling;
     void *integrator_data; /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
 } pn_render_job;

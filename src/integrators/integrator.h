@@ -30,6 +30,10 @@ typedef struct pn_pixel_estimate {
     float clusters;          /* clusters per shading point, mean over the pixel's regions */
     float visible_fraction;  /* unoccluded shadow rays / shadow rays */
     float cut_seconds, pdf_seconds; /* time in cluster cuts and in PDF upkeep (estimates) */
+    /* VPL integrators (issue 5; zero otherwise): L_UB evaluations for the pixel's points, cut
+     * size per point (lightcuts) or pairs touching the pixel (illumcut), Phase I radiance */
+    float bound_evaluations, cut_size;
+    vec3 phase1;
 } pn_pixel_estimate;
 
 typedef struct pn_integrator {
@@ -53,5 +57,20 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 
 extern const pn_integrator pn_integrator_reference;
 extern const pn_integrator pn_integrator_ias;
+
+/* VPL integrators (issue 5). illumcut renders the whole window at once (its point tree spans
+ * every shading point of the image): pn_integrator_render_image returns that hook for an
+ * integrator that has one, else NULL; the driver then calls it instead of handing out blocks.
+ * It fills pixels[y * width + x] for the window (camera x0..x1, y0..y1) using the pool. */
+extern const pn_integrator pn_integrator_vpl;
+extern const pn_integrator pn_integrator_lightcuts;
+extern const pn_integrator pn_integrator_illumcut;
+struct pn_threadpool;
+typedef pn_status (*pn_render_image_fn)(const pn_render_job *job, struct pn_threadpool *pool,
+                                        pn_pixel_estimate *pixels, int width, int height);
+pn_render_image_fn pn_integrator_render_image(const pn_integrator *integrator);
+/* Adds the VPL integrators' AOV layers (PN_AOV_BOUND_EVALUATIONS, _CUT_SIZE, _PHASE1) to img. */
+struct pn_image_s;
+bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img);
 
 #endif

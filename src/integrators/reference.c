@@ -269,6 +269,10 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
     case PN_INTEGRATOR_DEFAULT:
     case PN_INTEGRATOR_REFERENCE: return &pn_integrator_reference;
     case PN_INTEGRATOR_IAS: return &pn_integrator_ias;
+    /* VPL integrators (issue 5) */
+    case PN_INTEGRATOR_VPL: return &pn_integrator_vpl;
+    case PN_INTEGRATOR_LIGHTCUTS: return &pn_integrator_lightcuts;
+    case PN_INTEGRATOR_ILLUMCUT: return &pn_integrator_illumcut;
     }
     return NULL;
 }

@@ -1,1 +1,1 @@
-list(APPEND PN_SOURCES src/shade/bsdf.c)
+list(APPEND PN_SOURCES src/shade/bsdf.c src/shade/bounds.c)

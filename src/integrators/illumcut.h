@@ -1,0 +1,66 @@
+/* illumcut.h — what the three VPL integrators share (vpl, lightcuts, illumcut): the VPL set and
+ * light tree built in prepare() (preprocessing, timed), the shading points of a pixel's eye
+ * samples, and the statistics they accumulate. Declared here, defined in vpl_common.c. */
+#ifndef PN_INTEGRATORS_ILLUMCUT_H
+#define PN_INTEGRATORS_ILLUMCUT_H
+
+#include "integrators/integrator.h"
+#include "lights/light_tree.h"
+#include "lights/vpl.h"
+
+#include <stdatomic.h>
+
+typedef struct pn_vpl_data {
+    pn_vpl_set set;
+    pn_light_tree tree; /* empty for the vpl integrator */
+    double vpl_seconds, tree_seconds;
+    /* Totals over the render (lightcuts: added by workers). */
+    _Atomic uint64_t bound_evaluations, cut_nodes, points;
+    double point_tree_seconds, phase1_seconds, phase2_seconds;
+    uint64_t pairs;
+} pn_vpl_data;
+
+/* Builds the VPL set (and the light tree when with_tree) into job->integrator_data. */
+pn_status pn_vpl_prepare(pn_render_job *job, bool with_tree, pn_err *err);
+void pn_vpl_release(pn_render_job *job);
+void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats);
+
+/* Eye samples per pixel of the VPL integrators: spp, or 1 when spp is 0 (adaptive). */
+static inline uint32_t pn_vpl_spp(const pn_render_job *job) { return job->spp > 0 ? job->spp : 1u; }
+
+/* One eye sample of a pixel, followed through specular chains (the same numbers in every VPL
+ * integrator, so their images can be compared point for point). */
+typedef struct pn_shading_point {
+    pn_vpl_receiver r;
+    vec3 throughput; /* specular tints up to the point */
+    vec3 emitted;    /* emitters and environment seen along the way */
+    float weight;    /* pixel filter weight */
+    bool has_point;
+} pn_shading_point;
+
+/* Eye sample `sample` of pixel (px, py); fills the AOV fields of *est on sample 0 and adds the
+ * rays it traced. */
+void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t sample, pn_shading_point *sp,
+                       pn_pixel_estimate *est);
+
+/* Lightcuts for one receiver outside a render (lightcuts.c; used by the tests): the estimate, the
+ * sum of the final cut's error bounds (the guarantee: |estimate - exact| <= that sum), the cut
+ * size and the shadow rays. */
+typedef struct pn_lightcut_context {
+    const pn_lights *lights;
+    const pn_accel *accel;
+    const pn_vpl_set *set;
+    const pn_light_tree *tree;
+    float error_bound;
+    uint32_t max_cut;
+} pn_lightcut_context;
+bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, vec3 *radiance, float *bound_sum,
+                      uint32_t *cut_size, uint32_t *shadow_rays);
+
+/* Builds an illumcut point tree over the receivers and checks its invariants (illumcut.c): node
+ * ranges contiguous, children partitioning their parent, every point in exactly one leaf, boxes,
+ * cones and BRDF ranges containing the node's points. Returns the node count, -1 on a violated
+ * invariant, -2 when out of memory. */
+int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, uint64_t seed);
+
+#endif

@@ -1,0 +1,219 @@
+/* lightcuts.c — Lightcuts (Walter et al. 2005, §4 "Lightcuts"), the IlluminationCut paper's
+ * baseline: for each shading point, a cut through the light trees is refined from the roots. Each
+ * cluster C of the cut contributes its representative's M · G · V times the cluster's summed
+ * intensity (IlluminationCut eq. 3), and carries the error bound M_max · G_max · sum I (eq. 5 with
+ * V <= 1; shade/bounds.h — the same bound code as illumcut, for a one-point receiver cluster).
+ * The cluster with the largest bound is replaced by its two children (a max-heap) until every
+ * bound is below error · (luminance of the current total) — the relative error criterion of
+ * Lightcuts §4 — or the cut has max_cut clusters. Individual VPLs (leaves) are exact.
+ *
+ * As in Lightcuts, the child that inherits its parent's representative reuses the parent's
+ * M · G · V (no new shadow ray), so a refinement costs one shadow ray. */
+#include "integrators/illumcut.h"
+
+#include "shade/bsdf.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct cut_entry {
+    float bound;
+    int32_t node;
+    int32_t kind;
+    vec3 unit; /* M · G · V of the representative per unit intensity */
+} cut_entry;
+
+typedef struct lc_scratch {
+    cut_entry *heap;
+    size_t capacity;
+} lc_scratch;
+
+static void *lc_scratch_create(const pn_render_job *job) {
+    (void)job;
+    lc_scratch *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    s->capacity = 1024;
+    s->heap = malloc(s->capacity * sizeof *s->heap);
+    if (!s->heap) {
+        free(s);
+        return NULL;
+    }
+    return s;
+}
+
+static void lc_scratch_free(void *p) {
+    lc_scratch *s = p;
+    if (!s) return;
+    free(s->heap);
+    free(s);
+}
+
+static bool heap_push(lc_scratch *s, size_t *n, cut_entry e) {
+    if (*n == s->capacity) {
+        size_t cap = s->capacity * 2;
+        cut_entry *h = realloc(s->heap, cap * sizeof *h);
+        if (!h) return false;
+        s->heap = h;
+        s->capacity = cap;
+    }
+    size_t i = (*n)++;
+    while (i > 0) {
+        size_t p = (i - 1) / 2;
+        if (s->heap[p].bound >= e.bound) break;
+        s->heap[i] = s->heap[p];
+        i = p;
+    }
+    s->heap[i] = e;
+    return true;
+}
+
+static cut_entry heap_pop(lc_scratch *s, size_t *n) {
+    cut_entry top = s->heap[0];
+    cut_entry last = s->heap[--(*n)];
+    size_t i = 0;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= *n) break;
+        if (c + 1 < *n && s->heap[c + 1].bound > s->heap[c].bound) c++;
+        if (s->heap[c].bound <= last.bound) break;
+        s->heap[i] = s->heap[c];
+        i = c;
+    }
+    if (*n > 0) s->heap[i] = last;
+    return top;
+}
+
+/* M · G · V of VPL `rep` at the receiver per unit intensity (one shadow ray when non-zero). */
+static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_receiver *r, uint32_t *shadow_rays) {
+    vec3 wi;
+    float dist;
+    vec3 v = pn_vpl_contribution_with(c->lights, &c->set->vpls[rep], v3(1, 1, 1), r, c->set->min_dist2, &wi, &dist);
+    if (v3_is_zero(v)) return v;
+    (*shadow_rays)++;
+    return pn_vpl_visible(c->accel, r, wi, dist) ? v : v3(0, 0, 0);
+}
+
+/* The radiance at one receiver by a lightcut; adds bound evaluations and the cut size, and the
+ * sum of the final cut's error bounds to *bound_sum (may be NULL). */
+static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const pn_vpl_receiver *r, vec3 *out,
+                           uint32_t *shadow_rays, uint64_t *bounds, uint64_t *cut_size, float *bound_sum) {
+    const pn_light_tree *t = cx->tree;
+    const pn_vpl_set *set = cx->set;
+    pn_receiver_bounds rb = {r->p, r->p, r->ns, 0.0f, pn_reflect(r->wo, r->ns), 0.0f, r->kd, r->ks, r->exponent, r->exponent,
+                             1.0f, 0.0f, 1.0f, 0.0f};
+    size_t n = 0;
+    vec3 total = v3(0, 0, 0);
+    uint64_t finished = 0; /* clusters of the cut outside the heap (exact leaves, zero bounds) */
+    for (int k = 0; k < PN_VPL_KIND_COUNT; k++) {
+        int32_t root = t->roots[k];
+        if (root < 0) continue;
+        const pn_light_node *nd = &t->nodes[root];
+        cut_entry e = {0.0f, root, k, unit_value(cx, nd->rep, r, shadow_rays)};
+        total = v3_add(total, v3_mul(e.unit, nd->intensity));
+        if (nd->left >= 0) {
+            pn_light_bounds lb = pn_light_node_bounds(nd, k);
+            e.bound = pn_bound_error(&rb, &lb, nd->intensity, set->min_dist2);
+            (*bounds)++;
+        }
+        if (e.bound > 0.0f) {
+            if (!heap_push(s, &n, e)) return false;
+        } else {
+            finished++;
+        }
+    }
+    const float delta = cx->error_bound;
+    while (n > 0) {
+        if (s->heap[0].bound <= delta * v3_luminance(total)) break;
+        if (cx->max_cut > 0 && n + finished >= cx->max_cut) break;
+        cut_entry e = heap_pop(s, &n);
+        const pn_light_node *nd = &t->nodes[e.node];
+        total = v3_sub(total, v3_mul(e.unit, nd->intensity));
+        int32_t kids[2] = {nd->left, nd->right};
+        for (int c = 0; c < 2; c++) {
+            const pn_light_node *ch = &t->nodes[kids[c]];
+            cut_entry ce = {0.0f, kids[c], e.kind, v3(0, 0, 0)};
+            ce.unit = ch->rep == nd->rep ? e.unit : unit_value(cx, ch->rep, r, shadow_rays);
+            total = v3_add(total, v3_mul(ce.unit, ch->intensity));
+            if (ch->left >= 0) {
+                pn_light_bounds lb = pn_light_node_bounds(ch, e.kind);
+                ce.bound = pn_bound_error(&rb, &lb, ch->intensity, set->min_dist2);
+                (*bounds)++;
+            }
+            if (ce.bound > 0.0f) {
+                if (!heap_push(s, &n, ce)) return false;
+            } else {
+                finished++;
+            }
+        }
+    }
+    *cut_size += n + finished;
+    if (bound_sum) {
+        float b = 0.0f;
+        for (size_t i = 0; i < n; i++) b += s->heap[i].bound;
+        *bound_sum = b;
+    }
+    *out = v3(fmaxf(0.0f, total.x), fmaxf(0.0f, total.y), fmaxf(0.0f, total.z));
+    return true;
+}
+
+static pn_status lc_prepare(pn_render_job *job, pn_err *err) { return pn_vpl_prepare(job, true, err); }
+
+static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                                 void *scratch) {
+    pn_vpl_data *d = job->integrator_data;
+    lc_scratch *s = scratch;
+    pn_lightcut_context cx = {job->lights, job->accel, &d->set, &d->tree, job->error_bound, job->max_cut};
+    const uint32_t spp = pn_vpl_spp(job);
+    uint64_t bounds_total = 0, cut_total = 0, points = 0;
+    for (int pi = 0; pi < batch->count; pi++) {
+        if (atomic_load(job->cancel)) break;
+        int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
+        pn_pixel_estimate *o = &out[pi];
+        memset(o, 0, sizeof *o);
+        o->depth = INFINITY;
+        vec3 sum = v3(0, 0, 0);
+        double wsum = 0.0;
+        uint64_t bounds = 0, cut = 0, pts = 0;
+        for (uint32_t smp = 0; smp < spp; smp++) {
+            pn_shading_point sp;
+            pn_vpl_eye_sample(job, px, py, smp, &sp, o);
+            vec3 value = sp.emitted;
+            if (sp.has_point) {
+                vec3 L;
+                if (!lightcut_point(&cx, s, &sp.r, &L, &o->shadow_rays, &bounds, &cut, NULL)) return PN_ERROR_OUT_OF_MEMORY;
+                pts++;
+                value = v3_add(value, v3_mul(sp.throughput, L));
+            }
+            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            sum = v3_madd(sum, value, sp.weight);
+            wsum += (double)sp.weight;
+        }
+        if (wsum != 0.0) o->radiance = v3_scale(sum, (float)(1.0 / wsum));
+        o->bound_evaluations = (float)bounds;
+        o->cut_size = pts ? (float)cut / (float)pts : 0.0f;
+        bounds_total += bounds;
+        cut_total += cut;
+        points += pts;
+    }
+    atomic_fetch_add(&d->bound_evaluations, bounds_total);
+    atomic_fetch_add(&d->cut_nodes, cut_total);
+    atomic_fetch_add(&d->points, points);
+    return PN_OK;
+}
+
+const pn_integrator pn_integrator_lightcuts = {
+    "lightcuts", lc_prepare, pn_vpl_release, pn_vpl_report, lc_scratch_create, lc_scratch_free, lc_render_batch,
+};
+
+bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, vec3 *radiance, float *bound_sum,
+                      uint32_t *cut_size, uint32_t *shadow_rays) {
+    lc_scratch *s = lc_scratch_create(NULL);
+    if (!s) return false;
+    uint64_t bounds = 0, cut = 0;
+    uint32_t rays = 0;
+    bool ok = lightcut_point(cx, s, r, radiance, &rays, &bounds, &cut, bound_sum);
+    lc_scratch_free(s);
+    if (cut_size) *cut_size = (uint32_t)cut;
+    if (shadow_rays) *shadow_rays = rays;
+    return ok;
+}

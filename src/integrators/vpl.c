@@ -1,0 +1,50 @@
+/* vpl.c — the all-VPL reference (IlluminationCut §4: "the image rendered with all VPLs as our
+ * reference image"): every shading point against every VPL of the set, with a shadow ray for each
+ * VPL that can light it (eq. 1 summed over S). Threaded by the driver's 8x8 blocks. */
+#include "integrators/illumcut.h"
+
+#include <string.h>
+
+static pn_status vpl_prepare(pn_render_job *job, pn_err *err) { return pn_vpl_prepare(job, false, err); }
+
+static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                                  void *scratch) {
+    (void)scratch;
+    const pn_vpl_data *d = job->integrator_data;
+    const uint32_t spp = pn_vpl_spp(job);
+    for (int pi = 0; pi < batch->count; pi++) {
+        if (atomic_load(job->cancel)) return PN_OK;
+        int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
+        pn_pixel_estimate *o = &out[pi];
+        memset(o, 0, sizeof *o);
+        o->depth = INFINITY;
+        vec3 sum = v3(0, 0, 0);
+        double wsum = 0.0;
+        for (uint32_t s = 0; s < spp; s++) {
+            pn_shading_point sp;
+            pn_vpl_eye_sample(job, px, py, s, &sp, o);
+            vec3 value = sp.emitted;
+            if (sp.has_point) {
+                vec3 L = v3(0, 0, 0);
+                for (uint32_t k = 0; k < d->set.count; k++) {
+                    vec3 wi;
+                    float dist;
+                    vec3 c = pn_vpl_contribution(job->lights, &d->set.vpls[k], &sp.r, d->set.min_dist2, &wi, &dist);
+                    if (v3_is_zero(c)) continue;
+                    o->shadow_rays++;
+                    if (pn_vpl_visible(job->accel, &sp.r, wi, dist)) L = v3_add(L, c);
+                }
+                value = v3_add(value, v3_mul(sp.throughput, L));
+            }
+            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            sum = v3_madd(sum, value, sp.weight);
+            wsum += (double)sp.weight;
+        }
+        if (wsum != 0.0) o->radiance = v3_scale(sum, (float)(1.0 / wsum));
+    }
+    return PN_OK;
+}
+
+const pn_integrator pn_integrator_vpl = {
+    "vpl", vpl_prepare, pn_vpl_release, pn_vpl_report, NULL, NULL, vpl_render_batch,
+};

@@ -1,0 +1,123 @@
+/* vpl_common.c — preparation, eye samples, statistics and AOVs shared by the VPL integrators
+ * (vpl, lightcuts, illumcut; see illumcut.h). */
+#include "integrators/illumcut.h"
+
+#include "core/rng.h"
+#include "core/sobol.h"
+#include "io/image.h"
+#include "scene/scene.h"
+#include "shade/bsdf.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+pn_status pn_vpl_prepare(pn_render_job *job, bool with_tree, pn_err *err) {
+    pn_vpl_data *d = calloc(1, sizeof *d);
+    if (!d) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    pn_vpl_settings vs = {job->vpls, job->vpl_max_depth, job->vpl_clamp_fraction, job->seed};
+    pn_status st = pn_vpl_trace(job->scene, job->lights, job->accel, &vs, &d->set, err);
+    if (st != PN_OK) {
+        free(d);
+        return st;
+    }
+    d->vpl_seconds = d->set.seconds;
+    if (with_tree) {
+        float diag = 2.0f * job->lights->scene_radius;
+        st = pn_light_tree_build(&d->set, diag, job->seed, &d->tree, err);
+        if (st != PN_OK) {
+            pn_vpl_set_free(&d->set);
+            free(d);
+            return st;
+        }
+        d->tree_seconds = d->tree.seconds;
+    }
+    job->integrator_data = d;
+    return PN_OK;
+}
+
+void pn_vpl_release(pn_render_job *job) {
+    pn_vpl_data *d = job->integrator_data;
+    if (!d) return;
+    pn_vpl_set_free(&d->set);
+    pn_light_tree_free(&d->tree);
+    free(d);
+    job->integrator_data = NULL;
+}
+
+void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats) {
+    const pn_vpl_data *d = job->integrator_data;
+    if (!d) return;
+    stats->vpl_seconds = d->vpl_seconds;
+    stats->light_tree_seconds = d->tree_seconds;
+    stats->preprocess_seconds = d->vpl_seconds + d->tree_seconds;
+    stats->vpl_count = d->set.count;
+    stats->vpl_paths = d->set.paths;
+    double pixels = (double)(job->camera.x1 - job->camera.x0) * (double)(job->camera.y1 - job->camera.y0);
+    uint64_t points = atomic_load(&((pn_vpl_data *)d)->points);
+    stats->bound_evaluations_per_pixel_mean = (double)atomic_load(&((pn_vpl_data *)d)->bound_evaluations) / pixels;
+    stats->cut_size_mean = points ? (double)atomic_load(&((pn_vpl_data *)d)->cut_nodes) / (double)points : 0.0;
+    stats->point_tree_seconds = d->point_tree_seconds;
+    stats->phase1_seconds = d->phase1_seconds;
+    stats->phase2_seconds = d->phase2_seconds;
+    stats->illumcut_pairs = d->pairs;
+}
+
+void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t i, pn_shading_point *sp,
+                       pn_pixel_estimate *est) {
+    uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+    float rx, ry, fw;
+    pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble), &rx,
+                            &ry, &fw);
+    vec3 ro, rd;
+    pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro, &rd);
+    pn_eye_path path;
+    pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+    if (i == 0) {
+        est->depth = path.first_depth;
+        est->normal = path.first_normal;
+        est->albedo = path.first_albedo;
+    }
+    est->eye_rays++;
+    est->specular_rays += path.rays - 1;
+    memset(sp, 0, sizeof *sp);
+    sp->weight = fw;
+    sp->emitted = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
+    sp->throughput = path.throughput;
+    if (!path.has_point) return;
+    pn_bsdf b;
+    pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+    sp->has_point = true;
+    sp->r.p = path.hit.p;
+    sp->r.ng = b.ng;
+    sp->r.ns = b.ns;
+    sp->r.wo = path.wo;
+    sp->r.kd = b.kd;
+    sp->r.ks = b.ks;
+    sp->r.exponent = b.exponent;
+}
+
+bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img) {
+    float *bounds = NULL, *log_bounds = NULL, *cut = NULL, *phase1 = NULL;
+    if (aovs & PN_AOV_BOUND_EVALUATIONS) {
+        /* And its logarithm, IlluminationCut's Fig. 4 (with --aov-png: the false-colour picture). */
+        if (!(bounds = pn_image_add_layer(img, "bound_evaluations", 1))) return false;
+        if (!(log_bounds = pn_image_add_layer(img, "log10_bound_evaluations", 1))) return false;
+    }
+    if (aovs & PN_AOV_CUT_SIZE) {
+        if (!(cut = pn_image_add_layer(img, "cut_size", 1))) return false;
+    }
+    if (aovs & PN_AOV_PHASE1) {
+        if (!(phase1 = pn_image_add_layer(img, "phase1", 3))) return false;
+    }
+    for (size_t i = 0; i < count; i++) {
+        if (bounds) bounds[i] = pixels[i].bound_evaluations;
+        if (log_bounds) log_bounds[i] = log10f(1.0f + pixels[i].bound_evaluations);
+        if (cut) cut[i] = pixels[i].cut_size;
+        if (phase1) {
+            phase1[3 * i] = pixels[i].phase1.x;
+            phase1[3 * i + 1] = pixels[i].phase1.y;
+            phase1[3 * i + 2] = pixels[i].phase1.z;
+        }
+    }
+    return true;
+}

@@ -1,0 +1,96 @@
+/* vpl.h — virtual point lights (instant radiosity, Keller 1997) as the IlluminationCut paper
+ * (Bus et al. 2015, §3 eq. 1 and §4 "Scenes") and Lightcuts (Walter et al. 2005, §3) use them:
+ * one set of point emitters that carries the direct light of every scene light and the
+ * indirect light of light paths up to a depth, with the contribution of one VPL to one
+ * receiving point (eq. 1: M · G · V · I) and its clamping.
+ *
+ * Three kinds, as Lightcuts keeps them in separate trees:
+ *   OMNI        point, spot and goniometric lights, as themselves (exact direct light);
+ *   ORIENTED    Lambertian emitters: points sampled on area lights (their direct light) and the
+ *               vertices of light paths at diffuse / glossy hits (indirect light);
+ *   DIRECTIONAL distant lights as themselves, and directions sampled from environment maps.
+ *
+ * Departures, and why:
+ *   - A VPL left at a glossy hit is a Lambertian emitter of the hit's diffuse reflectance only
+ *     (the issue: "VPLs are Lambertian emitters"); light paths continue by cosine sampling with
+ *     the diffuse albedo as Russian-roulette probability, and through perfect mirrors and
+ *     dielectrics without leaving a VPL. Glossy-to-anything transport along light paths is
+ *     therefore not carried (as in the paper, whose VPLs are Lambertian too).
+ *   - Environment maps are sampled by uniform directions (not by luminance), which is unbiased
+ *     and keeps VPL generation independent of the map's importance table.
+ *   - Clamping (§4): the squared distance in G is never below (clamp fraction · scene radius)^2.
+ *
+ * Determinism: light path i draws its random numbers from a PCG stream seeded by (seed, i), and
+ * paths are traced in index order, so the VPL set depends only on the scene and settings. */
+#ifndef PN_LIGHTS_VPL_H
+#define PN_LIGHTS_VPL_H
+
+#include "accel/accel.h"
+#include "core/error.h"
+#include "core/vecmath.h"
+#include "lights/lights.h"
+
+#include <stdint.h>
+
+struct pn_scene_s;
+
+typedef enum pn_vpl_kind { PN_VPL_OMNI = 0, PN_VPL_ORIENTED = 1, PN_VPL_DIRECTIONAL = 2, PN_VPL_KIND_COUNT = 3 } pn_vpl_kind;
+
+typedef struct pn_vpl {
+    vec3 p;         /* OMNI / ORIENTED: position; DIRECTIONAL: unit direction towards the light */
+    vec3 n;         /* ORIENTED: unit emitting normal; OMNI spot: axis; else 0 */
+    vec3 intensity; /* OMNI: intensity W/sr; ORIENTED: intensity along the normal; DIRECTIONAL:
+                       irradiance on a surface facing the light */
+    int32_t kind;   /* pn_vpl_kind */
+    int32_t light;  /* OMNI: the scene light (spot falloff, goniometric factor); else -1 */
+} pn_vpl;
+
+typedef struct pn_vpl_settings {
+    uint32_t count;        /* VPLs wanted (at least the exact point / distant lights are kept) */
+    uint32_t max_depth;    /* bounces of a light path that may leave a VPL (10) */
+    float clamp_fraction;  /* minimum point-VPL distance as a fraction of the scene radius (0.05) */
+    uint64_t seed;
+} pn_vpl_settings;
+
+typedef struct pn_vpl_set {
+    pn_vpl *vpls;
+    uint32_t count;
+    uint32_t count_by_kind[PN_VPL_KIND_COUNT];
+    uint32_t paths;          /* light paths traced */
+    float clamp_distance;    /* clamp_fraction * scene radius */
+    float min_dist2;         /* its square */
+    double seconds;
+} pn_vpl_set;
+
+/* Traces the VPL set. On success the set owns its array; free with pn_vpl_set_free. A scene
+ * without lights gives an empty set (not an error). */
+pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *lights, const pn_accel *accel,
+                       const pn_vpl_settings *settings, pn_vpl_set *out, pn_err *err);
+void pn_vpl_set_free(pn_vpl_set *set);
+
+/* What a receiving point needs for eq. 1: position, normals, view direction and its BRDF
+ * (Lambert + normalised Blinn-Phong). */
+typedef struct pn_vpl_receiver {
+    vec3 p, ng, ns, wo;
+    vec3 kd, ks;
+    float exponent;
+} pn_vpl_receiver;
+
+/* The unshadowed contribution M · G · I of VPL v at receiver r (eq. 1 without V), with the
+ * clamped distance; *wi receives the unit direction towards the VPL and *dist its distance
+ * (INFINITY for directional VPLs). Returns zero when the VPL cannot light r. */
+vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_receiver *r, float min_dist2,
+                         vec3 *wi, float *dist);
+
+/* Like pn_vpl_contribution but with the intensity replaced by `intensity` (eq. 3: the
+ * representative's M and G with its cluster's summed intensity). */
+vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 intensity, const pn_vpl_receiver *r,
+                              float min_dist2, vec3 *wi, float *dist);
+
+/* The BRDF M of eq. 1 times cos theta at r towards unit wi (0 below the horizon). */
+vec3 pn_vpl_receiver_brdf_cos(const pn_vpl_receiver *r, vec3 wi);
+
+/* True when nothing blocks the segment from r towards the VPL (a shadow ray). */
+bool pn_vpl_visible(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist);
+
+#endif

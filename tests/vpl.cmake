@@ -1,0 +1,3 @@
+pn_add_test(test_vpl)
+pn_add_test(test_lightcuts)
+pn_add_test(test_illumcut)
