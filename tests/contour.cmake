@@ -1,0 +1,1 @@
+pn_add_test(test_contour)
