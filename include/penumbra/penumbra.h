@@ -117,7 +117,12 @@ PN_API const char *pn_scene_warning(pn_scene scene, uint32_t index);
 typedef enum pn_integrator_kind {
     PN_INTEGRATOR_DEFAULT = 0,   /* reference */
     PN_INTEGRATOR_REFERENCE = 1, /* Monte Carlo reference, Donikian et al. 2006 §5.1 */
-    PN_INTEGRATOR_IAS = 2        /* Iterative Adaptive Sampling, Donikian et al. 2006 */
+    PN_INTEGRATOR_IAS = 2,       /* Iterative Adaptive Sampling, Donikian et al. 2006 */
+    /* contour: Approximate Contour Integration for planar convex area lights, Vedel 1993; and
+     * contour-mc, its comparison: adaptive Monte Carlo sampling of those lights (Kok & Jansen
+     * 1992). Every other light is estimated as by the reference integrator. */
+    PN_INTEGRATOR_CONTOUR = 3,
+    PN_INTEGRATOR_CONTOUR_MC = 7
 } pn_integrator_kind;
 
 /* AOV layers written beside the beauty image. */
@@ -131,7 +136,9 @@ enum {
     PN_AOV_PASSES = 1u << 6,            /* ias: passes per pixel (the paper's Fig. 11) */
     PN_AOV_AA_REGIONS = 1u << 7,        /* ias: antialiasing regions per pixel */
     PN_AOV_CLUSTERS = 1u << 8,          /* ias: clusters per shading point (pixel mean) */
-    PN_AOV_VISIBLE_FRACTION = 1u << 9   /* ias: fraction of shadow rays unoccluded (Fig. 9) */
+    PN_AOV_VISIBLE_FRACTION = 1u << 9,  /* ias: fraction of shadow rays unoccluded (Fig. 9) */
+    PN_AOV_GRADIENT = 1u << 10          /* contour: world-space gradient of the irradiance
+                                           luminance from contour lights (W/m^2 per unit length) */
 };
 
 typedef struct pn_render_settings {
@@ -159,7 +166,27 @@ typedef struct pn_render_settings {
     /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
     void (*progress)(void *user, double fraction);
     void *progress_user;
+    /* contour (Vedel 1993) only; zero = the paper's values: first-level samples per side of a
+     * source (3, i.e. a 3x3 grid of 9 samples), dichotomy steps (5), longest span of pixels
+     * (8); contour_flags: PN_CONTOUR_* bits that switch parts of the algorithm off (for
+     * comparisons). contour-mc (Kok & Jansen 1992) only: the variance threshold of a cell's
+     * refinement (default 0.002) and the largest number of shadow rays per light and point
+     * (default 256). */
+    uint32_t contour_grid;
+    uint32_t contour_steps;
+    uint32_t contour_span;
+    uint32_t contour_flags;
+    double contour_mc_threshold;
+    uint32_t contour_mc_max_rays;
 } pn_render_settings;
+
+/* contour_flags bits. */
+enum {
+    PN_CONTOUR_NO_SHAFT_CULLING = 1u << 0, /* cast rays even where no obstacle is in the shaft */
+    PN_CONTOUR_NO_SPANS = 1u << 1,         /* a full contour integration at every pixel */
+    PN_CONTOUR_NO_VALIDITY = 1u << 2,      /* no corner test, no subdivision (the Fig. 6 failure) */
+    PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3 /* keep the first-level grid fixed */
+};
 
 /* ---------------------------------------------------------------------------------------- */
 /* Images */
@@ -188,6 +215,13 @@ typedef struct pn_render_stats {
     double visible_lights_per_pixel_mean;
     int threads;
     int width, height; /* of the rendered (cropped) image */
+    /* contour and contour-mc (zero otherwise): viewing rays that cast shadow rays towards
+     * contour sources and those shadow rays (the paper's Table 1 counts rays per such viewing
+     * ray); full contour integrations, pixels interpolated between them, restarts one level
+     * finer, subdivided squares, and spans shaded by the closed form after shaft culling. */
+    uint64_t contour_viewing_rays, contour_shadow_rays;
+    uint64_t contour_integrations, contour_interpolated, contour_restarts, contour_subdivisions;
+    uint64_t contour_culled_spans;
 } pn_render_stats;
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the

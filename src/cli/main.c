@@ -96,6 +96,21 @@ static const char render_help[] =
     "  --env-regions N        regions of an environment map (default 300)\n"
     "  --max-passes N         passes per block (default 15)\n"
     "\n"
+    "contour (Vedel 1993, Approximate Contour Integration; --integrator contour) and contour-mc\n"
+    "(its comparison, adaptive Monte Carlo sampling of the source after Kok & Jansen 1992):\n"
+    "rectangles and triangles of emitting meshes on diffuse receivers; every other light (and\n"
+    "glossy receivers) as by 'reference' with --shadow-rays. Fixed --spp (default 1).\n"
+    "  --contour-grid N       first-level samples per side of a source, 2..65 (default 3: 9)\n"
+    "  --contour-steps N      dichotomy steps, 1..12 (default 5)\n"
+    "  --contour-span N       longest span of pixels sharing first-level rays, 1..64 (default 8)\n"
+    "  --contour-off LIST     switch parts off for comparisons, comma-separated: shaft (shaft\n"
+    "                         culling), spans (integrate every pixel), validity (the corner\n"
+    "                         test, Fig. 6's failure), adaptive (fixed first-level density)\n"
+    "  --mc-threshold T       contour-mc: refine a cell while its standard error exceeds T times\n"
+    "                         the source's unoccluded form factor (default 0.002)\n"
+    "  --mc-max-rays N        contour-mc: shadow rays per source and point, at most (default 256)\n"
+    "  --aov gradient         contour: gradient of the irradiance luminance (eq. 5, 8-10)\n"
+    "\n"
     "image and machine:\n"
     "  --resolution WxH       override the film resolution (each 1..65536)\n"
     "  --crop x0,x1,y0,y1     render only this window, in fractions of the image as pbrt's\n"
@@ -353,6 +368,7 @@ static const struct {
     {"normal", PN_AOV_NORMAL}, {"albedo", PN_AOV_ALBEDO},
     {"passes", PN_AOV_PASSES}, {"aa_regions", PN_AOV_AA_REGIONS},
     {"clusters", PN_AOV_CLUSTERS}, {"visible_fraction", PN_AOV_VISIBLE_FRACTION},
+    {"gradient", PN_AOV_GRADIENT}, /* contour */
 };
 #define AOV_NAME_COUNT (sizeof aov_names / sizeof aov_names[0])
 
@@ -765,6 +781,10 @@ static const char *integrator_name(pn_integrator_kind kind) {
         return "reference";
     case PN_INTEGRATOR_IAS:
         return "ias";
+    case PN_INTEGRATOR_CONTOUR:
+        return "contour";
+    case PN_INTEGRATOR_CONTOUR_MC:
+        return "contour-mc";
     }
     return "unknown";
 }
@@ -824,8 +844,12 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 o->settings.integrator = PN_INTEGRATOR_REFERENCE;
             else if (strcmp(value, "ias") == 0)
                 o->settings.integrator = PN_INTEGRATOR_IAS;
+            else if (strcmp(value, "contour") == 0)
+                o->settings.integrator = PN_INTEGRATOR_CONTOUR;
+            else if (strcmp(value, "contour-mc") == 0)
+                o->settings.integrator = PN_INTEGRATOR_CONTOUR_MC;
             else
-                return bad_value(cmd, name, value, "'reference' or 'ias'");
+                return bad_value(cmd, name, value, "'reference', 'ias', 'contour' or 'contour-mc'");
         } else if (strcmp(name, "--cluster-solid-angle") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)
@@ -854,6 +878,50 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             if (!parse_long(value, 1, 64, &n))
                 return bad_value(cmd, name, value, "an integer from 1 to 64");
             o->settings.max_passes = (uint32_t)n;
+        /* contour / contour-mc options */
+        } else if (strcmp(name, "--contour-grid") == 0 || strcmp(name, "--contour-steps") == 0 ||
+                   strcmp(name, "--contour-span") == 0 || strcmp(name, "--mc-max-rays") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (strcmp(name, "--contour-grid") == 0) {
+                if (!parse_long(value, 2, 65, &n))
+                    return bad_value(cmd, name, value, "an integer from 2 to 65");
+                o->settings.contour_grid = (uint32_t)n;
+            } else if (strcmp(name, "--contour-steps") == 0) {
+                if (!parse_long(value, 1, 12, &n))
+                    return bad_value(cmd, name, value, "an integer from 1 to 12");
+                o->settings.contour_steps = (uint32_t)n;
+            } else if (strcmp(name, "--contour-span") == 0) {
+                if (!parse_long(value, 1, 64, &n))
+                    return bad_value(cmd, name, value, "an integer from 1 to 64");
+                o->settings.contour_span = (uint32_t)n;
+            } else {
+                if (!parse_long(value, 4, 1 << 20, &n))
+                    return bad_value(cmd, name, value, "an integer from 4 to 1048576");
+                o->settings.contour_mc_max_rays = (uint32_t)n;
+            }
+        } else if (strcmp(name, "--mc-threshold") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_double(value, &o->settings.contour_mc_threshold) || !(o->settings.contour_mc_threshold > 0.0))
+                return bad_value(cmd, name, value, "a finite number > 0");
+        } else if (strcmp(name, "--contour-off") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            const char *p = value;
+            while (*p) {
+                size_t len = strcspn(p, ",");
+                if (len == 5 && strncmp(p, "shaft", 5) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_SHAFT_CULLING;
+                else if (len == 5 && strncmp(p, "spans", 5) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_SPANS;
+                else if (len == 8 && strncmp(p, "validity", 8) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_VALIDITY;
+                else if (len == 8 && strncmp(p, "adaptive", 8) == 0)
+                    o->settings.contour_flags |= PN_CONTOUR_NO_ADAPTIVE_DENSITY;
+                else
+                    return bad_value(cmd, name, value, "a comma-separated list of shaft, spans, validity, adaptive");
+                p += len;
+                if (*p == ',') p++;
+            }
         } else if (strcmp(name, "--spp") == 0) {
             long n;
             if ((value = scanner_value(&s)) == NULL)
@@ -1062,6 +1130,19 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         json_u64(&w, "lights_visible_viewpoint", stats->lights_visible_viewpoint);
         json_u64(&w, "env_regions_visible_viewpoint", stats->env_regions_visible_viewpoint);
         json_double(&w, "visible_lights_per_pixel_mean", stats->visible_lights_per_pixel_mean);
+    }
+    if (o->settings.integrator == PN_INTEGRATOR_CONTOUR || o->settings.integrator == PN_INTEGRATOR_CONTOUR_MC) {
+        /* Vedel 1993, Table 1: shadow rays per viewing ray that cast any (towards contour sources). */
+        json_u64(&w, "contour_viewing_rays", stats->contour_viewing_rays);
+        json_u64(&w, "contour_shadow_rays", stats->contour_shadow_rays);
+        json_double(&w, "contour_shadow_rays_per_viewing_ray",
+                    stats->contour_viewing_rays
+                        ? (double)stats->contour_shadow_rays / (double)stats->contour_viewing_rays : 0.0);
+        json_u64(&w, "contour_integrations", stats->contour_integrations);
+        json_u64(&w, "contour_interpolated", stats->contour_interpolated);
+        json_u64(&w, "contour_restarts", stats->contour_restarts);
+        json_u64(&w, "contour_subdivisions", stats->contour_subdivisions);
+        json_u64(&w, "contour_culled_spans", stats->contour_culled_spans);
     }
     json_end_object(&w);
 

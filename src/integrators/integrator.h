@@ -29,6 +29,8 @@ typedef struct pn_pixel_estimate {
     uint32_t visible_lights;  /* distinct lights (and environment regions) seen unoccluded */
     float clusters;          /* clusters per shading point, mean over the pixel's regions */
     float visible_fraction;  /* unoccluded shadow rays / shadow rays */
+    /* contour: gradient of the irradiance luminance from contour lights (PN_AOV_GRADIENT) */
+    vec3 gradient;
 } pn_pixel_estimate;
 
 typedef struct pn_integrator {
@@ -52,5 +54,8 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 
 extern const pn_integrator pn_integrator_reference;
 extern const pn_integrator pn_integrator_ias;
+/* contour (Vedel 1993) and contour-mc (Kok & Jansen 1992): src/integrators/contour*.c */
+extern const pn_integrator pn_integrator_contour;
+extern const pn_integrator pn_integrator_contour_mc;
 
 #endif

@@ -154,6 +154,8 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
     case PN_INTEGRATOR_DEFAULT:
     case PN_INTEGRATOR_REFERENCE: return &pn_integrator_reference;
     case PN_INTEGRATOR_IAS: return &pn_integrator_ias;
+    case PN_INTEGRATOR_CONTOUR: return &pn_integrator_contour;
+    case PN_INTEGRATOR_CONTOUR_MC: return &pn_integrator_contour_mc;
     }
     return NULL;
 }

@@ -1,6 +1,6 @@
 # integrators files; a file is compiled once it exists.
 foreach(f reference.c ias_math.c ias.c
-        reference_direct.c contour_math.c contour.c contour_mc.c)
+        reference_direct.c contour_math.c contour.c contour_render.c contour_mc.c)
   if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
     list(APPEND PN_SOURCES src/integrators/${f})
   endif()
