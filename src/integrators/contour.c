@@ -73,7 +73,7 @@ enum { VIS_UNKNOWN = 0, VIS_VISIBLE = 1, VIS_HIDDEN = 2 };
  * neighbour keeps its coarser contour on that side). Without a bound, a complex silhouette
  * (the killeroo's toes) restarts level after level down to one cell per square: thousands of
  * rays for one pixel. */
-#define PN_CONTOUR_MAX_RESTARTS 1u
+#define PN_CONTOUR_MAX_RESTARTS 0
 
 static inline size_t sample_index(const pn_contour_eval *c, int i, int j) { return (size_t)j * (size_t)(c->N + 1) + (size_t)i; }
 
@@ -256,7 +256,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
                 bool on_border = (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) ||
                                  (k == 3 && i0 == 0);
                 int hi = (ci[k] + ci[k1]) / 2, hj = (cj[k] + cj[k1]) / 2;
-                if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && c->restarts < PN_CONTOUR_MAX_RESTARTS) {
+                if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts) {
                     c->restart = true;
                     return;
                 }
@@ -329,6 +329,9 @@ bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const p
     c->ns = pn_dv3_from(ns);
     c->ng = pn_dv3_from(ng);
     c->sign = pn_contour_source_sign(src, c->m);
+    /* Points on the source's own plane (the emitter's back, its surroundings) see nothing of it. */
+    double side = fabs(pn_dv3_dot(pn_dv3_sub(c->m, src->p0), src->normal));
+    if (!(side > (double)pn_accel_ray_epsilon(job->accel, p))) c->sign = 0.0;
     c->eps = pn_accel_ray_epsilon(job->accel, p);
     c->origin = v3_madd(p, ng, c->eps);
     c->N = N;
@@ -338,5 +341,6 @@ bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const p
     c->hash = hash;
     c->flags = job->contour_flags;
     c->eps_length = src->eps_scale / (double)N;
+    c->max_restarts = PN_CONTOUR_MAX_RESTARTS;
     return c->sign != 0.0;
 }

@@ -22,6 +22,7 @@ typedef struct pn_contour_eval {
     bool gradient;
     uint64_t hash;       /* for the random diagonal of case 3 */
     uint32_t flags;      /* PN_CONTOUR_* */
+    int max_restarts;    /* restarts one level finer allowed (§3.2) */
     double eps_length;   /* strip width: the length of the smallest dichotomy interval */
     /* results */
     pn_contour_g acc;

@@ -4,7 +4,7 @@
  * paper did. It runs after the same shaft culling as `contour` (contour_render.c), so both cast
  * rays at the same pixels.
  *
- * The source is a quadtree of cells on (u, v). Each cell is sampled with four jittered shadow
+ * The source is a quadtree of cells on (u, v), starting from 2 x 2 cells. Each cell is sampled with four jittered shadow
  * rays, one per quarter (stratified); its estimate is F_cell * (visible fraction), with F_cell the
  * cell's unoccluded form factor (eq. 4 on the cell's outline, exact). A cell whose samples
  * disagree is refined into its four quarters while the standard error of its estimate,
@@ -75,9 +75,12 @@ double pn_contour_mc_form_factor(pn_contour_eval *c, double threshold, uint32_t 
     enum { STACK = 256 };
     mc_cell stack[STACK];
     int top = 0;
-    mc_cell root = {0.0, 0.0, 1.0, 0, 1, {{0, 0, false}}};
-    for (int k = 0; k < 4; k++) root.s[k] = new_sample(c, &root, k);
-    stack[top++] = root;
+    /* Four first cells of four samples each: 16 rays before any refinement. */
+    for (int k = 0; k < 4; k++) {
+        mc_cell cell = {0.5 * (k & 1), 0.5 * ((k >> 1) & 1), 0.5, 1, 4 + (uint64_t)k, {{0, 0, false}}};
+        for (int j = 0; j < 4; j++) cell.s[j] = new_sample(c, &cell, j);
+        stack[top++] = cell;
+    }
     double estimate = 0.0;
     while (top > 0) {
         mc_cell cell = stack[--top];

@@ -440,9 +440,9 @@ static void shade_span(span_ctx *sc) {
     uint8_t key_pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
     uint8_t pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
     int key = 0;
+    full_integration(sc, key, p);
     for (;;) {
-        /* A full integration opens a run; the density adapts to what it needed. */
-        full_integration(sc, key, p);
+        /* The density adapts to what the last full integration at a run's start needed. */
         const pn_contour_eval *ev = &s->ev[key];
         if (!(flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY)) {
             if ((ev->restarted || ev->max_depth >= 2) && p < pmax) {
@@ -454,9 +454,10 @@ static void shade_span(span_ctx *sc) {
         }
         if (key + 1 >= n) break;
         if (flags & PN_CONTOUR_NO_SPANS) {
-            key++;
+            full_integration(sc, ++key, p);
             continue;
         }
+        /* Only first-level rays at the next pixels, while their pattern stays the same. */
         first_level_pattern(sc, key, p, key_pattern);
         const int np = (p + 1) * (p + 1);
         bool uniform = true;
@@ -466,32 +467,35 @@ static void shade_span(span_ctx *sc) {
             first_level_pattern(sc, j, p, pattern);
             if (memcmp(pattern, key_pattern, (size_t)np) != 0) break;
         }
-        int last = j - 1;
-        if (last > key) {
-            if (uniform) {
-                /* Every first-level sample visible (or hidden): the integration traces no more
-                 * rays, so each pixel gets its own. */
-                for (int q = key + 1; q <= last; q++) full_integration(sc, q, p);
-            } else {
-                full_integration(sc, last, p);
-                if (last - key >= 2) {
-                    int mid = (key + last) / 2;
-                    full_integration(sc, mid, p);
-                    /* Quadratic interpolation through key, mid and last. */
-                    double x0 = key, x1 = mid, x2 = last;
-                    for (int q = key + 1; q < last; q++) {
-                        if (q == mid) continue;
-                        double x = q;
-                        double w0 = (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2));
-                        double w1 = (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2));
-                        double w2 = (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1));
-                        pn_contour_g *g = &s->g[q];
-                        g->g = lagrange3(s->g[key].g, s->g[mid].g, s->g[last].g, w0, w1, w2);
-                        for (int k = 0; k < 3; k++)
-                            g->dg[k] = lagrange3(s->g[key].dg[k], s->g[mid].dg[k], s->g[last].dg[k], w0, w1, w2);
-                        sc->t.interpolated++;
-                    }
-                }
+        if (uniform) {
+            /* Every first-level sample visible (or every one hidden): an integration traces no
+             * more rays, so each pixel of the run gets its own. */
+            for (int q = key + 1; q < j; q++) full_integration(sc, q, p);
+            if (j >= n) break;
+            full_integration(sc, j, p);
+            key = j;
+            continue;
+        }
+        /* The run ends where the pattern changed (that pixel opens the next run) or at the end
+         * of the span; the pixels in between are interpolated with a third integration in the
+         * middle. */
+        int end = j < n ? j : n - 1;
+        if (end > key) full_integration(sc, end, p);
+        if (end - key >= 2) {
+            int mid = (key + end) / 2;
+            full_integration(sc, mid, p);
+            double x0 = key, x1 = mid, x2 = end;
+            for (int q = key + 1; q < end; q++) {
+                if (q == mid) continue;
+                double x = q;
+                double w0 = (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2));
+                double w1 = (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2));
+                double w2 = (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1));
+                pn_contour_g *g = &s->g[q];
+                g->g = lagrange3(s->g[key].g, s->g[mid].g, s->g[end].g, w0, w1, w2);
+                for (int k = 0; k < 3; k++)
+                    g->dg[k] = lagrange3(s->g[key].dg[k], s->g[mid].dg[k], s->g[end].dg[k], w0, w1, w2);
+                sc->t.interpolated++;
             }
         }
         if (j >= n) break;
