@@ -54,9 +54,10 @@
  *  - Spans cannot be longer than the batch's rows (8 pixels with the default tiled driver).
  *  - Triangles are the unit square with one side collapsed (contour_math.h); disks, spheres and
  *    other emitters go to the reference estimator.
- *  - Gradients: vertices on the source border are kept fixed (the exact sliding of border
- *    crossings, pn_contour_border_velocity, is tested in test_contour but not wired here), and
- *    interpolated pixels get interpolated gradients. */
+ *  - Gradients: besides the obstacle points of Fig. 5, a crossing on the source's border slides
+ *    along the border as M moves (contour_math.c); its velocity uses the silhouette direction
+ *    from its neighbour's obstacle point. Polygons that the horizon clips are differentiated
+ *    with fixed points. Interpolated pixels get interpolated gradients. */
 #include "integrators/contour_internal.h"
 
 #include "core/rng.h"
@@ -114,10 +115,11 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
 typedef struct cvert {
     double u, v;
     int hi, hj; /* -1: a corner of the source grid */
+    int border; /* a crossing on the source's border: 1 along u (v fixed), 2 along v; else 0 */
 } cvert;
 
 static cvert corner_vertex(const pn_contour_eval *c, int i, int j) {
-    return (cvert){(double)i / c->N, (double)j / c->N, -1, -1};
+    return (cvert){(double)i / c->N, (double)j / c->N, -1, -1, 0};
 }
 
 /* Dichotomy along the array line from sample a to sample b (different visibility, 2^steps
@@ -134,7 +136,7 @@ static cvert dichotomy(pn_contour_eval *c, int ia, int ja, int ib, int jb, int s
             jb = mj;
         }
     }
-    cvert x = {0.5 * (double)(ia + ib) / c->N, 0.5 * (double)(ja + jb) / c->N, ib, jb};
+    cvert x = {0.5 * (double)(ia + ib) / c->N, 0.5 * (double)(ja + jb) / c->N, ib, jb, 0};
     if (!va) {
         x.hi = ia;
         x.hj = ja;
@@ -156,8 +158,49 @@ static pn_dvec3 vertex_point(const pn_contour_eval *c, cvert x) {
 static void add_polygon(pn_contour_eval *c, const cvert *v, int count) {
     pn_dvec3 p[16];
     if (count > 16) count = 16;
-    for (int i = 0; i < count; i++) p[i] = vertex_point(c, v[i]);
-    pn_contour_add_polygon(&c->acc, p, count, c->ns, c->ng, c->sign, c->gradient);
+    bool above = true;
+    for (int i = 0; i < count; i++) {
+        p[i] = vertex_point(c, v[i]);
+        above = above && pn_dv3_dot(p[i], c->ns) > 0.0 && pn_dv3_dot(p[i], c->ng) > 0.0;
+    }
+    if (!c->gradient || !above) {
+        pn_contour_add_polygon(&c->acc, p, count, c->ns, c->ng, c->sign, c->gradient);
+        return;
+    }
+    /* Gradients: a crossing on the source's border slides along it as M moves, in the plane
+     * through M and the silhouette, whose direction is given by the obstacle point of its
+     * neighbour on the contour (pn_contour_border_velocity). */
+    pn_dvec3 vel[16][3];
+    bool moving[16];
+    for (int i = 0; i < count; i++) {
+        moving[i] = false;
+        if (!v[i].border || v[i].hi < 0) continue;
+        int next = (i + 1) % count, prev = (i + count - 1) % count, nb = -1;
+        if (v[next].hi >= 0 && !v[next].border) nb = next;
+        else if (v[prev].hi >= 0 && !v[prev].border) nb = prev;
+        else if (v[next].hi >= 0) nb = next;
+        else if (v[prev].hi >= 0) nb = prev;
+        if (nb < 0) continue;
+        pn_dvec3 src_rel = pn_dv3_sub(pn_contour_source_point(c->src, v[i].u, v[i].v), c->m);
+        pn_dvec3 ds = pn_dv3_sub(p[nb], p[i]);
+        if (!(pn_dv3_length(ds) > 0.0)) continue;
+        const pn_contour_source *s = c->src;
+        pn_dvec3 t = v[i].border == 1 ? pn_dv3_add(s->e1, pn_dv3_scale(s->k, v[i].v))
+                                      : pn_dv3_add(s->e2, pn_dv3_scale(s->k, v[i].u));
+        double tl = pn_dv3_length(t);
+        if (!(tl > 0.0)) continue;
+        pn_contour_border_velocity(pn_dv3_add(src_rel, c->m), pn_dv3_scale(t, 1.0 / tl), pn_dv3_add(p[i], c->m), ds, c->m,
+                                   vel[i]);
+        moving[i] = true;
+        p[i] = src_rel;
+    }
+    pn_contour_g part = {{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
+    for (int i = 0; i < count; i++) {
+        int j = (i + 1) % count;
+        pn_contour_add_segment_moving(&part, p[i], p[j], moving[i] ? vel[i] : NULL, moving[j] ? vel[j] : NULL, true);
+    }
+    c->acc.g = pn_dv3_add(c->acc.g, pn_dv3_scale(part.g, c->sign));
+    for (int k = 0; k < 3; k++) c->acc.dg[k] = pn_dv3_add(c->acc.dg[k], pn_dv3_scale(part.dg[k], c->sign));
 }
 
 /* |dF| of the triangle a, x, b against the form factor of a strip of width eps along a-b. */
@@ -199,7 +242,12 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     cvert x[4];
     for (int k = 0; k < 4; k++) {
         int k1 = (k + 1) & 3;
-        if (v[k] != v[k1]) x[k] = dichotomy(c, ci[k], cj[k], ci[k1], cj[k1], d);
+        if (v[k] != v[k1]) {
+            x[k] = dichotomy(c, ci[k], cj[k], ci[k1], cj[k1], d);
+            bool on_border = (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) ||
+                             (k == 3 && i0 == 0);
+            if (on_border) x[k].border = (k & 1) ? 2 : 1;
+        }
     }
     const bool case4 = nv == 2 && v[0] == v[2];
     bool centre_visible = true;

@@ -172,7 +172,8 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
         o->planar = false;
     }
     vec3 ext = v3_sub(scene->bounds_max, scene->bounds_min);
-    cd->tol = 1e-5f * (v3_is_finite(ext) ? v3_length(ext) : 1.0f);
+    /* Above the ray epsilon (at most 1e-4 of the diagonal), by which span boxes are padded. */
+    cd->tol = 2e-4f * (v3_is_finite(ext) ? v3_length(ext) : 1.0f);
     atomic_init(&cd->viewing, 0);
     atomic_init(&cd->rays, 0);
     atomic_init(&cd->integrations, 0);
