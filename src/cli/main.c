@@ -849,7 +849,7 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             else if (strcmp(value, "contour-mc") == 0)
                 o->settings.integrator = PN_INTEGRATOR_CONTOUR_MC;
             else
-                return bad_value(cmd, name, value, "'reference', 'ias', 'contour' or 'contour-mc'");
+                return bad_value(cmd, name, value, "'reference' or 'ias' (or 'contour', 'contour-mc')");
         } else if (strcmp(name, "--cluster-solid-angle") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)
