@@ -3,7 +3,7 @@
  * clamped, rounded; mean over pixels and the three channels), with relMSE, the |a-b| x 16 error
  * image and close-ups. Uses only the public header.
  *
- *   contour_metrics REFERENCE IMAGE [--error-png FILE] [--closeup x,y,w,h,scale,FILE]...
+ *   contour_metrics REFERENCE IMAGE [--error-png FILE] [--closeup x,y,w,h,FILE]... [--top N]
  *
  * Prints one JSON object: {"avg_diff_8bit": ..., "relmse": ..., "max_diff_8bit": ...}. */
 #include "penumbra/penumbra.h"
@@ -48,6 +48,27 @@ int main(int argc, char **argv) {
     for (int i = 3; i + 1 < argc; i += 2) {
         if (strcmp(argv[i], "--error-png") == 0) {
             if (pn_image_write(ctx, err, argv[i + 1], 0.0f) != PN_OK) fprintf(stderr, "%s\n", pn_context_error_message(ctx));
+        } else if (strcmp(argv[i], "--top") == 0) {
+            /* The pixels with the largest luminance difference (for debugging a comparison). */
+            int count = atoi(argv[i + 1]);
+            unsigned char *used = calloc((size_t)w * h, 1);
+            for (int t = 0; t < count && used; t++) {
+                double best = -1.0;
+                int bi = 0;
+                for (int k = 0; k < w * h; k++) {
+                    double la = 0.2126 * a[3 * k] + 0.7152 * a[3 * k + 1] + 0.0722 * a[3 * k + 2];
+                    double lb = 0.2126 * b[3 * k] + 0.7152 * b[3 * k + 1] + 0.0722 * b[3 * k + 2];
+                    if (!used[k] && fabs(la - lb) > best) {
+                        best = fabs(la - lb);
+                        bi = k;
+                    }
+                }
+                used[bi] = 1;
+                fprintf(stderr, "pixel %d %d: reference %g image %g\n", bi % w, bi / w,
+                        0.2126 * a[3 * bi] + 0.7152 * a[3 * bi + 1] + 0.0722 * a[3 * bi + 2],
+                        0.2126 * b[3 * bi] + 0.7152 * b[3 * bi + 1] + 0.0722 * b[3 * bi + 2]);
+            }
+            free(used);
         } else if (strcmp(argv[i], "--closeup") == 0) {
             int x, y, cw, ch;
             char path[1024];

@@ -76,14 +76,20 @@ enum { VIS_UNKNOWN = 0, VIS_VISIBLE = 1, VIS_HIDDEN = 2 };
  * rays for one pixel. */
 #define PN_CONTOUR_MAX_RESTARTS 0
 
+/* How far inside the border (in (u, v)) the rays to border samples aim. */
+#define PN_CONTOUR_BORDER_INSET 1e-3
+
 static inline size_t sample_index(const pn_contour_eval *c, int i, int j) { return (size_t)j * (size_t)(c->N + 1) + (size_t)i; }
 
 /* vis_M(S_ij): traced once per pixel, then read from the array. */
 bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
     size_t k = sample_index(c, i, j);
     if (c->vis[k]) return c->vis[k] == VIS_VISIBLE;
-    double inv = 1.0 / (double)c->N;
-    pn_dvec3 p = pn_contour_source_point(c->src, (double)i * inv, (double)j * inv);
+    /* Rays aim a hair inside the source's border: a ray to the very edge grazes the geometry the
+     * emitter is set in (a housing, the ceiling around it) and would hide a strip of the
+     * border that the reference, sampling interior points, sees. */
+    double inv = 1.0 / (double)c->N, lo = PN_CONTOUR_BORDER_INSET, hi = 1.0 - PN_CONTOUR_BORDER_INSET;
+    pn_dvec3 p = pn_contour_source_point(c->src, fmin(hi, fmax(lo, (double)i * inv)), fmin(hi, fmax(lo, (double)j * inv)));
     pn_dvec3 rel = pn_dv3_sub(p, c->m);
     if (pn_dv3_dot(rel, c->ng) <= 0.0 || pn_dv3_dot(rel, c->ns) <= 0.0) {
         c->vis[k] = VIS_VISIBLE; /* below the horizon: clipped away, no ray needed */

@@ -46,8 +46,8 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j);
 void pn_contour_integrate(pn_contour_eval *c, int p);
 
 /* contour-mc (contour_mc.c): adaptive Monte Carlo sampling of the source in the manner of Kok &
- * Jansen 1992, with the same receiver setup; returns the form factor estimate and adds its rays
+ * Jansen 1992, with the same receiver setup, from cells x cells first cells; returns the form factor estimate and adds its rays
  * to c->rays. */
-double pn_contour_mc_form_factor(pn_contour_eval *c, double threshold, uint32_t max_rays);
+double pn_contour_mc_form_factor(pn_contour_eval *c, int cells, double threshold, uint32_t max_rays);
 
 #endif

@@ -4,7 +4,7 @@
  * paper did. It runs after the same shaft culling as `contour` (contour_render.c), so both cast
  * rays at the same pixels.
  *
- * The source is a quadtree of cells on (u, v), starting from 2 x 2 cells. Each cell is sampled with four jittered shadow
+ * The source is a quadtree of cells on (u, v), starting from (grid - 1)^2 cells (--contour-grid). Each cell is sampled with four jittered shadow
  * rays, one per quarter (stratified); its estimate is F_cell * (visible fraction), with F_cell the
  * cell's unoccluded form factor (eq. 4 on the cell's outline, exact). A cell whose samples
  * disagree is refined into its four quarters while the standard error of its estimate,
@@ -23,6 +23,7 @@
 typedef struct mc_sample {
     double u, v;
     bool visible;
+    bool above; /* above the receiver's horizon (else it carries no light and is not counted) */
 } mc_sample;
 
 typedef struct mc_cell {
@@ -32,10 +33,11 @@ typedef struct mc_cell {
     mc_sample s[4]; /* one per quarter: 0 (low u, low v), 1 (high u), 2 (high v), 3 (both) */
 } mc_cell;
 
-static bool trace_visible(pn_contour_eval *c, double u, double v) {
+static bool trace_visible(pn_contour_eval *c, double u, double v, bool *above) {
     pn_dvec3 p = pn_contour_source_point(c->src, u, v);
     pn_dvec3 rel = pn_dv3_sub(p, c->m);
-    if (pn_dv3_dot(rel, c->ng) <= 0.0 || pn_dv3_dot(rel, c->ns) <= 0.0) return true; /* clipped anyway */
+    *above = !(pn_dv3_dot(rel, c->ng) <= 0.0 || pn_dv3_dot(rel, c->ns) <= 0.0);
+    if (!*above) return false;
     vec3 d = v3_sub(pn_dv3_to(p), c->origin);
     float dist = v3_length(d);
     if (!(dist > 0.0f)) return true;
@@ -63,33 +65,41 @@ static mc_sample new_sample(pn_contour_eval *c, const mc_cell *cell, int k) {
     mc_sample s;
     s.u = cell->u0 + ((k & 1) + (double)pn_hash_unit(h)) * h2;
     s.v = cell->v0 + (((k >> 1) & 1) + (double)pn_hash_unit(pn_hash64(h))) * h2;
-    s.visible = trace_visible(c, s.u, s.v);
+    s.visible = trace_visible(c, s.u, s.v, &s.above);
     return s;
 }
 
-double pn_contour_mc_form_factor(pn_contour_eval *c, double threshold, uint32_t max_rays) {
+double pn_contour_mc_form_factor(pn_contour_eval *c, int cells, double threshold, uint32_t max_rays) {
     pn_contour_g whole;
     pn_contour_source_unoccluded(c->src, c->m, c->ns, c->ng, false, &whole);
     double f_source = pn_dv3_dot(whole.g, c->ns);
     if (!(f_source > 0.0)) return 0.0;
-    enum { STACK = 256 };
+    enum { STACK = 512 };
     mc_cell stack[STACK];
     int top = 0;
-    /* Four first cells of four samples each: 16 rays before any refinement. */
-    for (int k = 0; k < 4; k++) {
-        mc_cell cell = {0.5 * (k & 1), 0.5 * ((k >> 1) & 1), 0.5, 1, 4 + (uint64_t)k, {{0, 0, false}}};
+    /* cells x cells first cells of four samples each (2 x 2 by default: 16 rays before any
+     * refinement). */
+    if (cells < 1) cells = 1;
+    if (cells * cells > STACK / 2) cells = 8;
+    for (int k = 0; k < cells * cells; k++) {
+        double size = 1.0 / cells;
+        mc_cell cell = {size * (k % cells), size * (k / cells), size, 1, 4096 + (uint64_t)k, {{0, 0, false, false}}};
         for (int j = 0; j < 4; j++) cell.s[j] = new_sample(c, &cell, j);
         stack[top++] = cell;
     }
     double estimate = 0.0;
     while (top > 0) {
         mc_cell cell = stack[--top];
-        int visible = 0;
-        for (int k = 0; k < 4; k++) visible += cell.s[k].visible;
+        /* The visible fraction of the cell's part above the horizon (the part F_cell covers). */
+        int visible = 0, above = 0;
+        for (int k = 0; k < 4; k++) {
+            visible += cell.s[k].visible;
+            above += cell.s[k].above;
+        }
         double f_cell = cell_form_factor(c, &cell);
-        double q = visible / 4.0;
-        double std_error = f_cell * sqrt(q * (1.0 - q) / 4.0);
-        bool refine = visible > 0 && visible < 4 && std_error > threshold * f_source && c->rays + 12 <= max_rays &&
+        double q = above > 0 ? (double)visible / above : 0.0;
+        double std_error = above > 0 ? f_cell * sqrt(q * (1.0 - q) / above) : 0.0;
+        bool refine = visible > 0 && visible < above && std_error > threshold * f_source && c->rays + 12 <= max_rays &&
                       cell.depth < 12 && top + 4 <= STACK;
         if (!refine) {
             estimate += f_cell * q;
@@ -98,7 +108,7 @@ double pn_contour_mc_form_factor(pn_contour_eval *c, double threshold, uint32_t 
         double h = cell.size * 0.5;
         for (int k = 0; k < 4; k++) {
             mc_cell child = {cell.u0 + (k & 1) * h, cell.v0 + ((k >> 1) & 1) * h, h, cell.depth + 1, cell.id * 4 + (uint64_t)k,
-                             {{0, 0, false}}};
+                             {{0, 0, false, false}}};
             /* The parent's sample in this quarter stays, in the child's quarter it falls in. */
             mc_sample kept = cell.s[k];
             int kk = (kept.u >= child.u0 + h * 0.5 ? 1 : 0) + (kept.v >= child.v0 + h * 0.5 ? 2 : 0);

@@ -427,7 +427,8 @@ static void shade_span(span_ctx *sc) {
     if (cd->mc) {
         for (int q = 0; q < n; q++) {
             zero_g(&s->g[q]);
-            double f = pn_contour_mc_form_factor(&s->ev[q], sc->job->contour_mc_threshold, sc->job->contour_mc_max_rays);
+            double f = pn_contour_mc_form_factor(&s->ev[q], cd->p0, sc->job->contour_mc_threshold,
+                                                 sc->job->contour_mc_max_rays);
             /* A scalar estimate: as a G along the receiver's normal. */
             s->g[q].g = pn_dv3_scale(s->ev[q].ns, f);
         }
