@@ -55,7 +55,8 @@ scene() {
                 "contour-g7s3;contour tuned;--integrator contour --contour-grid 7 --contour-steps 3 --contour-off adaptive" \
                 "mc-same-rays;adaptive MC at about contour-paper's rays;--integrator contour-mc --contour-grid 3 --mc-threshold 0.02" \
                 "mc-g9;adaptive MC;--integrator contour-mc --contour-grid 9 --mc-threshold 0.02" \
-                "mc-g13;adaptive MC tuned to contour-g7s3's quality;--integrator contour-mc --contour-grid 13 --mc-threshold 0.02"; do
+                "mc-g13;adaptive MC tuned to contour-g7s3's quality;--integrator contour-mc --contour-grid 13 --mc-threshold 0.02" \
+                $EXTRA; do
         n=${spec%%;*}; rest=${spec#*;}; label=${rest%%;*}; args=${rest#*;}
         if [ -n "$5" ]; then CLOSEUPS="--closeup $5,$OUT/$key.$n.closeup.png"; fi
         # shellcheck disable=SC2086
@@ -64,7 +65,9 @@ scene() {
 }
 
 # cornell-contour: the lower half (floor, blocks, penumbrae of the sphere and the killeroo).
+EXTRA="mc-g17;adaptive MC, finer;--integrator contour-mc --contour-grid 17 --mc-threshold 0.02"
 scene cornell-contour cornell-contour/cornell-contour.pbrt 0.25,0.75,0.5,1 4 176,176,64,64
+EXTRA=""
 # The many-light scenes: small crops; their point and disk lights (hall-many) go to the
 # reference estimator with as many rays as the reference uses.
 scene hall-many hall-many/hall-many-matte.pbrt 0.45,0.55,0.45,0.55 1024 ""

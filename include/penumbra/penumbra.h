@@ -185,7 +185,8 @@ enum {
     PN_CONTOUR_NO_SHAFT_CULLING = 1u << 0, /* cast rays even where no obstacle is in the shaft */
     PN_CONTOUR_NO_SPANS = 1u << 1,         /* a full contour integration at every pixel */
     PN_CONTOUR_NO_VALIDITY = 1u << 2,      /* no corner test, no subdivision (the Fig. 6 failure) */
-    PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3 /* keep the first-level grid fixed */
+    PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3, /* keep the first-level grid fixed */
+    PN_CONTOUR_NO_RESTARTS = 1u << 4  /* accept inconsistencies instead of restarting finer */
 };
 
 /* ---------------------------------------------------------------------------------------- */

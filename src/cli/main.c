@@ -105,7 +105,8 @@ static const char render_help[] =
     "  --contour-span N       longest span of pixels sharing first-level rays, 1..64 (default 8)\n"
     "  --contour-off LIST     switch parts off for comparisons, comma-separated: shaft (shaft\n"
     "                         culling), spans (integrate every pixel), validity (the corner\n"
-    "                         test, Fig. 6's failure), adaptive (fixed first-level density)\n"
+    "                         test, Fig. 6's failure), adaptive (fixed first-level density),\n"
+    "                         restarts (accept inconsistencies instead of restarting finer)\n"
     "  --mc-threshold T       contour-mc: refine a cell while its standard error exceeds T times\n"
     "                         the source's unoccluded form factor (default 0.002)\n"
     "  --mc-max-rays N        contour-mc: shadow rays per source and point, at most (default 256)\n"
@@ -917,8 +918,10 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 else if (len == 8 && strncmp(p, "validity", 8) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_VALIDITY;
                 else if (len == 8 && strncmp(p, "adaptive", 8) == 0)
                     o->settings.contour_flags |= PN_CONTOUR_NO_ADAPTIVE_DENSITY;
+                else if (len == 8 && strncmp(p, "restarts", 8) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_RESTARTS;
                 else
-                    return bad_value(cmd, name, value, "a comma-separated list of shaft, spans, validity, adaptive");
+                    return bad_value(cmd, name, value,
+                                     "a comma-separated list of shaft, spans, validity, adaptive, restarts");
                 p += len;
                 if (*p == ',') p++;
             }

@@ -52,6 +52,8 @@
  *    restart per integration (PN_CONTOUR_MAX_RESTARTS): after it, inconsistencies are accepted,
  *    which leaves the neighbour's contour as coarse as if the midpoint had not been sampled.
  *  - Spans cannot be longer than the batch's rows (8 pixels with the default tiled driver).
+ *  - The sample lattice is slightly warped (lattice_warp) so that it cannot align with regularly
+ *    spaced geometry in front of the source.
  *  - Triangles are the unit square with one side collapsed (contour_math.h); disks, spheres and
  *    other emitters go to the reference estimator.
  *  - Gradients: besides the obstacle points of Fig. 5, a crossing on the source's border slides
@@ -73,13 +75,26 @@ enum { VIS_UNKNOWN = 0, VIS_VISIBLE = 1, VIS_HIDDEN = 2 };
 /* Restarts one level finer per integration, at most; later inconsistencies are accepted (the
  * neighbour keeps its coarser contour on that side). Without a bound, a complex silhouette
  * (the killeroo's toes) restarts level after level down to one cell per square: thousands of
- * rays for one pixel. */
-#define PN_CONTOUR_MAX_RESTARTS 0
+ * rays for one pixel. PN_CONTOUR_NO_RESTARTS makes it 0. */
+#define PN_CONTOUR_MAX_RESTARTS 1
 
 /* How far inside the border (in (u, v)) the rays to border samples aim. */
 #define PN_CONTOUR_BORDER_INSET 1e-3
 
 static inline size_t sample_index(const pn_contour_eval *c, int i, int j) { return (size_t)j * (size_t)(c->N + 1) + (size_t)i; }
+
+/* The sample lattice is warped by a fixed monotone map of [0, 1] onto itself, separately in u
+ * and v (so lines of constant u or v stay straight on the source): a regular lattice at
+ * (grid - 1) 2^k divisions falls exactly on regularly spaced geometry in front of a source (the
+ * bars of a window modelled in equal parts, in bathroom-72: every first-level ray hit a bar and
+ * the window went dark while random samples saw through it). */
+#define PN_CONTOUR_LATTICE_WARP 0.0618
+
+static inline double lattice_warp(double t) { return t + PN_CONTOUR_LATTICE_WARP * t * (1.0 - t); }
+
+static inline pn_dvec3 lattice_point(const pn_contour_eval *c, double u, double v) {
+    return pn_contour_source_point(c->src, lattice_warp(u), lattice_warp(v));
+}
 
 /* vis_M(S_ij): traced once per pixel, then read from the array. */
 bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
@@ -89,7 +104,7 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
      * emitter is set in (a housing, the ceiling around it) and would hide a strip of the
      * border that the reference, sampling interior points, sees. */
     double inv = 1.0 / (double)c->N, lo = PN_CONTOUR_BORDER_INSET, hi = 1.0 - PN_CONTOUR_BORDER_INSET;
-    pn_dvec3 p = pn_contour_source_point(c->src, fmin(hi, fmax(lo, (double)i * inv)), fmin(hi, fmax(lo, (double)j * inv)));
+    pn_dvec3 p = lattice_point(c, fmin(hi, fmax(lo, (double)i * inv)), fmin(hi, fmax(lo, (double)j * inv)));
     pn_dvec3 rel = pn_dv3_sub(p, c->m);
     if (pn_dv3_dot(rel, c->ng) <= 0.0 || pn_dv3_dot(rel, c->ns) <= 0.0) {
         c->vis[k] = VIS_VISIBLE; /* below the horizon: clipped away, no ray needed */
@@ -153,7 +168,7 @@ static cvert dichotomy(pn_contour_eval *c, int ia, int ja, int ib, int jb, int s
 /* The 3D point used for integration, relative to M: on the source, or (gradients, Fig. 5) on the
  * obstacle along the same direction. */
 static pn_dvec3 vertex_point(const pn_contour_eval *c, cvert x) {
-    pn_dvec3 rel = pn_dv3_sub(pn_contour_source_point(c->src, x.u, x.v), c->m);
+    pn_dvec3 rel = pn_dv3_sub(lattice_point(c, x.u, x.v), c->m);
     if (c->gradient && x.hi >= 0) {
         float t = c->thit[sample_index(c, x.hi, x.hj)];
         if (t > 0.0f && t < 1.0f) rel = pn_dv3_scale(rel, (double)t);
@@ -187,12 +202,12 @@ static void add_polygon(pn_contour_eval *c, const cvert *v, int count) {
         else if (v[next].hi >= 0) nb = next;
         else if (v[prev].hi >= 0) nb = prev;
         if (nb < 0) continue;
-        pn_dvec3 src_rel = pn_dv3_sub(pn_contour_source_point(c->src, v[i].u, v[i].v), c->m);
+        pn_dvec3 src_rel = pn_dv3_sub(lattice_point(c, v[i].u, v[i].v), c->m);
         pn_dvec3 ds = pn_dv3_sub(p[nb], p[i]);
         if (!(pn_dv3_length(ds) > 0.0)) continue;
         const pn_contour_source *s = c->src;
-        pn_dvec3 t = v[i].border == 1 ? pn_dv3_add(s->e1, pn_dv3_scale(s->k, v[i].v))
-                                      : pn_dv3_add(s->e2, pn_dv3_scale(s->k, v[i].u));
+        pn_dvec3 t = v[i].border == 1 ? pn_dv3_add(s->e1, pn_dv3_scale(s->k, lattice_warp(v[i].v)))
+                                      : pn_dv3_add(s->e2, pn_dv3_scale(s->k, lattice_warp(v[i].u)));
         double tl = pn_dv3_length(t);
         if (!(tl > 0.0)) continue;
         pn_contour_border_velocity(pn_dv3_add(src_rel, c->m), pn_dv3_scale(t, 1.0 / tl), pn_dv3_add(p[i], c->m), ds, c->m,
@@ -211,9 +226,9 @@ static void add_polygon(pn_contour_eval *c, const cvert *v, int count) {
 
 /* |dF| of the triangle a, x, b against the form factor of a strip of width eps along a-b. */
 static bool piece_valid(const pn_contour_eval *c, cvert a, cvert x, cvert b) {
-    pn_dvec3 pa = pn_dv3_sub(pn_contour_source_point(c->src, a.u, a.v), c->m);
-    pn_dvec3 px = pn_dv3_sub(pn_contour_source_point(c->src, x.u, x.v), c->m);
-    pn_dvec3 pb = pn_dv3_sub(pn_contour_source_point(c->src, b.u, b.v), c->m);
+    pn_dvec3 pa = pn_dv3_sub(lattice_point(c, a.u, a.v), c->m);
+    pn_dvec3 px = pn_dv3_sub(lattice_point(c, x.u, x.v), c->m);
+    pn_dvec3 pb = pn_dv3_sub(lattice_point(c, b.u, b.v), c->m);
     pn_contour_g t = {{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
     pn_contour_add_segment(&t, pa, px, false);
     pn_contour_add_segment(&t, px, pb, false);
@@ -395,6 +410,6 @@ bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const p
     c->hash = hash;
     c->flags = job->contour_flags;
     c->eps_length = src->eps_scale / (double)N;
-    c->max_restarts = PN_CONTOUR_MAX_RESTARTS;
+    c->max_restarts = (job->contour_flags & PN_CONTOUR_NO_RESTARTS) ? 0 : PN_CONTOUR_MAX_RESTARTS;
     return c->sign != 0.0;
 }
