@@ -56,7 +56,7 @@ scene() {
                 "mc-same-rays;adaptive MC at about contour-paper's rays;--integrator contour-mc --contour-grid 3 --mc-threshold 0.02" \
                 "mc-g9;adaptive MC;--integrator contour-mc --contour-grid 9 --mc-threshold 0.02" \
                 "mc-g13;adaptive MC tuned to contour-g7s3's quality;--integrator contour-mc --contour-grid 13 --mc-threshold 0.02" \
-                $EXTRA; do
+                ${EXTRA:+"$EXTRA"}; do
         n=${spec%%;*}; rest=${spec#*;}; label=${rest%%;*}; args=${rest#*;}
         if [ -n "$5" ]; then CLOSEUPS="--closeup $5,$OUT/$key.$n.closeup.png"; fi
         # shellcheck disable=SC2086
