@@ -10,7 +10,7 @@
  *    source of radiance L (W m^-2 sr^-1) with form factor F (dimensionless):
  *    E = pi L F (W m^-2), and L_o = (kd / pi) E = kd L F.
  *  - §3.1 marching squares: the source is diced into p x p squares (contour_grid - 1 = 2 by
- *    default: the paper's 9 first-level samples); square_classify() sorts each square into the
+ *    default: the paper's 9 first-level samples); process_square() sorts each square into the
  *    four cases of Fig. 3 (case 4 decided by a ray at the centre); dichotomy() locates the
  *    crossing on each side with `contour_steps` second-level rays; the midpoint of the final
  *    interval is the contour vertex.
@@ -19,19 +19,20 @@
  *    adds is compared with the strip threshold (pn_contour_strip_threshold); if exceeded the
  *    square is split as a quadtree with one dichotomy step fewer. A side whose midpoint, newly
  *    sampled, contradicts two equal endpoints is an inconsistency for the neighbour: the whole
- *    source restarts one level finer (restart in contour_integrate()).
+ *    source restarts one level finer (restart in pn_contour_integrate()).
  *  - §3.3 the sample array: one array of (N+1)^2 visibility values per pixel with
  *    N = p 2^steps; every ray (first level, dichotomies on sides and diagonals, centres, side
  *    midpoints) goes to a point of it, so squares, subdivisions and restarts share rays.
  *  - §4 gradients: with PN_AOV_GRADIENT, G and its derivatives (eq. 8-10) are accumulated; the
  *    points of the contour that come from dichotomy are replaced by points on the obstacle
  *    (Fig. 5), at the distance where the hidden sample's ray hit it.
- *  - §5 the image algorithm: span_shade() takes runs of adjacent pixels of a batch row on the
- *    same object (at most contour_span long); shaft culling (Haines & Wallace 1991) of the
- *    scene's objects between the span and the source (shaft_blocked()) — no candidate: the
- *    unoccluded closed form, no rays; else a full contour integration at the first pixel, then
- *    only first-level rays at the next pixels while their pattern stays the same; the run is
- *    closed by a full integration at its last pixel and one in the middle, and the pixels in
+ *  - §5 the image algorithm (contour_render.c): shade_contour_lights() cuts runs of adjacent
+ *    pixels of a batch row on the same object (at most contour_span long) into spans; shaft
+ *    culling (Haines & Wallace 1991) of the scene's objects between the span and the source
+ *    (shaft_has_candidates()) — no candidate: the unoccluded closed form, no rays; else
+ *    shade_span(): a full contour integration at the first pixel, then only first-level rays at
+ *    the next pixels while their pattern stays the same; the pixel where it changed gets a full
+ *    integration (it opens the next run), so does the middle of the run, and the pixels in
  *    between get G by quadratic interpolation, projected on their own normal. The first-level
  *    density doubles after an integration that subdivided to depth two or restarted, and halves
  *    again after one that needed no subdivision.
@@ -51,7 +52,13 @@
  *    without checking whether the neighbour would have subdivided anyway; and at most one
  *    restart per integration (PN_CONTOUR_MAX_RESTARTS): after it, inconsistencies are accepted,
  *    which leaves the neighbour's contour as coarse as if the midpoint had not been sampled.
- *  - Spans cannot be longer than the batch's rows (8 pixels with the default tiled driver).
+ *  - Spans cannot be longer than the batch's rows (8 pixels with the default tiled driver). A
+ *    run whose first-level samples are all visible (or all hidden) is integrated at every pixel,
+ *    which costs no ray beyond the first level. The raised first-level density is at most twice
+ *    the initial one per side (25 samples by default): more made every pattern check of a span
+ *    cost 81 rays or more.
+ *  - Rays to samples on the source's border aim a hair inside it (PN_CONTOUR_BORDER_INSET), so
+ *    that they do not graze the geometry the emitter is set in.
  *  - The sample lattice is slightly warped (lattice_warp) so that it cannot align with regularly
  *    spaced geometry in front of the source.
  *  - Triangles are the unit square with one side collapsed (contour_math.h); disks, spheres and
