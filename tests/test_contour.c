@@ -3,7 +3,7 @@
  * against rectangles split in two, and the gradient of eq. 8-10 against finite differences of
  * the form factor, unoccluded and with a straight occluding edge whose 3D points are used for the
  * silhouette (Fig. 5); the marching squares with real rays against the exact visible polygon and
- * its gradient; renders against the reference integrator (rectangle and triangle lights, a
+ * its gradient; renders against the reference integrator (rectangle, triangle and disk lights, a
  * curved occluder), zero shadow rays where shaft culling finds no obstacle, bit-identical images
  * for any thread count, and bad settings. */
 #include "harness.h"
@@ -284,14 +284,18 @@ static const char *sphere_scene_fmt =
     "AttributeEnd\n"
     "AttributeBegin\n"
     "  AreaLightSource \"diffuse\" \"rgb L\" [ 3 3 3 ]\n"
-    "  Shape \"trianglemesh\" \"point3 P\" [ %s ]  \"integer indices\" [ %s ]\n"
+    "  %s\n"
     "AttributeEnd\n";
 
-static pn_scene load_sphere_scene(pn_context ctx, const char *name, bool triangle) {
+/* shape 0: a square light, 1: a triangle, 2: a disk (a 12-gon of the same area, §6). */
+static pn_scene load_sphere_scene(pn_context ctx, const char *name, int shape) {
+    static const char *lights[3] = {
+        "Shape \"trianglemesh\" \"point3 P\" [ -0.5 -0.5 1.2  -0.5 0.5 1.2  0.5 0.5 1.2  0.5 -0.5 1.2 ] "
+        "\"integer indices\" [ 0 1 2  0 2 3 ]",
+        "Shape \"trianglemesh\" \"point3 P\" [ -0.6 -0.5 1.2  0.6 -0.5 1.2  0 0.6 1.2 ] \"integer indices\" [ 0 2 1 ]",
+        "Translate 0 0 1.2 ReverseOrientation Shape \"disk\" \"float radius\" [ 0.5 ]"};
     char text[4096];
-    snprintf(text, sizeof text, sphere_scene_fmt,
-             triangle ? "-0.6 -0.5 1.2  0.6 -0.5 1.2  0 0.6 1.2" : "-0.5 -0.5 1.2  -0.5 0.5 1.2  0.5 0.5 1.2  0.5 -0.5 1.2",
-             triangle ? "0 2 1" : "0 1 2  0 2 3");
+    snprintf(text, sizeof text, sphere_scene_fmt, lights[shape]);
     pn_scene scene = NULL;
     if (pn_scene_load(ctx, pn_test_write_file(tmpdir, name, text), &scene) != PN_OK) {
         CHECK_MSG(0, "%s", pn_context_error_message(ctx));
@@ -330,8 +334,9 @@ static double mean_rel_diff(pn_image a, pn_image b) {
 
 static void test_contour_matches_reference(void) {
     pn_context ctx = pn_context_new();
-    for (int triangle = 0; triangle < 2; triangle++) {
-        pn_scene scene = load_sphere_scene(ctx, triangle ? "tri.pbrt" : "rect.pbrt", triangle);
+    for (int triangle = 0; triangle < 3; triangle++) {
+        static const char *names[3] = {"rect.pbrt", "tri.pbrt", "disk.pbrt"};
+        pn_scene scene = load_sphere_scene(ctx, names[triangle], triangle);
         if (!scene) continue;
         pn_image ref = render(ctx, scene, PN_INTEGRATOR_REFERENCE, 4096, 0, 0, 2, NULL);
         pn_image ref2 = NULL;
@@ -418,7 +423,7 @@ static void test_unoccluded_closed_form(void) {
 
 static void test_thread_determinism_and_bad_settings(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = load_sphere_scene(ctx, "det.pbrt", false);
+    pn_scene scene = load_sphere_scene(ctx, "det.pbrt", 0);
     if (!scene) {
         pn_context_free(ctx);
         return;

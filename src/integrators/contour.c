@@ -1,6 +1,7 @@
 /* contour.c — Approximate Contour Integration (Vedel 1993, "Computing Illumination from Area Light
  * Sources by Approximate Contour Integration"): direct light from planar convex area sources
- * (rectangles and triangles of emitting meshes, detected at load by lights/lights.c) on diffuse
+ * (rectangles and triangles of emitting meshes, detected at load by lights/lights.c, and disks as
+ * polygons) on diffuse
  * receivers, by integrating eq. 4 over an approximate polygonal contour of the visible part of
  * the source. Every other light, and every light at receivers with a glossy lobe, is estimated
  * by the reference integrator's code (reference_direct.c) in the same render.
@@ -61,8 +62,10 @@
  *    that they do not graze the geometry the emitter is set in.
  *  - The sample lattice is slightly warped (lattice_warp) so that it cannot align with regularly
  *    spaced geometry in front of the source.
- *  - Triangles are the unit square with one side collapsed (contour_math.h); disks, spheres and
- *    other emitters go to the reference estimator.
+ *  - Triangles are the unit square with one side collapsed (contour_math.h); disks (§6: "as
+ *    polygons") are 12-gons of the disk's area, cut into 5 convex quadrilaterals, each diced as
+ *    its own source (contour_render.c); spheres and other emitters go to the reference
+ *    estimator.
  *  - Gradients: besides the obstacle points of Fig. 5, a crossing on the source's border slides
  *    along the border as M moves (contour_math.c); its velocity uses the silhouette direction
  *    from its neighbour's obstacle point. Polygons that the horizon clips are differentiated

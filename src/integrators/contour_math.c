@@ -145,6 +145,15 @@ void pn_contour_source_triangle(pn_contour_source *s, vec3 p0, vec3 p1, vec3 p2,
     finish_source(s, normal, two_sided);
 }
 
+void pn_contour_source_quad(pn_contour_source *s, vec3 q0, vec3 q1, vec3 q2, vec3 q3, vec3 normal, bool two_sided) {
+    s->p0 = pn_dv3_from(q0);
+    s->e1 = pn_dv3_sub(pn_dv3_from(q1), s->p0);
+    s->e2 = pn_dv3_sub(pn_dv3_from(q3), s->p0);
+    /* q2 = p0 + e1 + e2 + k */
+    s->k = pn_dv3_sub(pn_dv3_sub(pn_dv3_from(q2), pn_dv3_from(q1)), s->e2);
+    finish_source(s, normal, two_sided);
+}
+
 double pn_contour_source_sign(const pn_contour_source *s, pn_dvec3 m) {
     double side = pn_dv3_dot(pn_dv3_sub(m, s->p0), s->normal);
     if (side > 0.0) return s->uv_sign;

@@ -68,7 +68,7 @@ double pn_contour_polygon_form_factor(const pn_dvec3 *v, int count, pn_dvec3 n);
 double pn_contour_strip_threshold(pn_dvec3 a, pn_dvec3 b, double eps, pn_dvec3 n, pn_dvec3 ns);
 
 /* A planar convex source as the image of the unit square: P(u, v) = p0 + u e1 + v e2 + u v k.
- * Rectangles (parallelograms): k = 0. Triangles p0 p1 p2: e1 = p1 - p0, e2 = 0,
+ * Rectangles (parallelograms): k = 0; convex quadrilaterals: k != 0. Triangles p0 p1 p2: e1 = p1 - p0, e2 = 0,
  * k = p2 - p1, so the side u = 0 collapses onto p0 and the sides v = 0, u = 1, v = 1 are the
  * triangle's three edges. Lines u = const and v = const are straight in both cases, so every
  * cell of a grid on (u, v) maps to a planar convex quadrilateral and the cells tile the source.
@@ -84,6 +84,10 @@ typedef struct pn_contour_source {
 
 void pn_contour_source_rectangle(pn_contour_source *s, vec3 p0, vec3 e1, vec3 e2, vec3 normal, bool two_sided);
 void pn_contour_source_triangle(pn_contour_source *s, vec3 p0, vec3 p1, vec3 p2, vec3 normal, bool two_sided);
+/* A planar convex quadrilateral q0 q1 q2 q3 (in order around it) as the bilinear image of the unit
+ * square: (0,0) -> q0, (1,0) -> q1, (1,1) -> q2, (0,1) -> q3. Its lines u = const and v = const
+ * are straight too, so it can be diced like a rectangle (used for disks as polygons). */
+void pn_contour_source_quad(pn_contour_source *s, vec3 q0, vec3 q1, vec3 q2, vec3 q3, vec3 normal, bool two_sided);
 
 static inline pn_dvec3 pn_contour_source_point(const pn_contour_source *s, double u, double v) {
     return pn_dv3(s->p0.x + u * s->e1.x + v * s->e2.x + u * v * s->k.x,

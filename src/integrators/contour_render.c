@@ -21,6 +21,7 @@
 
 #define PN_CONTOUR_MAX_P 32   /* first-level squares per side, at most */
 #define PN_CONTOUR_MAX_SPAN 64
+#define PN_CONTOUR_DISK_QUADS 5 /* a disk is a 12-gon of equal area: 5 quadrilaterals */
 
 typedef struct contour_light {
     int index; /* in job->lights */
@@ -101,7 +102,7 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     }
     cd->N = N;
     cd->p0 = p0;
-    cd->lights = calloc((size_t)L->count + 1, sizeof *cd->lights);
+    cd->lights = calloc((size_t)L->count * PN_CONTOUR_DISK_QUADS + 1, sizeof *cd->lights);
     cd->skip = calloc((size_t)L->count + 1, 1);
     int obs_cap = scene->mesh_count + scene->sphere_count + scene->instance_count + 1;
     cd->obstacles = calloc((size_t)obs_cap, sizeof *cd->obstacles);
@@ -115,6 +116,31 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     /* Planar convex sources: rectangles and triangles (lights.c detects them at load). */
     for (int i = 0; i < L->count; i++) {
         const pn_light *l = &L->lights[i];
+        if (l->kind == PN_LIGHT_DISK && l->radius > 0.0f) {
+            /* §6: a disk as a regular polygon of 2 + 2 PN_CONTOUR_DISK_QUADS sides and the disk's
+             * area, cut into a fan of convex quadrilaterals that share the first vertex. */
+            const int sides = 2 + 2 * PN_CONTOUR_DISK_QUADS;
+            double r = (double)l->radius * sqrt(2.0 * 3.14159265358979323846 / (sides * sin(2.0 * 3.14159265358979323846 / sides)));
+            vec3 t, b, poly[2 + 2 * PN_CONTOUR_DISK_QUADS];
+            v3_basis(l->n, &t, &b);
+            for (int k = 0; k < sides; k++) {
+                double a = 2.0 * 3.14159265358979323846 * k / sides;
+                poly[k] = v3_add(l->p, v3_add(v3_scale(t, (float)(r * cos(a))), v3_scale(b, (float)(r * sin(a)))));
+            }
+            for (int q = 0; q < PN_CONTOUR_DISK_QUADS; q++) {
+                contour_light *c = &cd->lights[cd->count++];
+                c->index = i;
+                c->emit = l->emit;
+                vec3 q0 = poly[0], q1 = poly[2 * q + 1], q2 = poly[2 * q + 2], q3 = poly[(2 * q + 3) % sides];
+                pn_contour_source_quad(&c->src, q0, q1, q2, q3, l->n, l->two_sided);
+                c->bmin = c->bmax = q0;
+                box_add(&c->bmin, &c->bmax, q1);
+                box_add(&c->bmin, &c->bmax, q2);
+                box_add(&c->bmin, &c->bmax, q3);
+            }
+            cd->skip[i] = 1;
+            continue;
+        }
         if (l->kind != PN_LIGHT_RECTANGLE && l->kind != PN_LIGHT_TRIANGLE) continue;
         contour_light *c = &cd->lights[cd->count++];
         c->index = i;
