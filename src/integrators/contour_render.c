@@ -95,10 +95,10 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     cd->mc = mc;
     int p0 = (int)job->contour_grid - 1;
     int N = p0 << job->contour_steps;
-    if (N > 4096) {
+    if (N > 1024) {
         free(cd);
         return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
-                          "contour: (grid - 1) * 2^steps = %d exceeds 4096 cells per side of the sample array", N);
+                          "contour: (grid - 1) * 2^steps = %d exceeds 1024 cells per side of the sample array", N);
     }
     cd->N = N;
     cd->p0 = p0;
@@ -352,7 +352,7 @@ typedef struct contour_scratch {
     pixel_acc *acc;
     uint32_t *scramble;
     size_t array_size;      /* (N+1)^2 */
-    uint8_t *vis;           /* PN_CONTOUR_MAX_SPAN arrays */
+    uint8_t *vis;           /* one array per pixel of the longest span */
     float *thit;
     pn_contour_eval *ev;    /* PN_CONTOUR_MAX_SPAN */
     pn_contour_g *g;        /* PN_CONTOUR_MAX_SPAN */
@@ -383,8 +383,10 @@ static void *contour_scratch_create(const pn_render_job *job) {
         return NULL;
     }
     s->array_size = (size_t)(cd->N + 1) * (size_t)(cd->N + 1);
-    s->vis = malloc(s->array_size * PN_CONTOUR_MAX_SPAN);
-    s->thit = (job->aovs & PN_AOV_GRADIENT) ? malloc(s->array_size * PN_CONTOUR_MAX_SPAN * sizeof *s->thit) : NULL;
+    /* One sample array per pixel of the longest span. */
+    size_t spans = job->contour_span < PN_CONTOUR_MAX_SPAN ? job->contour_span : PN_CONTOUR_MAX_SPAN;
+    s->vis = malloc(s->array_size * spans);
+    s->thit = (job->aovs & PN_AOV_GRADIENT) ? malloc(s->array_size * spans * sizeof *s->thit) : NULL;
     s->ev = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->ev);
     s->g = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->g);
     s->span = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->span);
