@@ -10,7 +10,8 @@
  *
  * Config lines: NAME SCENE REFERENCE CROP SETTINGS, where SCENE and REFERENCE may start with
  * "shared/" for ../shared, CROP is x0,x1,y0,y1 in fractions, SETTINGS is a comma list of spp=N,
- * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias, sampler=irradiance|bvh (reference), group=NAME. '#' starts a comment.
+ * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias|contour|contour-mc, sampler=irradiance|bvh (reference),
+ * group=NAME, and for contour grid=N, steps=N, mcthreshold=T. '#' starts a comment.
  *
  * Cases that share a group are one scene rendered by several integrators at several settings. For
  * every non-reference case of a group the bench adds an equal-quality row (the reference's time
@@ -82,8 +83,14 @@ static int parse_settings(const char *text, pn_render_settings *s, char *group, 
         else if (strcmp(tok, "integrator") == 0) {
             if (strcmp(v, "reference") == 0) s->integrator = PN_INTEGRATOR_REFERENCE;
             else if (strcmp(v, "ias") == 0) s->integrator = PN_INTEGRATOR_IAS;
+            else if (strcmp(v, "contour") == 0) s->integrator = PN_INTEGRATOR_CONTOUR;
+            else if (strcmp(v, "contour-mc") == 0) s->integrator = PN_INTEGRATOR_CONTOUR_MC;
             else return 0;
         }
+        /* contour / contour-mc (Vedel 1993): first-level grid, dichotomy steps, MC threshold */
+        else if (strcmp(tok, "grid") == 0) s->contour_grid = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "steps") == 0) s->contour_steps = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "mcthreshold") == 0) s->contour_mc_threshold = strtod(v, NULL);
         else return 0;
     }
     return 1;

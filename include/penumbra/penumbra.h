@@ -122,7 +122,12 @@ typedef enum pn_integrator_kind {
      * IlluminationCut paper), Lightcuts (Walter et al. 2005), IlluminationCut (Bus et al. 2015) */
     PN_INTEGRATOR_VPL = 4,
     PN_INTEGRATOR_LIGHTCUTS = 5,
-    PN_INTEGRATOR_ILLUMCUT = 6
+    PN_INTEGRATOR_ILLUMCUT = 6,
+    /* contour: Approximate Contour Integration for planar convex area lights, Vedel 1993; and
+     * contour-mc, its comparison: adaptive Monte Carlo sampling of those lights (Kok & Jansen
+     * 1992). Every other light is estimated as by the reference integrator. */
+    PN_INTEGRATOR_CONTOUR = 3,
+    PN_INTEGRATOR_CONTOUR_MC = 7
 } pn_integrator_kind;
 
 /* How the reference integrator chooses a light for a shadow ray. */
@@ -149,7 +154,9 @@ enum {
                                             (IlluminationCut Fig. 4; illumcut: amortised) */
     PN_AOV_CUT_SIZE = 1u << 12,          /* lightcuts: cut size per shading point (pixel mean);
                                             illumcut: pairs touching the pixel's points */
-    PN_AOV_PHASE1 = 1u << 13             /* illumcut: the Phase I approximate image (RGB) */
+    PN_AOV_PHASE1 = 1u << 13,             /* illumcut: the Phase I approximate image (RGB) */
+    PN_AOV_GRADIENT = 1u << 10          /* contour: world-space gradient of the irradiance
+                                           luminance from contour lights (W/m^2 per unit length) */
 };
 
 typedef struct pn_render_settings {
@@ -189,7 +196,28 @@ typedef struct pn_render_settings {
     float error_bound;
     uint32_t max_cut;
     int visibility_sampling;
+    /* contour (Vedel 1993) only; zero = the paper's values: first-level samples per side of a
+     * source (3, i.e. a 3x3 grid of 9 samples), dichotomy steps (5), longest span of pixels
+     * (8); contour_flags: PN_CONTOUR_* bits that switch parts of the algorithm off (for
+     * comparisons). contour-mc (Kok & Jansen 1992) only: the variance threshold of a cell's
+     * refinement (default 0.002) and the largest number of shadow rays per light and point
+     * (default 256). */
+    uint32_t contour_grid;
+    uint32_t contour_steps;
+    uint32_t contour_span;
+    uint32_t contour_flags;
+    double contour_mc_threshold;
+    uint32_t contour_mc_max_rays;
 } pn_render_settings;
+
+/* contour_flags bits. */
+enum {
+    PN_CONTOUR_NO_SHAFT_CULLING = 1u << 0, /* cast rays even where no obstacle is in the shaft */
+    PN_CONTOUR_NO_SPANS = 1u << 1,         /* a full contour integration at every pixel */
+    PN_CONTOUR_NO_VALIDITY = 1u << 2,      /* no corner test, no subdivision (the Fig. 6 failure) */
+    PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3, /* keep the first-level grid fixed */
+    PN_CONTOUR_NO_RESTARTS = 1u << 4  /* accept inconsistencies instead of restarting finer */
+};
 
 /* ---------------------------------------------------------------------------------------- */
 /* Images */
@@ -231,6 +259,13 @@ typedef struct pn_render_stats {
     double bound_evaluations_per_pixel_mean, cut_size_mean;
     double point_tree_seconds, phase1_seconds, phase2_seconds;
     uint64_t illumcut_pairs;
+    /* contour and contour-mc (zero otherwise): viewing rays that cast shadow rays towards
+     * contour sources and those shadow rays (the paper's Table 1 counts rays per such viewing
+     * ray); full contour integrations, pixels interpolated between them, restarts one level
+     * finer, subdivided squares, and spans shaded by the closed form after shaft culling. */
+    uint64_t contour_viewing_rays, contour_shadow_rays;
+    uint64_t contour_integrations, contour_interpolated, contour_restarts, contour_subdivisions;
+    uint64_t contour_culled_spans;
 } pn_render_stats;
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the

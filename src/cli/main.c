@@ -109,6 +109,21 @@ static const char render_help[] =
     "  --visibility MODE      illumcut: 'exact' (a shadow ray per point and pair, the default)\n"
     "                         or 'sampling' (adaptive visibility sampling, Algorithm 2)\n"
     "  AOVs: bound_evaluations, cut_size, phase1 (illumcut's approximate image)\n"
+    "contour (Vedel 1993, Approximate Contour Integration; --integrator contour) and contour-mc\n"
+    "(its comparison, adaptive Monte Carlo sampling of the source after Kok & Jansen 1992):\n"
+    "rectangles and triangles of emitting meshes on diffuse receivers; every other light (and\n"
+    "glossy receivers) as by 'reference' with --shadow-rays. Fixed --spp (default 1).\n"
+    "  --contour-grid N       first-level samples per side of a source, 2..65 (default 3: 9)\n"
+    "  --contour-steps N      dichotomy steps, 1..12 (default 5)\n"
+    "  --contour-span N       longest span of pixels sharing first-level rays, 1..64 (default 8)\n"
+    "  --contour-off LIST     switch parts off for comparisons, comma-separated: shaft (shaft\n"
+    "                         culling), spans (integrate every pixel), validity (the corner\n"
+    "                         test, Fig. 6's failure), adaptive (fixed first-level density),\n"
+    "                         restarts (accept inconsistencies instead of restarting finer)\n"
+    "  --mc-threshold T       contour-mc: refine a cell while its standard error exceeds T times\n"
+    "                         the source's unoccluded form factor (default 0.002)\n"
+    "  --mc-max-rays N        contour-mc: shadow rays per source and point, at most (default 256)\n"
+    "  --aov gradient         contour: gradient of the irradiance luminance (eq. 5, 8-10)\n"
     "\n"
     "image and machine:\n"
     "  --resolution WxH       override the film resolution (each 1..65536)\n"
@@ -369,6 +384,7 @@ static const struct {
     {"clusters", PN_AOV_CLUSTERS}, {"visible_fraction", PN_AOV_VISIBLE_FRACTION},
     /* VPL integrators (issue 5) */
     {"bound_evaluations", PN_AOV_BOUND_EVALUATIONS}, {"cut_size", PN_AOV_CUT_SIZE}, {"phase1", PN_AOV_PHASE1},
+    {"gradient", PN_AOV_GRADIENT}, /* contour */
 };
 #define AOV_NAME_COUNT (sizeof aov_names / sizeof aov_names[0])
 
@@ -788,6 +804,10 @@ static const char *integrator_name(pn_integrator_kind kind) {
         return "lightcuts";
     case PN_INTEGRATOR_ILLUMCUT:
         return "illumcut";
+    case PN_INTEGRATOR_CONTOUR:
+        return "contour";
+    case PN_INTEGRATOR_CONTOUR_MC:
+        return "contour-mc";
     }
     return "unknown";
 }
@@ -853,8 +873,13 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 o->settings.integrator = PN_INTEGRATOR_LIGHTCUTS;
             else if (strcmp(value, "illumcut") == 0)
                 o->settings.integrator = PN_INTEGRATOR_ILLUMCUT;
+            else if (strcmp(value, "contour") == 0)
+                o->settings.integrator = PN_INTEGRATOR_CONTOUR;
+            else if (strcmp(value, "contour-mc") == 0)
+                o->settings.integrator = PN_INTEGRATOR_CONTOUR_MC;
             else
-                return bad_value(cmd, name, value, "'reference' or 'ias' (or a VPL integrator: 'vpl', 'lightcuts', 'illumcut')");
+                return bad_value(cmd, name, value,
+                                 "'reference' or 'ias' (or 'contour', 'contour-mc', 'vpl', 'lightcuts', 'illumcut')");
         } else if (strcmp(name, "--light-sampler") == 0) {
             if ((value = scanner_value(&s)) == NULL)
                 return EXIT_USAGE;
@@ -937,6 +962,52 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 o->settings.visibility_sampling = 0;
             else
                 return bad_value(cmd, name, value, "'exact' or 'sampling'");
+        /* contour / contour-mc options */
+        } else if (strcmp(name, "--contour-grid") == 0 || strcmp(name, "--contour-steps") == 0 ||
+                   strcmp(name, "--contour-span") == 0 || strcmp(name, "--mc-max-rays") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (strcmp(name, "--contour-grid") == 0) {
+                if (!parse_long(value, 2, 65, &n))
+                    return bad_value(cmd, name, value, "an integer from 2 to 65");
+                o->settings.contour_grid = (uint32_t)n;
+            } else if (strcmp(name, "--contour-steps") == 0) {
+                if (!parse_long(value, 1, 12, &n))
+                    return bad_value(cmd, name, value, "an integer from 1 to 12");
+                o->settings.contour_steps = (uint32_t)n;
+            } else if (strcmp(name, "--contour-span") == 0) {
+                if (!parse_long(value, 1, 64, &n))
+                    return bad_value(cmd, name, value, "an integer from 1 to 64");
+                o->settings.contour_span = (uint32_t)n;
+            } else {
+                if (!parse_long(value, 4, 1 << 20, &n))
+                    return bad_value(cmd, name, value, "an integer from 4 to 1048576");
+                o->settings.contour_mc_max_rays = (uint32_t)n;
+            }
+        } else if (strcmp(name, "--mc-threshold") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_double(value, &o->settings.contour_mc_threshold) || !(o->settings.contour_mc_threshold > 0.0))
+                return bad_value(cmd, name, value, "a finite number > 0");
+        } else if (strcmp(name, "--contour-off") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            const char *p = value;
+            while (*p) {
+                size_t len = strcspn(p, ",");
+                if (len == 5 && strncmp(p, "shaft", 5) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_SHAFT_CULLING;
+                else if (len == 5 && strncmp(p, "spans", 5) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_SPANS;
+                else if (len == 8 && strncmp(p, "validity", 8) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_VALIDITY;
+                else if (len == 8 && strncmp(p, "adaptive", 8) == 0)
+                    o->settings.contour_flags |= PN_CONTOUR_NO_ADAPTIVE_DENSITY;
+                else if (len == 8 && strncmp(p, "restarts", 8) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_RESTARTS;
+                else
+                    return bad_value(cmd, name, value,
+                                     "a comma-separated list of shaft, spans, validity, adaptive, restarts");
+                p += len;
+                if (*p == ',') p++;
+            }
         } else if (strcmp(name, "--spp") == 0) {
             long n;
             if ((value = scanner_value(&s)) == NULL)
@@ -1167,6 +1238,19 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         json_double(&w, "phase1_seconds", stats->phase1_seconds);
         json_double(&w, "phase2_seconds", stats->phase2_seconds);
         json_u64(&w, "illumcut_pairs", stats->illumcut_pairs);
+    }
+    if (o->settings.integrator == PN_INTEGRATOR_CONTOUR || o->settings.integrator == PN_INTEGRATOR_CONTOUR_MC) {
+        /* Vedel 1993, Table 1: shadow rays per viewing ray that cast any (towards contour sources). */
+        json_u64(&w, "contour_viewing_rays", stats->contour_viewing_rays);
+        json_u64(&w, "contour_shadow_rays", stats->contour_shadow_rays);
+        json_double(&w, "contour_shadow_rays_per_viewing_ray",
+                    stats->contour_viewing_rays
+                        ? (double)stats->contour_shadow_rays / (double)stats->contour_viewing_rays : 0.0);
+        json_u64(&w, "contour_integrations", stats->contour_integrations);
+        json_u64(&w, "contour_interpolated", stats->contour_interpolated);
+        json_u64(&w, "contour_restarts", stats->contour_restarts);
+        json_u64(&w, "contour_subdivisions", stats->contour_subdivisions);
+        json_u64(&w, "contour_culled_spans", stats->contour_culled_spans);
     }
     json_end_object(&w);
 

@@ -130,6 +130,18 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     job->error_bound = s->error_bound > 0.0f ? s->error_bound : 0.01f;
     job->max_cut = s->max_cut;
     job->visibility_sampling = s->visibility_sampling != 0;
+    /* contour / contour-mc: the paper's 9 first-level samples and 5 dichotomy steps */
+    if (s->contour_grid == 1 || s->contour_grid > 65 || s->contour_steps > 12)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "contour grid must be 2..65 samples per side and dichotomy steps 1..12");
+    if (s->contour_mc_threshold < 0.0 || !isfinite(s->contour_mc_threshold))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "contour-mc threshold must be a positive number");
+    job->contour_grid = s->contour_grid > 0 ? s->contour_grid : 3;
+    job->contour_steps = s->contour_steps > 0 ? s->contour_steps : 5;
+    job->contour_span = s->contour_span > 0 ? s->contour_span : 8;
+    job->contour_flags = s->contour_flags;
+    job->contour_mc_threshold = s->contour_mc_threshold > 0.0 ? s->contour_mc_threshold : 0.002;
+    job->contour_mc_max_rays = s->contour_mc_max_rays > 0 ? s->contour_mc_max_rays : 256;
     job->cancel = &ctx->cancel;
     return PN_OK;
 }
@@ -153,6 +165,8 @@ static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *o
     if (aovs & PN_AOV_CLUSTERS) ok = ok && (clusters = pn_image_add_layer(img, "clusters", 1));
     if (aovs & PN_AOV_VISIBLE_FRACTION) ok = ok && (visible = pn_image_add_layer(img, "visible_fraction", 1));
     ok = ok && pn_vpl_write_aovs(rs->pixels, n, aovs, img); /* VPL integrators (issue 5) */
+    float *gradient = NULL; /* contour */
+    if (aovs & PN_AOV_GRADIENT) ok = ok && (gradient = pn_image_add_layer(img, "gradient", 3));
     if (!ok) {
         pn_image_free(img);
         return PN_ERROR_OUT_OF_MEMORY;
@@ -175,6 +189,11 @@ static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *o
         if (regions) regions[i] = (float)e->aa_regions;
         if (clusters) clusters[i] = e->clusters;
         if (visible) visible[i] = e->visible_fraction;
+        if (gradient) {
+            gradient[3 * i] = e->gradient.x;
+            gradient[3 * i + 1] = e->gradient.y;
+            gradient[3 * i + 2] = e->gradient.z;
+        }
         if (albedo) {
             albedo[3 * i] = e->albedo.x;
             albedo[3 * i + 1] = e->albedo.y;

@@ -34,6 +34,8 @@ typedef struct pn_pixel_estimate {
      * size per point (lightcuts) or pairs touching the pixel (illumcut), Phase I radiance */
     float bound_evaluations, cut_size;
     vec3 phase1;
+    /* contour: gradient of the irradiance luminance from contour lights (PN_AOV_GRADIENT) */
+    vec3 gradient;
 } pn_pixel_estimate;
 
 typedef struct pn_integrator {
@@ -57,6 +59,9 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 
 extern const pn_integrator pn_integrator_reference;
 extern const pn_integrator pn_integrator_ias;
+/* contour (Vedel 1993) and contour-mc (Kok & Jansen 1992): src/integrators/contour*.c */
+extern const pn_integrator pn_integrator_contour;
+extern const pn_integrator pn_integrator_contour_mc;
 
 /* VPL integrators (issue 5). illumcut renders the whole window at once (its point tree spans
  * every shading point of the image): pn_integrator_render_image returns that hook for an

@@ -29,6 +29,7 @@
  * Quasi-random dimensions per eye ray i of a pixel: 0-1 pixel filter, 2-3 lens, 4 specular
  * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light. */
 #include "integrators/integrator.h"
+#include "integrators/reference_direct.h"
 
 #include "core/clock.h"
 #include "core/sobol.h"
@@ -43,26 +44,10 @@
  * stride, estimates the time spent in Embree without timing every ray. */
 #define PN_TIMING_STRIDE 8u
 
-typedef struct reference_scratch {
-    float *cdf;    /* light_count + 1 */
-    int *index;    /* lights with non-zero weight */
-    float *weight; /* unoccluded irradiance of every light */
-    int *exact;    /* scratch of pn_lights_irradiance_all */
-} reference_scratch;
-
 static void *reference_scratch_create(const pn_render_job *job) {
-    reference_scratch *s = calloc(1, sizeof *s);
+    pn_reference_direct_scratch *s = calloc(1, sizeof *s);
     if (!s) return NULL;
-    size_t n = (size_t)job->lights->count + 1;
-    s->cdf = malloc(n * sizeof *s->cdf);
-    s->index = malloc(n * sizeof *s->index);
-    s->weight = malloc(n * sizeof *s->weight);
-    s->exact = malloc(n * sizeof *s->exact);
-    if (!s->cdf || !s->index || !s->weight || !s->exact) {
-        free(s->cdf);
-        free(s->index);
-        free(s->weight);
-        free(s->exact);
+    if (!pn_reference_direct_init(s, job)) {
         free(s);
         return NULL;
     }
@@ -70,47 +55,10 @@ static void *reference_scratch_create(const pn_render_job *job) {
 }
 
 static void reference_scratch_free(void *p) {
-    reference_scratch *s = p;
+    pn_reference_direct_scratch *s = p;
     if (!s) return;
-    free(s->cdf);
-    free(s->index);
-    free(s->weight);
-    free(s->exact);
+    pn_reference_direct_free(s);
     free(s);
-}
-
-/* Builds the per-point PDF over lights; returns the number of lights with non-zero
- * probability. cdf[k] is the running sum over index[0..k). */
-static int build_light_pdf(const pn_render_job *job, vec3 p, vec3 n, reference_scratch *s, float *total) {
-    const pn_lights *L = job->lights;
-    int m = 0;
-    float acc = 0.0f;
-    s->cdf[0] = 0.0f;
-    pn_lights_irradiance_all(L, p, n, s->weight, s->exact);
-    /* Compaction without a branch per light: about half of the lights of a room are behind any
-     * given surface, and a mispredicted branch per light cost more than the sum itself. */
-    for (int i = 0; i < L->count; i++) {
-        float w = s->weight[i];
-        int keep = (w > 0.0f) & (w < INFINITY); /* false for NaN too */
-        acc += keep ? w : 0.0f;
-        s->index[m] = i;
-        s->cdf[m + 1] = acc;
-        m += keep;
-    }
-    *total = acc;
-    return m;
-}
-
-static int choose_light(const reference_scratch *s, int m, float total, float u, float *prob) {
-    float target = u * total;
-    int lo = 0, hi = m; /* find k with cdf[k] <= target < cdf[k+1] */
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (s->cdf[mid] <= target) lo = mid;
-        else hi = mid;
-    }
-    *prob = (s->cdf[lo + 1] - s->cdf[lo]) / total;
-    return lo;
 }
 
 typedef struct pixel_state {
@@ -141,7 +89,7 @@ static bool pixel_done(const pn_render_job *job, const pixel_state *ps) {
 
 static pn_status reference_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                         void *scratch) {
-    reference_scratch *s = scratch;
+    pn_reference_direct_scratch *s = scratch;
     const uint32_t S = job->shadow_rays;
     for (int pi = 0; pi < batch->count; pi++) {
         int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
@@ -178,43 +126,10 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
                 pn_bsdf b;
                 pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
                 const pn_light_bvh *bvh = job->integrator_data; /* set only with the BVH sampler */
-                float total = 0.0f;
-                int m = bvh ? 0 : build_light_pdf(job, path.hit.p, b.ng, s, &total);
-                if (bvh || (m > 0 && total > 0.0f)) {
-                    vec3 direct = v3(0, 0, 0);
-                    float eps = pn_accel_ray_epsilon(job->accel, path.hit.p);
-                    vec3 origin = v3_madd(path.hit.p, b.ng, eps);
-                    pn_light_sample_cache cache = {0};
-                    for (uint32_t j = 0; j < S; j++) {
-                        uint32_t k = i * S + j;
-                        float prob;
-                        const pn_light *l;
-                        if (bvh) {
-                            int li = pn_light_bvh_sample(bvh, path.hit.p, b.ng, pn_sobol_sample(k, 5, scramble), &prob);
-                            if (li < 0 || !(prob > 0.0f)) continue;
-                            l = &job->lights->lights[li];
-                        } else {
-                            int c = choose_light(s, m, total, pn_sobol_sample(k, 5, scramble), &prob);
-                            l = &job->lights->lights[s->index[c]];
-                        }
-                        pn_light_sample ls;
-                        if (!pn_light_sample_point_cached(job->lights, l, origin, pn_sobol_sample(k, 6, scramble),
-                                                          pn_sobol_sample(k, 7, scramble), &cache, &ls))
-                            continue;
-                        vec3 f = pn_bsdf_eval(&b, path.wo, ls.wi);
-                        if (v3_is_zero(f)) continue;
-                        float cos_i = v3_dot(b.ns, ls.wi);
-                        ps.shadow_rays++;
-                        float tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f) - eps;
-                        double t_ray = timed ? pn_clock_seconds() : 0.0;
-                        bool blocked = pn_accel_occluded(job->accel, origin, ls.wi, 0.0f, tmax);
-                        if (timed) embree_seconds += pn_clock_seconds() - t_ray;
-                        if (blocked) continue;
-                        float w = cos_i / (ls.pdf * prob);
-                        direct = v3_add(direct, v3_scale(v3_mul(f, ls.radiance), w));
-                    }
+                vec3 direct = v3(0, 0, 0);
+                if (pn_reference_direct(job, s, bvh, &b, path.hit.p, path.wo, i, scramble, NULL, timed, &direct,
+                                        &ps.shadow_rays, &embree_seconds))
                     value = v3_add(value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
-                }
             }
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             ps.n++;
@@ -273,6 +188,8 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
     case PN_INTEGRATOR_VPL: return &pn_integrator_vpl;
     case PN_INTEGRATOR_LIGHTCUTS: return &pn_integrator_lightcuts;
     case PN_INTEGRATOR_ILLUMCUT: return &pn_integrator_illumcut;
+    case PN_INTEGRATOR_CONTOUR: return &pn_integrator_contour;
+    case PN_INTEGRATOR_CONTOUR_MC: return &pn_integrator_contour_mc;
     }
     return NULL;
 }

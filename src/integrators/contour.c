@@ -1,0 +1,425 @@
+/* contour.c — Approximate Contour Integration (Vedel 1993, "Computing Illumination from Area Light
+ * Sources by Approximate Contour Integration"): direct light from planar convex area sources
+ * (rectangles and triangles of emitting meshes, detected at load by lights/lights.c, and disks as
+ * polygons) on diffuse
+ * receivers, by integrating eq. 4 over an approximate polygonal contour of the visible part of
+ * the source. Every other light, and every light at receivers with a glossy lobe, is estimated
+ * by the reference integrator's code (reference_direct.c) in the same render.
+ *
+ * The parts of the paper, as named in the code:
+ *  - §2, eq. 4-5: contour_math.c. Radiance leaving a diffuse receiver of reflectance kd lit by a
+ *    source of radiance L (W m^-2 sr^-1) with form factor F (dimensionless):
+ *    E = pi L F (W m^-2), and L_o = (kd / pi) E = kd L F.
+ *  - §3.1 marching squares: the source is diced into p x p squares (contour_grid - 1 = 2 by
+ *    default: the paper's 9 first-level samples); process_square() sorts each square into the
+ *    four cases of Fig. 3 (case 4 decided by a ray at the centre); dichotomy() locates the
+ *    crossing on each side with `contour_steps` second-level rays; the midpoint of the final
+ *    interval is the contour vertex.
+ *  - §3.2 corners and validity: one more contour point per piece of contour (diagonal for cases
+ *    2 and 3, semi-diagonals for case 4, Fig. 4); the form-factor difference dF of the triangle it
+ *    adds is compared with the strip threshold (pn_contour_strip_threshold); if exceeded the
+ *    square is split as a quadtree with one dichotomy step fewer. A side whose midpoint, newly
+ *    sampled, contradicts two equal endpoints is an inconsistency for the neighbour: the whole
+ *    source restarts one level finer (restart in pn_contour_integrate()).
+ *  - §3.3 the sample array: one array of (N+1)^2 visibility values per pixel with
+ *    N = p 2^steps; every ray (first level, dichotomies on sides and diagonals, centres, side
+ *    midpoints) goes to a point of it, so squares, subdivisions and restarts share rays.
+ *  - §4 gradients: with PN_AOV_GRADIENT, G and its derivatives (eq. 8-10) are accumulated; the
+ *    points of the contour that come from dichotomy are replaced by points on the obstacle
+ *    (Fig. 5), at the distance where the hidden sample's ray hit it.
+ *  - §5 the image algorithm (contour_render.c): shade_contour_lights() cuts runs of adjacent
+ *    pixels of a batch row on the same object (at most contour_span long) into spans; shaft
+ *    culling (Haines & Wallace 1991) of the scene's objects between the span and the source
+ *    (shaft_has_candidates()) — no candidate: the unoccluded closed form, no rays; else
+ *    shade_span(): a full contour integration at the first pixel, then only first-level rays at
+ *    the next pixels while their pattern stays the same; the pixel where it changed gets a full
+ *    integration (it opens the next run), so does the middle of the run, and the pixels in
+ *    between get G by quadratic interpolation, projected on their own normal. The first-level
+ *    density doubles after an integration that subdivided to depth two or restarted, and halves
+ *    again after one that needed no subdivision.
+ *
+ * Departures from the paper, and why:
+ *  - Each square's visible part is integrated as its own closed polygon (the square's visible
+ *    corners, the crossings, the extra validity points) instead of collecting one global contour.
+ *    The square sides shared by two squares cancel out exactly, so the sum is the paper's contour
+ *    integral over the visible pieces of the border and the contour; but each polygon can be
+ *    clipped to the receiver's horizon exactly, which the paper does not discuss. Points below
+ *    the horizon are classified visible without a ray (the clipping removes them).
+ *  - The extra validity point is kept in the contour when the test passes (it is free and
+ *    closer to the silhouette).
+ *  - The strip threshold is computed from the segment actually tested; its length halves with
+ *    the square, which is the paper's "threshold divided by two".
+ *  - A restart is triggered by any contradicted side midpoint that is not on the source border,
+ *    without checking whether the neighbour would have subdivided anyway; and at most one
+ *    restart per integration (PN_CONTOUR_MAX_RESTARTS): after it, inconsistencies are accepted,
+ *    which leaves the neighbour's contour as coarse as if the midpoint had not been sampled.
+ *  - Spans cannot be longer than the batch's rows (8 pixels with the default tiled driver). A
+ *    run whose first-level samples are all visible (or all hidden) is integrated at every pixel,
+ *    which costs no ray beyond the first level. The raised first-level density is at most twice
+ *    the initial one per side (25 samples by default): more made every pattern check of a span
+ *    cost 81 rays or more.
+ *  - Rays to samples on the source's border aim a hair inside it (PN_CONTOUR_BORDER_INSET), so
+ *    that they do not graze the geometry the emitter is set in.
+ *  - The sample lattice is slightly warped (lattice_warp) so that it cannot align with regularly
+ *    spaced geometry in front of the source.
+ *  - Triangles are the unit square with one side collapsed (contour_math.h); disks (§6: "as
+ *    polygons") are 12-gons of the disk's area, cut into 5 convex quadrilaterals, each diced as
+ *    its own source (contour_render.c); spheres and other emitters go to the reference
+ *    estimator.
+ *  - Gradients: besides the obstacle points of Fig. 5, a crossing on the source's border slides
+ *    along the border as M moves (contour_math.c); its velocity uses the silhouette direction
+ *    from its neighbour's obstacle point. Polygons that the horizon clips are differentiated
+ *    with fixed points. Interpolated pixels get interpolated gradients. */
+#include "integrators/contour_internal.h"
+
+#include "core/rng.h"
+#include "core/sobol.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- the sample array and rays ------------------------------------------------------------ */
+
+enum { VIS_UNKNOWN = 0, VIS_VISIBLE = 1, VIS_HIDDEN = 2 };
+
+/* Restarts one level finer per integration, at most; later inconsistencies are accepted (the
+ * neighbour keeps its coarser contour on that side). Without a bound, a complex silhouette
+ * (the killeroo's toes) restarts level after level down to one cell per square: thousands of
+ * rays for one pixel. PN_CONTOUR_NO_RESTARTS makes it 0. */
+#define PN_CONTOUR_MAX_RESTARTS 1
+
+/* How far inside the border (in (u, v)) the rays to border samples aim. */
+#define PN_CONTOUR_BORDER_INSET 1e-3
+
+static inline size_t sample_index(const pn_contour_eval *c, int i, int j) { return (size_t)j * (size_t)(c->N + 1) + (size_t)i; }
+
+/* The sample lattice is warped by a fixed monotone map of [0, 1] onto itself, separately in u
+ * and v (so lines of constant u or v stay straight on the source): a regular lattice at
+ * (grid - 1) 2^k divisions falls exactly on regularly spaced geometry in front of a source (the
+ * bars of a window modelled in equal parts, in bathroom-72: every first-level ray hit a bar and
+ * the window went dark while random samples saw through it). */
+#define PN_CONTOUR_LATTICE_WARP 0.0618
+
+static inline double lattice_warp(double t) { return t + PN_CONTOUR_LATTICE_WARP * t * (1.0 - t); }
+
+static inline pn_dvec3 lattice_point(const pn_contour_eval *c, double u, double v) {
+    return pn_contour_source_point(c->src, lattice_warp(u), lattice_warp(v));
+}
+
+/* vis_M(S_ij): traced once per pixel, then read from the array. */
+bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
+    size_t k = sample_index(c, i, j);
+    if (c->vis[k]) return c->vis[k] == VIS_VISIBLE;
+    /* Rays aim a hair inside the source's border: a ray to the very edge grazes the geometry the
+     * emitter is set in (a housing, the ceiling around it) and would hide a strip of the
+     * border that the reference, sampling interior points, sees. */
+    double inv = 1.0 / (double)c->N, lo = PN_CONTOUR_BORDER_INSET, hi = 1.0 - PN_CONTOUR_BORDER_INSET;
+    pn_dvec3 p = lattice_point(c, fmin(hi, fmax(lo, (double)i * inv)), fmin(hi, fmax(lo, (double)j * inv)));
+    pn_dvec3 rel = pn_dv3_sub(p, c->m);
+    if (pn_dv3_dot(rel, c->ng) <= 0.0 || pn_dv3_dot(rel, c->ns) <= 0.0) {
+        c->vis[k] = VIS_VISIBLE; /* below the horizon: clipped away, no ray needed */
+        return true;
+    }
+    vec3 d = v3_sub(pn_dv3_to(p), c->origin);
+    float dist = v3_length(d);
+    if (!(dist > 0.0f)) {
+        c->vis[k] = VIS_VISIBLE;
+        return true;
+    }
+    d = v3_scale(d, 1.0f / dist);
+    float tmax = dist * (1.0f - 1e-4f) - c->eps;
+    c->rays++;
+    bool hidden;
+    if (c->gradient) {
+        pn_hit h;
+        hidden = pn_accel_intersect(c->accel, c->origin, d, 0.0f, tmax, &h);
+        c->thit[k] = hidden ? h.t / dist : 1.0f;
+    } else {
+        hidden = pn_accel_occluded(c->accel, c->origin, d, 0.0f, tmax);
+    }
+    c->vis[k] = hidden ? VIS_HIDDEN : VIS_VISIBLE;
+    return !hidden;
+}
+
+/* A contour vertex: parameters on the source, and for dichotomy vertices the hidden sample of
+ * the final interval (whose ray tells where the obstacle is). */
+typedef struct cvert {
+    double u, v;
+    int hi, hj; /* -1: a corner of the source grid */
+    int border; /* a crossing on the source's border: 1 along u (v fixed), 2 along v; else 0 */
+} cvert;
+
+static cvert corner_vertex(const pn_contour_eval *c, int i, int j) {
+    return (cvert){(double)i / c->N, (double)j / c->N, -1, -1, 0};
+}
+
+/* Dichotomy along the array line from sample a to sample b (different visibility, 2^steps
+ * cells apart): `steps` second-level rays; the vertex is the midpoint of the final interval. */
+static cvert dichotomy(pn_contour_eval *c, int ia, int ja, int ib, int jb, int steps) {
+    bool va = pn_contour_sample_visible(c, ia, ja);
+    for (int s = 0; s < steps; s++) {
+        int mi = (ia + ib) / 2, mj = (ja + jb) / 2;
+        if (pn_contour_sample_visible(c, mi, mj) == va) {
+            ia = mi;
+            ja = mj;
+        } else {
+            ib = mi;
+            jb = mj;
+        }
+    }
+    cvert x = {0.5 * (double)(ia + ib) / c->N, 0.5 * (double)(ja + jb) / c->N, ib, jb, 0};
+    if (!va) {
+        x.hi = ia;
+        x.hj = ja;
+    }
+    return x;
+}
+
+/* The 3D point used for integration, relative to M: on the source, or (gradients, Fig. 5) on the
+ * obstacle along the same direction. */
+static pn_dvec3 vertex_point(const pn_contour_eval *c, cvert x) {
+    pn_dvec3 rel = pn_dv3_sub(lattice_point(c, x.u, x.v), c->m);
+    if (c->gradient && x.hi >= 0) {
+        float t = c->thit[sample_index(c, x.hi, x.hj)];
+        if (t > 0.0f && t < 1.0f) rel = pn_dv3_scale(rel, (double)t);
+    }
+    return rel;
+}
+
+static void add_polygon(pn_contour_eval *c, const cvert *v, int count) {
+    pn_dvec3 p[16];
+    if (count > 16) count = 16;
+    bool above = true;
+    for (int i = 0; i < count; i++) {
+        p[i] = vertex_point(c, v[i]);
+        above = above && pn_dv3_dot(p[i], c->ns) > 0.0 && pn_dv3_dot(p[i], c->ng) > 0.0;
+    }
+    if (!c->gradient || !above) {
+        pn_contour_add_polygon(&c->acc, p, count, c->ns, c->ng, c->sign, c->gradient);
+        return;
+    }
+    /* Gradients: a crossing on the source's border slides along it as M moves, in the plane
+     * through M and the silhouette, whose direction is given by the obstacle point of its
+     * neighbour on the contour (pn_contour_border_velocity). */
+    pn_dvec3 vel[16][3];
+    bool moving[16];
+    for (int i = 0; i < count; i++) {
+        moving[i] = false;
+        if (!v[i].border || v[i].hi < 0) continue;
+        int next = (i + 1) % count, prev = (i + count - 1) % count, nb = -1;
+        if (v[next].hi >= 0 && !v[next].border) nb = next;
+        else if (v[prev].hi >= 0 && !v[prev].border) nb = prev;
+        else if (v[next].hi >= 0) nb = next;
+        else if (v[prev].hi >= 0) nb = prev;
+        if (nb < 0) continue;
+        pn_dvec3 src_rel = pn_dv3_sub(lattice_point(c, v[i].u, v[i].v), c->m);
+        pn_dvec3 ds = pn_dv3_sub(p[nb], p[i]);
+        if (!(pn_dv3_length(ds) > 0.0)) continue;
+        const pn_contour_source *s = c->src;
+        pn_dvec3 t = v[i].border == 1 ? pn_dv3_add(s->e1, pn_dv3_scale(s->k, lattice_warp(v[i].v)))
+                                      : pn_dv3_add(s->e2, pn_dv3_scale(s->k, lattice_warp(v[i].u)));
+        double tl = pn_dv3_length(t);
+        if (!(tl > 0.0)) continue;
+        pn_contour_border_velocity(pn_dv3_add(src_rel, c->m), pn_dv3_scale(t, 1.0 / tl), pn_dv3_add(p[i], c->m), ds, c->m,
+                                   vel[i]);
+        moving[i] = true;
+        p[i] = src_rel;
+    }
+    pn_contour_g part = {{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
+    for (int i = 0; i < count; i++) {
+        int j = (i + 1) % count;
+        pn_contour_add_segment_moving(&part, p[i], p[j], moving[i] ? vel[i] : NULL, moving[j] ? vel[j] : NULL, true);
+    }
+    c->acc.g = pn_dv3_add(c->acc.g, pn_dv3_scale(part.g, c->sign));
+    for (int k = 0; k < 3; k++) c->acc.dg[k] = pn_dv3_add(c->acc.dg[k], pn_dv3_scale(part.dg[k], c->sign));
+}
+
+/* |dF| of the triangle a, x, b against the form factor of a strip of width eps along a-b. */
+static bool piece_valid(const pn_contour_eval *c, cvert a, cvert x, cvert b) {
+    pn_dvec3 pa = pn_dv3_sub(lattice_point(c, a.u, a.v), c->m);
+    pn_dvec3 px = pn_dv3_sub(lattice_point(c, x.u, x.v), c->m);
+    pn_dvec3 pb = pn_dv3_sub(lattice_point(c, b.u, b.v), c->m);
+    pn_contour_g t = {{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
+    pn_contour_add_segment(&t, pa, px, false);
+    pn_contour_add_segment(&t, px, pb, false);
+    pn_contour_add_segment(&t, pb, pa, false);
+    double df = fabs(pn_dv3_dot(t.g, c->ns));
+    double threshold = pn_contour_strip_threshold(pa, pb, c->eps_length, c->ns, c->src->normal);
+    return df <= threshold;
+}
+
+/* ---- §3.1-3.2: one square of the marching squares ------------------------------------------ */
+
+/* Sides k = 0..3 join corners k and k + 1 (counter-clockwise in (u, v)). */
+static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth) {
+    if (c->restart) return;
+    const int s = 1 << d;
+    const int ci[4] = {i0, i0 + s, i0 + s, i0}, cj[4] = {j0, j0, j0 + s, j0 + s};
+    bool v[4];
+    int nv = 0;
+    for (int k = 0; k < 4; k++) {
+        v[k] = pn_contour_sample_visible(c, ci[k], cj[k]);
+        nv += v[k];
+    }
+    if (depth > c->max_depth) c->max_depth = depth;
+    cvert corner[4];
+    for (int k = 0; k < 4; k++) corner[k] = corner_vertex(c, ci[k], cj[k]);
+    if (nv == 0) return; /* case 1, hidden */
+    if (nv == 4) {       /* case 1, visible */
+        add_polygon(c, corner, 4);
+        return;
+    }
+    /* Cases 2-4: crossings on the sides whose ends differ. */
+    cvert x[4];
+    for (int k = 0; k < 4; k++) {
+        int k1 = (k + 1) & 3;
+        if (v[k] != v[k1]) {
+            x[k] = dichotomy(c, ci[k], cj[k], ci[k1], cj[k1], d);
+            bool on_border = (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) ||
+                             (k == 3 && i0 == 0);
+            if (on_border) x[k].border = (k & 1) ? 2 : 1;
+        }
+    }
+    const bool case4 = nv == 2 && v[0] == v[2];
+    bool centre_visible = true;
+    int mi = i0 + s / 2, mj = j0 + s / 2;
+    if (case4 && d >= 1) centre_visible = pn_contour_sample_visible(c, mi, mj);
+    /* Pieces of contour: each leaves the visible region on side `exit` and comes back on side
+     * `entry`; extra[] is its validity point (Fig. 4). */
+    int exits[2], entries[2], pieces = 0;
+    bool has_extra[2] = {false, false};
+    cvert extra[2];
+    for (int k = 0; k < 4; k++) {
+        int k1 = (k + 1) & 3;
+        if (!(v[k] && !v[k1])) continue;
+        exits[pieces] = k;
+        if (case4 && !centre_visible) entries[pieces] = (k + 3) & 3; /* around visible corner k */
+        else {
+            int e = k1;
+            while (!(!v[e] && v[(e + 1) & 3])) e = (e + 1) & 3;
+            entries[pieces] = e;
+        }
+        pieces++;
+    }
+    const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
+    if (test) {
+        if (nv == 1 || nv == 3) { /* case 2: diagonal from the odd corner */
+            int o = 0;
+            for (int k = 0; k < 4; k++)
+                if ((nv == 1) == v[k]) o = k;
+            int q = (o + 2) & 3;
+            extra[0] = dichotomy(c, ci[o], cj[o], ci[q], cj[q], d);
+            has_extra[0] = true;
+        } else if (!case4) { /* case 3: one of the two diagonals, chosen at random */
+            int o = (int)(pn_hash3(c->hash, (uint64_t)i0, (uint64_t)j0 * 65537u + (uint64_t)d) & 1u);
+            extra[0] = dichotomy(c, ci[o], cj[o], ci[o + 2], cj[o + 2], d);
+            has_extra[0] = true;
+        } else { /* case 4: semi-diagonals to the centre */
+            for (int p = 0; p < pieces; p++) {
+                /* The corner the piece goes around: the hidden one cut off (centre visible) or
+                 * the visible one kept (centre hidden). */
+                int k = centre_visible ? (exits[p] + 1) & 3 : exits[p];
+                extra[p] = dichotomy(c, ci[k], cj[k], mi, mj, d - 1);
+                has_extra[p] = true;
+            }
+        }
+        bool valid = true;
+        for (int p = 0; p < pieces && valid; p++)
+            if (has_extra[p]) valid = piece_valid(c, x[exits[p]], extra[p], x[entries[p]]);
+        if (!valid) {
+            /* Quadtree subdivision. Side midpoints between equal corners are new samples; one
+             * that disagrees means the neighbour's contour misses a crossing. */
+            for (int k = 0; k < 4; k++) {
+                int k1 = (k + 1) & 3;
+                if (v[k] != v[k1]) continue;
+                bool on_border = (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) ||
+                                 (k == 3 && i0 == 0);
+                int hi = (ci[k] + ci[k1]) / 2, hj = (cj[k] + cj[k1]) / 2;
+                if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts) {
+                    c->restart = true;
+                    return;
+                }
+            }
+            c->subdivisions++;
+            int h = s / 2;
+            process_square(c, i0, j0, d - 1, depth + 1);
+            process_square(c, i0 + h, j0, d - 1, depth + 1);
+            process_square(c, i0 + h, j0 + h, d - 1, depth + 1);
+            process_square(c, i0, j0 + h, d - 1, depth + 1);
+            return;
+        }
+    }
+    /* The visible part as polygons, counter-clockwise like the square. */
+    cvert poly[12];
+    if (case4 && !centre_visible) {
+        for (int p = 0; p < pieces; p++) {
+            int k = exits[p], n = 0;
+            poly[n++] = x[entries[p]];
+            poly[n++] = corner[k];
+            poly[n++] = x[k];
+            if (has_extra[p]) poly[n++] = extra[p];
+            add_polygon(c, poly, n);
+        }
+        return;
+    }
+    int n = 0;
+    for (int k = 0; k < 4; k++) {
+        int k1 = (k + 1) & 3;
+        if (v[k]) poly[n++] = corner[k];
+        if (v[k] != v[k1]) {
+            poly[n++] = x[k];
+            if (v[k])
+                for (int p = 0; p < pieces; p++)
+                    if (exits[p] == k && has_extra[p]) poly[n++] = extra[p];
+        }
+    }
+    add_polygon(c, poly, n);
+}
+
+void pn_contour_integrate(pn_contour_eval *c, int p) {
+    c->restarted = false;
+    for (;;) {
+        int d = 0;
+        while ((p << d) < c->N) d++;
+        c->acc = (pn_contour_g){{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
+        c->restart = false;
+        c->max_depth = 0;
+        int s = 1 << d;
+        for (int b = 0; b < p && !c->restart; b++)
+            for (int a = 0; a < p && !c->restart; a++) process_square(c, a * s, b * s, d, 0);
+        if (c->restart && d >= 1) {
+            /* §3.2: the whole source one level finer, every traced ray kept in the array. */
+            c->restarts++;
+            c->restarted = true;
+            p *= 2;
+            continue;
+        }
+        break;
+    }
+    c->p_used = p;
+}
+
+bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const pn_contour_source *src, vec3 p,
+                           vec3 ns, vec3 ng, int N, uint8_t *vis, float *thit, bool gradient, uint64_t hash) {
+    memset(c, 0, sizeof *c);
+    c->src = src;
+    c->accel = job->accel;
+    c->m = pn_dv3_from(p);
+    c->ns = pn_dv3_from(ns);
+    c->ng = pn_dv3_from(ng);
+    c->sign = pn_contour_source_sign(src, c->m);
+    /* Points on the source's own plane (the emitter's back, its surroundings) see nothing of it. */
+    double side = fabs(pn_dv3_dot(pn_dv3_sub(c->m, src->p0), src->normal));
+    if (!(side > (double)pn_accel_ray_epsilon(job->accel, p))) c->sign = 0.0;
+    c->eps = pn_accel_ray_epsilon(job->accel, p);
+    c->origin = v3_madd(p, ng, c->eps);
+    c->N = N;
+    c->vis = vis;
+    c->thit = thit;
+    c->gradient = gradient;
+    c->hash = hash;
+    c->flags = job->contour_flags;
+    c->eps_length = src->eps_scale / (double)N;
+    c->max_restarts = (job->contour_flags & PN_CONTOUR_NO_RESTARTS) ? 0 : PN_CONTOUR_MAX_RESTARTS;
+    return c->sign != 0.0;
+}

@@ -1,0 +1,53 @@
+/* contour_internal.h — what the parts of the contour integrator share: the per-pixel form-factor
+ * evaluation of Vedel 1993 §3 (contour.c), used by the image algorithm of §5 (contour_render.c). */
+#ifndef PN_INTEGRATORS_CONTOUR_INTERNAL_H
+#define PN_INTEGRATORS_CONTOUR_INTERNAL_H
+
+#include "integrators/contour_math.h"
+#include "integrators/integrator.h"
+
+#include <stdint.h>
+
+/* One approximate contour integration of one source at one receiving point M. */
+typedef struct pn_contour_eval {
+    const pn_contour_source *src;
+    const pn_accel *accel;
+    pn_dvec3 m, ns, ng;  /* receiver and its shading / geometric normals */
+    vec3 origin;         /* shadow-ray origin (M offset along ng) */
+    float eps;
+    double sign;         /* pn_contour_source_sign: 0 when M cannot see the emitting side */
+    int N;               /* the sample array has (N+1)^2 points: N = p 2^steps (§3.3) */
+    uint8_t *vis;        /* 0 unknown, 1 visible, 2 hidden */
+    float *thit;         /* gradients: hit distance / sample distance of hidden samples */
+    bool gradient;
+    uint64_t hash;       /* for the random diagonal of case 3 */
+    uint32_t flags;      /* PN_CONTOUR_* */
+    int max_restarts;    /* restarts one level finer allowed (§3.2) */
+    double eps_length;   /* strip width: the length of the smallest dichotomy interval */
+    /* results */
+    pn_contour_g acc;
+    uint32_t rays;
+    int max_depth;       /* deepest quadtree subdivision in the last pass */
+    bool restart, restarted;
+    uint32_t restarts, subdivisions;
+    int p_used;          /* first-level squares per side at the end (after restarts) */
+} pn_contour_eval;
+
+/* Prepares an evaluation; the caller owns vis (zeroed, (N+1)^2) and thit (same size, only read
+ * with gradients). Returns false when M does not see the emitting side. */
+bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const pn_contour_source *src, vec3 p,
+                           vec3 ns, vec3 ng, int N, uint8_t *vis, float *thit, bool gradient, uint64_t hash);
+
+/* vis_M of sample (i, j) of the array (0 <= i, j <= N), tracing its ray the first time. */
+bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j);
+
+/* The approximate contour integration of §3 with p x p first-level squares (N divisible by p,
+ * N / p a power of two); the result is in c->acc (F = acc.g . ns, with the sign applied). */
+void pn_contour_integrate(pn_contour_eval *c, int p);
+
+/* contour-mc (contour_mc.c): adaptive Monte Carlo sampling of the source in the manner of Kok &
+ * Jansen 1992, with the same receiver setup, from cells x cells first cells; returns the form factor estimate and adds its rays
+ * to c->rays. */
+double pn_contour_mc_form_factor(pn_contour_eval *c, int cells, double threshold, uint32_t max_rays);
+
+#endif

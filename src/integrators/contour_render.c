@@ -1,0 +1,736 @@
+/* contour_render.c — the image algorithm of Vedel 1993 §5 around the contour integration of §3
+ * (contour.c): spans of pixels, shaft culling (Haines & Wallace 1991), first-level ray patterns
+ * reused along a span with quadratic interpolation in between, adaptive first-level density;
+ * and the `contour` / `contour-mc` integrators that shade with it. See contour.c's header for the
+ * paper's parts and our departures.
+ *
+ * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
+ * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
+ * as the reference integrator draws them, so that a contour image and a reference image with
+ * --spp 1 see the same points and differ only in their direct light. */
+#include "integrators/contour_internal.h"
+#include "integrators/reference_direct.h"
+
+#include "core/rng.h"
+#include "core/sobol.h"
+#include "shade/bsdf.h"
+
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PN_CONTOUR_MAX_P 32   /* first-level squares per side, at most */
+#define PN_CONTOUR_MAX_SPAN 64
+#define PN_CONTOUR_DISK_QUADS 5 /* a disk is a 12-gon of equal area: 5 quadrilaterals */
+
+typedef struct contour_light {
+    int index; /* in job->lights */
+    pn_contour_source src;
+    vec3 emit;
+    vec3 bmin, bmax;
+} contour_light;
+
+/* An obstacle for shaft culling: the bounding box of a mesh, sphere or instance; planar meshes
+ * only block segments whose ends are strictly on opposite sides of their plane. */
+typedef struct obstacle {
+    vec3 bmin, bmax;
+    bool planar;
+    vec3 n;
+    float d;
+} obstacle;
+
+typedef struct contour_data {
+    bool mc;
+    contour_light *lights;
+    int count;
+    unsigned char *skip; /* per scene light: 1 when integrated here */
+    obstacle *obstacles;
+    int obstacle_count;
+    float tol;
+    int N, p0;
+    atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
+} contour_data;
+
+/* ---- prepare: sources and obstacles --------------------------------------------------------- */
+
+static void box_add(vec3 *bmin, vec3 *bmax, vec3 p) {
+    *bmin = v3_min(*bmin, p);
+    *bmax = v3_max(*bmax, p);
+}
+
+static vec3 mesh_pos(const pn_mesh *m, uint32_t i) {
+    return v3(m->positions[3 * (size_t)i], m->positions[3 * (size_t)i + 1], m->positions[3 * (size_t)i + 2]);
+}
+
+static void mesh_obstacle(const pn_mesh *m, obstacle *o) {
+    o->bmin = v3(INFINITY, INFINITY, INFINITY);
+    o->bmax = v3(-INFINITY, -INFINITY, -INFINITY);
+    for (uint32_t i = 0; i < m->vertex_count; i++) box_add(&o->bmin, &o->bmax, mesh_pos(m, i));
+    o->planar = false;
+    float diag = v3_length(v3_sub(o->bmax, o->bmin));
+    for (uint32_t t = 0; t < m->triangle_count; t++) {
+        const uint32_t *idx = m->indices + 3 * (size_t)t;
+        vec3 p0 = mesh_pos(m, idx[0]);
+        vec3 n = v3_cross(v3_sub(mesh_pos(m, idx[1]), p0), v3_sub(mesh_pos(m, idx[2]), p0));
+        float l = v3_length(n);
+        if (!(l > 0.0f)) continue;
+        n = v3_scale(n, 1.0f / l);
+        bool planar = true;
+        for (uint32_t i = 0; i < m->vertex_count && planar; i++)
+            planar = fabsf(v3_dot(v3_sub(mesh_pos(m, i), p0), n)) <= 1e-5f * diag;
+        if (planar) {
+            o->planar = true;
+            o->n = n;
+            o->d = v3_dot(n, p0);
+        }
+        break;
+    }
+}
+
+static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc) {
+    const struct pn_scene_s *scene = job->scene;
+    const pn_lights *L = job->lights;
+    contour_data *cd = calloc(1, sizeof *cd);
+    if (!cd) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the contour integrator");
+    cd->mc = mc;
+    int p0 = (int)job->contour_grid - 1;
+    int N = p0 << job->contour_steps;
+    if (N > 1024) {
+        free(cd);
+        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
+                          "contour: (grid - 1) * 2^steps = %d exceeds 1024 cells per side of the sample array", N);
+    }
+    cd->N = N;
+    cd->p0 = p0;
+    cd->lights = calloc((size_t)L->count * PN_CONTOUR_DISK_QUADS + 1, sizeof *cd->lights);
+    cd->skip = calloc((size_t)L->count + 1, 1);
+    int obs_cap = scene->mesh_count + scene->sphere_count + scene->instance_count + 1;
+    cd->obstacles = calloc((size_t)obs_cap, sizeof *cd->obstacles);
+    if (!cd->lights || !cd->skip || !cd->obstacles) {
+        free(cd->lights);
+        free(cd->skip);
+        free(cd->obstacles);
+        free(cd);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the contour integrator");
+    }
+    /* Planar convex sources: rectangles and triangles (lights.c detects them at load). */
+    for (int i = 0; i < L->count; i++) {
+        const pn_light *l = &L->lights[i];
+        if (l->kind == PN_LIGHT_DISK && l->radius > 0.0f) {
+            /* §6: a disk as a regular polygon of 2 + 2 PN_CONTOUR_DISK_QUADS sides and the disk's
+             * area, cut into a fan of convex quadrilaterals that share the first vertex. */
+            const int sides = 2 + 2 * PN_CONTOUR_DISK_QUADS;
+            double r = (double)l->radius * sqrt(2.0 * 3.14159265358979323846 / (sides * sin(2.0 * 3.14159265358979323846 / sides)));
+            vec3 t, b, poly[2 + 2 * PN_CONTOUR_DISK_QUADS];
+            v3_basis(l->n, &t, &b);
+            for (int k = 0; k < sides; k++) {
+                double a = 2.0 * 3.14159265358979323846 * k / sides;
+                poly[k] = v3_add(l->p, v3_add(v3_scale(t, (float)(r * cos(a))), v3_scale(b, (float)(r * sin(a)))));
+            }
+            for (int q = 0; q < PN_CONTOUR_DISK_QUADS; q++) {
+                contour_light *c = &cd->lights[cd->count++];
+                c->index = i;
+                c->emit = l->emit;
+                vec3 q0 = poly[0], q1 = poly[2 * q + 1], q2 = poly[2 * q + 2], q3 = poly[(2 * q + 3) % sides];
+                pn_contour_source_quad(&c->src, q0, q1, q2, q3, l->n, l->two_sided);
+                c->bmin = c->bmax = q0;
+                box_add(&c->bmin, &c->bmax, q1);
+                box_add(&c->bmin, &c->bmax, q2);
+                box_add(&c->bmin, &c->bmax, q3);
+            }
+            cd->skip[i] = 1;
+            continue;
+        }
+        if (l->kind != PN_LIGHT_RECTANGLE && l->kind != PN_LIGHT_TRIANGLE) continue;
+        contour_light *c = &cd->lights[cd->count++];
+        c->index = i;
+        c->emit = l->emit;
+        if (l->kind == PN_LIGHT_RECTANGLE)
+            pn_contour_source_rectangle(&c->src, l->p, l->e1, l->e2, l->n, l->two_sided);
+        else
+            pn_contour_source_triangle(&c->src, l->p, v3_add(l->p, l->e1), v3_add(l->p, l->e2), l->n, l->two_sided);
+        c->bmin = c->bmax = l->p;
+        box_add(&c->bmin, &c->bmax, v3_add(l->p, l->e1));
+        box_add(&c->bmin, &c->bmax, v3_add(l->p, l->e2));
+        if (l->kind == PN_LIGHT_RECTANGLE) box_add(&c->bmin, &c->bmax, v3_add(v3_add(l->p, l->e1), l->e2));
+        cd->skip[i] = 1;
+    }
+    /* Obstacles: world meshes and spheres, and instances as the box of their object. */
+    for (int i = 0; i < scene->mesh_count; i++) {
+        const pn_mesh *m = &scene->meshes[i];
+        if (m->object >= 0 || m->triangle_count == 0) continue;
+        mesh_obstacle(m, &cd->obstacles[cd->obstacle_count++]);
+    }
+    for (int i = 0; i < scene->sphere_count; i++) {
+        const pn_sphere *s = &scene->spheres[i];
+        if (s->object >= 0) continue;
+        obstacle *o = &cd->obstacles[cd->obstacle_count++];
+        vec3 r = v3(s->radius, s->radius, s->radius);
+        o->bmin = v3_sub(s->center, r);
+        o->bmax = v3_add(s->center, r);
+        o->planar = false;
+    }
+    for (int i = 0; i < scene->instance_count; i++) {
+        const pn_instance *in = &scene->instances[i];
+        const pn_object *ob = &scene->objects[in->object];
+        vec3 lo = v3(INFINITY, INFINITY, INFINITY), hi = v3(-INFINITY, -INFINITY, -INFINITY);
+        for (int k = 0; k < ob->mesh_count; k++) {
+            obstacle t;
+            mesh_obstacle(&scene->meshes[ob->first_mesh + k], &t);
+            if (!(t.bmin.x <= t.bmax.x)) continue;
+            box_add(&lo, &hi, t.bmin);
+            box_add(&lo, &hi, t.bmax);
+        }
+        for (int k = 0; k < ob->sphere_count; k++) {
+            const pn_sphere *s = &scene->spheres[ob->first_sphere + k];
+            vec3 r = v3(s->radius, s->radius, s->radius);
+            box_add(&lo, &hi, v3_sub(s->center, r));
+            box_add(&lo, &hi, v3_add(s->center, r));
+        }
+        if (!(lo.x <= hi.x)) continue;
+        obstacle *o = &cd->obstacles[cd->obstacle_count++];
+        o->bmin = v3(INFINITY, INFINITY, INFINITY);
+        o->bmax = v3(-INFINITY, -INFINITY, -INFINITY);
+        for (int c = 0; c < 8; c++) {
+            vec3 p = v3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z);
+            box_add(&o->bmin, &o->bmax, mat4_apply_point(&in->world_from_object, p));
+        }
+        o->planar = false;
+    }
+    vec3 ext = v3_sub(scene->bounds_max, scene->bounds_min);
+    /* Above the ray epsilon (at most 1e-4 of the diagonal), by which span boxes are padded. */
+    cd->tol = 2e-4f * (v3_is_finite(ext) ? v3_length(ext) : 1.0f);
+    atomic_init(&cd->viewing, 0);
+    atomic_init(&cd->rays, 0);
+    atomic_init(&cd->integrations, 0);
+    atomic_init(&cd->interpolated, 0);
+    atomic_init(&cd->restarts, 0);
+    atomic_init(&cd->subdivisions, 0);
+    atomic_init(&cd->culled, 0);
+    job->integrator_data = cd;
+    return PN_OK;
+}
+
+static pn_status contour_prepare(pn_render_job *job, pn_err *err) { return contour_prepare_common(job, err, false); }
+static pn_status contour_mc_prepare(pn_render_job *job, pn_err *err) { return contour_prepare_common(job, err, true); }
+
+static void contour_release(pn_render_job *job) {
+    contour_data *cd = job->integrator_data;
+    if (!cd) return;
+    free(cd->lights);
+    free(cd->skip);
+    free(cd->obstacles);
+    free(cd);
+    job->integrator_data = NULL;
+}
+
+static void contour_report(const pn_render_job *job, pn_render_stats *stats) {
+    contour_data *cd = job->integrator_data;
+    if (!cd) return;
+    stats->contour_viewing_rays = atomic_load(&cd->viewing);
+    stats->contour_shadow_rays = atomic_load(&cd->rays);
+    stats->contour_integrations = atomic_load(&cd->integrations);
+    stats->contour_interpolated = atomic_load(&cd->interpolated);
+    stats->contour_restarts = atomic_load(&cd->restarts);
+    stats->contour_subdivisions = atomic_load(&cd->subdivisions);
+    stats->contour_culled_spans = atomic_load(&cd->culled);
+}
+
+/* ---- shaft culling (Haines & Wallace 1991) -------------------------------------------------- */
+
+static float coord(vec3 v, int a) { return v3_get(v, a); }
+
+/* 2D convex hull (monotone chain) of n <= 8 points, counter-clockwise; returns its size. */
+static int hull2d(float (*pt)[2], int n, float (*out)[2]) {
+    for (int i = 1; i < n; i++) /* insertion sort by x, then y */
+        for (int j = i; j > 0 && (pt[j][0] < pt[j - 1][0] || (pt[j][0] == pt[j - 1][0] && pt[j][1] < pt[j - 1][1])); j--) {
+            float t0 = pt[j][0], t1 = pt[j][1];
+            pt[j][0] = pt[j - 1][0];
+            pt[j][1] = pt[j - 1][1];
+            pt[j - 1][0] = t0;
+            pt[j - 1][1] = t1;
+        }
+    int k = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        int start = k;
+        for (int ii = 0; ii < n; ii++) {
+            int i = pass == 0 ? ii : n - 1 - ii;
+            while (k >= start + 2) {
+                float cr = (out[k - 1][0] - out[k - 2][0]) * (pt[i][1] - out[k - 2][1]) -
+                           (out[k - 1][1] - out[k - 2][1]) * (pt[i][0] - out[k - 2][0]);
+                if (cr > 0.0f) break;
+                k--;
+            }
+            out[k][0] = pt[i][0];
+            out[k][1] = pt[i][1];
+            k++;
+        }
+        k--; /* the last point of each chain starts the other */
+    }
+    return k;
+}
+
+/* True when the obstacle's box may intersect the shaft between boxes a and b: it overlaps
+ * their joint box and no projection on a coordinate plane separates it from the hull of their
+ * projections (the shaft's planes of Haines & Wallace). */
+static bool shaft_candidate(const obstacle *o, vec3 amin, vec3 amax, vec3 bmin, vec3 bmax, float tol) {
+    if (o->planar) {
+        /* A plane blocks only segments that cross it. */
+        float a_lo = INFINITY, a_hi = -INFINITY, b_lo = INFINITY, b_hi = -INFINITY;
+        for (int c = 0; c < 8; c++) {
+            vec3 pa = v3(c & 1 ? amax.x : amin.x, c & 2 ? amax.y : amin.y, c & 4 ? amax.z : amin.z);
+            vec3 pb = v3(c & 1 ? bmax.x : bmin.x, c & 2 ? bmax.y : bmin.y, c & 4 ? bmax.z : bmin.z);
+            float da = v3_dot(o->n, pa) - o->d, db = v3_dot(o->n, pb) - o->d;
+            a_lo = fminf(a_lo, da);
+            a_hi = fmaxf(a_hi, da);
+            b_lo = fminf(b_lo, db);
+            b_hi = fmaxf(b_hi, db);
+        }
+        if (!((a_lo < -tol && b_hi > tol) || (a_hi > tol && b_lo < -tol))) return false;
+    }
+    vec3 umin = v3_min(amin, bmin), umax = v3_max(amax, bmax);
+    for (int a = 0; a < 3; a++)
+        if (coord(o->bmax, a) < coord(umin, a) - tol || coord(o->bmin, a) > coord(umax, a) + tol) return false;
+    for (int drop = 0; drop < 3; drop++) {
+        int x = (drop + 1) % 3, y = (drop + 2) % 3;
+        float pts[8][2], hull[18][2];
+        for (int c = 0; c < 4; c++) {
+            pts[c][0] = c & 1 ? coord(amax, x) : coord(amin, x);
+            pts[c][1] = c & 2 ? coord(amax, y) : coord(amin, y);
+            pts[4 + c][0] = c & 1 ? coord(bmax, x) : coord(bmin, x);
+            pts[4 + c][1] = c & 2 ? coord(bmax, y) : coord(bmin, y);
+        }
+        int h = hull2d(pts, 8, hull);
+        if (h < 3) continue;
+        for (int e = 0; e < h; e++) {
+            float ex = hull[(e + 1) % h][0] - hull[e][0], ey = hull[(e + 1) % h][1] - hull[e][1];
+            float len = sqrtf(ex * ex + ey * ey);
+            if (!(len > 0.0f)) continue;
+            float nx = ey / len, ny = -ex / len; /* outward for a counter-clockwise hull */
+            bool all_out = true;
+            for (int c = 0; c < 4 && all_out; c++) {
+                float px = c & 1 ? coord(o->bmax, x) : coord(o->bmin, x);
+                float py = c & 2 ? coord(o->bmax, y) : coord(o->bmin, y);
+                all_out = (px - hull[e][0]) * nx + (py - hull[e][1]) * ny > tol;
+            }
+            if (all_out) return false;
+        }
+    }
+    return true;
+}
+
+static bool shaft_has_candidates(const contour_data *cd, const contour_light *cl, vec3 smin, vec3 smax) {
+    for (int i = 0; i < cd->obstacle_count; i++)
+        if (shaft_candidate(&cd->obstacles[i], smin, smax, cl->bmin, cl->bmax, cd->tol)) return true;
+    return false;
+}
+
+/* ---- per-batch state ------------------------------------------------------------------------- */
+
+typedef struct shade_point {
+    bool has_point, diffuse;
+    pn_hit hit;
+    vec3 wo, throughput;
+    pn_bsdf b;
+    vec3 value;      /* this eye ray's radiance so far */
+    vec3 gradient;   /* this eye ray's irradiance-luminance gradient from contour lights */
+    uint32_t contour_rays;
+    float fw;
+    int64_t object;  /* what a span must stay on */
+} shade_point;
+
+typedef struct pixel_acc {
+    vec3 weighted_sum, gradient_sum;
+    double weight_sum, lum_mean, lum_m2;
+    uint32_t n, shadow_rays, specular_rays;
+} pixel_acc;
+
+typedef struct contour_scratch {
+    pn_reference_direct_scratch ref;
+    int capacity;
+    shade_point *sp;
+    pixel_acc *acc;
+    uint32_t *scramble;
+    size_t array_size;      /* (N+1)^2 */
+    uint8_t *vis;           /* one array per pixel of the longest span */
+    float *thit;
+    pn_contour_eval *ev;    /* PN_CONTOUR_MAX_SPAN */
+    pn_contour_g *g;        /* PN_CONTOUR_MAX_SPAN */
+    int *span;              /* batch indices of the current span */
+} contour_scratch;
+
+static void contour_scratch_free(void *p) {
+    contour_scratch *s = p;
+    if (!s) return;
+    pn_reference_direct_free(&s->ref);
+    free(s->sp);
+    free(s->acc);
+    free(s->scramble);
+    free(s->vis);
+    free(s->thit);
+    free(s->ev);
+    free(s->g);
+    free(s->span);
+    free(s);
+}
+
+static void *contour_scratch_create(const pn_render_job *job) {
+    const contour_data *cd = job->integrator_data;
+    contour_scratch *s = calloc(1, sizeof *s);
+    if (!s) return NULL;
+    if (!pn_reference_direct_init(&s->ref, job)) {
+        free(s);
+        return NULL;
+    }
+    s->array_size = (size_t)(cd->N + 1) * (size_t)(cd->N + 1);
+    /* One sample array per pixel of the longest span. */
+    size_t spans = job->contour_span < PN_CONTOUR_MAX_SPAN ? job->contour_span : PN_CONTOUR_MAX_SPAN;
+    s->vis = malloc(s->array_size * spans);
+    s->thit = (job->aovs & PN_AOV_GRADIENT) ? malloc(s->array_size * spans * sizeof *s->thit) : NULL;
+    s->ev = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->ev);
+    s->g = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->g);
+    s->span = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->span);
+    if (!s->vis || !s->ev || !s->g || !s->span || ((job->aovs & PN_AOV_GRADIENT) && !s->thit)) {
+        contour_scratch_free(s);
+        return NULL;
+    }
+    return s;
+}
+
+static bool ensure_capacity(contour_scratch *s, int count) {
+    if (count <= s->capacity) return true;
+    free(s->sp);
+    free(s->acc);
+    free(s->scramble);
+    s->sp = malloc((size_t)count * sizeof *s->sp);
+    s->acc = malloc((size_t)count * sizeof *s->acc);
+    s->scramble = malloc((size_t)count * sizeof *s->scramble);
+    s->capacity = (s->sp && s->acc && s->scramble) ? count : 0;
+    return s->capacity > 0;
+}
+
+/* ---- §5: spans ------------------------------------------------------------------------------- */
+
+static void zero_g(pn_contour_g *g) { *g = (pn_contour_g){{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}}; }
+
+static pn_dvec3 lagrange3(pn_dvec3 a, pn_dvec3 b, pn_dvec3 c, double wa, double wb, double wc) {
+    return pn_dv3_add(pn_dv3_add(pn_dv3_scale(a, wa), pn_dv3_scale(b, wb)), pn_dv3_scale(c, wc));
+}
+
+/* Tallies of one span, added to the render's statistics by the caller. */
+typedef struct span_tally {
+    uint64_t integrations, interpolated, restarts, subdivisions, culled;
+} span_tally;
+
+typedef struct span_ctx {
+    const pn_render_job *job;
+    const contour_data *cd;
+    const contour_light *cl;
+    contour_scratch *s;
+    int n;
+    span_tally t;
+} span_ctx;
+
+/* Full approximate contour integration at span pixel q with p first-level squares per side. */
+static void full_integration(span_ctx *sc, int q, int p) {
+    pn_contour_eval *ev = &sc->s->ev[q];
+    pn_contour_integrate(ev, p);
+    sc->s->g[q] = ev->acc;
+    sc->t.integrations++;
+}
+
+/* First-level pattern of pixel q at density p (traces the rays not yet traced). */
+static void first_level_pattern(span_ctx *sc, int q, int p, uint8_t *pattern) {
+    pn_contour_eval *ev = &sc->s->ev[q];
+    int step = ev->N / p;
+    for (int b = 0, k = 0; b <= p; b++)
+        for (int a = 0; a <= p; a++, k++) pattern[k] = (uint8_t)pn_contour_sample_visible(ev, a * step, b * step);
+}
+
+static void shade_span(span_ctx *sc) {
+    const contour_data *cd = sc->cd;
+    const int n = sc->n;
+    contour_scratch *s = sc->s;
+    const uint32_t flags = sc->job->contour_flags;
+    if (cd->mc) {
+        for (int q = 0; q < n; q++) {
+            zero_g(&s->g[q]);
+            double f = pn_contour_mc_form_factor(&s->ev[q], cd->p0, sc->job->contour_mc_threshold,
+                                                 sc->job->contour_mc_max_rays);
+            /* A scalar estimate: as a G along the receiver's normal. */
+            s->g[q].g = pn_dv3_scale(s->ev[q].ns, f);
+        }
+        return;
+    }
+    int p = cd->p0;
+    /* Raised density: at most twice the initial one per side (9 -> 25 samples by default). */
+    int pmax = 2 * cd->p0;
+    if (pmax > cd->N) pmax = cd->N;
+    if (pmax > PN_CONTOUR_MAX_P) pmax = PN_CONTOUR_MAX_P;
+    uint8_t key_pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
+    uint8_t pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
+    int key = 0;
+    full_integration(sc, key, p);
+    for (;;) {
+        /* The density adapts to what the last full integration at a run's start needed. */
+        const pn_contour_eval *ev = &s->ev[key];
+        if (!(flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY)) {
+            if ((ev->restarted || ev->max_depth >= 2) && p < pmax) {
+                p *= 2;
+                if (ev->p_used > p) p = ev->p_used < pmax ? ev->p_used : pmax;
+            } else if (ev->max_depth == 0 && p > cd->p0) {
+                p /= 2;
+            }
+        }
+        if (key + 1 >= n) break;
+        if (flags & PN_CONTOUR_NO_SPANS) {
+            full_integration(sc, ++key, p);
+            continue;
+        }
+        /* Only first-level rays at the next pixels, while their pattern stays the same. */
+        first_level_pattern(sc, key, p, key_pattern);
+        const int np = (p + 1) * (p + 1);
+        bool uniform = true;
+        for (int k = 1; k < np; k++) uniform = uniform && key_pattern[k] == key_pattern[0];
+        int j = key + 1;
+        for (; j < n; j++) {
+            first_level_pattern(sc, j, p, pattern);
+            if (memcmp(pattern, key_pattern, (size_t)np) != 0) break;
+        }
+        if (uniform) {
+            /* Every first-level sample visible (or every one hidden): an integration traces no
+             * more rays, so each pixel of the run gets its own. */
+            for (int q = key + 1; q < j; q++) full_integration(sc, q, p);
+            if (j >= n) break;
+            full_integration(sc, j, p);
+            key = j;
+            continue;
+        }
+        /* The run ends where the pattern changed (that pixel opens the next run) or at the end
+         * of the span; the pixels in between are interpolated with a third integration in the
+         * middle. */
+        int end = j < n ? j : n - 1;
+        if (end > key) full_integration(sc, end, p);
+        if (end - key >= 2) {
+            int mid = (key + end) / 2;
+            full_integration(sc, mid, p);
+            double x0 = key, x1 = mid, x2 = end;
+            for (int q = key + 1; q < end; q++) {
+                if (q == mid) continue;
+                double x = q;
+                double w0 = (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2));
+                double w1 = (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2));
+                double w2 = (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1));
+                pn_contour_g *g = &s->g[q];
+                g->g = lagrange3(s->g[key].g, s->g[mid].g, s->g[end].g, w0, w1, w2);
+                for (int k = 0; k < 3; k++)
+                    g->dg[k] = lagrange3(s->g[key].dg[k], s->g[mid].dg[k], s->g[end].dg[k], w0, w1, w2);
+                sc->t.interpolated++;
+            }
+        }
+        if (j >= n) break;
+        key = j;
+    }
+    for (int q = 0; q < n; q++) {
+        sc->t.restarts += s->ev[q].restarts;
+        sc->t.subdivisions += s->ev[q].subdivisions;
+    }
+}
+
+/* ---- the integrator --------------------------------------------------------------------------- */
+
+static int64_t object_key(const pn_hit *h) {
+    return ((int64_t)h->instance + 1) * ((int64_t)1 << 40) + ((int64_t)h->mesh + 1) * ((int64_t)1 << 20) +
+           (int64_t)h->sphere + 1;
+}
+
+/* Shades the contour lights for eye ray i of every pixel of the batch. */
+static void shade_contour_lights(const pn_render_job *job, const contour_data *cd, const pn_batch *batch,
+                                 contour_scratch *s, uint32_t eye_index, span_tally *tally) {
+    const bool gradient = (job->aovs & PN_AOV_GRADIENT) != 0;
+    const int span_max = job->contour_span < PN_CONTOUR_MAX_SPAN ? (int)job->contour_span : PN_CONTOUR_MAX_SPAN;
+    for (int li = 0; li < cd->count; li++) {
+        const contour_light *cl = &cd->lights[li];
+        int q = 0;
+        while (q < batch->count) {
+            /* A span: adjacent pixels of a row on the same object that see the source. */
+            int n = 0;
+            vec3 smin = v3(INFINITY, INFINITY, INFINITY), smax = v3(-INFINITY, -INFINITY, -INFINITY);
+            for (; q < batch->count && n < span_max; q++) {
+                shade_point *sp = &s->sp[q];
+                if (!sp->has_point || !sp->diffuse) {
+                    if (n > 0) break;
+                    continue;
+                }
+                if (n > 0) {
+                    const shade_point *prev = &s->sp[s->span[n - 1]];
+                    int pq = s->span[n - 1];
+                    if (batch->pixels[q][1] != batch->pixels[pq][1] || batch->pixels[q][0] != batch->pixels[pq][0] + 1 ||
+                        sp->object != prev->object)
+                        break;
+                }
+                pn_contour_eval *ev = &s->ev[n];
+                uint8_t *vis = s->vis + (size_t)n * s->array_size;
+                memset(vis, 0, s->array_size);
+                float *thit = s->thit ? s->thit + (size_t)n * s->array_size : NULL;
+                uint64_t hash = pn_hash3(job->seed ^ (uint64_t)li, ((uint64_t)(uint32_t)batch->pixels[q][0] << 32) |
+                                                                      (uint32_t)batch->pixels[q][1], eye_index);
+                if (!pn_contour_eval_setup(ev, job, &cl->src, sp->hit.p, sp->b.ns, sp->b.ng, cd->N, vis, thit, gradient,
+                                           hash)) {
+                    if (n > 0) {
+                        q++;
+                        break;
+                    }
+                    continue;
+                }
+                s->span[n++] = q;
+                box_add(&smin, &smax, v3_sub(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
+                box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
+            }
+            if (n == 0) continue;
+            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}};
+            if (!(job->contour_flags & PN_CONTOUR_NO_SHAFT_CULLING) && !shaft_has_candidates(cd, cl, smin, smax)) {
+                /* Empty candidate list: the unoccluded closed form, no shadow rays. */
+                for (int k = 0; k < n; k++) {
+                    const pn_contour_eval *ev = &s->ev[k];
+                    pn_contour_source_unoccluded(&cl->src, ev->m, ev->ns, ev->ng, gradient, &s->g[k]);
+                }
+                sc.t.culled++;
+            } else {
+                shade_span(&sc);
+            }
+            tally->integrations += sc.t.integrations;
+            tally->interpolated += sc.t.interpolated;
+            tally->restarts += sc.t.restarts;
+            tally->subdivisions += sc.t.subdivisions;
+            tally->culled += sc.t.culled;
+            /* L_o = kd L F for a diffuse receiver; G projected on the pixel's own normal. */
+            for (int k = 0; k < n; k++) {
+                shade_point *sp = &s->sp[s->span[k]];
+                pn_dvec3 ns = pn_dv3_from(sp->b.ns);
+                double f = pn_dv3_dot(s->g[k].g, ns);
+                if (!(f > 0.0)) f = 0.0;
+                vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, cl->emit));
+                sp->value = v3_add(sp->value, v3_scale(c, (float)f));
+                sp->contour_rays += s->ev[k].rays;
+                if (gradient) {
+                    float e = PN_PI * fmaxf(0.0f, v3_luminance(cl->emit));
+                    sp->gradient = v3_add(sp->gradient, v3((float)pn_dv3_dot(s->g[k].dg[0], ns) * e,
+                                                           (float)pn_dv3_dot(s->g[k].dg[1], ns) * e,
+                                                           (float)pn_dv3_dot(s->g[k].dg[2], ns) * e));
+                }
+            }
+        }
+    }
+}
+
+static pn_status contour_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                                      void *scratch) {
+    contour_scratch *s = scratch;
+    contour_data *cd = job->integrator_data;
+    if (!ensure_capacity(s, batch->count)) return PN_ERROR_OUT_OF_MEMORY;
+    const uint32_t spp = job->spp > 0 ? job->spp : 1;
+    const uint32_t S = job->shadow_rays;
+    span_tally tally = {0, 0, 0, 0, 0};
+    uint64_t viewing = 0, contour_rays = 0;
+    for (int q = 0; q < batch->count; q++) {
+        int px = batch->pixels[q][0], py = batch->pixels[q][1];
+        s->scramble[q] = (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+        memset(&s->acc[q], 0, sizeof s->acc[q]);
+        memset(&out[q], 0, sizeof out[q]);
+        out[q].depth = INFINITY;
+    }
+    for (uint32_t i = 0; i < spp; i++) {
+        if (atomic_load(job->cancel)) break;
+        /* Viewing rays for the whole batch first (the paper casts a scanline's). */
+        for (int q = 0; q < batch->count; q++) {
+            int px = batch->pixels[q][0], py = batch->pixels[q][1];
+            uint32_t scramble = s->scramble[q];
+            shade_point *sp = &s->sp[q];
+            memset(sp, 0, sizeof *sp);
+            float rx, ry, fw;
+            pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble),
+                                    pn_sobol_sample(i, 1, scramble), &rx, &ry, &fw);
+            vec3 ro, rd;
+            pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro,
+                          &rd);
+            pn_eye_path path;
+            pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+            if (i == 0) {
+                out[q].depth = path.first_depth;
+                out[q].normal = path.first_normal;
+                out[q].albedo = path.first_albedo;
+            }
+            s->acc[q].specular_rays += path.rays - 1;
+            sp->fw = fw;
+            sp->value = path.emitted;
+            if (path.has_point) {
+                sp->has_point = true;
+                sp->hit = path.hit;
+                sp->wo = path.wo;
+                sp->throughput = path.throughput;
+                pn_bsdf_at(job->scene, &path.hit, path.wo, &sp->b);
+                sp->diffuse = sp->b.kind == PN_MATERIAL_LAMBERT_BLINN && v3_is_zero(sp->b.ks);
+                sp->object = object_key(&path.hit);
+                /* Everything the contour integration does not treat: the reference's code. */
+                vec3 direct = v3(0, 0, 0);
+                double unused_seconds = 0.0;
+                if (pn_reference_direct(job, &s->ref, NULL, &sp->b, path.hit.p, path.wo, i, scramble,
+                                        sp->diffuse ? cd->skip : NULL, false, &direct, &s->acc[q].shadow_rays,
+                                        &unused_seconds))
+                    sp->value = v3_add(sp->value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
+            }
+        }
+        shade_contour_lights(job, cd, batch, s, i, &tally);
+        for (int q = 0; q < batch->count; q++) {
+            shade_point *sp = &s->sp[q];
+            pixel_acc *a = &s->acc[q];
+            vec3 value = sp->value;
+            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            a->shadow_rays += sp->contour_rays;
+            if (sp->contour_rays > 0) {
+                viewing++;
+                contour_rays += sp->contour_rays;
+            }
+            a->n++;
+            a->weighted_sum = v3_madd(a->weighted_sum, value, sp->fw);
+            a->gradient_sum = v3_madd(a->gradient_sum, sp->gradient, sp->fw);
+            a->weight_sum += (double)sp->fw;
+            double y = (double)v3_luminance(value);
+            double delta = y - a->lum_mean;
+            a->lum_mean += delta / (double)a->n;
+            a->lum_m2 += delta * (y - a->lum_mean);
+        }
+    }
+    for (int q = 0; q < batch->count; q++) {
+        const pixel_acc *a = &s->acc[q];
+        pn_pixel_estimate *o = &out[q];
+        o->eye_rays = a->n;
+        o->shadow_rays = a->shadow_rays;
+        o->specular_rays = a->specular_rays;
+        if (a->weight_sum != 0.0) {
+            o->radiance = v3_scale(a->weighted_sum, (float)(1.0 / a->weight_sum));
+            o->gradient = v3_scale(a->gradient_sum, (float)(1.0 / a->weight_sum));
+        }
+        double var_of_mean = a->n > 1 ? a->lum_m2 / ((double)(a->n - 1) * (double)a->n) : 0.0;
+        o->relative_variance = a->lum_mean > 0.0 ? (float)(var_of_mean / (a->lum_mean * a->lum_mean)) : 0.0f;
+    }
+    atomic_fetch_add(&cd->viewing, viewing);
+    atomic_fetch_add(&cd->rays, contour_rays);
+    atomic_fetch_add(&cd->integrations, tally.integrations);
+    atomic_fetch_add(&cd->interpolated, tally.interpolated);
+    atomic_fetch_add(&cd->restarts, tally.restarts);
+    atomic_fetch_add(&cd->subdivisions, tally.subdivisions);
+    atomic_fetch_add(&cd->culled, tally.culled);
+    return PN_OK;
+}
+
+const pn_integrator pn_integrator_contour = {
+    "contour",      contour_prepare,        contour_release,      contour_report,
+    contour_scratch_create, contour_scratch_free, contour_render_batch,
+};
+
+const pn_integrator pn_integrator_contour_mc = {
+    "contour-mc",   contour_mc_prepare,     contour_release,      contour_report,
+    contour_scratch_create, contour_scratch_free, contour_render_batch,
+};
