@@ -146,7 +146,7 @@ typedef enum pn_driver_kind {
 } pn_driver_kind;
 enum {
     PN_AOV_SAMPLING_PATTERN = 1u << 14, /* progressive: fraction of the work pixels evaluated */
-    PN_AOV_BLOCK_MAP = 1u << 15,        /* dcm: 0 smooth, 1 simple edge, 2 complex edge block */
+    PN_AOV_BLOCK_MAP = 1u << 15,        /* dcm: 0 smooth, 1 simple, 2 complex, 3 evaluating edge block */
     PN_AOV_BLOCK_DIRECTION = 1u << 16   /* dcm: least-discrepancy direction (degrees), -1 if none */
 };
 /* Receives an approximate image (owned by the library, valid during the call), the snapshot

@@ -485,6 +485,18 @@ static void predict_boundary(pn_prog *p, const dcm_block *parent, const dcm_bloc
     }
 }
 
+/* Least-discrepancy directions of edge blocks from what their boundaries hold so far. */
+static void update_directions(const pn_prog *p, dcm_block *blocks, const size_t *pending, size_t np) {
+    for (size_t j = 0; j < np; j++) {
+        dcm_block *b = &blocks[pending[j]];
+        int x1, y1;
+        block_extent(p, b, &x1, &y1);
+        float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
+        gather_loop(p, b->x0, b->y0, x1 - b->x0, y1 - b->y0, rgb, lum);
+        b->dir = (uint8_t)pn_dcm_least_discrepancy(lum, x1 - b->x0, y1 - b->y0, NULL);
+    }
+}
+
 typedef struct test_run {
     dcm_state *d;
     dcm_block *blocks;
@@ -565,11 +577,20 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
                 b->kind = DCM_SIMPLE;
                 b->lazy = 1;
                 b->dir = parent->dir;
+                predict_boundary(p, parent, b);
             } else {
                 b->kind = DCM_PENDING;
             }
         }
         if (b->kind == DCM_PENDING) pending[np++] = i;
+    }
+    /* The classified blocks replace their parents in the approximate image at once; edge blocks
+     * show elements over their partly evaluated boundaries, re-oriented after every round. */
+    update_directions(p, L->b, pending, np);
+    d->regular_done = true;
+    for (size_t i = start; i < end; i++) {
+        L->b[i].final = 1;
+        if (L->b[i].parent >= 0) d->lv[l - 1].b[L->b[i].parent].replaced = 1;
     }
 
     /* (2) boundary evaluation, spacing k/2, k/4, ..., 1 */
@@ -594,6 +615,7 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
             free(pending);
             return st;
         }
+        update_directions(p, L->b, pending, np);
     }
 
     /* (3) simplicity tests and (4) least-discrepancy directions, in parallel */
@@ -604,16 +626,8 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
     int failed = atomic_load(&p->failed);
     if (failed) return (pn_status)failed;
 
-    /* lazy blocks take their boundary from the parent's elements; then (5): the blocks replace
-     * their parents */
     for (size_t i = start; i < end; i++) {
         dcm_block *b = &L->b[i];
-        if (b->lazy) predict_boundary(p, &d->lv[l - 1].b[b->parent], b);
-    }
-    for (size_t i = start; i < end; i++) {
-        dcm_block *b = &L->b[i];
-        b->final = 1;
-        if (b->parent >= 0) d->lv[l - 1].b[b->parent].replaced = 1;
         if (b->kind == DCM_SIMPLE) d->simple++;
         if (b->kind == DCM_COMPLEX) d->complex++;
         if (b->lazy) d->lazy++;
