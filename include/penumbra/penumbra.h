@@ -191,6 +191,8 @@ typedef struct pn_render_settings {
     void *snapshot_user;
     double stop_percent;             /* stop after this percentage of work pixels (0: run to the end);
                                         with a low threshold: the paper's confidence relocation */
+    int raw_radiance;                /* 1: interpolate radiance itself; 0 (default): radiance divided
+                                        by the first-hit albedo of a primary ray, then multiplied back */
 } pn_render_settings;
 
 /* ---------------------------------------------------------------------------------------- */

@@ -112,6 +112,7 @@ static const char render_help[] =
     "  --snapshot-every SEC   and every SEC seconds (out-12.5pct.exr); SIGUSR1 writes one now\n"
     "  --stop-at P            stop after P% of the work pixels and write the approximate image;\n"
     "                         with a lower --threshold: the paper's confidence relocation\n"
+    "  --raw-radiance         interpolate radiance itself, not radiance / first-hit albedo\n"
     "  AOVs of these drivers: sampling_pattern, block_map, block_direction\n"
     "\n"
     "Options taking a value accept '--option VALUE' and '--option=VALUE'.\n"
@@ -967,6 +968,10 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             }
             o->settings.snapshot_percents = o->snapshot_percents;
             o->settings.snapshot_percent_count = count;
+        } else if (strcmp(name, "--raw-radiance") == 0) {
+            if (!scanner_no_value(&s))
+                return EXIT_USAGE;
+            o->settings.raw_radiance = 1;
         } else if (strcmp(name, "--snapshot-every") == 0 || strcmp(name, "--stop-at") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)
@@ -991,8 +996,9 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
         if (!progressive && (o->settings.aovs & mine))
             return usage_error(cmd, "the AOVs sampling_pattern, block_map and block_direction need --driver");
         if (!progressive && (o->settings.work_scale || o->settings.snapshot_percent_count ||
-                             o->settings.snapshot_every_seconds > 0.0 || o->settings.stop_percent > 0.0))
-            return usage_error(cmd, "--work-scale, --snapshots, --snapshot-every and --stop-at need --driver");
+                             o->settings.snapshot_every_seconds > 0.0 || o->settings.stop_percent > 0.0 ||
+                             o->settings.raw_radiance))
+            return usage_error(cmd, "--work-scale, --snapshots, --snapshot-every, --stop-at and --raw-radiance need --driver");
     }
     if (o->scene_path == NULL)
         return usage_error(cmd, "missing the scene file");

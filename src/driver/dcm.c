@@ -497,6 +497,39 @@ static void update_directions(const pn_prog *p, dcm_block *blocks, const size_t 
     }
 }
 
+typedef struct ranked {
+    float range;
+    size_t index;
+} ranked;
+
+static int cmp_ranked(const void *a, const void *b) {
+    const ranked *x = a, *y = b;
+    if (x->range != y->range) return x->range > y->range ? -1 : 1;
+    return x->index < y->index ? -1 : x->index > y->index;
+}
+
+static void sort_by_range(const pn_prog *p, const dcm_block *blocks, size_t *pending, size_t np) {
+    ranked *r = malloc(np * sizeof *r);
+    if (!r) return; /* keep the scan order */
+    for (size_t j = 0; j < np; j++) {
+        const dcm_block *b = &blocks[pending[j]];
+        int x1, y1;
+        block_extent(p, b, &x1, &y1);
+        float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
+        int n = gather_loop(p, b->x0, b->y0, x1 - b->x0, y1 - b->y0, rgb, lum);
+        float lo = INFINITY, hi = -INFINITY;
+        for (int i = 0; i < n; i++) {
+            lo = fminf(lo, lum[i]);
+            hi = fmaxf(hi, lum[i]);
+        }
+        r[j].range = n ? hi - lo : 0.0f;
+        r[j].index = pending[j];
+    }
+    qsort(r, np, sizeof *r, cmp_ranked);
+    for (size_t j = 0; j < np; j++) pending[j] = r[j].index;
+    free(r);
+}
+
 typedef struct test_run {
     dcm_state *d;
     dcm_block *blocks;
@@ -593,7 +626,9 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
         if (L->b[i].parent >= 0) d->lv[l - 1].b[L->b[i].parent].replaced = 1;
     }
 
-    /* (2) boundary evaluation, spacing k/2, k/4, ..., 1 */
+    /* (2) boundary evaluation, spacing k/2, k/4, ..., 1; within a round, blocks with the largest
+     * luminance range on their boundary first (they hold the largest errors of the image) */
+    sort_by_range(p, L->b, pending, np);
     int k = L->b[start].size;
     for (int sp = k / 2; sp >= 1 && np > 0; sp /= 2) {
         for (size_t j = 0; j < np; j++) {
@@ -727,9 +762,7 @@ pn_status pn_dcm_run(pn_prog *p, bool uniform_only) {
     p->draw = dcm_draw;
     p->driver = d;
     p->free_driver = dcm_free;
-    pn_status st = PN_OK;
-    if (!uniform_only) st = pn_prog_build_primary(p);
-    if (st == PN_OK) st = dcm_iterate(d);
+    pn_status st = dcm_iterate(d);
     if (p->driver_stats) {
         p->driver_stats->dcm_simple_blocks = d->simple;
         p->driver_stats->dcm_complex_blocks = d->complex;

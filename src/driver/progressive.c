@@ -57,9 +57,11 @@ static void store_estimates(pn_prog *p, int worker, const int32_t (*px)[2], cons
     struct prog_counters *c = &p->counters[worker];
     for (int i = 0; i < n; i++) {
         size_t k = pn_prog_index(p, px[i][0], px[i][1]);
-        p->rad[3 * k] = est[i].radiance.x;
-        p->rad[3 * k + 1] = est[i].radiance.y;
-        p->rad[3 * k + 2] = est[i].radiance.z;
+        p->orig[3 * k] = est[i].radiance.x;
+        p->orig[3 * k + 1] = est[i].radiance.y;
+        p->orig[3 * k + 2] = est[i].radiance.z;
+        for (int ch = 0; ch < 3; ch++)
+            p->rad[3 * k + ch] = p->demod ? p->orig[3 * k + ch] / p->demod[3 * k + ch] : p->orig[3 * k + ch];
         p->state[k] = PN_PX_EVALUATED;
         c->eye += est[i].eye_rays;
         c->shadow += est[i].shadow_rays;
@@ -262,8 +264,11 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
             }
         memset(work, 0, 3 * n * sizeof *work);
         if (p->draw) p->draw(p, p->driver, work, cls, dir);
-        for (size_t i = 0; i < n; i++)
-            if ((p->state[i] & 3) == PN_PX_EVALUATED) memcpy(work + 3 * i, p->rad + 3 * i, 3 * sizeof *work);
+        for (size_t i = 0; i < n; i++) {
+            if ((p->state[i] & 3) == PN_PX_EVALUATED) memcpy(work + 3 * i, p->orig + 3 * i, 3 * sizeof *work);
+            else if (p->demod)
+                for (int c = 0; c < 3; c++) work[3 * i + c] *= p->demod[3 * i + c];
+        }
         ok = pn_gauss_downsample(work, p->W, p->H, 3, p->scale, (float *)pn_image_layer_data(img, 0), p->out_w,
                                  p->out_h);
     }
@@ -321,9 +326,20 @@ static void primary_row(void *user, size_t row, int worker) {
                          (uint32_t)(path.hit.instance + 1) * 97u;
             p->tag[i] = (int32_t)(t & 0x7fffffffu);
             r->normal[i] = path.hit.ng;
+            if (p->demod) {
+                /* Demodulation: interpolate radiance / albedo, so that texture detail known from
+                 * one primary ray per pixel is not left to the interpolation. */
+                vec3 a = path.first_albedo;
+                float m = fmaxf(a.x, fmaxf(a.y, a.z));
+                float *f = p->demod + 3 * i;
+                f[0] = m < 1e-3f ? 1.0f : fmaxf(a.x, 0.02f);
+                f[1] = m < 1e-3f ? 1.0f : fmaxf(a.y, 0.02f);
+                f[2] = m < 1e-3f ? 1.0f : fmaxf(a.z, 0.02f);
+            }
         } else {
             p->tag[i] = -1;
             r->normal[i] = v3(0, 0, 0);
+            if (p->demod) p->demod[3 * i] = p->demod[3 * i + 1] = p->demod[3 * i + 2] = 1.0f;
         }
     }
 }
@@ -345,7 +361,8 @@ pn_status pn_prog_build_primary(pn_prog *p) {
     p->tag = malloc(n * sizeof *p->tag);
     p->sat_right = calloc(ns, sizeof *p->sat_right);
     p->sat_down = calloc(ns, sizeof *p->sat_down);
-    if (!r.depth || !r.normal || !p->tag || !p->sat_right || !p->sat_down) {
+    if (!p->settings->raw_radiance) p->demod = malloc(3 * n * sizeof *p->demod);
+    if (!r.depth || !r.normal || !p->tag || !p->sat_right || !p->sat_down || (!p->settings->raw_radiance && !p->demod)) {
         free(r.depth);
         free(r.normal);
         return PN_ERROR_OUT_OF_MEMORY;
@@ -440,6 +457,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->wy0 = p->job.camera.y0;
     size_t n = (size_t)p->W * (size_t)p->H;
     p->rad = calloc(3 * n, sizeof *p->rad);
+    p->orig = calloc(3 * n, sizeof *p->orig);
     p->state = calloc(n, 1);
     p->pool = pn_threadpool_create(s->threads);
     p->workers = pn_threadpool_size(p->pool);
@@ -448,7 +466,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->percent_count = s->snapshot_percent_count;
     p->percents = p->percent_count ? malloc((size_t)p->percent_count * sizeof *p->percents) : NULL;
     pn_status st = PN_OK;
-    if (!p->rad || !p->state || !p->pool || !p->scratch || !p->counters || (p->percent_count && !p->percents)) {
+    if (!p->rad || !p->orig || !p->state || !p->pool || !p->scratch || !p->counters || (p->percent_count && !p->percents)) {
         st = pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d work image", p->W, p->H);
     } else {
         if (p->percent_count) {
@@ -462,7 +480,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         p->driver_stats = stats;
         p->t0 = pn_clock_seconds();
         p->next_time = p->t0 + s->snapshot_every_seconds;
-        switch (s->driver) {
+        if (s->driver != PN_DRIVER_FULL) st = pn_prog_build_primary(p);
+        if (st == PN_OK) switch (s->driver) {
         case PN_DRIVER_FULL: st = full_run(p); break;
         case PN_DRIVER_DCM: st = pn_dcm_run(p, false); break;
         case PN_DRIVER_UNIFORM: st = pn_dcm_run(p, true); break;
@@ -523,6 +542,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->counters);
     free(p->percents);
     free(p->rad);
+    free(p->orig);
+    free(p->demod);
     free(p->state);
     free(p->queue);
     free(p->tag);

@@ -39,7 +39,10 @@ struct pn_prog {
     int W, H;          /* work window */
     int out_w, out_h;  /* output window */
     int wx0, wy0;      /* full-image coordinates of the work window's corner */
-    float *rad;        /* W*H*3: evaluated or predicted radiance */
+    float *rad;        /* W*H*3: what the drivers interpolate: evaluated or predicted radiance,
+                          divided by the demodulation factor */
+    float *orig;       /* W*H*3: evaluated radiance as the integrator returned it */
+    float *demod;      /* W*H*3: first-hit albedo factor (NULL: no demodulation) */
     unsigned char *state;
     size_t evaluated;
     int32_t (*queue)[2];
@@ -90,7 +93,8 @@ bool pn_prog_eval_now(pn_prog *p, int worker, int x, int y);
 void pn_prog_collect_extra(pn_prog *p);
 /* Runs fn over [0, n) on the thread pool. */
 void pn_prog_parallel(pn_prog *p, size_t n, void (*fn)(void *user, size_t job, int worker), void *user);
-/* Builds the primary-ray buffer: tags and visible-line tables. */
+/* Builds the primary-ray buffer: tags, visible-line tables and (unless settings->raw_radiance)
+ * the demodulation factors. Must run before any pixel is evaluated. */
 pn_status pn_prog_build_primary(pn_prog *p);
 /* Whether a visible line (a change of object tag, a normal bend or a depth jump between two
  * 4-neighbours, both inside the rectangle) crosses [x0, x1] x [y0, y1] (inclusive). */
