@@ -17,6 +17,8 @@
 #define PN_DCM_CONTRAST 0.05f      /* t_c */
 #define PN_DCM_LAZY_TOLERANCE 0.01f /* lazy boundary evaluation: 1% relative */
 #define PN_DCM_TANGENT 0.05f       /* t_m = 0.05 pi ||x1 - x0|| */
+#define PN_DCM_NOISE 2.0f          /* departure: differences within 2 sigma of the pixels' noise
+                                      are not edges (contrast) and not deviations (lazy test) */
 
 int pn_dcm_loop_length(int w, int h);
 void pn_dcm_loop_pixel(int w, int h, int i, int *x, int *y);

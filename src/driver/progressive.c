@@ -24,6 +24,11 @@ float pn_prog_lum(const pn_prog *p, int x, int y) {
     return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
 }
 
+float pn_prog_lum_sigma(const pn_prog *p, int x, int y) {
+    float rv = p->relvar[pn_prog_index(p, x, y)];
+    return rv > 0.0f ? sqrtf(rv) * fabsf(pn_prog_lum(p, x, y)) : 0.0f;
+}
+
 bool pn_prog_request(pn_prog *p, int x, int y) {
     size_t i = pn_prog_index(p, x, y);
     if ((p->state[i] & 3) == PN_PX_EVALUATED || (p->state[i] & PN_PX_QUEUED)) return true;
@@ -63,6 +68,7 @@ static void store_estimates(pn_prog *p, int worker, const int32_t (*px)[2], cons
         for (int ch = 0; ch < 3; ch++)
             p->rad[3 * k + ch] = p->demod ? p->orig[3 * k + ch] / p->demod[3 * k + ch] : p->orig[3 * k + ch];
         p->state[k] = PN_PX_EVALUATED;
+        p->relvar[k] = isfinite(est[i].relative_variance) ? est[i].relative_variance : 0.0f;
         c->eye += est[i].eye_rays;
         c->shadow += est[i].shadow_rays;
         c->spec += est[i].specular_rays;
@@ -458,6 +464,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     size_t n = (size_t)p->W * (size_t)p->H;
     p->rad = calloc(3 * n, sizeof *p->rad);
     p->orig = calloc(3 * n, sizeof *p->orig);
+    p->relvar = calloc(n, sizeof *p->relvar);
     p->state = calloc(n, 1);
     p->pool = pn_threadpool_create(s->threads);
     p->workers = pn_threadpool_size(p->pool);
@@ -466,7 +473,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->percent_count = s->snapshot_percent_count;
     p->percents = p->percent_count ? malloc((size_t)p->percent_count * sizeof *p->percents) : NULL;
     pn_status st = PN_OK;
-    if (!p->rad || !p->orig || !p->state || !p->pool || !p->scratch || !p->counters || (p->percent_count && !p->percents)) {
+    if (!p->rad || !p->orig || !p->relvar || !p->state || !p->pool || !p->scratch || !p->counters || (p->percent_count && !p->percents)) {
         st = pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d work image", p->W, p->H);
     } else {
         if (p->percent_count) {
@@ -543,6 +550,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->percents);
     free(p->rad);
     free(p->orig);
+    free(p->relvar);
     free(p->demod);
     free(p->state);
     free(p->queue);

@@ -43,6 +43,7 @@ struct pn_prog {
                           divided by the demodulation factor */
     float *orig;       /* W*H*3: evaluated radiance as the integrator returned it */
     float *demod;      /* W*H*3: first-hit albedo factor (NULL: no demodulation) */
+    float *relvar;     /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
     unsigned char *state;
     size_t evaluated;
     int32_t (*queue)[2];
@@ -80,6 +81,8 @@ static inline bool pn_prog_known(const pn_prog *p, int x, int y) {
 }
 /* Rec. 709 luminance of a work pixel's stored value. */
 float pn_prog_lum(const pn_prog *p, int x, int y);
+/* Standard deviation of that luminance from the integrator's variance estimate (0 if unknown). */
+float pn_prog_lum_sigma(const pn_prog *p, int x, int y);
 
 /* Queues work pixel (x, y) (window coordinates) unless evaluated or queued. */
 bool pn_prog_request(pn_prog *p, int x, int y);
