@@ -229,6 +229,7 @@ typedef struct pn_render_stats {
     uint32_t dcm_simple_blocks, dcm_complex_blocks; /* edge blocks that passed / failed the tests */
     uint32_t dcm_lazy_blocks;         /* quads that kept their parent's elements (lazy evaluation) */
     double primary_buffer_seconds;    /* the id/normal/depth buffer of primary rays */
+    double reconstruct_seconds_max;   /* longest reconstruction of an approximate image */
 } pn_render_stats;
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the

@@ -1145,6 +1145,7 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         json_u64(&w, "dcm_complex_blocks", stats->dcm_complex_blocks);
         json_u64(&w, "dcm_lazy_blocks", stats->dcm_lazy_blocks);
         json_double(&w, "primary_buffer_seconds", stats->primary_buffer_seconds);
+        json_double(&w, "reconstruct_seconds_max", stats->reconstruct_seconds_max);
     }
     if (o->settings.integrator == PN_INTEGRATOR_IAS) {
         /* The paper's Tables 4-6: per-pixel means, and visibility per viewpoint and per pixel. */

@@ -125,10 +125,21 @@ static void slab(int w, int h, float x, float y, float nx, float ny, float *tmin
 
 static float clampf(float v, float lo, float hi) { return v < lo ? lo : v > hi ? hi : v; }
 
+/* n_i = (cos theta_i, sin theta_i), theta_i = i pi / 8 */
+static const float dcm_dir[PN_DCM_DIRECTIONS][2] = {
+    {1.0f, 0.0f},
+    {0.923879532511286756f, 0.382683432365089772f},
+    {0.707106781186547524f, 0.707106781186547524f},
+    {0.382683432365089772f, 0.923879532511286756f},
+    {0.0f, 1.0f},
+    {-0.382683432365089772f, 0.923879532511286756f},
+    {-0.707106781186547524f, 0.707106781186547524f},
+    {-0.923879532511286756f, 0.382683432365089772f},
+};
+
 static void direction(int dir, float *nx, float *ny) {
-    double theta = (double)dir * M_PI / PN_DCM_DIRECTIONS;
-    *nx = (float)cos(theta);
-    *ny = (float)sin(theta);
+    *nx = dcm_dir[dir & (PN_DCM_DIRECTIONS - 1)][0];
+    *ny = dcm_dir[dir & (PN_DCM_DIRECTIONS - 1)][1];
 }
 
 void pn_dcm_element_value(const float *loop, int channels, int w, int h, int dir, float x, float y, float *out) {
@@ -391,13 +402,18 @@ static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rg
     return n;
 }
 
+/* Blocks share their boundary pixels; each draws [x0, x1) x [y0, y1) (closed at the image's last
+ * row and column), so that blocks can be drawn in parallel and in any order. */
+static int draw_end(int v1, int last) { return v1 == last ? v1 + 1 : v1; }
+
 static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, int y1) {
     const float *c00 = p->rad + 3 * pn_prog_index(p, x0, y0), *c10 = p->rad + 3 * pn_prog_index(p, x1, y0);
     const float *c01 = p->rad + 3 * pn_prog_index(p, x0, y1), *c11 = p->rad + 3 * pn_prog_index(p, x1, y1);
     float iw = x1 > x0 ? 1.0f / (float)(x1 - x0) : 0.0f, ih = y1 > y0 ? 1.0f / (float)(y1 - y0) : 0.0f;
-    for (int y = y0; y <= y1; y++) {
+    int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
+    for (int y = y0; y < ye; y++) {
         float v = (float)(y - y0) * ih;
-        for (int x = x0; x <= x1; x++) {
+        for (int x = x0; x < xe; x++) {
             float u = (float)(x - x0) * iw;
             float *o = img + 3 * pn_prog_index(p, x, y);
             for (int c = 0; c < 3; c++)
@@ -412,38 +428,90 @@ static void draw_elements(const pn_prog *p, float *img, const dcm_block *b) {
     int w = x1 - b->x0, h = y1 - b->y0;
     float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
     gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
-    for (int y = 0; y <= h; y++)
-        for (int x = 0; x <= w; x++)
+    int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
+    for (int y = 0; y < ye; y++)
+        for (int x = 0; x < xe; x++)
             pn_dcm_element_value(rgb, 3, w, h, b->dir, (float)x, (float)y,
                                  img + 3 * pn_prog_index(p, b->x0 + x, b->y0 + y));
 }
 
+typedef struct draw_run {
+    pn_prog *p;
+    dcm_state *d;
+    float *img, *cls, *dir;
+    int spacing, cells_x;          /* regular stage: lattice cells per row */
+    int32_t (*chunks)[2];          /* DCM: (level, first block) of each job */
+} draw_run;
+
+#define DCM_DRAW_CHUNK 1024
+
+static void draw_regular_row(void *user, size_t job, int worker) {
+    (void)worker;
+    draw_run *r = user;
+    const pn_prog *p = r->p;
+    int s = r->spacing, y = (int)job * s;
+    for (int x = 0; x < p->W - 1 || x == 0; x += s)
+        draw_bilinear(p, r->img, x, y, x + s < p->W - 1 ? x + s : p->W - 1, y + s < p->H - 1 ? y + s : p->H - 1);
+}
+
+static void draw_chunk(void *user, size_t job, int worker) {
+    (void)worker;
+    draw_run *r = user;
+    const pn_prog *p = r->p;
+    const dcm_level *L = &r->d->lv[r->chunks[job][0]];
+    size_t end = (size_t)r->chunks[job][1] + DCM_DRAW_CHUNK;
+    if (end > L->n) end = L->n;
+    for (size_t i = (size_t)r->chunks[job][1]; i < end; i++) {
+        const dcm_block *b = &L->b[i];
+        if (!b->final || b->replaced) continue;
+        int x1, y1;
+        block_extent(p, b, &x1, &y1);
+        if (b->kind == DCM_SMOOTH) draw_bilinear(p, r->img, b->x0, b->y0, x1, y1);
+        else draw_elements(p, r->img, b);
+        if (r->cls) {
+            int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
+            for (int y = b->y0; y < ye; y++)
+                for (int x = b->x0; x < xe; x++) {
+                    size_t k = pn_prog_index(p, x, y);
+                    r->cls[k] = (float)b->kind;
+                    r->dir[k] = b->kind == DCM_SMOOTH ? -1.0f : (float)b->dir * (180.0f / PN_DCM_DIRECTIONS);
+                }
+        }
+    }
+}
+
 static void dcm_draw(pn_prog *p, void *driver, float *img, float *cls, float *dir) {
     dcm_state *d = driver;
+    draw_run r = {p, d, img, cls, dir, d->reg_spacing, 0, NULL};
     if (!d->regular_done) {
-        int s = d->reg_spacing;
-        if (s <= 0) return;
-        for (int y = 0; y < p->H - 1 || y == 0; y += s)
-            for (int x = 0; x < p->W - 1 || x == 0; x += s)
-                draw_bilinear(p, img, x, y, x + s < p->W - 1 ? x + s : p->W - 1, y + s < p->H - 1 ? y + s : p->H - 1);
+        if (r.spacing <= 0) return;
+        size_t rows = (size_t)((p->H - 1 + r.spacing - 1) / r.spacing);
+        pn_prog_parallel(p, rows > 0 ? rows : 1, draw_regular_row, &r);
         return;
     }
+    size_t jobs = 0;
+    for (int l = 0; l < DCM_MAX_LEVELS; l++) jobs += (d->lv[l].n + DCM_DRAW_CHUNK - 1) / DCM_DRAW_CHUNK;
+    r.chunks = malloc((jobs ? jobs : 1) * sizeof *r.chunks);
+    if (!r.chunks) { /* serial fallback, one block at a time */
+        int32_t one[1][2];
+        r.chunks = one;
+        for (int l = 0; l < DCM_MAX_LEVELS; l++)
+            for (size_t i = 0; i < d->lv[l].n; i += DCM_DRAW_CHUNK) {
+                one[0][0] = l;
+                one[0][1] = (int32_t)i;
+                draw_chunk(&r, 0, 0);
+            }
+        return;
+    }
+    size_t j = 0;
     for (int l = 0; l < DCM_MAX_LEVELS; l++)
-        for (size_t i = 0; i < d->lv[l].n; i++) {
-            const dcm_block *b = &d->lv[l].b[i];
-            if (!b->final || b->replaced) continue;
-            int x1, y1;
-            block_extent(p, b, &x1, &y1);
-            if (b->kind == DCM_SMOOTH) draw_bilinear(p, img, b->x0, b->y0, x1, y1);
-            else draw_elements(p, img, b);
-            if (cls)
-                for (int y = b->y0; y <= y1; y++)
-                    for (int x = b->x0; x <= x1; x++) {
-                        size_t k = pn_prog_index(p, x, y);
-                        cls[k] = (float)b->kind;
-                        dir[k] = b->kind == DCM_SMOOTH ? -1.0f : (float)b->dir * (180.0f / PN_DCM_DIRECTIONS);
-                    }
+        for (size_t i = 0; i < d->lv[l].n; i += DCM_DRAW_CHUNK) {
+            r.chunks[j][0] = l;
+            r.chunks[j][1] = (int32_t)i;
+            j++;
         }
+    pn_prog_parallel(p, jobs, draw_chunk, &r);
+    free(r.chunks);
 }
 
 static bool request_block_corners(pn_prog *p, const dcm_block *b) {

@@ -189,12 +189,14 @@ static pn_status make_image(pn_prog *p, pn_image *out);
 static void fire_snapshot(pn_prog *p, double requested) {
     if (!p->settings->snapshot) return;
     pn_image img = NULL;
+    double t0 = pn_clock_seconds();
     pn_status st = make_image(p, &img);
     if (st != PN_OK) {
         p->snapshot_status = st;
         return;
     }
     double now = pn_clock_seconds();
+    if (now - t0 > p->reconstruct_seconds_max) p->reconstruct_seconds_max = now - t0;
     p->settings->snapshot(p->settings->snapshot_user, img, requested, (double)pn_prog_evaluated_percent(p),
                           now - p->t0);
     pn_image_free(img);
@@ -253,7 +255,8 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
     size_t n = (size_t)p->W * (size_t)p->H;
     uint32_t aovs = p->settings->aovs;
     bool want_map = (aovs & (PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION)) != 0;
-    float *work = malloc(3 * n * sizeof *work);
+    if (!p->work) p->work = malloc(3 * n * sizeof *p->work);
+    float *work = p->work;
     float *cls = want_map ? malloc(n * sizeof *cls) : NULL;
     float *dir = want_map ? malloc(n * sizeof *dir) : NULL;
     pn_image img = pn_image_create(p->out_w, p->out_h);
@@ -276,7 +279,7 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
                 for (int c = 0; c < 3; c++) work[3 * i + c] *= p->demod[3 * i + c];
         }
         ok = pn_gauss_downsample(work, p->W, p->H, 3, p->scale, (float *)pn_image_layer_data(img, 0), p->out_w,
-                                 p->out_h);
+                                 p->out_h, p->pool);
     }
     if (ok) {
         int s = p->scale;
@@ -294,7 +297,6 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
                 if (mapdir) mapdir[o] = dir[c];
             }
     }
-    free(work);
     free(cls);
     free(dir);
     if (!ok) {
@@ -485,6 +487,10 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         atomic_store(&ctx->cancel, 0);
         atomic_store(&ctx->snapshot_request, 0);
         p->driver_stats = stats;
+        /* The reconstruction buffer, touched once here so that the first snapshot does not pay
+         * for the page faults. */
+        p->work = calloc(3 * n, sizeof *p->work);
+        if (p->work) memset(p->work, 0, 3 * n * sizeof *p->work);
         p->t0 = pn_clock_seconds();
         p->next_time = p->t0 + s->snapshot_every_seconds;
         if (s->driver != PN_DRIVER_FULL) st = pn_prog_build_primary(p);
@@ -536,6 +542,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             stats->work_width = p->W;
             stats->work_height = p->H;
             stats->primary_buffer_seconds = p->primary_seconds;
+            stats->reconstruct_seconds_max = p->reconstruct_seconds_max;
         }
         if (img_st != PN_OK) st = pn_context_fail(ctx, img_st, "out of memory for the output image");
         else if (st == PN_ERROR_CANCELLED) pn_context_fail(ctx, st, "render cancelled; the image is approximate");
@@ -548,6 +555,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->scratch);
     free(p->counters);
     free(p->percents);
+    free(p->work);
     free(p->rad);
     free(p->orig);
     free(p->relvar);

@@ -72,6 +72,8 @@ struct pn_prog {
     int32_t *tag;
     uint32_t *sat_right, *sat_down; /* summed-area tables of discontinuities to the right/below */
     double primary_seconds;
+    double reconstruct_seconds_max;
+    float *work;                   /* W*H*3 reconstruction buffer, allocated at the first image */
     pn_render_stats *driver_stats; /* drivers add their counters here */
 };
 
