@@ -439,6 +439,19 @@ static void test_cli_snapshots(void) {
     pn_image_free(b);
     pn_image_free(c);
     pn_context_free(ctx);
+    /* timed snapshots: with a tiny interval one is written after every chunk of pixels, named by
+     * the evaluated percentage with one decimal */
+    char out2[512];
+    snprintf(out2, sizeof out2, "%s/timed.pfm", tmpdir);
+    const char *timed[] = {PN_CLI_PATH, "render", scene, "-o", out2, "--driver", "uniform", "--spp", "1",
+                           "--snapshot-every", "0.000001", "--quiet", NULL};
+    CHECK(run(timed, err) == 0);
+    int timed_files = 0;
+    d = opendir(tmpdir);
+    while (d && (e = readdir(d)) != NULL)
+        if (strncmp(e->d_name, "timed-", 6) == 0 && strstr(e->d_name, "pct.pfm")) timed_files++;
+    if (d) closedir(d);
+    CHECK_MSG(timed_files >= 3, "%d timed snapshots", timed_files);
     /* bad options */
     const char *bad1[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "fast", NULL};
     CHECK(run(bad1, err) == 2);
@@ -456,7 +469,28 @@ static void test_setup(void) {
     }
 }
 
+/* Removes the files of the temporary folder (one level of subfolders) and the folder. */
+static void remove_tree(const char *path, int depth) {
+    DIR *d = opendir(path);
+    struct dirent *e;
+    while (d && (e = readdir(d)) != NULL) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+        char child[1024];
+        size_t lp = strlen(path), ln = strlen(e->d_name);
+        if (lp + ln + 2 > sizeof child) continue;
+        memcpy(child, path, lp);
+        child[lp] = '/';
+        memcpy(child + lp + 1, e->d_name, ln + 1);
+        if (unlink(child) != 0 && depth > 0) remove_tree(child, depth - 1);
+    }
+    if (d) closedir(d);
+    rmdir(path);
+}
+
+static void test_cleanup(void) { remove_tree(tmpdir, 1); }
+
 PN_TESTS(TEST(test_setup), TEST(test_loop_geometry), TEST(test_least_discrepancy_exact),
          TEST(test_elements_reproduce_linear_ramp), TEST(test_simplicity_tests), TEST(test_object_test_and_contrast),
          TEST(test_gaussian_downsample), TEST(test_full_refinement_equals_full_render),
-         TEST(test_snapshots_and_error_at_6_percent), TEST(test_stop_and_aovs), TEST(test_cli_snapshots))
+         TEST(test_snapshots_and_error_at_6_percent), TEST(test_stop_and_aovs), TEST(test_cli_snapshots),
+         TEST(test_cleanup))
