@@ -1,7 +1,12 @@
 /* progressive.c — work image, batch evaluation, snapshots and output of the progressive drivers
  * (see progressive.h), and the `full` baseline driver: every work pixel evaluated in 8x8 blocks
  * and filtered down with the same Gaussian, so that a progressive driver that has evaluated every
- * pixel reproduces it bit for bit (the reference integrator's pixels do not depend on their batch). */
+ * pixel reproduces it bit for bit (the reference integrator's pixels do not depend on their batch).
+ *
+ * Batches: a chunk of queued pixels is sorted by 8x8 work block and then (y, x); each block's
+ * pixels form one batch. Chunks end at the snapshot percentages and at stop_percent, so with a
+ * block-adaptive integrator (ias) the batch composition, and with it the pixel values, depend on
+ * those settings (never on the thread count); the reference integrator is unaffected. */
 #include "driver/progressive.h"
 
 #include "core/clock.h"
