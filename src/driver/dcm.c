@@ -39,6 +39,11 @@
  *  - Order of work: within an iteration, the quads of edge blocks are processed before the
  *    quads of smooth blocks, so that all 4x4 edge blocks are done before the smooth 8x8 blocks
  *    are subdivided — the paper's 6% images are "after processing all 4x4 edge blocks".
+ *  - Within a boundary-evaluation round, edge blocks are taken in decreasing order of the
+ *    luminance range on their boundary (largest errors first), and classified blocks replace their
+ *    parents in the approximate image at once, edge blocks with elements over the part of their
+ *    boundary evaluated so far, re-oriented after every round (what Fig. 9's even spreading is
+ *    for).
  *  - Fig. 9 (e)-(h) (evaluating the quads' boundaries inside a complex block before its own
  *    boundary is complete) is replaced by the real boundary evaluation of the quads in the next
  *    iteration.
