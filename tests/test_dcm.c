@@ -167,14 +167,14 @@ static void test_gaussian_downsample(void) {
     enum { S = 3, W = 7, H = 5 };
     float src[W * S * H * S * 3], dst[W * H * 3];
     for (int i = 0; i < W * S * H * S * 3; i++) src[i] = 0.25f;
-    CHECK(pn_gauss_downsample(src, W * S, H * S, 3, S, dst, W, H, NULL));
+    CHECK(pn_gauss_downsample(src, W * S, H * S, 3, S, dst, W, H, NULL, NULL));
     for (int i = 0; i < W * H * 3; i++) CHECK_NEAR(dst[i], 0.25, 1e-6);
     /* A ramp in x stays a ramp at the output pixel centres away from the borders (symmetric
      * weights). */
     for (int y = 0; y < H * S; y++)
         for (int x = 0; x < W * S; x++)
             for (int c = 0; c < 3; c++) src[(y * W * S + x) * 3 + c] = (float)x;
-    CHECK(pn_gauss_downsample(src, W * S, H * S, 3, S, dst, W, H, NULL));
+    CHECK(pn_gauss_downsample(src, W * S, H * S, 3, S, dst, W, H, NULL, NULL));
     for (int x = 2; x < W - 2; x++) CHECK_NEAR(dst[(2 * W + x) * 3], S * x + (S - 1) / 2, 1e-4);
 }
 

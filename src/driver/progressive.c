@@ -284,7 +284,7 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
                 for (int c = 0; c < 3; c++) work[3 * i + c] *= p->demod[3 * i + c];
         }
         ok = pn_gauss_downsample(work, p->W, p->H, 3, p->scale, (float *)pn_image_layer_data(img, 0), p->out_w,
-                                 p->out_h, p->pool);
+                                 p->out_h, p->pool, p->filter_tmp);
     }
     if (ok) {
         int s = p->scale;
@@ -496,6 +496,9 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
          * for the page faults. */
         p->work = calloc(3 * n, sizeof *p->work);
         if (p->work) memset(p->work, 0, 3 * n * sizeof *p->work);
+        size_t nt = 3 * (size_t)p->out_w * (size_t)p->H;
+        p->filter_tmp = calloc(nt, sizeof *p->filter_tmp);
+        if (p->filter_tmp) memset(p->filter_tmp, 0, nt * sizeof *p->filter_tmp);
         p->t0 = pn_clock_seconds();
         p->next_time = p->t0 + s->snapshot_every_seconds;
         if (s->driver != PN_DRIVER_FULL) st = pn_prog_build_primary(p);
@@ -561,6 +564,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->counters);
     free(p->percents);
     free(p->work);
+    free(p->filter_tmp);
     free(p->rad);
     free(p->orig);
     free(p->relvar);

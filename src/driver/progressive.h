@@ -73,7 +73,8 @@ struct pn_prog {
     uint32_t *sat_right, *sat_down; /* summed-area tables of discontinuities to the right/below */
     double primary_seconds;
     double reconstruct_seconds_max;
-    float *work;                   /* W*H*3 reconstruction buffer, allocated at the first image */
+    float *work;                   /* W*H*3 reconstruction buffer */
+    float *filter_tmp;             /* out_w*H*3: the Gaussian's horizontal pass */
     pn_render_stats *driver_stats; /* drivers add their counters here */
 };
 

@@ -66,16 +66,16 @@ static void column_job(void *user, size_t job, int worker) {
 }
 
 bool pn_gauss_downsample(const float *src, int sw, int sh, int channels, int s, float *dst, int dw, int dh,
-                         pn_threadpool *pool) {
+                         pn_threadpool *pool, float *tmp_in) {
     if (s < 1 || s > 16 || channels < 1 || sw < s * dw || sh < s * dh) return false;
     double sigma = 0.4 * (double)s;
     int radius = (int)ceil(3.0 * sigma); /* at most 20: 2 radius + 2 taps fit w[128] */
     int klen = 2 * radius + 3;
     float *kernel = malloc((size_t)klen * sizeof *kernel);
-    float *tmp = malloc((size_t)dw * (size_t)sh * (size_t)channels * sizeof *tmp);
+    float *tmp = tmp_in ? tmp_in : malloc((size_t)dw * (size_t)sh * (size_t)channels * sizeof *tmp);
     if (!kernel || !tmp) {
         free(kernel);
-        free(tmp);
+        if (!tmp_in) free(tmp);
         return false;
     }
     for (int k = 0; k < klen; k++) {
@@ -86,6 +86,6 @@ bool pn_gauss_downsample(const float *src, int sw, int sh, int channels, int s, 
     pn_threadpool_run(pool, (size_t)sh, row_job, &g);
     pn_threadpool_run(pool, (size_t)dh, column_job, &g);
     free(kernel);
-    free(tmp);
+    if (!tmp_in) free(tmp);
     return true;
 }

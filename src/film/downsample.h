@@ -12,9 +12,10 @@
  * output pixels truncated at 3 sigma; weights are renormalised over the taps that fall inside
  * the work window (so borders of a crop need no pixels outside it). Deterministic (fixed
  * summation order, whatever the thread count). Needs 1 <= s <= 16, sw >= s*dw and sh >= s*dh.
- * Rows are spread over `pool` (NULL: the caller alone). Returns false on bad sizes or when out
- * of memory. */
+ * Rows are spread over `pool` (NULL: the caller alone). `tmp` (may be NULL: allocated here)
+ * holds dw * sh * channels floats for the horizontal pass. Returns false on bad sizes or when
+ * out of memory. */
 bool pn_gauss_downsample(const float *src, int sw, int sh, int channels, int s, float *dst, int dw, int dh,
-                         pn_threadpool *pool);
+                         pn_threadpool *pool, float *tmp);
 
 #endif
