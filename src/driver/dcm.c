@@ -15,9 +15,9 @@
  *        parent's elements; within 1% they keep the parent's direction and take their boundary
  *        from the parent's elements (corners and any evaluated pixel stay evaluated), otherwise
  *        they get real boundary evaluation.
- *    (2) boundary evaluation of edge blocks (Fig. 9): all edge blocks of the iteration get
- *        boundary pixels at spacing k/2, then k/4, ..., 1, each spacing one round, so that
- *        evaluated pixels spread evenly over the boundaries while the render progresses.
+ *    (2) boundary evaluation of edge blocks (Fig. 9): each edge block gets boundary pixels at
+ *        spacing k/2, then k/4, ..., 1, so that evaluated pixels spread evenly over its boundary
+ *        and elements can be built before the boundary is complete.
  *    (3) block simplicity tests (§4.3): zero-order (Bartlett filter of length 3, threshold
  *        t_b = (b1 + d1)/2, median filter of length 3, at most two transition points),
  *        first-order (tangents at the transition points from extra evaluations on the inner
@@ -39,11 +39,13 @@
  *  - Order of work: within an iteration, the quads of edge blocks are processed before the
  *    quads of smooth blocks, so that all 4x4 edge blocks are done before the smooth 8x8 blocks
  *    are subdivided — the paper's 6% images are "after processing all 4x4 edge blocks".
- *  - Within a boundary-evaluation round, edge blocks are taken in decreasing order of the
- *    luminance range on their boundary (largest errors first), and classified blocks replace their
- *    parents in the approximate image at once, edge blocks with elements over the part of their
- *    boundary evaluated so far, re-oriented after every round (what Fig. 9's even spreading is
- *    for).
+ *  - Order of boundary evaluation: the (block, spacing) steps of all edge blocks of an iteration
+ *    are taken in decreasing order of (luminance range of the block's corners) x spacing, so
+ *    blocks with large ranges (the largest errors) reach fine spacings before flat blocks get
+ *    their coarse ones; the paper does not say how blocks are ordered. Classified blocks replace
+ *    their parents in the approximate image at once; an edge block still under boundary
+ *    evaluation is drawn with elements over the part of its boundary evaluated so far, oriented
+ *    by its current least-discrepancy direction (what Fig. 9's even spreading is for).
  *  - Fig. 9 (e)-(h) (evaluating the quads' boundaries inside a complex block before its own
  *    boundary is complete) is replaced by the real boundary evaluation of the quads in the next
  *    iteration.
@@ -433,10 +435,12 @@ static void draw_elements(const pn_prog *p, float *img, const dcm_block *b) {
     int w = x1 - b->x0, h = y1 - b->y0;
     float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
     gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
+    /* an edge block still under boundary evaluation: oriented by what its boundary holds now */
+    int dir = b->kind == DCM_PENDING ? pn_dcm_least_discrepancy(lum, w, h, NULL) : b->dir;
     int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
     for (int y = 0; y < ye; y++)
         for (int x = 0; x < xe; x++)
-            pn_dcm_element_value(rgb, 3, w, h, b->dir, (float)x, (float)y,
+            pn_dcm_element_value(rgb, 3, w, h, dir, (float)x, (float)y,
                                  img + 3 * pn_prog_index(p, b->x0 + x, b->y0 + y));
 }
 
@@ -586,49 +590,60 @@ static void predict_boundary(pn_prog *p, const dcm_block *parent, const dcm_bloc
     }
 }
 
-/* Least-discrepancy directions of edge blocks from what their boundaries hold so far. */
-static void update_directions(const pn_prog *p, dcm_block *blocks, const size_t *pending, size_t np) {
-    for (size_t j = 0; j < np; j++) {
-        dcm_block *b = &blocks[pending[j]];
-        int x1, y1;
-        block_extent(p, b, &x1, &y1);
-        float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
-        gather_loop(p, b->x0, b->y0, x1 - b->x0, y1 - b->y0, rgb, lum);
-        b->dir = (uint8_t)pn_dcm_least_discrepancy(lum, x1 - b->x0, y1 - b->y0, NULL);
-    }
+typedef struct boundary_task {
+    float key;
+    int spacing;
+    size_t block;
+} boundary_task;
+
+static int cmp_task(const void *a, const void *b) {
+    const boundary_task *x = a, *y = b;
+    if (x->key != y->key) return x->key > y->key ? -1 : 1;
+    if (x->spacing != y->spacing) return x->spacing > y->spacing ? -1 : 1;
+    return x->block < y->block ? -1 : x->block > y->block;
 }
 
-typedef struct ranked {
-    float range;
-    size_t index;
-} ranked;
-
-static int cmp_ranked(const void *a, const void *b) {
-    const ranked *x = a, *y = b;
-    if (x->range != y->range) return x->range > y->range ? -1 : 1;
-    return x->index < y->index ? -1 : x->index > y->index;
-}
-
-static void sort_by_range(const pn_prog *p, const dcm_block *blocks, size_t *pending, size_t np) {
-    ranked *r = malloc(np * sizeof *r);
-    if (!r) return; /* keep the scan order */
+/* Queues the boundary pixels of the edge blocks in task order (see process()). */
+static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k) {
+    int rounds = 0;
+    for (int sp = k / 2; sp >= 1; sp /= 2) rounds++;
+    if (np == 0 || rounds == 0) return PN_OK;
+    boundary_task *t = malloc(np * (size_t)rounds * sizeof *t);
+    if (!t) return PN_ERROR_OUT_OF_MEMORY;
+    size_t nt = 0;
     for (size_t j = 0; j < np; j++) {
         const dcm_block *b = &blocks[pending[j]];
         int x1, y1;
         block_extent(p, b, &x1, &y1);
-        float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
-        int n = gather_loop(p, b->x0, b->y0, x1 - b->x0, y1 - b->y0, rgb, lum);
-        float lo = INFINITY, hi = -INFINITY;
-        for (int i = 0; i < n; i++) {
-            lo = fminf(lo, lum[i]);
-            hi = fmaxf(hi, lum[i]);
+        float g[4] = {pn_prog_lum(p, b->x0, b->y0), pn_prog_lum(p, x1, b->y0), pn_prog_lum(p, b->x0, y1),
+                      pn_prog_lum(p, x1, y1)};
+        float range = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3])) - fminf(fminf(g[0], g[1]), fminf(g[2], g[3]));
+        if (!(range >= 0.0f)) range = 0.0f;
+        for (int sp = k / 2; sp >= 1; sp /= 2) {
+            t[nt].key = range * (float)sp;
+            t[nt].spacing = sp;
+            t[nt].block = pending[j];
+            nt++;
         }
-        r[j].range = n ? hi - lo : 0.0f;
-        r[j].index = pending[j];
     }
-    qsort(r, np, sizeof *r, cmp_ranked);
-    for (size_t j = 0; j < np; j++) pending[j] = r[j].index;
-    free(r);
+    qsort(t, nt, sizeof *t, cmp_task);
+    for (size_t m = 0; m < nt; m++) {
+        const dcm_block *b = &blocks[t[m].block];
+        int sp = t[m].spacing, x1, y1;
+        block_extent(p, b, &x1, &y1);
+        int w = x1 - b->x0, h = y1 - b->y0, n = pn_dcm_loop_length(w, h);
+        for (int i = 0; i < n; i++) {
+            int x, y;
+            pn_dcm_loop_pixel(w, h, i, &x, &y);
+            if ((x % sp == 0 || x == w) && (y % sp == 0 || y == h))
+                if (!pn_prog_request(p, b->x0 + x, b->y0 + y)) {
+                    free(t);
+                    return PN_ERROR_OUT_OF_MEMORY;
+                }
+        }
+    }
+    free(t);
+    return PN_OK;
 }
 
 typedef struct test_run {
@@ -718,38 +733,25 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
     }
     /* The classified blocks replace their parents in the approximate image at once; edge blocks
      * show elements over their partly evaluated boundaries, re-oriented after every round. */
-    update_directions(p, L->b, pending, np);
     d->regular_done = true;
     for (size_t i = start; i < end; i++) {
         L->b[i].final = 1;
         if (L->b[i].parent >= 0) d->lv[l - 1].b[L->b[i].parent].replaced = 1;
     }
 
-    /* (2) boundary evaluation, spacing k/2, k/4, ..., 1; within a round, blocks with the largest
-     * luminance range on their boundary first (they hold the largest errors of the image) */
-    sort_by_range(p, L->b, pending, np);
+    /* (2) boundary evaluation at spacings k/2, k/4, ..., 1 (Fig. 9), as tasks (block, spacing)
+     * ordered by the luminance range of the block's corners times the spacing: every block gets
+     * its spacings coarse to fine, and blocks with a large range (the largest errors of the
+     * image) reach the fine spacings before flat ones get their coarse ones. */
     int k = L->b[start].size;
-    for (int sp = k / 2; sp >= 1 && np > 0; sp /= 2) {
-        for (size_t j = 0; j < np; j++) {
-            const dcm_block *b = &L->b[pending[j]];
-            int x1, y1;
-            block_extent(p, b, &x1, &y1);
-            int w = x1 - b->x0, h = y1 - b->y0, n = pn_dcm_loop_length(w, h);
-            for (int i = 0; i < n; i++) {
-                int x, y;
-                pn_dcm_loop_pixel(w, h, i, &x, &y);
-                if ((x % sp == 0 || x == w) && (y % sp == 0 || y == h))
-                    if (!pn_prog_request(p, b->x0 + x, b->y0 + y)) {
-                        free(pending);
-                        return PN_ERROR_OUT_OF_MEMORY;
-                    }
-            }
-        }
-        if ((st = pn_prog_flush(p)) != PN_OK || p->stopped) {
-            free(pending);
-            return st;
-        }
-        update_directions(p, L->b, pending, np);
+    st = boundary_tasks(p, L->b, pending, np, k);
+    if (st != PN_OK || p->stopped) {
+        free(pending);
+        return st;
+    }
+    if ((st = pn_prog_flush(p)) != PN_OK || p->stopped) {
+        free(pending);
+        return st;
     }
 
     /* (3) simplicity tests and (4) least-discrepancy directions, in parallel */
