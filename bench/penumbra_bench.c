@@ -17,6 +17,13 @@
  * every non-reference case of a group the bench adds an equal-quality row (the reference's time
  * and shadow rays at the same relMSE, interpolated log-log between the two reference cases whose
  * relMSE brackets it) and an equal-time row (the reference's relMSE at the same time).
+ *
+ * Progressive drivers (issue 6): driver=dcm|painter|uniform|full and res=WxH in SETTINGS. For the
+ * progressive ones the case also renders the `full` driver (the same work image, every pixel
+ * evaluated, the same Gaussian) and records, from snapshots of the first run, the relative L1 and
+ * L2 error ||E||/||F|| against it and the time at 2, 4, 6, 8, 10, 15, 25 and 50% of the work
+ * pixels evaluated: OUT/progressive.md, and the 6% image beside the full one as OUT/NAME-6pct.png
+ * and OUT/NAME-full.png.
  */
 #include "penumbra/penumbra.h"
 
@@ -52,7 +59,13 @@ typedef struct bench_result {
     int bit_identical; /* all runs gave the same image */
     uint64_t triangles;
     uint32_t lights;
+    /* progressive drivers: error and time against the full render per snapshot percentage */
+    int curve_n;
+    double curve_pct[8], curve_evaluated[8], curve_l1[8], curve_l2[8], curve_seconds[8];
+    double full_seconds;
 } bench_result;
+
+static const double curve_percents[8] = {2, 4, 6, 8, 10, 15, 25, 50};
 
 static const char *shared_dir = "../shared";
 
@@ -80,6 +93,15 @@ static int parse_settings(const char *text, pn_render_settings *s, char *group, 
             else return 0;
         }
         else if (strcmp(tok, "group") == 0) snprintf(group, group_size, "%s", v);
+        else if (strcmp(tok, "driver") == 0) { /* progressive drivers (issue 6) */
+            if (strcmp(v, "full") == 0) s->driver = PN_DRIVER_FULL;
+            else if (strcmp(v, "dcm") == 0) s->driver = PN_DRIVER_DCM;
+            else if (strcmp(v, "painter") == 0) s->driver = PN_DRIVER_PAINTER;
+            else if (strcmp(v, "uniform") == 0) s->driver = PN_DRIVER_UNIFORM;
+            else return 0;
+        } else if (strcmp(tok, "res") == 0) {
+            if (sscanf(v, "%dx%d", &s->width, &s->height) != 2) return 0;
+        }
         else if (strcmp(tok, "integrator") == 0) {
             if (strcmp(v, "reference") == 0) s->integrator = PN_INTEGRATOR_REFERENCE;
             else if (strcmp(v, "ias") == 0) s->integrator = PN_INTEGRATOR_IAS;
@@ -106,6 +128,36 @@ static double now(void) {
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
+
+/* Snapshot callback of progressive cases: error against the full image, time without the time
+ * spent here. */
+typedef struct curve_state {
+    pn_context ctx;
+    pn_image full;
+    bench_result *r;
+    double t0, spent;
+    const char *png_6pct;
+} curve_state;
+
+static void on_curve_snapshot(void *user, pn_image image, double requested, double evaluated, double seconds) {
+    curve_state *cs = user;
+    (void)seconds;
+    double t = now();
+    bench_result *r = cs->r;
+    pn_image_metrics m;
+    if (requested > 0 && r->curve_n < 8 && pn_image_compare(cs->ctx, cs->full, image, &m, NULL) == PN_OK) {
+        r->curve_pct[r->curve_n] = requested;
+        r->curve_evaluated[r->curve_n] = evaluated;
+        r->curve_l1[r->curve_n] = m.rel_l1;
+        r->curve_l2[r->curve_n] = m.rel_l2;
+        r->curve_seconds[r->curve_n] = t - cs->t0 - cs->spent;
+        r->curve_n++;
+        if (requested == 6.0 && cs->png_6pct) pn_image_write(cs->ctx, image, cs->png_6pct, 0.0f);
+    }
+    cs->spent += now() - t;
+}
+
+static const char *bench_out_dir = "bench/results";
 
 static int same_pixels(pn_image a, pn_image b) {
     size_t n = (size_t)pn_image_width(a) * (size_t)pn_image_height(a) * 3u;
@@ -138,9 +190,36 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
     memcpy(s.crop, bc->crop, sizeof s.crop);
     pn_image first = NULL;
     r->bit_identical = 1;
+    curve_state cs = {ctx, NULL, r, 0.0, 0.0, NULL};
+    char png_full[1400], png_6pct[1400];
+    if (s.driver != PN_DRIVER_DEFAULT && s.driver != PN_DRIVER_FULL) { /* progressive drivers */
+        pn_render_settings fs = s;
+        fs.driver = PN_DRIVER_FULL;
+        double t0 = now();
+        pn_render_stats fstats;
+        if (pn_render(ctx, scene, &fs, &cs.full, &fstats) != PN_OK) {
+            snprintf(r->error, sizeof r->error, "full render: %s", pn_context_error_message(ctx));
+            pn_image_free(cs.full);
+            pn_scene_free(scene);
+            pn_context_free(ctx);
+            return;
+        }
+        r->full_seconds = now() - t0;
+        snprintf(png_full, sizeof png_full, "%s/%s-full.png", bench_out_dir, bc->name);
+        snprintf(png_6pct, sizeof png_6pct, "%s/%s-6pct.png", bench_out_dir, bc->name);
+        pn_image_write(ctx, cs.full, png_full, 0.0f);
+        cs.png_6pct = png_6pct;
+        s.snapshot = on_curve_snapshot;
+        s.snapshot_user = &cs;
+        s.snapshot_percents = curve_percents;
+        s.snapshot_percent_count = 8;
+    }
     for (int i = 0; i < runs; i++) {
         pn_image img = NULL;
         double t0 = now();
+        cs.t0 = t0;
+        cs.spent = 0.0;
+        if (i > 0) s.snapshot = NULL; /* the curve comes from the first run */
         pn_status st = pn_render(ctx, scene, &s, &img, &r->stats);
         r->times[i] = now() - t0;
         if (st != PN_OK) {
@@ -178,6 +257,7 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
     pn_image_free(ref_crop);
     pn_image_free(ref);
     pn_image_free(first);
+    pn_image_free(cs.full);
     pn_scene_free(scene);
     pn_context_free(ctx);
     r->ok = 1;
@@ -381,7 +461,7 @@ int main(int argc, char **argv) {
         if (strcmp(argv[i], "--config") == 0 && i + 1 < argc) config = argv[++i];
         else if (strcmp(argv[i], "--runs") == 0 && i + 1 < argc) runs = atoi(argv[++i]);
         else if (strcmp(argv[i], "--threads") == 0 && i + 1 < argc) threads = atoi(argv[++i]);
-        else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc) out_dir = argv[++i];
+        else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc) out_dir = bench_out_dir = argv[++i];
         else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) only = argv[++i];
         else if (strcmp(argv[i], "--shared") == 0 && i + 1 < argc) shared_dir = argv[++i];
         else {
@@ -402,6 +482,9 @@ int main(int argc, char **argv) {
     snprintf(md_path, sizeof md_path, "%s/latest.md", out_dir);
     snprintf(json_path, sizeof json_path, "%s/latest.json", out_dir);
     FILE *md = fopen(md_path, "w"), *js = fopen(json_path, "w");
+    char prog_path[1100];
+    snprintf(prog_path, sizeof prog_path, "%s/progressive.md", out_dir);
+    FILE *prog = NULL; /* progressive drivers: opened at the first such case */
     if (!md || !js) {
         fprintf(stderr, "penumbra_bench: cannot write into %s: %s\n", out_dir, strerror(errno));
         return 4;
@@ -478,6 +561,21 @@ int main(int argc, char **argv) {
         first = 0;
         done_case[done_count] = c;
         done[done_count++] = r;
+        if (r.curve_n > 0) { /* progressive drivers (issue 6) */
+            if (!prog && (prog = fopen(prog_path, "w")) != NULL) {
+                fprintf(prog, "| case | settings | work pixels %% | rel L1 | rel L2 | time (s) | time / full | full render (s) |\n");
+                fprintf(prog, "|---|---|---|---|---|---|---|---|\n");
+            }
+            for (int k = 0; prog && k < r.curve_n; k++)
+                fprintf(prog, "| %s | %s | %.2f | %.4f | %.4f | %.2f | %.3f | %.2f |\n", bc->name, bc->settings_text,
+                        r.curve_evaluated[k], r.curve_l1[k], r.curve_l2[k], r.curve_seconds[k],
+                        r.full_seconds > 0 ? r.curve_seconds[k] / r.full_seconds : 0.0, r.full_seconds);
+            for (int k = 0; k < r.curve_n; k++)
+                if (r.curve_pct[k] == 6.0)
+                    fprintf(stderr, "penumbra_bench: %s: 6%%: L1 %.4f, L2 %.4f, %.2f s (full %.2f s)\n", bc->name,
+                            r.curve_l1[k], r.curve_l2[k], r.curve_seconds[k], r.full_seconds);
+            if (prog) fflush(prog);
+        }
         fprintf(stderr, "penumbra_bench: %s: %.3f s median, relMSE %s\n", bc->name, r.median,
                 r.has_metrics ? relmse : "n/a");
     }
@@ -488,6 +586,7 @@ int main(int argc, char **argv) {
     free(done);
     fclose(md);
     fclose(js);
+    if (prog) fclose(prog);
     free(cases);
     printf("wrote %s and %s\n", md_path, json_path);
     return 0;

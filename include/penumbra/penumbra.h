@@ -159,6 +159,28 @@ enum {
                                            luminance from contour lights (W/m^2 per unit length) */
 };
 
+/* Progressive drivers (issue 6: dcm, painter, uniform; Guo 1998). A driver decides which pixels
+ * of the work image (work_scale x work_scale the output resolution) the integrator evaluates and
+ * reconstructs the image from them; the work image is filtered down with a Gaussian. */
+typedef enum pn_driver_kind {
+    PN_DRIVER_DEFAULT = 0, /* full image in tiles at the output resolution */
+    PN_DRIVER_FULL = 1,    /* every work pixel evaluated, then the Gaussian filter: the baseline */
+    PN_DRIVER_DCM = 2,     /* Directional Coherence Maps, Guo 1998 */
+    PN_DRIVER_PAINTER = 3, /* adaptive progressive refinement, Painter & Sloan 1989 */
+    PN_DRIVER_UNIFORM = 4  /* regular subdivision only: uniform subsampling, bilinear interpolation */
+} pn_driver_kind;
+enum {
+    PN_AOV_SAMPLING_PATTERN = 1u << 14, /* progressive: fraction of the work pixels evaluated */
+    PN_AOV_BLOCK_MAP = 1u << 15,        /* dcm: 0 smooth, 1 simple, 2 complex, 3 evaluating edge block */
+    PN_AOV_BLOCK_DIRECTION = 1u << 16   /* dcm: least-discrepancy direction (degrees), -1 if none */
+};
+/* Receives an approximate image (owned by the library, valid during the call), the snapshot
+ * percentage it was asked for (-1 for a timed or requested snapshot), the percentage of work
+ * pixels evaluated so far and the seconds since the render started. */
+struct pn_image_s;
+typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requested_percent,
+                               double evaluated_percent, double seconds);
+
 typedef struct pn_render_settings {
     pn_integrator_kind integrator;
     uint32_t spp;              /* fixed eye rays per pixel; 0 = adaptive with threshold */
@@ -208,6 +230,18 @@ typedef struct pn_render_settings {
     uint32_t contour_flags;
     double contour_mc_threshold;
     uint32_t contour_mc_max_rays;
+    /* Progressive drivers (issue 6). */
+    pn_driver_kind driver;
+    int work_scale;                  /* work image scale s (default 3) */
+    const double *snapshot_percents; /* snapshots when these percentages of work pixels are evaluated */
+    int snapshot_percent_count;
+    double snapshot_every_seconds;   /* and every so many seconds (0: never) */
+    pn_snapshot_fn snapshot;         /* NULL: no snapshots */
+    void *snapshot_user;
+    double stop_percent;             /* stop after this percentage of work pixels (0: run to the end);
+                                        with a low threshold: the paper's confidence relocation */
+    int raw_radiance;                /* 1: interpolate radiance itself; 0 (default): radiance divided
+                                        by the first-hit albedo of a primary ray, then multiplied back */
 } pn_render_settings;
 
 /* contour_flags bits. */
@@ -266,6 +300,14 @@ typedef struct pn_render_stats {
     uint64_t contour_viewing_rays, contour_shadow_rays;
     uint64_t contour_integrations, contour_interpolated, contour_restarts, contour_subdivisions;
     uint64_t contour_culled_spans;
+    /* Progressive drivers (issue 6). */
+    uint64_t evaluated_pixels;        /* work pixels evaluated by the integrator */
+    double evaluated_percent;         /* of all work pixels of the window */
+    int work_width, work_height;      /* of the work window */
+    uint32_t dcm_simple_blocks, dcm_complex_blocks; /* edge blocks that passed / failed the tests */
+    uint32_t dcm_lazy_blocks;         /* quads that kept their parent's elements (lazy evaluation) */
+    double primary_buffer_seconds;    /* the id/normal/depth buffer of primary rays */
+    double reconstruct_seconds_max;   /* longest reconstruction of an approximate image */
 } pn_render_stats;
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the
@@ -277,6 +319,10 @@ PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_setti
 /* Asks running renders of this context to stop after their current tiles. Safe from a signal
  * handler (it only stores an atomic flag). */
 PN_API void pn_render_cancel(pn_context ctx);
+
+/* Progressive drivers (issue 6): asks a running progressive render of this context for one
+ * snapshot as soon as possible. Safe from a signal handler (it only stores an atomic flag). */
+PN_API void pn_render_request_snapshot(pn_context ctx);
 
 PN_API void pn_image_free(pn_image image);
 PN_API int pn_image_width(pn_image image);

@@ -131,6 +131,19 @@ static const char render_help[] =
     "                         cropwindow: 0 <= x0 < x1 <= 1, 0 <= y0 < y1 <= 1\n"
     "  --threads N            worker threads (default 0 = all cores)\n"
     "\n"
+    "progressive drivers (Guo 1998, Directional Coherence Maps):\n"
+    "  --driver NAME          'tiles' (the default), 'full' (every pixel of the work image, then\n"
+    "                         the Gaussian filter: the baseline), 'dcm', 'painter' (Painter &\n"
+    "                         Sloan 1989) or 'uniform' (uniform subsampling, bilinear)\n"
+    "  --work-scale S         the work image is S x S the output resolution (default 3)\n"
+    "  --snapshots P1,P2,...  write the approximate image when P% of the work pixels are\n"
+    "                         evaluated, beside the output: out.exr -> out-6pct.exr\n"
+    "  --snapshot-every SEC   and every SEC seconds (out-12.5pct.exr); SIGUSR1 writes one now\n"
+    "  --stop-at P            stop after P% of the work pixels and write the approximate image;\n"
+    "                         with a lower --threshold: the paper's confidence relocation\n"
+    "  --raw-radiance         interpolate radiance itself, not radiance / first-hit albedo\n"
+    "  AOVs of these drivers: sampling_pattern, block_map, block_direction\n"
+    "\n"
     "Options taking a value accept '--option VALUE' and '--option=VALUE'.\n"
     "On Ctrl-C the render stops after the current tiles; the partial image is not written to\n"
     "the output path but to NAME.partial.EXT beside it, and the exit status is 130.\n";
@@ -385,6 +398,9 @@ static const struct {
     /* VPL integrators (issue 5) */
     {"bound_evaluations", PN_AOV_BOUND_EVALUATIONS}, {"cut_size", PN_AOV_CUT_SIZE}, {"phase1", PN_AOV_PHASE1},
     {"gradient", PN_AOV_GRADIENT}, /* contour */
+    /* progressive drivers (issue 6) */
+    {"sampling_pattern", PN_AOV_SAMPLING_PATTERN}, {"block_map", PN_AOV_BLOCK_MAP},
+    {"block_direction", PN_AOV_BLOCK_DIRECTION},
 };
 #define AOV_NAME_COUNT (sizeof aov_names / sizeof aov_names[0])
 
@@ -788,6 +804,7 @@ typedef struct render_options {
     int quiet;
     int has_spp, has_threshold;
     pn_render_settings settings;
+    double snapshot_percents[64]; /* progressive drivers (issue 6) */
 } render_options;
 
 static const char *integrator_name(pn_integrator_kind kind) {
@@ -1069,9 +1086,73 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                                    "unknown AOV '%s' in %s: expected shadow_rays, eye_rays, "
                                    "relative_variance, depth, normal, albedo or all",
                                    bad, name);
+        } else if (strcmp(name, "--driver") == 0) { /* progressive drivers (issue 6) */
+            static const char *const drivers[] = {"tiles", "full", "dcm", "painter", "uniform"};
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            int found = -1;
+            for (int i = 0; i < 5; i++)
+                if (strcmp(value, drivers[i]) == 0) found = i;
+            if (found < 0)
+                return bad_value(cmd, name, value, "tiles, full, dcm, painter or uniform");
+            o->settings.driver = (pn_driver_kind)found;
+        } else if (strcmp(name, "--work-scale") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 16, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 16");
+            o->settings.work_scale = (int)n;
+        } else if (strcmp(name, "--snapshots") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            int count = 0;
+            const char *cursor = value;
+            for (;;) {
+                char item[64];
+                const char *comma = strchr(cursor, ',');
+                size_t len = comma ? (size_t)(comma - cursor) : strlen(cursor);
+                double v;
+                snprintf(item, sizeof item, "%.*s", (int)(len < 63 ? len : 63), cursor);
+                if (len == 0 || len > 63 || count == 64 || !parse_double(item, &v) || !(v > 0.0 && v <= 100.0))
+                    return bad_value(cmd, name, value, "a comma-separated list of percentages in (0, 100]");
+                o->snapshot_percents[count++] = v;
+                if (!comma) break;
+                cursor = comma + 1;
+            }
+            o->settings.snapshot_percents = o->snapshot_percents;
+            o->settings.snapshot_percent_count = count;
+        } else if (strcmp(name, "--raw-radiance") == 0) {
+            if (!scanner_no_value(&s))
+                return EXIT_USAGE;
+            o->settings.raw_radiance = 1;
+        } else if (strcmp(name, "--snapshot-every") == 0 || strcmp(name, "--stop-at") == 0) {
+            double v;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            int every = strcmp(name, "--snapshot-every") == 0;
+            if (!parse_double(value, &v) || !(v > 0.0) || (!every && v > 100.0))
+                return bad_value(cmd, name, value, every ? "a positive number of seconds" : "a percentage in (0, 100]");
+            if (every) o->settings.snapshot_every_seconds = v;
+            else o->settings.stop_percent = v;
         } else {
             return usage_error(cmd, "unknown option '%s'", s.argv[s.index]);
         }
+    }
+    { /* progressive drivers (issue 6): options and AOVs that need one */
+        const uint32_t mine = PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION;
+        uint32_t all = 0;
+        for (size_t i = 0; i < AOV_NAME_COUNT; i++) all |= aov_names[i].bit;
+        int progressive = o->settings.driver != PN_DRIVER_DEFAULT;
+        if (o->settings.aovs == all) o->settings.aovs = progressive ? mine : all & ~mine;
+        if (progressive && (o->settings.aovs & ~mine))
+            return usage_error(cmd, "with --driver only the AOVs sampling_pattern, block_map and block_direction exist");
+        if (!progressive && (o->settings.aovs & mine))
+            return usage_error(cmd, "the AOVs sampling_pattern, block_map and block_direction need --driver");
+        if (!progressive && (o->settings.work_scale || o->settings.snapshot_percent_count ||
+                             o->settings.snapshot_every_seconds > 0.0 || o->settings.stop_percent > 0.0 ||
+                             o->settings.raw_radiance))
+            return usage_error(cmd, "--work-scale, --snapshots, --snapshot-every, --stop-at and --raw-radiance need --driver");
     }
     if (o->scene_path == NULL)
         return usage_error(cmd, "missing the scene file");
@@ -1212,6 +1293,19 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
     json_double(&w, "mrays_per_second", stats->mrays_per_second);
     json_u64(&w, "peak_memory_bytes", stats->peak_memory_bytes);
     json_bool(&w, "partial", stats->partial);
+    if (o->settings.driver != PN_DRIVER_DEFAULT) { /* progressive drivers (issue 6) */
+        static const char *const drivers[] = {"tiles", "full", "dcm", "painter", "uniform"};
+        json_string(&w, "driver", drivers[o->settings.driver]);
+        json_int(&w, "work_width", stats->work_width);
+        json_int(&w, "work_height", stats->work_height);
+        json_u64(&w, "evaluated_pixels", stats->evaluated_pixels);
+        json_double(&w, "evaluated_percent", stats->evaluated_percent);
+        json_u64(&w, "dcm_simple_blocks", stats->dcm_simple_blocks);
+        json_u64(&w, "dcm_complex_blocks", stats->dcm_complex_blocks);
+        json_u64(&w, "dcm_lazy_blocks", stats->dcm_lazy_blocks);
+        json_double(&w, "primary_buffer_seconds", stats->primary_buffer_seconds);
+        json_double(&w, "reconstruct_seconds_max", stats->reconstruct_seconds_max);
+    }
     if (o->settings.integrator == PN_INTEGRATOR_IAS) {
         /* The paper's Tables 4-6: per-pixel means, and visibility per viewpoint and per pixel. */
         json_double(&w, "passes_per_pixel_mean", stats->passes_per_pixel_mean);
@@ -1311,6 +1405,45 @@ static void print_render_summary(const render_options *o, const pn_scene_info *i
 
 /* --aov-png: every single-channel AOV layer as a false-colour PNG with a colour bar, named
  * after the output image: out.exr -> out.passes.png, out.shadow_rays.png, ... */
+/* Progressive drivers (issue 6): snapshots beside the output (out.exr -> out-6pct.exr), written
+ * atomically by pn_image_write; SIGUSR1 asks for one. */
+typedef struct snapshot_writer {
+    const char *image_path, *png_path;
+    double exposure;
+    int quiet;
+} snapshot_writer;
+
+static void snapshot_name(const char *path, double percent, char *out, size_t size) {
+    const char *slash = strrchr(path, '/');
+    const char *dot = strrchr(path, '.');
+    if (!dot || (slash && dot < slash)) dot = path + strlen(path);
+    snprintf(out, size, "%.*s-%gpct%s", (int)(dot - path), path, percent, dot);
+}
+
+static void on_snapshot(void *user, pn_image image, double requested, double evaluated, double seconds) {
+    const snapshot_writer *sw = user;
+    double percent = requested > 0.0 ? requested : floor(evaluated * 10.0 + 0.5) / 10.0;
+    pn_context wctx = pn_context_new();
+    if (!wctx) return;
+    for (int i = 0; i < 2; i++) {
+        const char *base = i == 0 ? sw->image_path : sw->png_path;
+        if (!base) continue;
+        char path[4096];
+        snapshot_name(base, percent, path, sizeof path);
+        if (pn_image_write(wctx, image, path, (float)sw->exposure) != PN_OK)
+            fprintf(stderr, "penumbra: cannot write snapshot: %s\n", pn_context_error_message(wctx));
+        else if (!sw->quiet)
+            fprintf(stderr, "penumbra: snapshot %s (%.2f%% of the work pixels, %.2f s)\n", path, evaluated, seconds);
+    }
+    pn_context_free(wctx);
+}
+
+static void on_sigusr1(int signo) {
+    (void)signo;
+    if (interrupt_context)
+        pn_render_request_snapshot(interrupt_context);
+}
+
 static int write_aov_pngs(pn_context ctx, pn_image image, const char *image_path) {
     const char *dot = strrchr(image_path, '.');
     size_t stem = dot ? (size_t)(dot - image_path) : strlen(image_path);
@@ -1403,7 +1536,20 @@ static int command_render(int argc, char **argv) {
     interrupt_context = ctx;
     interrupted = 0;
     sigaction(SIGINT, &action, &previous);
+    /* progressive drivers (issue 6): snapshots, and SIGUSR1 for one now */
+    snapshot_writer snapshots = {image_path, o.png_path, o.exposure, o.quiet};
+    struct sigaction usr1, previous_usr1;
+    memset(&usr1, 0, sizeof usr1);
+    usr1.sa_handler = on_sigusr1;
+    sigemptyset(&usr1.sa_mask);
+    if (st->driver != PN_DRIVER_DEFAULT) {
+        st->snapshot = on_snapshot;
+        st->snapshot_user = &snapshots;
+        sigaction(SIGUSR1, &usr1, &previous_usr1);
+    }
     status = pn_render(ctx, scene, st, &image, &stats);
+    if (st->driver != PN_DRIVER_DEFAULT)
+        sigaction(SIGUSR1, &previous_usr1, NULL);
     sigaction(SIGINT, &previous, NULL);
     interrupt_context = NULL;
     finish_progress(&progress, status == PN_OK);

@@ -16,6 +16,7 @@ pn_context pn_context_new(void) {
     pn_err_init(&ctx->err);
     ctx->log_fn = default_log;
     atomic_init(&ctx->cancel, 0);
+    atomic_init(&ctx->snapshot_request, 0);
     return ctx;
 }
 

@@ -10,6 +10,7 @@ struct pn_context_s {
     pn_log_fn log_fn;
     void *log_user;
     atomic_int cancel;
+    atomic_int snapshot_request; /* progressive drivers: pn_render_request_snapshot */
 };
 
 /* Copies a failure recorded in `err` into the context (first error wins) and returns its status. */

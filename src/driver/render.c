@@ -5,6 +5,7 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/threadpool.h"
+#include "driver/progressive.h" /* issue 6: progressive drivers */
 #include "integrators/integrator.h"
 #include "io/image.h"
 
@@ -226,7 +227,11 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
         st = integ->prepare(&job, &perr);
         if (st != PN_OK) return pn_context_fail_from(ctx, &perr);
     }
-    st = run_job(ctx, settings, integ, &job, out_image, stats);
+    /* Progressive drivers (issue 6: dcm, painter, uniform, full) render a work image of their own. */
+    if (settings->driver != PN_DRIVER_DEFAULT)
+        st = pn_progressive_render(ctx, settings, integ, &job, out_image, stats);
+    else
+        st = run_job(ctx, settings, integ, &job, out_image, stats);
     if (integ->release) integ->release(&job);
     return st;
 }

@@ -1,0 +1,875 @@
+/* dcm.c — progressive radiance evaluation with Directional Coherence Maps (Guo 1998), and plain
+ * uniform subsampling (the same machinery with every block smooth).
+ *
+ * Pipeline, as the paper's Fig. 1:
+ *  - Work image: s x s the output (progressive.c), filtered down with a Gaussian at the end.
+ *  - Regular subdivision stage (§2): a quadtree from the whole work image down to elementary
+ *    8x8 blocks; the lattice of block corners of every level is evaluated, coarse to fine; the
+ *    approximate image is the bilinear interpolation of the finest complete lattice.
+ *  - DCM refinement (§4.1), one iteration per block size k = 8, 4, 2:
+ *    (1) block classification (§4.2): a candidate quad of a smooth block (all elementary blocks
+ *        in the first iteration) becomes an edge block when the contrast (max-min)/(max+min) of
+ *        its corner luminances exceeds t_c = 0.05, or when a visible line crosses it; quads of
+ *        complex edge blocks are edge blocks; quads of simple edge blocks go through lazy
+ *        boundary evaluation (Fig. 6): their corners are evaluated and compared with the
+ *        parent's elements; within 1% they keep the parent's direction and take their boundary
+ *        from the parent's elements (corners and any evaluated pixel stay evaluated), otherwise
+ *        they get real boundary evaluation.
+ *    (2) boundary evaluation of edge blocks (Fig. 9): each edge block gets boundary pixels at
+ *        spacing k/2, then k/4, ..., 1, so that evaluated pixels spread evenly over its boundary
+ *        and elements can be built before the boundary is complete.
+ *    (3) block simplicity tests (§4.3): zero-order (Bartlett filter of length 3, threshold
+ *        t_b = (b1 + d1)/2, median filter of length 3, at most two transition points),
+ *        first-order (tangents at the transition points from extra evaluations on the inner
+ *        layer, Fig. 8; threshold t_m = 0.05 pi ||x1 - x0||), object test (at most two object
+ *        tags and two object spans). Failing blocks are complex edge blocks.
+ *    (4) oriented finite elements (§3.3) along the least-discrepancy direction (§3.2) over
+ *        h = 8 directions, node values from the boundary pixels.
+ *    (5) subdivision into quads; after k = 2 the quads are single pixels: every pixel gets
+ *        evaluated and the approximate image equals the full render.
+ *  - Smooth blocks are re-examined at every level (their quads are classified again).
+ *
+ * Departures from the paper, and why:
+ *  - Visible lines (§4.2) come from a buffer of one primary ray per work pixel centre (object
+ *    tag, geometric normal and depth of the first non-specular hit, followed through mirrors):
+ *    a visible line crosses a block when two 4-neighbours inside it differ in tag, bend by more
+ *    than ~37 degrees or jump in depth by more than 10%. This is our stand-in for the paper's
+ *    Z-buffer visible-line rendering and gives mirror reflections of object boundaries for free.
+ *    The object test uses the same tags (the paper takes them from the ray tracer).
+ *  - Order of work: within an iteration, the quads of edge blocks are processed before the
+ *    quads of smooth blocks, so that all 4x4 edge blocks are done before the smooth 8x8 blocks
+ *    are subdivided — the paper's 6% images are "after processing all 4x4 edge blocks".
+ *  - Order of boundary evaluation: the (block, spacing) steps of all edge blocks of an iteration
+ *    are taken in decreasing order of (luminance range of the block's corners) x spacing, so
+ *    blocks with large ranges (the largest errors) reach fine spacings before flat blocks get
+ *    their coarse ones; the paper does not say how blocks are ordered. Classified blocks replace
+ *    their parents in the approximate image at once; an edge block still under boundary
+ *    evaluation is drawn with elements over the part of its boundary evaluated so far, oriented
+ *    by its current least-discrepancy direction (what Fig. 9's even spreading is for).
+ *  - Fig. 9 (e)-(h) (evaluating the quads' boundaries inside a complex block before its own
+ *    boundary is complete) is replaced by the real boundary evaluation of the quads in the next
+ *    iteration.
+ *  - The directional discrepancy d_i is the mean over the boundary pixels whose line along n_i
+ *    crosses the block interior (pixels whose line runs along their own side are left out),
+ *    instead of a sum over all pixels divided by 4(k - 1): directions parallel to a side would
+ *    otherwise be compared over fewer pairs.
+ *  - Zero-order test: a boundary whose filtered luminance contrast (b1-d1)/(b1+d1) is at most
+ *    t_c has no transition points (thresholding Monte Carlo noise would otherwise split flat
+ *    boundaries into spans). First-order test: when the inner layer is exhausted without a
+ *    transition the block fails (the tangent is unknown); blocks with fewer than two inner
+ *    pixels per layer (k = 2) skip it.
+ *  - Elements are evaluated on RGB with the luminance-derived direction.
+ *  - Monte Carlo noise (the paper's RADIANCE pixels are nearly noise-free): contrast
+ *    thresholding also asks the corners' luminance range to exceed 2 standard deviations of its
+ *    noise, and the lazy test accepts deviations within 2 standard deviations of the pixel's
+ *    estimate as well as within 1% (the integrator reports each pixel's variance).
+ *  - What is interpolated is radiance divided by the first-hit albedo of the primary ray,
+ *    multiplied back per pixel (progressive.c; --raw-radiance turns it off): texture is known from
+ *    the primary buffer and need not be sampled. Tests and directions see the same values. */
+#include "driver/dcm.h"
+
+#include "driver/progressive.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define DCM_MAX_LOOP 512 /* 2 (w + h) for blocks up to 128 pixels */
+
+/* ---------------------------------------------------------------------------------------- */
+/* Block-level pieces (dcm.h) */
+
+int pn_dcm_loop_length(int w, int h) { return (w > 0 && h > 0) ? 2 * (w + h) : 0; }
+
+void pn_dcm_loop_pixel(int w, int h, int i, int *x, int *y) {
+    if (i < w) {
+        *x = i;
+        *y = 0;
+    } else if (i < w + h) {
+        *x = w;
+        *y = i - w;
+    } else if (i < 2 * w + h) {
+        *x = w - (i - w - h);
+        *y = h;
+    } else {
+        *x = 0;
+        *y = h - (i - 2 * w - h);
+    }
+}
+
+float pn_dcm_boundary_value(const float *loop, int channels, int c, int w, int h, float x, float y) {
+    int n = pn_dcm_loop_length(w, h);
+    float dt = y, db = (float)h - y, dl = x, dr = (float)w - x;
+    float s;
+    if (dt <= db && dt <= dl && dt <= dr) s = x;
+    else if (dr <= db && dr <= dl) s = (float)w + y;
+    else if (db <= dl) s = (float)(w + h) + ((float)w - x);
+    else s = (float)(2 * w + h) + ((float)h - y);
+    if (s < 0.0f) s = 0.0f;
+    if (s > (float)n) s = (float)n;
+    int i0 = (int)floorf(s);
+    float f = s - (float)i0;
+    int a = i0 % n, b = (i0 + 1) % n;
+    return loop[a * channels + c] + f * (loop[b * channels + c] - loop[a * channels + c]);
+}
+
+/* Parameters [tmin, tmax] of the line (x, y) + t n inside [0,w]x[0,h]. */
+static void slab(int w, int h, float x, float y, float nx, float ny, float *tmin, float *tmax) {
+    float lo = -INFINITY, hi = INFINITY;
+    if (fabsf(nx) > 1e-6f) {
+        float a = (0.0f - x) / nx, b = ((float)w - x) / nx;
+        lo = fmaxf(lo, fminf(a, b));
+        hi = fminf(hi, fmaxf(a, b));
+    }
+    if (fabsf(ny) > 1e-6f) {
+        float a = (0.0f - y) / ny, b = ((float)h - y) / ny;
+        lo = fmaxf(lo, fminf(a, b));
+        hi = fminf(hi, fmaxf(a, b));
+    }
+    *tmin = lo;
+    *tmax = hi;
+}
+
+static float clampf(float v, float lo, float hi) { return v < lo ? lo : v > hi ? hi : v; }
+
+/* n_i = (cos theta_i, sin theta_i), theta_i = i pi / 8 */
+static const float dcm_dir[PN_DCM_DIRECTIONS][2] = {
+    {1.0f, 0.0f},
+    {0.923879532511286756f, 0.382683432365089772f},
+    {0.707106781186547524f, 0.707106781186547524f},
+    {0.382683432365089772f, 0.923879532511286756f},
+    {0.0f, 1.0f},
+    {-0.382683432365089772f, 0.923879532511286756f},
+    {-0.707106781186547524f, 0.707106781186547524f},
+    {-0.923879532511286756f, 0.382683432365089772f},
+};
+
+static void direction(int dir, float *nx, float *ny) {
+    *nx = dcm_dir[dir & (PN_DCM_DIRECTIONS - 1)][0];
+    *ny = dcm_dir[dir & (PN_DCM_DIRECTIONS - 1)][1];
+}
+
+void pn_dcm_element_value(const float *loop, int channels, int w, int h, int dir, float x, float y, float *out) {
+    float nx, ny, tmin, tmax;
+    direction(dir, &nx, &ny);
+    slab(w, h, x, y, nx, ny, &tmin, &tmax);
+    if (!(tmin <= 0.0f)) tmin = 0.0f;
+    if (!(tmax >= 0.0f)) tmax = 0.0f;
+    float ax = clampf(x + tmin * nx, 0.0f, (float)w), ay = clampf(y + tmin * ny, 0.0f, (float)h);
+    float bx = clampf(x + tmax * nx, 0.0f, (float)w), by = clampf(y + tmax * ny, 0.0f, (float)h);
+    float len = tmax - tmin, f = len > 1e-6f ? -tmin / len : 0.0f;
+    for (int c = 0; c < channels; c++) {
+        float va = pn_dcm_boundary_value(loop, channels, c, w, h, ax, ay);
+        float vb = pn_dcm_boundary_value(loop, channels, c, w, h, bx, by);
+        out[c] = va + f * (vb - va);
+    }
+}
+
+int pn_dcm_least_discrepancy(const float *lum, int w, int h, float *d) {
+    int n = pn_dcm_loop_length(w, h);
+    int best = 0;
+    float best_d = INFINITY;
+    for (int i = 0; i < PN_DCM_DIRECTIONS; i++) {
+        float nx, ny;
+        direction(i, &nx, &ny);
+        double sum = 0.0;
+        int count = 0;
+        for (int k = 0; k < n; k++) {
+            int px, py;
+            pn_dcm_loop_pixel(w, h, k, &px, &py);
+            float tmin, tmax;
+            slab(w, h, (float)px, (float)py, nx, ny, &tmin, &tmax);
+            float t = fabsf(tmin) > fabsf(tmax) ? tmin : tmax;
+            if (fabsf(t) < 1e-3f) continue;
+            /* Leave out lines that run along the boundary (their midpoint lies on it). */
+            float mx = (float)px + 0.5f * t * nx, my = (float)py + 0.5f * t * ny;
+            float margin = fminf(fminf(mx, (float)w - mx), fminf(my, (float)h - my));
+            if (margin < 1e-3f) continue;
+            float qx = clampf((float)px + t * nx, 0.0f, (float)w), qy = clampf((float)py + t * ny, 0.0f, (float)h);
+            float diff = pn_dcm_boundary_value(lum, 1, 0, w, h, qx, qy) - lum[k];
+            sum += (double)diff * (double)diff;
+            count++;
+        }
+        float di = count ? (float)(sum / count) : INFINITY;
+        if (d) d[i] = di;
+        if (di < best_d) {
+            best_d = di;
+            best = i;
+        }
+    }
+    return best;
+}
+
+float pn_dcm_contrast(const float g[4]) {
+    float mx = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3]));
+    float mn = fminf(fminf(g[0], g[1]), fminf(g[2], g[3]));
+    return mx + mn > 0.0f ? (mx - mn) / (mx + mn) : 0.0f;
+}
+
+bool pn_dcm_zero_order_test(const float *lum, int w, int h, pn_dcm_zero_order *z) {
+    memset(z, 0, sizeof *z);
+    int n = pn_dcm_loop_length(w, h);
+    if (n < 3 || n > DCM_MAX_LOOP) return true;
+    float f[DCM_MAX_LOOP];
+    unsigned char b[DCM_MAX_LOOP], m[DCM_MAX_LOOP];
+    float b1 = -INFINITY, d1 = INFINITY;
+    for (int i = 0; i < n; i++) { /* Bartlett filter of length 3 */
+        f[i] = 0.25f * lum[(i + n - 1) % n] + 0.5f * lum[i] + 0.25f * lum[(i + 1) % n];
+        b1 = fmaxf(b1, f[i]);
+        d1 = fminf(d1, f[i]);
+    }
+    z->tb = 0.5f * (b1 + d1);
+    if (!(b1 - d1 > PN_DCM_CONTRAST * (b1 + d1))) return true; /* flat boundary */
+    for (int i = 0; i < n; i++) b[i] = f[i] > z->tb;
+    for (int i = 0; i < n; i++) /* median filter of length 3 */
+        m[i] = (unsigned char)(b[(i + n - 1) % n] + b[i] + b[(i + 1) % n] >= 2);
+    for (int i = 0; i < n; i++) {
+        int j = (i + 1) % n;
+        if (m[i] == m[j]) continue;
+        if (z->transitions < 2) {
+            z->one_pixel[z->transitions] = m[i] ? i : j;
+            z->zero_pixel[z->transitions] = m[i] ? j : i;
+        }
+        z->transitions++;
+    }
+    return z->transitions <= 2;
+}
+
+static double fold_angle(double a) { /* into [0, pi) */
+    a = fmod(a, M_PI);
+    return a < 0.0 ? a + M_PI : a;
+}
+
+static double angle_between(double a, double b) {
+    double d = fabs(fold_angle(a) - fold_angle(b));
+    return d > 0.5 * M_PI ? M_PI - d : d;
+}
+
+/* Tangent angle at transition j: walk the inner layer next to the transition point. Returns
+ * false when no transition is found there. */
+static bool tangent_at(int w, int h, const pn_dcm_zero_order *z, int j, pn_dcm_inner_fn inner, void *user,
+                       double *angle) {
+    int x1, y1, x0, y0;
+    pn_dcm_loop_pixel(w, h, z->one_pixel[j], &x1, &y1);
+    pn_dcm_loop_pixel(w, h, z->zero_pixel[j], &x0, &y0);
+    bool horizontal = y1 == y0; /* the pair lies on the top or bottom side */
+    int len = horizontal ? w - 1 : h - 1;             /* inner pixels 1 .. len along the side */
+    int layer = horizontal ? (y1 == 0 ? 1 : h - 1) : (x1 == 0 ? 1 : w - 1);
+    int a0 = horizontal ? x1 : y1;
+    int start = a0 < 1 ? 1 : a0 > len ? len : a0;
+    float v[DCM_MAX_LOOP];
+    unsigned char bin[DCM_MAX_LOOP];
+    int lo = start, hi = start;
+    for (int step = 0;; step++) {
+        int pos;
+        if (step == 0) pos = start;
+        else if ((step & 1) && lo > 1) pos = --lo;
+        else if (hi < len) pos = ++hi;
+        else if (lo > 1) pos = --lo;
+        else return false;
+        v[pos] = horizontal ? inner(user, pos, layer) : inner(user, layer, pos);
+        for (int q = lo; q <= hi; q++) bin[q] = v[q] > z->tb;
+        /* median filter of length 3 inside the walked segment, then the transition nearest to
+         * the start */
+        int found = -1, best = 1 << 30;
+        unsigned char med[DCM_MAX_LOOP];
+        for (int q = lo; q <= hi; q++)
+            med[q] = (q > lo && q < hi) ? (unsigned char)(bin[q - 1] + bin[q] + bin[q + 1] >= 2) : bin[q];
+        for (int q = lo; q < hi; q++) {
+            if (med[q] == med[q + 1]) continue;
+            int one = med[q] ? q : q + 1;
+            int dist = abs(one - a0);
+            if (dist < best) {
+                best = dist;
+                found = one;
+            }
+        }
+        if (found >= 0) {
+            double dx = horizontal ? (double)(found - x1) : (double)(layer - x1);
+            double dy = horizontal ? (double)(layer - y1) : (double)(found - y1);
+            *angle = atan2(dy, dx);
+            return true;
+        }
+    }
+}
+
+bool pn_dcm_first_order_test(int w, int h, const pn_dcm_zero_order *z, pn_dcm_inner_fn inner, void *user) {
+    if (z->transitions != 2) return z->transitions == 0;
+    if (w < 3 || h < 3) return true; /* no inner layer of two pixels or more */
+    double t0, t1;
+    if (!tangent_at(w, h, z, 0, inner, user, &t0) || !tangent_at(w, h, z, 1, inner, user, &t1)) return false;
+    int ax, ay, bx, by;
+    pn_dcm_loop_pixel(w, h, z->one_pixel[0], &ax, &ay);
+    pn_dcm_loop_pixel(w, h, z->one_pixel[1], &bx, &by);
+    double dist = hypot((double)(bx - ax), (double)(by - ay));
+    double t01 = atan2((double)(by - ay), (double)(bx - ax));
+    double m01 = fmax(angle_between(t0, t01), angle_between(t1, t01));
+    return m01 <= (double)PN_DCM_TANGENT * M_PI * dist;
+}
+
+bool pn_dcm_object_test(const int32_t *tags, int n) {
+    if (n <= 0) return true;
+    int32_t first = tags[0], second = first;
+    bool has_second = false;
+    int changes = 0;
+    for (int i = 0; i < n; i++) {
+        int32_t t = tags[i];
+        if (t != first) {
+            if (!has_second) {
+                second = t;
+                has_second = true;
+            } else if (t != second) {
+                return false; /* a third tag */
+            }
+        }
+        if (t != tags[(i + 1) % n]) changes++;
+    }
+    return changes <= 2;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* The driver */
+
+enum { DCM_SMOOTH = 0, DCM_SIMPLE = 1, DCM_COMPLEX = 2, DCM_PENDING = 3 };
+
+typedef struct dcm_block {
+    int32_t x0, y0;
+    int32_t parent; /* index in the previous level, -1 for elementary blocks */
+    uint16_t size;
+    uint8_t kind, dir, lazy, replaced, final, parent_kind;
+} dcm_block;
+
+typedef struct dcm_level {
+    dcm_block *b;
+    size_t n, cap;
+} dcm_level;
+
+#define DCM_MAX_LEVELS 8
+
+typedef struct dcm_state {
+    pn_prog *p;
+    bool uniform;
+    int elem;
+    int reg_spacing;   /* finest complete lattice of the regular subdivision stage (0: none) */
+    bool regular_done; /* elementary blocks are final */
+    dcm_level lv[DCM_MAX_LEVELS];
+    uint32_t simple, complex, lazy;
+} dcm_state;
+
+static void block_extent(const pn_prog *p, const dcm_block *b, int *x1, int *y1) {
+    *x1 = b->x0 + b->size < p->W - 1 ? b->x0 + b->size : p->W - 1;
+    *y1 = b->y0 + b->size < p->H - 1 ? b->y0 + b->size : p->H - 1;
+}
+
+static bool push_block(dcm_level *l, dcm_block b) {
+    if (l->n == l->cap) {
+        size_t cap = l->cap ? 2 * l->cap : 256;
+        void *nb = realloc(l->b, cap * sizeof *l->b);
+        if (!nb) return false;
+        l->b = nb;
+        l->cap = cap;
+    }
+    l->b[l->n++] = b;
+    return true;
+}
+
+/* The block's boundary values (RGB and luminance); pixels neither evaluated nor predicted are
+ * interpolated linearly along the loop between known ones (Fig. 9). Returns the loop length. */
+static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rgb, float *lum) {
+    int n = pn_dcm_loop_length(w, h);
+    unsigned char known[DCM_MAX_LOOP];
+    int first_known = -1;
+    for (int i = 0; i < n; i++) {
+        int x, y;
+        pn_dcm_loop_pixel(w, h, i, &x, &y);
+        size_t k = pn_prog_index(p, x0 + x, y0 + y);
+        known[i] = (p->state[k] & 3) != PN_PX_NONE;
+        if (known[i]) {
+            memcpy(rgb + 3 * i, p->rad + 3 * k, 3 * sizeof *rgb);
+            if (first_known < 0) first_known = i;
+        }
+    }
+    if (first_known < 0) {
+        memset(rgb, 0, 3 * (size_t)n * sizeof *rgb);
+    } else {
+        for (int s = 0; s < n;) { /* walk the runs of unknown pixels starting after a known one */
+            int a = (first_known + s) % n;
+            int len = 1;
+            while (len <= n && !known[(a + len) % n]) len++;
+            int b = (a + len) % n;
+            for (int j = 1; j < len; j++) {
+                float t = (float)j / (float)len;
+                int i = (a + j) % n;
+                for (int c = 0; c < 3; c++) rgb[3 * i + c] = rgb[3 * a + c] + t * (rgb[3 * b + c] - rgb[3 * a + c]);
+            }
+            s += len;
+        }
+    }
+    for (int i = 0; i < n; i++) lum[i] = 0.2126f * rgb[3 * i] + 0.7152f * rgb[3 * i + 1] + 0.0722f * rgb[3 * i + 2];
+    return n;
+}
+
+/* Blocks share their boundary pixels; each draws [x0, x1) x [y0, y1) (closed at the image's last
+ * row and column), so that blocks can be drawn in parallel and in any order. */
+static int draw_end(int v1, int last) { return v1 == last ? v1 + 1 : v1; }
+
+static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, int y1) {
+    const float *c00 = p->rad + 3 * pn_prog_index(p, x0, y0), *c10 = p->rad + 3 * pn_prog_index(p, x1, y0);
+    const float *c01 = p->rad + 3 * pn_prog_index(p, x0, y1), *c11 = p->rad + 3 * pn_prog_index(p, x1, y1);
+    float iw = x1 > x0 ? 1.0f / (float)(x1 - x0) : 0.0f, ih = y1 > y0 ? 1.0f / (float)(y1 - y0) : 0.0f;
+    int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
+    for (int y = y0; y < ye; y++) {
+        float v = (float)(y - y0) * ih;
+        for (int x = x0; x < xe; x++) {
+            float u = (float)(x - x0) * iw;
+            float *o = img + 3 * pn_prog_index(p, x, y);
+            for (int c = 0; c < 3; c++)
+                o[c] = (1 - v) * ((1 - u) * c00[c] + u * c10[c]) + v * ((1 - u) * c01[c] + u * c11[c]);
+        }
+    }
+}
+
+static void draw_elements(const pn_prog *p, float *img, const dcm_block *b) {
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    int w = x1 - b->x0, h = y1 - b->y0;
+    float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
+    gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
+    /* an edge block still under boundary evaluation: oriented by what its boundary holds now */
+    int dir = b->kind == DCM_PENDING ? pn_dcm_least_discrepancy(lum, w, h, NULL) : b->dir;
+    int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
+    for (int y = 0; y < ye; y++)
+        for (int x = 0; x < xe; x++)
+            pn_dcm_element_value(rgb, 3, w, h, dir, (float)x, (float)y,
+                                 img + 3 * pn_prog_index(p, b->x0 + x, b->y0 + y));
+}
+
+typedef struct draw_run {
+    pn_prog *p;
+    dcm_state *d;
+    float *img, *cls, *dir;
+    int spacing, cells_x;          /* regular stage: lattice cells per row */
+    int32_t (*chunks)[2];          /* DCM: (level, first block) of each job */
+} draw_run;
+
+#define DCM_DRAW_CHUNK 1024
+
+static void draw_regular_row(void *user, size_t job, int worker) {
+    (void)worker;
+    draw_run *r = user;
+    const pn_prog *p = r->p;
+    int s = r->spacing, y = (int)job * s;
+    for (int x = 0; x < p->W - 1 || x == 0; x += s)
+        draw_bilinear(p, r->img, x, y, x + s < p->W - 1 ? x + s : p->W - 1, y + s < p->H - 1 ? y + s : p->H - 1);
+}
+
+static void draw_chunk(void *user, size_t job, int worker) {
+    (void)worker;
+    draw_run *r = user;
+    const pn_prog *p = r->p;
+    const dcm_level *L = &r->d->lv[r->chunks[job][0]];
+    size_t end = (size_t)r->chunks[job][1] + DCM_DRAW_CHUNK;
+    if (end > L->n) end = L->n;
+    for (size_t i = (size_t)r->chunks[job][1]; i < end; i++) {
+        const dcm_block *b = &L->b[i];
+        if (!b->final || b->replaced) continue;
+        int x1, y1;
+        block_extent(p, b, &x1, &y1);
+        if (b->kind == DCM_SMOOTH) draw_bilinear(p, r->img, b->x0, b->y0, x1, y1);
+        else draw_elements(p, r->img, b);
+        if (r->cls) {
+            int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
+            for (int y = b->y0; y < ye; y++)
+                for (int x = b->x0; x < xe; x++) {
+                    size_t k = pn_prog_index(p, x, y);
+                    r->cls[k] = (float)b->kind;
+                    r->dir[k] = b->kind == DCM_SMOOTH ? -1.0f : (float)b->dir * (180.0f / PN_DCM_DIRECTIONS);
+                }
+        }
+    }
+}
+
+static void dcm_draw(pn_prog *p, void *driver, float *img, float *cls, float *dir) {
+    dcm_state *d = driver;
+    draw_run r = {p, d, img, cls, dir, d->reg_spacing, 0, NULL};
+    if (!d->regular_done) {
+        if (r.spacing <= 0) return;
+        size_t rows = (size_t)((p->H - 1 + r.spacing - 1) / r.spacing);
+        pn_prog_parallel(p, rows > 0 ? rows : 1, draw_regular_row, &r);
+        return;
+    }
+    size_t jobs = 0;
+    for (int l = 0; l < DCM_MAX_LEVELS; l++) jobs += (d->lv[l].n + DCM_DRAW_CHUNK - 1) / DCM_DRAW_CHUNK;
+    r.chunks = malloc((jobs ? jobs : 1) * sizeof *r.chunks);
+    if (!r.chunks) { /* serial fallback, one block at a time */
+        int32_t one[1][2];
+        r.chunks = one;
+        for (int l = 0; l < DCM_MAX_LEVELS; l++)
+            for (size_t i = 0; i < d->lv[l].n; i += DCM_DRAW_CHUNK) {
+                one[0][0] = l;
+                one[0][1] = (int32_t)i;
+                draw_chunk(&r, 0, 0);
+            }
+        return;
+    }
+    size_t j = 0;
+    for (int l = 0; l < DCM_MAX_LEVELS; l++)
+        for (size_t i = 0; i < d->lv[l].n; i += DCM_DRAW_CHUNK) {
+            r.chunks[j][0] = l;
+            r.chunks[j][1] = (int32_t)i;
+            j++;
+        }
+    pn_prog_parallel(p, jobs, draw_chunk, &r);
+    free(r.chunks);
+}
+
+static bool request_block_corners(pn_prog *p, const dcm_block *b) {
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    return pn_prog_request(p, b->x0, b->y0) && pn_prog_request(p, x1, b->y0) && pn_prog_request(p, b->x0, y1) &&
+           pn_prog_request(p, x1, y1);
+}
+
+/* Contrast thresholding (§4.2): the corners' contrast exceeds t_c — and, a departure for Monte
+ * Carlo pixels, the luminance range exceeds the noise of its two ends (PN_DCM_NOISE standard
+ * deviations of the difference, from the integrator's variance estimates), so that noise alone
+ * does not make every block an edge block. */
+static bool contrasted(const pn_prog *p, int x0, int y0, int x1, int y1) {
+    int cx[4] = {x0, x1, x0, x1}, cy[4] = {y0, y0, y1, y1};
+    float g[4];
+    int lo = 0, hi = 0;
+    for (int i = 0; i < 4; i++) {
+        g[i] = pn_prog_lum(p, cx[i], cy[i]);
+        if (g[i] < g[lo]) lo = i;
+        if (g[i] > g[hi]) hi = i;
+    }
+    if (!(pn_dcm_contrast(g) > PN_DCM_CONTRAST)) return false;
+    float sl = pn_prog_lum_sigma(p, cx[lo], cy[lo]), sh = pn_prog_lum_sigma(p, cx[hi], cy[hi]);
+    return g[hi] - g[lo] > PN_DCM_NOISE * sqrtf(sl * sl + sh * sh);
+}
+
+/* Lazy boundary evaluation test (Fig. 6): the child's corners against the parent's elements,
+ * within 1% — or, for Monte Carlo pixels, within PN_DCM_NOISE standard deviations of the
+ * pixel's estimate (a departure: a 1% test on noisy pixels fails everywhere). */
+static bool lazy_ok(const pn_prog *p, const dcm_block *parent, const dcm_block *child) {
+    int px1, py1, cx1, cy1;
+    block_extent(p, parent, &px1, &py1);
+    block_extent(p, child, &cx1, &cy1);
+    int w = px1 - parent->x0, h = py1 - parent->y0;
+    float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
+    gather_loop(p, parent->x0, parent->y0, w, h, rgb, lum);
+    int cx[4] = {child->x0, cx1, child->x0, cx1}, cy[4] = {child->y0, child->y0, cy1, cy1};
+    for (int i = 0; i < 4; i++) {
+        float pred[3];
+        pn_dcm_element_value(rgb, 3, w, h, parent->dir, (float)(cx[i] - parent->x0), (float)(cy[i] - parent->y0), pred);
+        float lp = 0.2126f * pred[0] + 0.7152f * pred[1] + 0.0722f * pred[2];
+        float la = pn_prog_lum(p, cx[i], cy[i]);
+        float tol = fmaxf(PN_DCM_LAZY_TOLERANCE * fabsf(la), PN_DCM_NOISE * pn_prog_lum_sigma(p, cx[i], cy[i]));
+        if (!(fabsf(lp - la) <= tol + 1e-7f)) return false;
+    }
+    return true;
+}
+
+/* Writes the parent's element values on the child's boundary pixels that hold nothing yet. */
+static void predict_boundary(pn_prog *p, const dcm_block *parent, const dcm_block *child) {
+    int px1, py1, cx1, cy1;
+    block_extent(p, parent, &px1, &py1);
+    block_extent(p, child, &cx1, &cy1);
+    int w = px1 - parent->x0, h = py1 - parent->y0;
+    float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
+    gather_loop(p, parent->x0, parent->y0, w, h, rgb, lum);
+    int cw = cx1 - child->x0, ch = cy1 - child->y0, n = pn_dcm_loop_length(cw, ch);
+    for (int i = 0; i < n; i++) {
+        int x, y;
+        pn_dcm_loop_pixel(cw, ch, i, &x, &y);
+        size_t k = pn_prog_index(p, child->x0 + x, child->y0 + y);
+        if ((p->state[k] & 3) != PN_PX_NONE) continue;
+        pn_dcm_element_value(rgb, 3, w, h, parent->dir, (float)(child->x0 + x - parent->x0),
+                             (float)(child->y0 + y - parent->y0), p->rad + 3 * k);
+        p->state[k] = (unsigned char)((p->state[k] & PN_PX_QUEUED) | PN_PX_PREDICTED);
+    }
+}
+
+typedef struct boundary_task {
+    float key;
+    int spacing;
+    size_t block;
+} boundary_task;
+
+static int cmp_task(const void *a, const void *b) {
+    const boundary_task *x = a, *y = b;
+    if (x->key != y->key) return x->key > y->key ? -1 : 1;
+    if (x->spacing != y->spacing) return x->spacing > y->spacing ? -1 : 1;
+    return x->block < y->block ? -1 : x->block > y->block;
+}
+
+/* Queues the boundary pixels of the edge blocks in task order (see process()). */
+static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k) {
+    int rounds = 0;
+    for (int sp = k / 2; sp >= 1; sp /= 2) rounds++;
+    if (np == 0 || rounds == 0) return PN_OK;
+    boundary_task *t = malloc(np * (size_t)rounds * sizeof *t);
+    if (!t) return PN_ERROR_OUT_OF_MEMORY;
+    size_t nt = 0;
+    for (size_t j = 0; j < np; j++) {
+        const dcm_block *b = &blocks[pending[j]];
+        int x1, y1;
+        block_extent(p, b, &x1, &y1);
+        float g[4] = {pn_prog_lum(p, b->x0, b->y0), pn_prog_lum(p, x1, b->y0), pn_prog_lum(p, b->x0, y1),
+                      pn_prog_lum(p, x1, y1)};
+        float range = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3])) - fminf(fminf(g[0], g[1]), fminf(g[2], g[3]));
+        if (!(range >= 0.0f)) range = 0.0f;
+        for (int sp = k / 2; sp >= 1; sp /= 2) {
+            t[nt].key = range * (float)sp;
+            t[nt].spacing = sp;
+            t[nt].block = pending[j];
+            nt++;
+        }
+    }
+    qsort(t, nt, sizeof *t, cmp_task);
+    for (size_t m = 0; m < nt; m++) {
+        const dcm_block *b = &blocks[t[m].block];
+        int sp = t[m].spacing, x1, y1;
+        block_extent(p, b, &x1, &y1);
+        int w = x1 - b->x0, h = y1 - b->y0, n = pn_dcm_loop_length(w, h);
+        for (int i = 0; i < n; i++) {
+            int x, y;
+            pn_dcm_loop_pixel(w, h, i, &x, &y);
+            if ((x % sp == 0 || x == w) && (y % sp == 0 || y == h))
+                if (!pn_prog_request(p, b->x0 + x, b->y0 + y)) {
+                    free(t);
+                    return PN_ERROR_OUT_OF_MEMORY;
+                }
+        }
+    }
+    free(t);
+    return PN_OK;
+}
+
+typedef struct test_run {
+    dcm_state *d;
+    dcm_block *blocks;
+    size_t *pending;
+} test_run;
+
+typedef struct inner_ctx {
+    pn_prog *p;
+    int x0, y0, worker;
+} inner_ctx;
+
+static float inner_eval(void *user, int x, int y) {
+    inner_ctx *c = user;
+    pn_prog_eval_now(c->p, c->worker, c->x0 + x, c->y0 + y);
+    return pn_prog_lum(c->p, c->x0 + x, c->y0 + y);
+}
+
+/* Steps (3) and (4) for one edge block with its boundary evaluated. */
+static void test_block(void *user, size_t job, int worker) {
+    test_run *r = user;
+    pn_prog *p = r->d->p;
+    dcm_block *b = &r->blocks[r->pending[job]];
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    int w = x1 - b->x0, h = y1 - b->y0;
+    float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
+    int n = gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
+    b->dir = (uint8_t)pn_dcm_least_discrepancy(lum, w, h, NULL);
+    pn_dcm_zero_order z;
+    bool simple = pn_dcm_zero_order_test(lum, w, h, &z);
+    if (simple) {
+        inner_ctx ic = {p, b->x0, b->y0, worker};
+        simple = pn_dcm_first_order_test(w, h, &z, inner_eval, &ic);
+    }
+    if (simple && p->tag) {
+        int32_t tags[DCM_MAX_LOOP];
+        for (int i = 0; i < n; i++) {
+            int x, y;
+            pn_dcm_loop_pixel(w, h, i, &x, &y);
+            tags[i] = p->tag[pn_prog_index(p, b->x0 + x, b->y0 + y)];
+        }
+        simple = pn_dcm_object_test(tags, n);
+    }
+    b->kind = simple ? DCM_SIMPLE : DCM_COMPLEX;
+}
+
+/* One DCM iteration over the candidate blocks [start, end) of level l. */
+static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
+    pn_prog *p = d->p;
+    dcm_level *L = &d->lv[l];
+    pn_status st;
+    if (start == end) return PN_OK;
+    for (size_t i = start; i < end; i++)
+        if (!request_block_corners(p, &L->b[i])) return PN_ERROR_OUT_OF_MEMORY;
+    if ((st = pn_prog_flush(p)) != PN_OK || p->stopped) return st;
+
+    /* (1) block classification */
+    size_t *pending = malloc((end - start) * sizeof *pending);
+    if (!pending) return PN_ERROR_OUT_OF_MEMORY;
+    size_t np = 0;
+    for (size_t i = start; i < end; i++) {
+        dcm_block *b = &L->b[i];
+        int x1, y1;
+        block_extent(p, b, &x1, &y1);
+        bool degenerate = x1 == b->x0 || y1 == b->y0;
+        b->kind = DCM_SMOOTH;
+        if (d->uniform || degenerate) continue;
+        if (b->parent_kind == DCM_SMOOTH) {
+            if (contrasted(p, b->x0, b->y0, x1, y1) || pn_prog_visible_line(p, b->x0, b->y0, x1, y1))
+                b->kind = DCM_PENDING;
+        } else if (b->parent_kind == DCM_COMPLEX) {
+            b->kind = DCM_PENDING;
+        } else {
+            const dcm_block *parent = &d->lv[l - 1].b[b->parent];
+            if (lazy_ok(p, parent, b)) {
+                b->kind = DCM_SIMPLE;
+                b->lazy = 1;
+                b->dir = parent->dir;
+                predict_boundary(p, parent, b);
+            } else {
+                b->kind = DCM_PENDING;
+            }
+        }
+        if (b->kind == DCM_PENDING) pending[np++] = i;
+    }
+    /* The classified blocks replace their parents in the approximate image at once; edge blocks
+     * show elements over their partly evaluated boundaries, re-oriented after every round. */
+    d->regular_done = true;
+    for (size_t i = start; i < end; i++) {
+        L->b[i].final = 1;
+        if (L->b[i].parent >= 0) d->lv[l - 1].b[L->b[i].parent].replaced = 1;
+    }
+
+    /* (2) boundary evaluation at spacings k/2, k/4, ..., 1 (Fig. 9), as tasks (block, spacing)
+     * ordered by the luminance range of the block's corners times the spacing: every block gets
+     * its spacings coarse to fine, and blocks with a large range (the largest errors of the
+     * image) reach the fine spacings before flat ones get their coarse ones. */
+    int k = L->b[start].size;
+    st = boundary_tasks(p, L->b, pending, np, k);
+    if (st != PN_OK || p->stopped) {
+        free(pending);
+        return st;
+    }
+    if ((st = pn_prog_flush(p)) != PN_OK || p->stopped) {
+        free(pending);
+        return st;
+    }
+
+    /* (3) simplicity tests and (4) least-discrepancy directions, in parallel */
+    test_run tr = {d, L->b, pending};
+    pn_prog_parallel(p, np, test_block, &tr);
+    pn_prog_collect_extra(p);
+    free(pending);
+    int failed = atomic_load(&p->failed);
+    if (failed) return (pn_status)failed;
+
+    for (size_t i = start; i < end; i++) {
+        dcm_block *b = &L->b[i];
+        if (b->kind == DCM_SIMPLE) d->simple++;
+        if (b->kind == DCM_COMPLEX) d->complex++;
+        if (b->lazy) d->lazy++;
+    }
+    return pn_prog_flush(p); /* fires snapshots that are due */
+}
+
+static bool add_children(dcm_state *d, int l, size_t parent_index) {
+    const pn_prog *p = d->p;
+    dcm_block pb = d->lv[l - 1].b[parent_index];
+    int x1, y1, half = pb.size / 2;
+    block_extent(p, &pb, &x1, &y1);
+    for (int cy = pb.y0; cy <= pb.y0 + half; cy += half) {
+        if (cy != pb.y0 && cy >= y1) break;
+        for (int cx = pb.x0; cx <= pb.x0 + half; cx += half) {
+            if (cx != pb.x0 && cx >= x1) break;
+            dcm_block c = {cx, cy, (int32_t)parent_index, (uint16_t)half, DCM_SMOOTH, 0, 0, 0, 0, pb.kind};
+            if (!push_block(&d->lv[l], c)) return false;
+        }
+    }
+    return true;
+}
+
+static pn_status dcm_iterate(dcm_state *d) {
+    pn_prog *p = d->p;
+    pn_status st;
+    /* Regular subdivision stage: the quadtree's corner lattices, coarse to fine. */
+    int root = d->elem;
+    while (root < p->W - 1 || root < p->H - 1) root *= 2;
+    for (int s = root; s >= d->elem; s /= 2) {
+        for (int y = 0;; y += s) {
+            int yy = y < p->H - 1 ? y : p->H - 1;
+            for (int x = 0;; x += s) {
+                int xx = x < p->W - 1 ? x : p->W - 1;
+                if (!pn_prog_request(p, xx, yy)) return PN_ERROR_OUT_OF_MEMORY;
+                if (xx == p->W - 1) break;
+            }
+            if (yy == p->H - 1) break;
+        }
+        if ((st = pn_prog_flush(p)) != PN_OK) return st;
+        d->reg_spacing = s;
+        if (p->stopped) return PN_OK;
+    }
+    /* Elementary blocks: the pool of the first DCM iteration. */
+    for (int y = 0; y < p->H - 1 || y == 0; y += d->elem)
+        for (int x = 0; x < p->W - 1 || x == 0; x += d->elem) {
+            dcm_block b = {x, y, -1, (uint16_t)d->elem, DCM_SMOOTH, 0, 0, 0, 0, DCM_SMOOTH};
+            if (!push_block(&d->lv[0], b)) return PN_ERROR_OUT_OF_MEMORY;
+        }
+    if ((st = process(d, 0, 0, d->lv[0].n)) != PN_OK || p->stopped) return st;
+    d->regular_done = true;
+    for (int l = 1; l < DCM_MAX_LEVELS; l++) {
+        int k = d->elem >> l;
+        dcm_level *prev = &d->lv[l - 1];
+        if (k < 1) break;
+        if (k == 1) { /* the quads are pixels: evaluate everything, edge blocks first */
+            for (int pass = 0; pass < 2; pass++) {
+                for (size_t i = 0; i < prev->n; i++) {
+                    const dcm_block *b = &prev->b[i];
+                    if ((b->kind == DCM_SMOOTH) != (pass == 1)) continue;
+                    int x1, y1;
+                    block_extent(p, b, &x1, &y1);
+                    for (int y = b->y0; y <= y1; y++)
+                        for (int x = b->x0; x <= x1; x++)
+                            if (!pn_prog_request(p, x, y)) return PN_ERROR_OUT_OF_MEMORY;
+                }
+                if ((st = pn_prog_flush(p)) != PN_OK || p->stopped) return st;
+                for (size_t i = 0; i < prev->n; i++)
+                    if ((prev->b[i].kind == DCM_SMOOTH) == (pass == 1)) prev->b[i].replaced = 1;
+            }
+            break;
+        }
+        for (int pass = 0; pass < 2; pass++) { /* quads of edge blocks, then of smooth blocks */
+            size_t start = d->lv[l].n;
+            for (size_t i = 0; i < prev->n; i++)
+                if ((prev->b[i].kind == DCM_SMOOTH) == (pass == 1))
+                    if (!add_children(d, l, i)) return PN_ERROR_OUT_OF_MEMORY;
+            if ((st = process(d, l, start, d->lv[l].n)) != PN_OK || p->stopped) return st;
+        }
+    }
+    return PN_OK;
+}
+
+static void dcm_free(void *driver) {
+    dcm_state *d = driver;
+    if (!d) return;
+    for (int l = 0; l < DCM_MAX_LEVELS; l++) free(d->lv[l].b);
+    free(d);
+}
+
+pn_status pn_dcm_run(pn_prog *p, bool uniform_only) {
+    dcm_state *d = calloc(1, sizeof *d);
+    if (!d) return PN_ERROR_OUT_OF_MEMORY;
+    d->p = p;
+    d->uniform = uniform_only;
+    d->elem = 8;
+    p->draw = dcm_draw;
+    p->driver = d;
+    p->free_driver = dcm_free;
+    pn_status st = dcm_iterate(d);
+    if (p->driver_stats) {
+        p->driver_stats->dcm_simple_blocks = d->simple;
+        p->driver_stats->dcm_complex_blocks = d->complex;
+        p->driver_stats->dcm_lazy_blocks = d->lazy;
+    }
+    /* The state stays alive for the final image: progressive.c draws after we return. */
+    return st;
+}
+

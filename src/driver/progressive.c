@@ -1,0 +1,579 @@
+/* progressive.c — work image, batch evaluation, snapshots and output of the progressive drivers
+ * (see progressive.h), and the `full` baseline driver: every work pixel evaluated in 8x8 blocks
+ * and filtered down with the same Gaussian, so that a progressive driver that has evaluated every
+ * pixel reproduces it bit for bit (the reference integrator's pixels do not depend on their batch).
+ *
+ * Batches: a chunk of queued pixels is sorted by 8x8 work block and then (y, x); each block's
+ * pixels form one batch. Chunks end at the snapshot percentages and at stop_percent, so with a
+ * block-adaptive integrator (ias) the batch composition, and with it the pixel values, depend on
+ * those settings (never on the thread count); the reference integrator is unaffected. */
+#include "driver/progressive.h"
+
+#include "core/clock.h"
+#include "core/context.h"
+#include "film/downsample.h"
+#include "io/image.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PN_PROG_BLOCK 8
+
+void pn_render_request_snapshot(pn_context ctx) {
+    if (ctx) atomic_store(&ctx->snapshot_request, 1);
+}
+
+float pn_prog_lum(const pn_prog *p, int x, int y) {
+    const float *c = p->rad + 3 * pn_prog_index(p, x, y);
+    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+}
+
+float pn_prog_lum_sigma(const pn_prog *p, int x, int y) {
+    float rv = p->relvar[pn_prog_index(p, x, y)];
+    return rv > 0.0f ? sqrtf(rv) * fabsf(pn_prog_lum(p, x, y)) : 0.0f;
+}
+
+bool pn_prog_request(pn_prog *p, int x, int y) {
+    size_t i = pn_prog_index(p, x, y);
+    if ((p->state[i] & 3) == PN_PX_EVALUATED || (p->state[i] & PN_PX_QUEUED)) return true;
+    if (p->queue_len == p->queue_cap) {
+        size_t cap = p->queue_cap ? 2 * p->queue_cap : 1024;
+        void *q = realloc(p->queue, cap * sizeof *p->queue);
+        if (!q) return false;
+        p->queue = q;
+        p->queue_cap = cap;
+    }
+    p->queue[p->queue_len][0] = x;
+    p->queue[p->queue_len][1] = y;
+    p->queue_len++;
+    p->state[i] |= PN_PX_QUEUED;
+    return true;
+}
+
+static bool ensure_scratch(pn_prog *p, int worker) {
+    if (!p->scratch[worker] && p->integ->scratch_create) {
+        p->scratch[worker] = p->integ->scratch_create(&p->job);
+        if (!p->scratch[worker]) {
+            atomic_store(&p->failed, PN_ERROR_OUT_OF_MEMORY);
+            return false;
+        }
+    }
+    return true;
+}
+
+/* Stores estimates of a batch (window coordinates in px) and counts them. */
+static void store_estimates(pn_prog *p, int worker, const int32_t (*px)[2], const pn_pixel_estimate *est, int n) {
+    struct prog_counters *c = &p->counters[worker];
+    for (int i = 0; i < n; i++) {
+        size_t k = pn_prog_index(p, px[i][0], px[i][1]);
+        p->orig[3 * k] = est[i].radiance.x;
+        p->orig[3 * k + 1] = est[i].radiance.y;
+        p->orig[3 * k + 2] = est[i].radiance.z;
+        for (int ch = 0; ch < 3; ch++)
+            p->rad[3 * k + ch] = p->demod ? p->orig[3 * k + ch] / p->demod[3 * k + ch] : p->orig[3 * k + ch];
+        p->state[k] = PN_PX_EVALUATED;
+        p->relvar[k] = isfinite(est[i].relative_variance) ? est[i].relative_variance : 0.0f;
+        c->eye += est[i].eye_rays;
+        c->shadow += est[i].shadow_rays;
+        c->spec += est[i].specular_rays;
+        c->embree += (double)est[i].embree_seconds;
+        if (est[i].eye_rays > c->max_eye) c->max_eye = est[i].eye_rays;
+        if (est[i].shadow_rays > c->max_shadow) c->max_shadow = est[i].shadow_rays;
+    }
+}
+
+/* Evaluates up to 64 window pixels of one 8x8 work block (already sorted). */
+static bool eval_block_pixels(pn_prog *p, int worker, const int32_t (*px)[2], int n) {
+    if (n <= 0) return true;
+    if (!ensure_scratch(p, worker)) return false;
+    int32_t full[PN_PROG_BLOCK * PN_PROG_BLOCK][2];
+    pn_pixel_estimate est[PN_PROG_BLOCK * PN_PROG_BLOCK];
+    for (int i = 0; i < n; i++) {
+        full[i][0] = px[i][0] + p->wx0;
+        full[i][1] = px[i][1] + p->wy0;
+    }
+    pn_batch batch = {full[0][0] / PN_PROG_BLOCK, full[0][1] / PN_PROG_BLOCK, n, (const int32_t(*)[2])full};
+    memset(est, 0, (size_t)n * sizeof *est);
+    pn_status st = p->integ->render_batch(&p->job, &batch, est, p->scratch[worker]);
+    if (st != PN_OK) {
+        atomic_store(&p->failed, (int)st);
+        return false;
+    }
+    store_estimates(p, worker, px, est, n);
+    return true;
+}
+
+bool pn_prog_eval_now(pn_prog *p, int worker, int x, int y) {
+    if ((p->state[pn_prog_index(p, x, y)] & 3) == PN_PX_EVALUATED) return true;
+    if (atomic_load(&p->failed)) return false;
+    int32_t px[1][2] = {{x, y}};
+    if (!eval_block_pixels(p, worker, (const int32_t(*)[2])px, 1)) return false;
+    p->counters[worker].extra++; /* added to p->evaluated by pn_prog_collect_extra */
+    return true;
+}
+
+void pn_prog_collect_extra(pn_prog *p) {
+    for (int w = 0; w <= p->workers; w++) {
+        p->evaluated += p->counters[w].extra;
+        p->counters[w].extra = 0;
+    }
+}
+
+void pn_prog_parallel(pn_prog *p, size_t n, void (*fn)(void *user, size_t job, int worker), void *user) {
+    pn_threadpool_run(p->pool, n, fn, user);
+}
+
+/* ---- chunks ---- */
+
+typedef struct chunk_item {
+    uint64_t key;
+    int32_t xy[2];
+} chunk_item;
+
+typedef struct chunk_run {
+    pn_prog *p;
+    chunk_item *items;
+    size_t *group_start; /* group g = items[group_start[g], group_start[g + 1]) */
+} chunk_run;
+
+static int cmp_chunk_item(const void *a, const void *b) {
+    uint64_t ka = ((const chunk_item *)a)->key, kb = ((const chunk_item *)b)->key;
+    return ka < kb ? -1 : ka > kb;
+}
+
+static void chunk_group_job(void *user, size_t g, int worker) {
+    chunk_run *cr = user;
+    pn_prog *p = cr->p;
+    if (atomic_load(&p->failed) || atomic_load(p->job.cancel)) return;
+    int32_t px[PN_PROG_BLOCK * PN_PROG_BLOCK][2];
+    int n = 0;
+    for (size_t i = cr->group_start[g]; i < cr->group_start[g + 1]; i++) {
+        px[n][0] = cr->items[i].xy[0];
+        px[n][1] = cr->items[i].xy[1];
+        n++;
+    }
+    eval_block_pixels(p, worker, (const int32_t(*)[2])px, n);
+}
+
+static pn_status eval_chunk(pn_prog *p, const int32_t (*px)[2], size_t n) {
+    chunk_item *items = malloc(n * sizeof *items);
+    size_t *starts = malloc((n + 1) * sizeof *starts);
+    if (!items || !starts) {
+        free(items);
+        free(starts);
+        return PN_ERROR_OUT_OF_MEMORY;
+    }
+    uint64_t bw = (uint64_t)((p->wx0 + p->W - 1) / PN_PROG_BLOCK + 1);
+    for (size_t i = 0; i < n; i++) {
+        int gx = px[i][0] + p->wx0, gy = px[i][1] + p->wy0;
+        uint64_t block = (uint64_t)(gy / PN_PROG_BLOCK) * bw + (uint64_t)(gx / PN_PROG_BLOCK);
+        items[i].key = (block << 8) | (uint64_t)((gy % PN_PROG_BLOCK) * PN_PROG_BLOCK + gx % PN_PROG_BLOCK);
+        items[i].xy[0] = px[i][0];
+        items[i].xy[1] = px[i][1];
+    }
+    qsort(items, n, sizeof *items, cmp_chunk_item);
+    size_t groups = 0;
+    for (size_t i = 0; i < n; i++)
+        if (i == 0 || (items[i].key >> 8) != (items[i - 1].key >> 8)) starts[groups++] = i;
+    starts[groups] = n;
+    chunk_run cr = {p, items, starts};
+    pn_threadpool_run(p->pool, groups, chunk_group_job, &cr);
+    free(items);
+    free(starts);
+    int failed = atomic_load(&p->failed);
+    if (failed) return (pn_status)failed;
+    p->evaluated += n;
+    return PN_OK;
+}
+
+/* ---- snapshots and output ---- */
+
+static pn_status make_image(pn_prog *p, pn_image *out);
+
+static void fire_snapshot(pn_prog *p, double requested) {
+    if (!p->settings->snapshot) return;
+    pn_image img = NULL;
+    double t0 = pn_clock_seconds();
+    pn_status st = make_image(p, &img);
+    if (st != PN_OK) {
+        p->snapshot_status = st;
+        return;
+    }
+    double now = pn_clock_seconds();
+    if (now - t0 > p->reconstruct_seconds_max) p->reconstruct_seconds_max = now - t0;
+    p->settings->snapshot(p->settings->snapshot_user, img, requested, (double)pn_prog_evaluated_percent(p),
+                          now - p->t0);
+    pn_image_free(img);
+}
+
+static size_t percent_pixels(const pn_prog *p, double percent) {
+    double n = ceil(percent / 100.0 * (double)p->W * (double)p->H);
+    return n < 0.0 ? 0 : (size_t)n;
+}
+
+static void check_snapshots(pn_prog *p) {
+    while (p->next_percent < p->percent_count && p->evaluated >= percent_pixels(p, p->percents[p->next_percent])) {
+        fire_snapshot(p, p->percents[p->next_percent]);
+        p->next_percent++;
+    }
+    if (p->settings->snapshot_every_seconds > 0.0 && pn_clock_seconds() >= p->next_time) {
+        fire_snapshot(p, -1.0);
+        p->next_time = pn_clock_seconds() + p->settings->snapshot_every_seconds;
+    }
+    if (atomic_exchange(&p->ctx->snapshot_request, 0)) fire_snapshot(p, -1.0);
+}
+
+pn_status pn_prog_flush(pn_prog *p) {
+    size_t pos = 0, total = (size_t)p->W * (size_t)p->H;
+    size_t chunk_max = total / 256;
+    if (chunk_max < 512) chunk_max = 512;
+    pn_status st = PN_OK;
+    check_snapshots(p);
+    while (pos < p->queue_len && !p->stopped) {
+        size_t n = p->queue_len - pos;
+        if (n > chunk_max) n = chunk_max;
+        if (p->next_percent < p->percent_count) {
+            size_t need = percent_pixels(p, p->percents[p->next_percent]);
+            if (need > p->evaluated && need - p->evaluated < n) n = need - p->evaluated;
+        }
+        if (p->stop_pixels > p->evaluated && p->stop_pixels - p->evaluated < n) n = p->stop_pixels - p->evaluated;
+        st = eval_chunk(p, (const int32_t(*)[2])(p->queue + pos), n);
+        if (st != PN_OK) break;
+        pos += n;
+        if (atomic_load(p->job.cancel)) {
+            st = PN_ERROR_CANCELLED;
+            break;
+        }
+        check_snapshots(p);
+        if (p->stop_pixels > 0 && p->evaluated >= p->stop_pixels) p->stopped = true;
+    }
+    for (size_t i = pos; i < p->queue_len; i++) p->state[pn_prog_index(p, p->queue[i][0], p->queue[i][1])] &= 3;
+    p->queue_len = 0;
+    if (st == PN_ERROR_CANCELLED) p->stopped = true;
+    return st;
+}
+
+/* Builds the output image from the driver's reconstruction: the work image, evaluated pixels
+ * restored, filtered down; AOVs at the output resolution. */
+static pn_status make_image(pn_prog *p, pn_image *out) {
+    size_t n = (size_t)p->W * (size_t)p->H;
+    uint32_t aovs = p->settings->aovs;
+    bool want_map = (aovs & (PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION)) != 0;
+    if (!p->work) p->work = malloc(3 * n * sizeof *p->work);
+    float *work = p->work;
+    float *cls = want_map ? malloc(n * sizeof *cls) : NULL;
+    float *dir = want_map ? malloc(n * sizeof *dir) : NULL;
+    pn_image img = pn_image_create(p->out_w, p->out_h);
+    float *pattern = NULL, *map = NULL, *mapdir = NULL;
+    bool ok = work && img && (!want_map || (cls && dir));
+    if (ok && (aovs & PN_AOV_SAMPLING_PATTERN)) ok = (pattern = pn_image_add_layer(img, "sampling_pattern", 1)) != NULL;
+    if (ok && (aovs & PN_AOV_BLOCK_MAP)) ok = (map = pn_image_add_layer(img, "block_map", 1)) != NULL;
+    if (ok && (aovs & PN_AOV_BLOCK_DIRECTION)) ok = (mapdir = pn_image_add_layer(img, "block_direction", 1)) != NULL;
+    if (ok) {
+        if (cls)
+            for (size_t i = 0; i < n; i++) {
+                cls[i] = 0.0f;
+                dir[i] = -1.0f;
+            }
+        memset(work, 0, 3 * n * sizeof *work);
+        if (p->draw) p->draw(p, p->driver, work, cls, dir);
+        for (size_t i = 0; i < n; i++) {
+            if ((p->state[i] & 3) == PN_PX_EVALUATED) memcpy(work + 3 * i, p->orig + 3 * i, 3 * sizeof *work);
+            else if (p->demod)
+                for (int c = 0; c < 3; c++) work[3 * i + c] *= p->demod[3 * i + c];
+        }
+        ok = pn_gauss_downsample(work, p->W, p->H, 3, p->scale, (float *)pn_image_layer_data(img, 0), p->out_w,
+                                 p->out_h, p->pool, p->filter_tmp);
+    }
+    if (ok) {
+        int s = p->scale;
+        for (int y = 0; y < p->out_h; y++)
+            for (int x = 0; x < p->out_w; x++) {
+                size_t o = (size_t)y * (size_t)p->out_w + (size_t)x;
+                size_t c = pn_prog_index(p, s * x + s / 2, s * y + s / 2);
+                if (pattern) {
+                    int count = 0;
+                    for (int j = 0; j < s; j++)
+                        for (int i = 0; i < s; i++) count += pn_prog_known(p, s * x + i, s * y + j);
+                    pattern[o] = (float)count / (float)(s * s);
+                }
+                if (map) map[o] = cls[c];
+                if (mapdir) mapdir[o] = dir[c];
+            }
+    }
+    free(cls);
+    free(dir);
+    if (!ok) {
+        pn_image_free(img);
+        return PN_ERROR_OUT_OF_MEMORY;
+    }
+    *out = img;
+    return PN_OK;
+}
+
+/* ---- the primary-ray buffer ---- */
+
+typedef struct primary_run {
+    pn_prog *p;
+    float *depth;
+    vec3 *normal;
+} primary_run;
+
+static void primary_row(void *user, size_t row, int worker) {
+    (void)worker;
+    primary_run *r = user;
+    pn_prog *p = r->p;
+    int y = (int)row;
+    for (int x = 0; x < p->W; x++) {
+        vec3 o, d;
+        pn_camera_ray(&p->job.camera, (float)(x + p->wx0) + 0.5f, (float)(y + p->wy0) + 0.5f, 0.5f, 0.5f, &o, &d);
+        pn_eye_path path;
+        pn_trace_eye_path(&p->job, o, d, 0.5f, &path);
+        size_t i = pn_prog_index(p, x, y);
+        r->depth[i] = path.first_depth;
+        if (path.has_point) {
+            /* The object of the first non-specular hit, so that object boundaries seen in mirrors
+             * count as visible lines too. */
+            uint32_t t = (uint32_t)(path.hit.mesh + 1) * 2654435761u ^ (uint32_t)(path.hit.sphere + 1) * 40503u ^
+                         (uint32_t)(path.hit.instance + 1) * 97u;
+            p->tag[i] = (int32_t)(t & 0x7fffffffu);
+            r->normal[i] = path.hit.ng;
+            if (p->demod) {
+                /* Demodulation: interpolate radiance / albedo, so that texture detail known from
+                 * one primary ray per pixel is not left to the interpolation. */
+                vec3 a = path.first_albedo;
+                float m = fmaxf(a.x, fmaxf(a.y, a.z));
+                float *f = p->demod + 3 * i;
+                f[0] = m < 1e-3f ? 1.0f : fmaxf(a.x, 0.02f);
+                f[1] = m < 1e-3f ? 1.0f : fmaxf(a.y, 0.02f);
+                f[2] = m < 1e-3f ? 1.0f : fmaxf(a.z, 0.02f);
+            }
+        } else {
+            p->tag[i] = -1;
+            r->normal[i] = v3(0, 0, 0);
+            if (p->demod) p->demod[3 * i] = p->demod[3 * i + 1] = p->demod[3 * i + 2] = 1.0f;
+        }
+    }
+}
+
+static bool discontinuous(const primary_run *r, const pn_prog *p, size_t a, size_t b) {
+    if (p->tag[a] != p->tag[b]) return true;
+    if (p->tag[a] < 0) return false;
+    if (v3_dot(r->normal[a], r->normal[b]) < 0.8f) return true;
+    float da = r->depth[a], db = r->depth[b];
+    if (!isfinite(da) || !isfinite(db)) return isfinite(da) != isfinite(db);
+    return fabsf(da - db) > 0.1f * fminf(da, db);
+}
+
+pn_status pn_prog_build_primary(pn_prog *p) {
+    if (p->tag) return PN_OK;
+    double t0 = pn_clock_seconds();
+    size_t n = (size_t)p->W * (size_t)p->H, ns = (size_t)(p->W + 1) * (size_t)(p->H + 1);
+    primary_run r = {p, malloc(n * sizeof(float)), malloc(n * sizeof(vec3))};
+    p->tag = malloc(n * sizeof *p->tag);
+    p->sat_right = calloc(ns, sizeof *p->sat_right);
+    p->sat_down = calloc(ns, sizeof *p->sat_down);
+    if (!p->settings->raw_radiance) p->demod = malloc(3 * n * sizeof *p->demod);
+    if (!r.depth || !r.normal || !p->tag || !p->sat_right || !p->sat_down || (!p->settings->raw_radiance && !p->demod)) {
+        free(r.depth);
+        free(r.normal);
+        return PN_ERROR_OUT_OF_MEMORY;
+    }
+    pn_threadpool_run(p->pool, (size_t)p->H, primary_row, &r);
+    size_t stride = (size_t)p->W + 1;
+    for (int y = 0; y < p->H; y++)
+        for (int x = 0; x < p->W; x++) {
+            size_t i = pn_prog_index(p, x, y);
+            uint32_t fr = x + 1 < p->W && discontinuous(&r, p, i, i + 1);
+            uint32_t fd = y + 1 < p->H && discontinuous(&r, p, i, i + (size_t)p->W);
+            size_t s = (size_t)(y + 1) * stride + (size_t)(x + 1);
+            p->sat_right[s] = fr + p->sat_right[s - 1] + p->sat_right[s - stride] - p->sat_right[s - stride - 1];
+            p->sat_down[s] = fd + p->sat_down[s - 1] + p->sat_down[s - stride] - p->sat_down[s - stride - 1];
+        }
+    free(r.depth);
+    free(r.normal);
+    p->primary_seconds = pn_clock_seconds() - t0;
+    return PN_OK;
+}
+
+static uint32_t sat_sum(const uint32_t *sat, int W, int x0, int y0, int x1, int y1) {
+    if (x1 < x0 || y1 < y0) return 0;
+    size_t stride = (size_t)W + 1;
+    return sat[(size_t)(y1 + 1) * stride + (size_t)(x1 + 1)] - sat[(size_t)y0 * stride + (size_t)(x1 + 1)] -
+           sat[(size_t)(y1 + 1) * stride + (size_t)x0] + sat[(size_t)y0 * stride + (size_t)x0];
+}
+
+bool pn_prog_visible_line(const pn_prog *p, int x0, int y0, int x1, int y1) {
+    if (!p->tag) return false;
+    return sat_sum(p->sat_right, p->W, x0, y0, x1 - 1, y1) > 0 || sat_sum(p->sat_down, p->W, x0, y0, x1, y1 - 1) > 0;
+}
+
+/* ---- the full driver ---- */
+
+static pn_status full_run(pn_prog *p) {
+    for (int by = 0; by < p->H; by += PN_PROG_BLOCK)
+        for (int bx = 0; bx < p->W; bx += PN_PROG_BLOCK)
+            for (int y = by; y < by + PN_PROG_BLOCK && y < p->H; y++)
+                for (int x = bx; x < bx + PN_PROG_BLOCK && x < p->W; x++)
+                    if (!pn_prog_request(p, x, y)) return PN_ERROR_OUT_OF_MEMORY;
+    return pn_prog_flush(p);
+}
+
+/* ---- entry ---- */
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, const pn_integrator *integ,
+                                const pn_render_job *job, pn_image *out_image, pn_render_stats *stats) {
+    if (s->driver < PN_DRIVER_FULL || s->driver > PN_DRIVER_UNIFORM)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)s->driver);
+    int scale = s->work_scale > 0 ? s->work_scale : 3;
+    if (s->work_scale < 0 || scale > 16)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)", s->work_scale);
+    if (s->aovs & ~(uint32_t)(PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "progressive drivers write only the sampling_pattern, block_map and block_direction AOVs");
+    if (!(s->stop_percent >= 0.0 && s->stop_percent <= 100.0) || !(s->snapshot_every_seconds >= 0.0))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "stop percentage must lie in [0, 100] and the snapshot interval be >= 0");
+    if (s->snapshot_percent_count < 0 || (s->snapshot_percent_count > 0 && !s->snapshot_percents))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "snapshot percentages missing");
+    for (int i = 0; i < s->snapshot_percent_count; i++)
+        if (!(s->snapshot_percents[i] > 0.0 && s->snapshot_percents[i] <= 100.0))
+            return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "snapshot percentages must lie in (0, 100]");
+    const pn_camera *oc = &job->camera;
+    if ((long)oc->full_width * scale > 65536 || (long)oc->full_height * scale > 65536)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work image %dx%d too large", oc->full_width * scale,
+                               oc->full_height * scale);
+
+    pn_prog *p = calloc(1, sizeof *p);
+    if (!p) return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    p->ctx = ctx;
+    p->settings = s;
+    p->integ = integ;
+    p->job = *job;
+    p->scale = scale;
+    float crop[4] = {0, 1, 0, 1};
+    pn_camera_setup(&job->scene->camera, oc->full_width * scale, oc->full_height * scale, crop, &p->job.camera);
+    p->job.camera.x0 = oc->x0 * scale;
+    p->job.camera.x1 = oc->x1 * scale;
+    p->job.camera.y0 = oc->y0 * scale;
+    p->job.camera.y1 = oc->y1 * scale;
+    p->out_w = oc->x1 - oc->x0;
+    p->out_h = oc->y1 - oc->y0;
+    p->W = p->out_w * scale;
+    p->H = p->out_h * scale;
+    p->wx0 = p->job.camera.x0;
+    p->wy0 = p->job.camera.y0;
+    size_t n = (size_t)p->W * (size_t)p->H;
+    p->rad = calloc(3 * n, sizeof *p->rad);
+    p->orig = calloc(3 * n, sizeof *p->orig);
+    p->relvar = calloc(n, sizeof *p->relvar);
+    p->state = calloc(n, 1);
+    p->pool = pn_threadpool_create(s->threads);
+    p->workers = pn_threadpool_size(p->pool);
+    p->scratch = calloc((size_t)p->workers + 1, sizeof *p->scratch);
+    p->counters = calloc((size_t)p->workers + 1, sizeof *p->counters);
+    p->percent_count = s->snapshot_percent_count;
+    p->percents = p->percent_count ? malloc((size_t)p->percent_count * sizeof *p->percents) : NULL;
+    pn_status st = PN_OK;
+    if (!p->rad || !p->orig || !p->relvar || !p->state || !p->pool || !p->scratch || !p->counters || (p->percent_count && !p->percents)) {
+        st = pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d work image", p->W, p->H);
+    } else {
+        if (p->percent_count) {
+            memcpy(p->percents, s->snapshot_percents, (size_t)p->percent_count * sizeof *p->percents);
+            qsort(p->percents, (size_t)p->percent_count, sizeof *p->percents, cmp_double);
+        }
+        p->stop_pixels = s->stop_percent > 0.0 ? percent_pixels(p, s->stop_percent) : 0;
+        atomic_init(&p->failed, 0);
+        atomic_store(&ctx->cancel, 0);
+        atomic_store(&ctx->snapshot_request, 0);
+        p->driver_stats = stats;
+        /* The reconstruction buffer, touched once here so that the first snapshot does not pay
+         * for the page faults. */
+        p->work = calloc(3 * n, sizeof *p->work);
+        if (p->work) memset(p->work, 0, 3 * n * sizeof *p->work);
+        size_t nt = 3 * (size_t)p->out_w * (size_t)p->H;
+        p->filter_tmp = calloc(nt, sizeof *p->filter_tmp);
+        if (p->filter_tmp) memset(p->filter_tmp, 0, nt * sizeof *p->filter_tmp);
+        p->t0 = pn_clock_seconds();
+        p->next_time = p->t0 + s->snapshot_every_seconds;
+        if (s->driver != PN_DRIVER_FULL) st = pn_prog_build_primary(p);
+        if (st == PN_OK) switch (s->driver) {
+        case PN_DRIVER_FULL: st = full_run(p); break;
+        case PN_DRIVER_DCM: st = pn_dcm_run(p, false); break;
+        case PN_DRIVER_UNIFORM: st = pn_dcm_run(p, true); break;
+        case PN_DRIVER_PAINTER: st = pn_painter_run(p); break;
+        default: st = PN_ERROR_INVALID_ARGUMENT; break;
+        }
+        double t1 = pn_clock_seconds();
+        pn_status img_st = PN_OK;
+        if (st == PN_OK || st == PN_ERROR_CANCELLED) {
+            img_st = make_image(p, out_image);
+            if (img_st == PN_OK) check_snapshots(p);
+        }
+        if (st == PN_OK && p->snapshot_status != PN_OK) st = p->snapshot_status;
+        if (stats) {
+            uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
+            double embree = 0.0;
+            for (int w = 0; w <= p->workers; w++) {
+                eye += p->counters[w].eye;
+                shadow += p->counters[w].shadow;
+                spec += p->counters[w].spec;
+                embree += p->counters[w].embree;
+                if (p->counters[w].max_eye > max_eye) max_eye = p->counters[w].max_eye;
+                if (p->counters[w].max_shadow > max_shadow) max_shadow = p->counters[w].max_shadow;
+            }
+            size_t evaluated = 0;
+            for (size_t i = 0; i < n; i++) evaluated += (p->state[i] & 3) == PN_PX_EVALUATED;
+            stats->render_seconds = t1 - p->t0;
+            stats->embree_seconds_estimate = embree / (double)(p->workers > 0 ? p->workers : 1);
+            stats->eye_rays = eye;
+            stats->shadow_rays = shadow;
+            stats->specular_rays = spec;
+            stats->eye_rays_per_pixel_mean = evaluated ? (double)eye / (double)evaluated : 0.0;
+            stats->shadow_rays_per_pixel_mean = evaluated ? (double)shadow / (double)evaluated : 0.0;
+            stats->eye_rays_per_pixel_max = max_eye;
+            stats->shadow_rays_per_pixel_max = max_shadow;
+            stats->mrays_per_second = stats->render_seconds > 0.0
+                                          ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
+            stats->partial = st == PN_ERROR_CANCELLED;
+            if (integ->report) integ->report(&p->job, stats);
+            stats->threads = p->workers;
+            stats->width = p->out_w;
+            stats->height = p->out_h;
+            stats->evaluated_pixels = evaluated;
+            stats->evaluated_percent = 100.0 * (double)evaluated / (double)n;
+            stats->work_width = p->W;
+            stats->work_height = p->H;
+            stats->primary_buffer_seconds = p->primary_seconds;
+            stats->reconstruct_seconds_max = p->reconstruct_seconds_max;
+        }
+        if (img_st != PN_OK) st = pn_context_fail(ctx, img_st, "out of memory for the output image");
+        else if (st == PN_ERROR_CANCELLED) pn_context_fail(ctx, st, "render cancelled; the image is approximate");
+        else if (st != PN_OK) pn_context_fail(ctx, st, "render failed: %s", pn_status_string(st));
+    }
+    for (int w = 0; p->scratch && w <= p->workers; w++)
+        if (p->scratch[w] && integ->scratch_free) integ->scratch_free(p->scratch[w]);
+    if (p->free_driver) p->free_driver(p->driver);
+    pn_threadpool_destroy(p->pool);
+    free(p->scratch);
+    free(p->counters);
+    free(p->percents);
+    free(p->work);
+    free(p->filter_tmp);
+    free(p->rad);
+    free(p->orig);
+    free(p->relvar);
+    free(p->demod);
+    free(p->state);
+    free(p->queue);
+    free(p->tag);
+    free(p->sat_right);
+    free(p->sat_down);
+    free(p);
+    return st;
+}

@@ -1,0 +1,496 @@
+/* test_dcm.c — the progressive drivers of issue 6 (Guo 1998, Directional Coherence Maps; Painter &
+ * Sloan 1989; uniform subsampling): the block-level pieces against closed forms (least-discrepancy
+ * direction of straight edges at known angles, the simplicity tests on a straight edge, a corner
+ * and two crossing edges, oriented elements on a linear ramp, the object test, the Gaussian
+ * filter), then renders through the public API: every driver run to the end equals the `full`
+ * render bit for bit (also with a crop and for any thread count), snapshots arrive at the
+ * requested percentages and on request, DCM beats uniform subsampling at 6% on a sharp edge, bad
+ * settings are refused, and the CLI writes its snapshots atomically beside the output. */
+#include "harness.h"
+
+#include "driver/dcm.h"
+#include "film/downsample.h"
+#include "penumbra/penumbra.h"
+
+#include <dirent.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+static char tmpdir[256];
+
+/* ---- block-level pieces ---- */
+
+/* Fills loop values of a w x h block from f(x, y). */
+static void fill_loop(int w, int h, float (*f)(float, float, const void *), const void *u, float *lum) {
+    int n = pn_dcm_loop_length(w, h);
+    for (int i = 0; i < n; i++) {
+        int x, y;
+        pn_dcm_loop_pixel(w, h, i, &x, &y);
+        lum[i] = f((float)x, (float)y, u);
+    }
+}
+
+typedef struct edge {
+    float cx, cy, theta, width, lo, hi;
+} edge;
+
+/* A straight edge through (cx, cy) along theta: a linear ramp of `width` pixels across it. */
+static float edge_value(float x, float y, const void *u) {
+    const edge *e = u;
+    float d = -(x - e->cx) * sinf(e->theta) + (y - e->cy) * cosf(e->theta);
+    float t = d / e->width + 0.5f;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    return e->lo + t * (e->hi - e->lo);
+}
+
+static void test_loop_geometry(void) {
+    int w = 8, h = 4, n = pn_dcm_loop_length(w, h);
+    CHECK(n == 24);
+    int seen[9][5] = {{0}};
+    for (int i = 0; i < n; i++) {
+        int x, y;
+        pn_dcm_loop_pixel(w, h, i, &x, &y);
+        CHECK(x >= 0 && x <= w && y >= 0 && y <= h);
+        CHECK(x == 0 || x == w || y == 0 || y == h);
+        seen[x][y]++;
+        int nx, ny; /* consecutive pixels are 4-neighbours */
+        pn_dcm_loop_pixel(w, h, (i + 1) % n, &nx, &ny);
+        CHECK(abs(nx - x) + abs(ny - y) == 1);
+    }
+    for (int x = 0; x <= w; x++)
+        for (int y = 0; y <= h; y++) CHECK(seen[x][y] == ((x == 0 || x == w || y == 0 || y == h) ? 1 : 0));
+}
+
+static void test_least_discrepancy_exact(void) {
+    float lum[64];
+    for (int k = 8; k <= 16; k += 8)
+        for (int i = 0; i < PN_DCM_DIRECTIONS; i++)
+            for (int off = -1; off <= 1; off++) {
+                edge e = {0.5f * (float)k + 0.7f * (float)off, 0.5f * (float)k - 0.4f * (float)off,
+                          (float)(i * M_PI / PN_DCM_DIRECTIONS), 1.5f, 0.2f, 1.0f};
+                fill_loop(k, k, edge_value, &e, lum);
+                float d[PN_DCM_DIRECTIONS];
+                int got = pn_dcm_least_discrepancy(lum, k, k, d);
+                CHECK_MSG(got == i, "k %d direction %d offset %d: got %d (d = %g vs %g)", k, i, off, got, (double)d[got],
+                          (double)d[i]);
+            }
+}
+
+static float ramp_value(float x, float y, const void *u) {
+    const float *c = u;
+    return c[0] + c[1] * x + c[2] * y;
+}
+
+static void test_elements_reproduce_linear_ramp(void) {
+    const float c[3] = {0.3f, 0.05f, -0.02f};
+    float lum[64];
+    int sizes[3][2] = {{8, 8}, {4, 4}, {8, 5}};
+    for (int s = 0; s < 3; s++) {
+        int w = sizes[s][0], h = sizes[s][1];
+        fill_loop(w, h, ramp_value, c, lum);
+        for (int dir = 0; dir < PN_DCM_DIRECTIONS; dir++)
+            for (int y = 0; y <= 2 * h; y++)
+                for (int x = 0; x <= 2 * w; x++) {
+                    float px = 0.5f * (float)x, py = 0.5f * (float)y, v;
+                    pn_dcm_element_value(lum, 1, w, h, dir, px, py, &v);
+                    CHECK_NEAR(v, ramp_value(px, py, c), 2e-6);
+                }
+    }
+}
+
+static float sample_fn_inner(void *user, int x, int y) {
+    const edge *e = user;
+    return edge_value((float)x, (float)y, e);
+}
+
+typedef struct shape_fn {
+    int kind; /* 0 corner: bright where x > a and y > a; 1 cross: bright in two opposite quadrants */
+    float a;
+} shape_fn;
+
+static float shape_value(float x, float y, const void *u) {
+    const shape_fn *s = u;
+    if (s->kind == 0) return (x > s->a && y > s->a) ? 1.0f : 0.1f;
+    return ((x > s->a) == (y > s->a)) ? 1.0f : 0.1f;
+}
+
+static float shape_inner(void *user, int x, int y) { return shape_value((float)x, (float)y, user); }
+
+static void test_simplicity_tests(void) {
+    float lum[64];
+    pn_dcm_zero_order z;
+    /* A single straight edge at several angles passes the zero- and first-order tests. */
+    for (int i = 0; i < 8; i++) {
+        edge e = {4.1f, 3.9f, (float)(i * M_PI / 8 + 0.1), 0.8f, 0.1f, 1.0f};
+        fill_loop(8, 8, edge_value, &e, lum);
+        CHECK(pn_dcm_zero_order_test(lum, 8, 8, &z));
+        CHECK(z.transitions == 2);
+        CHECK_MSG(pn_dcm_first_order_test(8, 8, &z, sample_fn_inner, &e), "edge at %d", i);
+    }
+    /* A corner: one span of bright pixels, so two transitions, but the tangents disagree. */
+    shape_fn corner = {0, 5.5f};
+    fill_loop(8, 8, shape_value, &corner, lum);
+    CHECK(pn_dcm_zero_order_test(lum, 8, 8, &z));
+    CHECK(z.transitions == 2);
+    CHECK(!pn_dcm_first_order_test(8, 8, &z, shape_inner, &corner));
+    /* Two crossing edges: four transitions, the zero-order test fails. */
+    shape_fn cross = {1, 3.5f};
+    fill_loop(8, 8, shape_value, &cross, lum);
+    CHECK(!pn_dcm_zero_order_test(lum, 8, 8, &z));
+    CHECK(z.transitions == 4);
+    /* A flat but noisy boundary (contrast below t_c) has no transitions. */
+    for (int i = 0; i < 32; i++) lum[i] = 1.0f + 0.02f * (float)((i * 7) % 5 - 2);
+    CHECK(pn_dcm_zero_order_test(lum, 8, 8, &z) && z.transitions == 0);
+    /* A single-pixel spike is removed by the filters. */
+    for (int i = 0; i < 32; i++) lum[i] = i < 16 ? 1.0f : 0.1f;
+    lum[24] = 1.0f;
+    CHECK(pn_dcm_zero_order_test(lum, 8, 8, &z) && z.transitions == 2);
+}
+
+static void test_object_test_and_contrast(void) {
+    int32_t two[8] = {1, 1, 1, 2, 2, 2, 2, 1};
+    int32_t three[8] = {1, 1, 3, 2, 2, 2, 2, 1};
+    int32_t four_spans[8] = {1, 2, 1, 2, 1, 1, 1, 1};
+    int32_t one[8] = {5, 5, 5, 5, 5, 5, 5, 5};
+    CHECK(pn_dcm_object_test(two, 8));
+    CHECK(pn_dcm_object_test(one, 8));
+    CHECK(!pn_dcm_object_test(three, 8));
+    CHECK(!pn_dcm_object_test(four_spans, 8));
+    float g[4] = {1.0f, 1.5f, 2.0f, 3.0f};
+    CHECK_NEAR(pn_dcm_contrast(g), 0.5, 1e-6);
+    float z[4] = {0, 0, 0, 0};
+    CHECK(pn_dcm_contrast(z) == 0.0f);
+}
+
+static void test_gaussian_downsample(void) {
+    enum { S = 3, W = 7, H = 5 };
+    float src[W * S * H * S * 3], dst[W * H * 3];
+    for (int i = 0; i < W * S * H * S * 3; i++) src[i] = 0.25f;
+    CHECK(pn_gauss_downsample(src, W * S, H * S, 3, S, dst, W, H, NULL, NULL));
+    for (int i = 0; i < W * H * 3; i++) CHECK_NEAR(dst[i], 0.25, 1e-6);
+    /* A ramp in x stays a ramp at the output pixel centres away from the borders (symmetric
+     * weights). */
+    for (int y = 0; y < H * S; y++)
+        for (int x = 0; x < W * S; x++)
+            for (int c = 0; c < 3; c++) src[(y * W * S + x) * 3 + c] = (float)x;
+    CHECK(pn_gauss_downsample(src, W * S, H * S, 3, S, dst, W, H, NULL, NULL));
+    for (int x = 2; x < W - 2; x++) CHECK_NEAR(dst[(2 * W + x) * 3], S * x + (S - 1) / 2, 1e-4);
+}
+
+/* ---- renders ---- */
+
+/* A floor under a point light with a tilted red quad above it: a sharp shadow and an object
+ * boundary. */
+static const char *shadow_scene =
+    "LookAt 0.3 0.2 4  0 0 0  0 1 0\n"
+    "Camera \"perspective\" \"float fov\" [ 40 ]\n"
+    "Film \"rgb\" \"integer xresolution\" [ 40 ] \"integer yresolution\" [ 32 ]\n"
+    "WorldBegin\n"
+    "LightSource \"point\" \"rgb I\" [ 6 6 6 ] \"point3 from\" [ 0.4 0.3 2.5 ]\n"
+    "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+    "Material \"diffuse\" \"rgb reflectance\" [ 0.8 0.2 0.2 ]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [ -0.6 -0.1 0.8  0.1 -0.7 0.8  0.5 0.2 0.8  -0.2 0.6 0.8 ]\n"
+    "   \"integer indices\" [ 0 1 2  0 2 3 ]\n";
+
+static pn_scene load_scene(pn_context ctx) {
+    const char *path = pn_test_write_file(tmpdir, "shadow.pbrt", shadow_scene);
+    pn_scene scene = NULL;
+    pn_status st = pn_scene_load(ctx, path, &scene);
+    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    return scene;
+}
+
+typedef struct snap_log {
+    int count;
+    double requested[16], evaluated[16];
+    pn_image images[16];
+    pn_context ctx;
+    int request_on_first;
+} snap_log;
+
+static void on_snap(void *user, pn_image image, double requested, double evaluated, double seconds) {
+    snap_log *l = user;
+    (void)seconds;
+    if (l->count < 16) {
+        l->requested[l->count] = requested;
+        l->evaluated[l->count] = evaluated;
+        pn_image_crop(l->ctx, image, 0, 0, pn_image_width(image), pn_image_height(image), &l->images[l->count]);
+        l->count++;
+    }
+    if (l->request_on_first && l->count == 1) pn_render_request_snapshot(l->ctx);
+}
+
+static pn_image render_driver(pn_context ctx, pn_scene scene, pn_driver_kind driver, int threads, const float *crop,
+                              snap_log *log, const double *percents, int npercents) {
+    pn_render_settings s = {0};
+    s.spp = 2;
+    s.shadow_rays = 1;
+    s.seed = 3;
+    s.threads = threads;
+    s.driver = driver;
+    if (crop) {
+        s.has_crop = 1;
+        memcpy(s.crop, crop, sizeof s.crop);
+    }
+    if (log) {
+        s.snapshot = on_snap;
+        s.snapshot_user = log;
+        s.snapshot_percents = percents;
+        s.snapshot_percent_count = npercents;
+    }
+    pn_image img = NULL;
+    pn_render_stats stats;
+    pn_status st = pn_render(ctx, scene, &s, &img, &stats);
+    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    if (st == PN_OK) CHECK_NEAR(stats.evaluated_percent, 100.0, 1e-9);
+    return img;
+}
+
+static bool same_pixels(pn_image a, pn_image b) {
+    if (!a || !b || pn_image_width(a) != pn_image_width(b) || pn_image_height(a) != pn_image_height(b)) return false;
+    size_t n = 3 * (size_t)pn_image_width(a) * (size_t)pn_image_height(a) * sizeof(float);
+    return memcmp(pn_image_layer_data(a, 0), pn_image_layer_data(b, 0), n) == 0;
+}
+
+static void test_full_refinement_equals_full_render(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_image full = render_driver(ctx, scene, PN_DRIVER_FULL, 2, NULL, NULL, NULL, 0);
+    CHECK(full && pn_image_width(full) == 40 && pn_image_height(full) == 32);
+    pn_driver_kind drivers[3] = {PN_DRIVER_DCM, PN_DRIVER_UNIFORM, PN_DRIVER_PAINTER};
+    for (int i = 0; i < 3; i++)
+        for (int threads = 1; threads <= 3; threads += 2) {
+            pn_image img = render_driver(ctx, scene, drivers[i], threads, NULL, NULL, NULL, 0);
+            CHECK_MSG(same_pixels(full, img), "driver %d, %d threads", (int)drivers[i], threads);
+            pn_image_free(img);
+        }
+    /* A crop: the work window of the crop, the same pixels as the crop of a full render. */
+    const float crop[4] = {0.2f, 0.7f, 0.3f, 0.9f};
+    pn_image full_crop = render_driver(ctx, scene, PN_DRIVER_FULL, 2, crop, NULL, NULL, 0);
+    pn_image dcm_crop = render_driver(ctx, scene, PN_DRIVER_DCM, 2, crop, NULL, NULL, 0);
+    CHECK(full_crop && pn_image_width(full_crop) == 20 && pn_image_height(full_crop) == 19);
+    CHECK(same_pixels(full_crop, dcm_crop));
+    pn_image_free(full_crop);
+    pn_image_free(dcm_crop);
+    pn_image_free(full);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+static double rel_l1(pn_context ctx, pn_image ref, pn_image img) {
+    pn_image_metrics m;
+    if (pn_image_compare(ctx, ref, img, &m, NULL) != PN_OK) return INFINITY;
+    return m.rel_l1;
+}
+
+static void test_snapshots_and_error_at_6_percent(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_image full = render_driver(ctx, scene, PN_DRIVER_FULL, 2, NULL, NULL, NULL, 0);
+    const double percents[3] = {10.0, 2.0, 6.0}; /* any order */
+    double err6[2] = {0, 0};
+    pn_driver_kind drivers[2] = {PN_DRIVER_DCM, PN_DRIVER_UNIFORM};
+    for (int d = 0; d < 2; d++) {
+        snap_log log = {0};
+        log.ctx = ctx;
+        log.request_on_first = 1;
+        pn_image img = render_driver(ctx, scene, drivers[d], 2, NULL, &log, percents, 3);
+        /* 2% (then one on request), 6%, 10%; each when that share of the work pixels is reached
+         * (the first-order test may add a few pixels past a threshold). */
+        CHECK(log.count == 4);
+        if (log.count == 4) {
+            CHECK(log.requested[0] == 2.0 && log.requested[1] == -1.0 && log.requested[2] == 6.0 &&
+                  log.requested[3] == 10.0);
+            for (int i = 0; i < 4; i++) {
+                if (log.requested[i] > 0) CHECK(log.evaluated[i] >= log.requested[i] && log.evaluated[i] < log.requested[i] + 1.0);
+                CHECK(log.images[i] && pn_image_width(log.images[i]) == 40);
+            }
+            double e2 = rel_l1(ctx, full, log.images[0]), e6 = rel_l1(ctx, full, log.images[2]);
+            double e10 = rel_l1(ctx, full, log.images[3]);
+            CHECK_MSG(e6 < e2 && e10 < e2, "errors %g %g %g", e2, e6, e10);
+            err6[d] = e6;
+        }
+        for (int i = 0; i < log.count && i < 16; i++) pn_image_free(log.images[i]);
+        pn_image_free(img);
+    }
+    /* The directional coherence map beats bilinear interpolation of a uniform lattice. */
+    CHECK_MSG(err6[0] < 0.8 * err6[1], "dcm %g, uniform %g", err6[0], err6[1]);
+    pn_image_free(full);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+static void test_stop_and_aovs(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_render_settings s = {0};
+    s.spp = 2;
+    s.driver = PN_DRIVER_DCM;
+    s.stop_percent = 8.0;
+    s.aovs = PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION;
+    pn_image img = NULL;
+    pn_render_stats stats;
+    CHECK(pn_render(ctx, scene, &s, &img, &stats) == PN_OK);
+    CHECK(stats.evaluated_percent >= 8.0 && stats.evaluated_percent < 9.0);
+    CHECK(stats.work_width == 120 && stats.work_height == 96);
+    if (img) {
+        CHECK(pn_image_layer_count(img) == 4);
+        const float *pattern = pn_image_layer_data(img, 1);
+        const float *map = pn_image_layer_data(img, 2);
+        double sum = 0.0;
+        int edges = 0;
+        for (int i = 0; i < 40 * 32; i++) {
+            sum += (double)pattern[i];
+            edges += map[i] > 0.0f;
+            CHECK(map[i] >= 0.0f && map[i] <= 3.0f);
+        }
+        /* the pattern's mean is the evaluated share of the work image */
+        CHECK_NEAR(sum / (40 * 32), stats.evaluated_percent / 100.0, 1e-6);
+        CHECK(edges > 0 && edges < 40 * 32);
+    }
+    pn_image_free(img);
+    /* bad settings */
+    pn_render_settings bad = s;
+    bad.work_scale = 17;
+    img = NULL;
+    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "work scale");
+    pn_context_clear_error(ctx);
+    bad = s;
+    bad.aovs = PN_AOV_DEPTH;
+    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    pn_context_clear_error(ctx);
+    bad = s;
+    bad.driver = (pn_driver_kind)9;
+    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    pn_context_clear_error(ctx);
+    double zero = 0.0;
+    bad = s;
+    bad.snapshot_percents = &zero;
+    bad.snapshot_percent_count = 1;
+    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK(img == NULL);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* ---- CLI ---- */
+
+static int run(const char *const *args, const char *err_path) {
+    pid_t pid = fork();
+    if (pid < 0) return -1;
+    if (pid == 0) {
+        FILE *e = freopen(err_path, "w", stderr);
+        (void)e;
+        execv(PN_CLI_PATH, (char *const *)args);
+        _exit(127);
+    }
+    int status = 0;
+    if (waitpid(pid, &status, 0) != pid) return -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
+static void test_cli_snapshots(void) {
+    char scene[512], out[512], err[512], snap6[512], snap2[512];
+    snprintf(scene, sizeof scene, "%s/shadow.pbrt", tmpdir);
+    pn_test_write_file(tmpdir, "shadow.pbrt", shadow_scene);
+    snprintf(out, sizeof out, "%s/snap/out.exr", tmpdir);
+    snprintf(err, sizeof err, "%s/cli.err", tmpdir);
+    snprintf(snap6, sizeof snap6, "%s/snap/out-6pct.exr", tmpdir);
+    snprintf(snap2, sizeof snap2, "%s/snap/out-2.5pct.exr", tmpdir);
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s/snap", tmpdir);
+    mkdir(dir, 0755);
+    const char *args[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--spp", "2", "--snapshots", "2.5,6",
+                          "--quiet", NULL};
+    CHECK(run(args, err) == 0);
+    pn_context ctx = pn_context_new();
+    pn_image a = NULL, b = NULL, c = NULL;
+    CHECK(pn_image_read(ctx, snap6, &a) == PN_OK);
+    CHECK(pn_image_read(ctx, snap2, &b) == PN_OK);
+    CHECK(pn_image_read(ctx, out, &c) == PN_OK);
+    CHECK(a && pn_image_width(a) == 40 && pn_image_height(a) == 32);
+    /* atomic writes: nothing but the three images in the folder (no temporary left behind) */
+    DIR *d = opendir(dir);
+    int files = 0;
+    struct dirent *e;
+    while (d && (e = readdir(d)) != NULL) {
+        if (e->d_name[0] == '.') continue;
+        files++;
+        CHECK_MSG(strstr(e->d_name, ".tmp") == NULL, "leftover %s", e->d_name);
+    }
+    if (d) closedir(d);
+    CHECK(files == 3);
+    pn_image_free(a);
+    pn_image_free(b);
+    pn_image_free(c);
+    pn_context_free(ctx);
+    /* timed snapshots: with a tiny interval one is written after every chunk of pixels, named by
+     * the evaluated percentage with one decimal */
+    char out2[512];
+    snprintf(out2, sizeof out2, "%s/timed.pfm", tmpdir);
+    const char *timed[] = {PN_CLI_PATH, "render", scene, "-o", out2, "--driver", "uniform", "--spp", "1",
+                           "--snapshot-every", "0.000001", "--quiet", NULL};
+    CHECK(run(timed, err) == 0);
+    int timed_files = 0;
+    d = opendir(tmpdir);
+    while (d && (e = readdir(d)) != NULL)
+        if (strncmp(e->d_name, "timed-", 6) == 0 && strstr(e->d_name, "pct.pfm")) timed_files++;
+    if (d) closedir(d);
+    CHECK_MSG(timed_files >= 3, "%d timed snapshots", timed_files);
+    /* bad options */
+    const char *bad1[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "fast", NULL};
+    CHECK(run(bad1, err) == 2);
+    const char *bad2[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--snapshots", "6,abc", NULL};
+    CHECK(run(bad2, err) == 2);
+    const char *bad3[] = {PN_CLI_PATH, "render", scene, "-o", out, "--snapshots", "6", NULL};
+    CHECK(run(bad3, err) == 2);
+}
+
+static void test_setup(void) {
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_dcm_XXXXXX");
+    if (!mkdtemp(tmpdir)) {
+        fprintf(stderr, "mkdtemp failed\n");
+        exit(1);
+    }
+}
+
+/* Removes the files of the temporary folder (one level of subfolders) and the folder. */
+static void remove_tree(const char *path, int depth) {
+    DIR *d = opendir(path);
+    struct dirent *e;
+    while (d && (e = readdir(d)) != NULL) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+        char child[1024];
+        size_t lp = strlen(path), ln = strlen(e->d_name);
+        if (lp + ln + 2 > sizeof child) continue;
+        memcpy(child, path, lp);
+        child[lp] = '/';
+        memcpy(child + lp + 1, e->d_name, ln + 1);
+        if (unlink(child) != 0 && depth > 0) remove_tree(child, depth - 1);
+    }
+    if (d) closedir(d);
+    rmdir(path);
+}
+
+static void test_cleanup(void) { remove_tree(tmpdir, 1); }
+
+PN_TESTS(TEST(test_setup), TEST(test_loop_geometry), TEST(test_least_discrepancy_exact),
+         TEST(test_elements_reproduce_linear_ramp), TEST(test_simplicity_tests), TEST(test_object_test_and_contrast),
+         TEST(test_gaussian_downsample), TEST(test_full_refinement_equals_full_render),
+         TEST(test_snapshots_and_error_at_6_percent), TEST(test_stop_and_aovs), TEST(test_cli_snapshots),
+         TEST(test_cleanup))
