@@ -84,20 +84,26 @@ static void make_lights(pn_lights *L, pn_light *l, pn_rng *r) {
     L->scene_radius = 20.0f;
 }
 
+/* The lights of make_lights from a seeded stream (left for the test to go on with), and their
+ * tree. */
+static bool build_case(uint64_t seed, pn_rng *r, pn_lights *L, pn_light *l, pn_light_bvh *t) {
+    pn_rng_seed(r, seed, 1);
+    make_lights(L, l, r);
+    pn_err err;
+    pn_err_init(&err);
+    return pn_light_bvh_build(L, t, &err) == PN_OK;
+}
+
 static bool box_holds(vec3 lo, vec3 hi, vec3 a_lo, vec3 a_hi) {
     return lo.x <= a_lo.x && lo.y <= a_lo.y && lo.z <= a_lo.z && hi.x >= a_hi.x && hi.y >= a_hi.y && hi.z >= a_hi.z;
 }
 
 static void test_structure(void) {
     pn_rng r;
-    pn_rng_seed(&r, 11, 1);
     pn_light l[N_LIGHTS + 1];
     pn_lights L;
-    make_lights(&L, l, &r);
     pn_light_bvh t;
-    pn_err err;
-    pn_err_init(&err);
-    CHECK(pn_light_bvh_build(&L, &t, &err) == PN_OK);
+    CHECK(build_case(11, &r, &L, l, &t));
     CHECK(t.infinite_count == 1 && t.infinite[0] == N_LIGHTS);
     CHECK(t.node_count == 2 * N_LIGHTS - 1);
     int leaves = 0;
@@ -137,14 +143,10 @@ static void test_structure(void) {
 
 static void test_sampling_matches_pmf(void) {
     pn_rng r;
-    pn_rng_seed(&r, 12, 1);
     pn_light l[N_LIGHTS + 1];
     pn_lights L;
-    make_lights(&L, l, &r);
     pn_light_bvh t;
-    pn_err err;
-    pn_err_init(&err);
-    CHECK(pn_light_bvh_build(&L, &t, &err) == PN_OK);
+    CHECK(build_case(12, &r, &L, l, &t));
     enum { DRAWS = 40000 };
     for (int trial = 0; trial < 6; trial++) {
         vec3 p = v3(rnd(&r, -12, 12), rnd(&r, -12, 12), rnd(&r, -12, 12));
@@ -177,14 +179,10 @@ static void test_sampling_matches_pmf(void) {
 /* A light that can light the point must be choosable there. */
 static void test_support(void) {
     pn_rng r;
-    pn_rng_seed(&r, 13, 1);
     pn_light l[N_LIGHTS + 1];
     pn_lights L;
-    make_lights(&L, l, &r);
     pn_light_bvh t;
-    pn_err err;
-    pn_err_init(&err);
-    CHECK(pn_light_bvh_build(&L, &t, &err) == PN_OK);
+    CHECK(build_case(13, &r, &L, l, &t));
     int lit = 0, missed = 0;
     for (int trial = 0; trial < 400; trial++) {
         vec3 p = v3(rnd(&r, -12, 12), rnd(&r, -12, 12), rnd(&r, -12, 12));
