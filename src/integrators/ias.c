@@ -473,6 +473,13 @@ static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *p
     for (int i = 0; i < nc; i++) s->pdf[i] *= inv;
 }
 
+/* Whether region b's PDF would be region a's: same normal class and the same clusters. */
+static bool same_cut(const ias_scratch *s, const ias_region *a, const ias_region *b) {
+    if (!a || a->cls != b->cls || a->cut_count != b->cut_count) return false;
+    return a->cut_first == b->cut_first ||
+           memcmp(s->cut + a->cut_first, s->cut + b->cut_first, (size_t)a->cut_count * sizeof *s->cut) == 0;
+}
+
 /* The block's feedback weights from all passes so far, at the start of a pass. */
 static void refresh_block_feedback(const ias_shared *sh, ias_scratch *s) {
     for (int c = 0; c < IAS_CLASSES; c++) {
@@ -620,6 +627,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         given++;
     }
     if (given == 0) return;
+    const ias_region *built = NULL; /* the region whose PDF s->pdf / s->cdf hold */
     for (int k = 0; k < rc; k++) {
         if (n_of[k] == 0) continue;
         ias_region *r = &s->regions[px->first_region + k];
@@ -627,7 +635,12 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         s->block_class_used[r->cls] = true;
         pn_ias_stats *pix = pixel_stats(s, px, r->cls);
         double t_pdf = pn_clock_seconds();
-        build_pdf(s, r, pix, pass);
+        /* Regions of one pixel on one surface usually have the same cut; their PDFs are then
+         * the same numbers (the feedback weights are fixed for the pixel's pass), built once. */
+        if (!same_cut(s, built, r)) {
+            build_pdf(s, r, pix, pass);
+            built = r;
+        }
         px->pdf_seconds += elapsed_since(sh, t_pdf);
         const int *cut = s->cut + r->cut_first;
         pn_light_sample_cache cache = {0};
