@@ -335,6 +335,8 @@ static void test_usage_errors(void) {
         {{"render", "x.pbrt", "--cluster-solid-angle", "-1"}, "invalid value '-1' for --cluster-solid-angle"},
         {{"render", "x.pbrt", "--aa-rays", "0"}, "invalid value '0' for --aa-rays"},
         {{"render", "x.pbrt", "--max-passes", "65"}, "invalid value '65' for --max-passes"},
+        {{"render", "x.pbrt", "--block-size", "33"}, "invalid value '33' for --block-size"},
+        {{"render", "x.pbrt", "--block-size", "4"}, "invalid value '4' for --block-size"},
         {{"render", "x.pbrt", "--env-regions", "x"}, "invalid value 'x' for --env-regions"},
         {{"render", "x.pbrt", "--light-sampler", "tree"}, "expected 'irradiance' or 'bvh'"},
         {{"render", "x.pbrt", "--integrator", "ias", "--light-sampler", "bvh"}, "applies to the reference integrator"},

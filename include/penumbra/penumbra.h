@@ -203,6 +203,9 @@ typedef struct pn_render_settings {
     uint32_t aa_rays;
     uint32_t env_regions;
     uint32_t max_passes;
+    /* Pixels per side of the square blocks the tiled driver hands to the integrator: ias's block
+     * of §3.2 (its statistics and PDFs are per block). 8..32; default 8, the paper's. */
+    uint32_t block_size;
     /* reference only: how a light is chosen for each shadow ray. */
     pn_light_sampler light_sampler;
     /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */

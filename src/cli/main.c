@@ -97,6 +97,7 @@ static const char render_help[] =
     "  --aa-rays N            eye rays per pixel grouped into antialiasing regions (default 32)\n"
     "  --env-regions N        regions of an environment map (default 300)\n"
     "  --max-passes N         passes per block (default 15)\n"
+    "  --block-size N         pixels per side of a block, 8..32 (default 8: the paper's 8x8)\n"
     "\n"
     "VPL integrators: 'vpl' (every point against every VPL, the reference of IlluminationCut),\n"
     "'lightcuts' (Walter et al. 2005) and 'illumcut' (Bus et al. 2015); --spp N eye rays per\n"
@@ -927,6 +928,13 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             if (!parse_long(value, 1, 100000, &n))
                 return bad_value(cmd, name, value, "an integer from 1 to 100000");
             o->settings.env_regions = (uint32_t)n;
+        } else if (strcmp(name, "--block-size") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 8, 32, &n))
+                return bad_value(cmd, name, value, "an integer from 8 to 32");
+            o->settings.block_size = (uint32_t)n;
         } else if (strcmp(name, "--max-passes") == 0) {
             long n;
             if ((value = scanner_value(&s)) == NULL)

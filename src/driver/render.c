@@ -14,7 +14,10 @@
 #include <string.h>
 #include <sys/resource.h>
 
+/* The default block side (the IAS paper's 8x8 blocks), also the smallest allowed: ias pools
+ * statistics over a block, and below 8x8 that biases it (tests/test_ias.c); and the largest. */
 #define PN_BLOCK 8
+#define PN_MAX_BLOCK 32
 
 typedef struct render_shared {
     const pn_render_job *job;
@@ -28,6 +31,8 @@ typedef struct render_shared {
     pthread_mutex_t progress_lock;
     const pn_render_settings *settings;
     unsigned char *block_finished;
+    int32_t (**batch_pixels)[2];          /* per worker: block_size^2 pixel coordinates */
+    pn_pixel_estimate **batch_estimates;  /* per worker: block_size^2 estimates */
 } render_shared;
 
 static void render_block(void *user, size_t job_index, int worker) {
@@ -36,14 +41,15 @@ static void render_block(void *user, size_t job_index, int worker) {
     if (atomic_load(job->cancel) || atomic_load(&rs->failed)) return;
     int bx = (int)(job_index % (size_t)rs->blocks_x), by = (int)(job_index / (size_t)rs->blocks_x);
     const pn_camera *cam = &job->camera;
-    int32_t pixels[PN_BLOCK * PN_BLOCK][2];
-    pn_pixel_estimate est[PN_BLOCK * PN_BLOCK];
+    const int B = (int)job->block_size;
+    int32_t (*pixels)[2] = rs->batch_pixels[worker];
+    pn_pixel_estimate *est = rs->batch_estimates[worker];
     int count = 0;
     /* Blocks are aligned to the full image so that a crop renders the same pixels as the whole
      * image would (renders of rectangles merge into the identical full image). */
-    int gx0 = (cam->x0 / PN_BLOCK + bx) * PN_BLOCK, gy0 = (cam->y0 / PN_BLOCK + by) * PN_BLOCK;
-    for (int y = gy0; y < gy0 + PN_BLOCK; y++)
-        for (int x = gx0; x < gx0 + PN_BLOCK; x++) {
+    int gx0 = (cam->x0 / B + bx) * B, gy0 = (cam->y0 / B + by) * B;
+    for (int y = gy0; y < gy0 + B; y++)
+        for (int x = gx0; x < gx0 + B; x++) {
             if (x < cam->x0 || x >= cam->x1 || y < cam->y0 || y >= cam->y1) continue;
             pixels[count][0] = x;
             pixels[count][1] = y;
@@ -57,7 +63,7 @@ static void render_block(void *user, size_t job_index, int worker) {
             return;
         }
     }
-    pn_batch batch = {gx0 / PN_BLOCK, gy0 / PN_BLOCK, count, (const int32_t(*)[2])pixels};
+    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels};
     pn_status st = rs->integrator->render_batch(job, &batch, est, rs->scratch[worker]);
     if (st != PN_OK) {
         atomic_store(&rs->failed, (int)st);
@@ -74,6 +80,17 @@ static void render_block(void *user, size_t job_index, int worker) {
         rs->settings->progress(rs->settings->progress_user, (double)done / (double)rs->block_count);
         pthread_mutex_unlock(&rs->progress_lock);
     }
+}
+
+static void free_batches(render_shared *rs, int workers) {
+    for (int w = 0; w <= workers; w++) {
+        if (rs->batch_pixels) free(rs->batch_pixels[w]);
+        if (rs->batch_estimates) free(rs->batch_estimates[w]);
+    }
+    free(rs->batch_pixels);
+    free(rs->batch_estimates);
+    rs->batch_pixels = NULL;
+    rs->batch_estimates = NULL;
 }
 
 static uint64_t peak_memory_bytes(void) {
@@ -118,6 +135,10 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     job->aa_rays = s->aa_rays > 0 ? s->aa_rays : 32;
     job->env_regions = s->env_regions > 0 ? s->env_regions : 300;
     job->max_passes = s->max_passes > 0 ? s->max_passes : 15;
+    if (s->block_size != 0 && (s->block_size < PN_BLOCK || s->block_size > PN_MAX_BLOCK))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "block size must be %d..%d pixels", PN_BLOCK,
+                               PN_MAX_BLOCK);
+    job->block_size = s->block_size > 0 ? s->block_size : PN_BLOCK;
     if (s->light_sampler != PN_LIGHT_SAMPLER_DEFAULT && s->light_sampler != PN_LIGHT_SAMPLER_IRRADIANCE &&
         s->light_sampler != PN_LIGHT_SAMPLER_BVH)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown light sampler %d", (int)s->light_sampler);
@@ -250,8 +271,9 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     rs.settings = settings;
     rs.width = job.camera.x1 - job.camera.x0;
     rs.height = job.camera.y1 - job.camera.y0;
-    rs.blocks_x = (job.camera.x1 - 1) / PN_BLOCK - job.camera.x0 / PN_BLOCK + 1;
-    rs.blocks_y = (job.camera.y1 - 1) / PN_BLOCK - job.camera.y0 / PN_BLOCK + 1;
+    const int B = (int)job.block_size;
+    rs.blocks_x = (job.camera.x1 - 1) / B - job.camera.x0 / B + 1;
+    rs.blocks_y = (job.camera.y1 - 1) / B - job.camera.y0 / B + 1;
     rs.block_count = (long)rs.blocks_x * rs.blocks_y;
     size_t n = (size_t)rs.width * (size_t)rs.height;
     rs.pixels = calloc(n, sizeof *rs.pixels);
@@ -259,10 +281,22 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     pn_threadpool *pool = pn_threadpool_create(settings->threads);
     int workers = pool ? pn_threadpool_size(pool) : 0;
     rs.scratch = pool ? calloc((size_t)workers + 1, sizeof *rs.scratch) : NULL;
-    if (!rs.pixels || !rs.block_finished || !pool || !rs.scratch) {
+    bool batches_ok = pool != NULL;
+    if (pool) {
+        rs.batch_pixels = calloc((size_t)workers + 1, sizeof *rs.batch_pixels);
+        rs.batch_estimates = calloc((size_t)workers + 1, sizeof *rs.batch_estimates);
+        batches_ok = rs.batch_pixels && rs.batch_estimates;
+        for (int w = 0; batches_ok && w <= workers; w++) {
+            rs.batch_pixels[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_pixels[w]);
+            rs.batch_estimates[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_estimates[w]);
+            batches_ok = rs.batch_pixels[w] && rs.batch_estimates[w];
+        }
+    }
+    if (!rs.pixels || !rs.block_finished || !pool || !rs.scratch || !batches_ok) {
         free(rs.pixels);
         free(rs.block_finished);
         free(rs.scratch);
+        free_batches(&rs, workers);
         pn_threadpool_destroy(pool);
         return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d image", rs.width, rs.height);
     }
@@ -286,6 +320,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     for (int w = 0; w <= workers; w++)
         if (rs.scratch[w] && integ->scratch_free) integ->scratch_free(rs.scratch[w]);
     free(rs.scratch);
+    free_batches(&rs, workers);
     pn_threadpool_destroy(pool);
 
     int failed = atomic_load(&rs.failed);

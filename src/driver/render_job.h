@@ -27,6 +27,7 @@ typedef struct pn_render_job {
     /* ias */
     float cluster_solid_angle;
     uint32_t aa_rays, env_regions, max_passes;
+    uint32_t block_size; /* pixels per side of the tiled driver's blocks (ias: its blocks) */
     /* reference */
     pn_light_sampler light_sampler; /* IRRADIANCE or BVH, never DEFAULT */
     /* VPL integrators (issue 5) */

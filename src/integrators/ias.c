@@ -1,7 +1,8 @@
 /* ias.c — Iterative Adaptive Sampling (Donikian, Walter, Bala, Fernandez, Greenberg, "Accurate
  * Direct Illumination Using Iterative Adaptive Sampling", IEEE TVCG 2006).
  *
- * Each 8x8 block of the image is rendered on its own, in passes:
+ * Each 8x8 block of the image (the block side is a setting, --block-size) is rendered on its own,
+ * in passes:
  *
  *  - Points (§4, §4.4). Every pixel shoots aa_rays eye rays (32) once; their shading points are
  *    grouped into antialiasing regions: a ray joins a region of its pixel whose representative
@@ -57,7 +58,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define IAS_MAX_PIXELS 64
+#define IAS_MAX_PIXELS 64 /* the smallest pixel capacity of a worker's scratch (8x8) */
 #define IAS_CLASSES 6
 #define IAS_MIN_SAMPLES 50
 #define IAS_STEP_SAMPLES 25
@@ -262,11 +263,12 @@ typedef struct ias_scratch {
     int cut_cap, cut_used;
     pn_ias_stats *block_stats;   /* IAS_CLASSES x id_count */
     bool block_class_used[IAS_CLASSES];
-    pn_ias_stats *pixel_pool;    /* IAS_MAX_PIXELS * IAS_CLASSES slots of id_count */
+    int max_pixels;              /* pixels a batch may hold: at least 64, block_size^2 */
+    pn_ias_stats *pixel_pool;    /* max_pixels * IAS_CLASSES slots of id_count */
     int pool_used;
-    ias_pixel pixels[IAS_MAX_PIXELS];
+    ias_pixel *pixels;           /* max_pixels */
     int pixel_count;
-    unsigned char *pixel_seen;   /* IAS_MAX_PIXELS x visible_slots flags (Table 5) */
+    unsigned char *pixel_seen;   /* max_pixels x visible_slots flags (Table 5) */
     int visible_slots;
     unsigned *n_of;              /* samples per region of one pixel (aa_rays entries) */
     double *pdf;                 /* per cut entry */
@@ -297,6 +299,7 @@ static void ias_scratch_free(void *p) {
     free(s->fp_stamp);
     free(s->n_of);
     free(s->pixel_seen);
+    free(s->pixels);
     free(s);
 }
 
@@ -306,12 +309,15 @@ static void *ias_scratch_create(const pn_render_job *job) {
     if (!s) return NULL;
     size_t ids = (size_t)(sh->id_count > 0 ? sh->id_count : 1);
     s->id_count = (int)ids;
-    s->region_cap = IAS_MAX_PIXELS * 8;
+    s->max_pixels = (int)(job->block_size * job->block_size);
+    if (s->max_pixels < IAS_MAX_PIXELS) s->max_pixels = IAS_MAX_PIXELS;
+    s->pixels = calloc((size_t)s->max_pixels, sizeof *s->pixels);
+    s->region_cap = s->max_pixels * 8;
     s->regions = malloc((size_t)s->region_cap * sizeof *s->regions);
     s->cut_cap = (int)ids * 8;
     s->cut = malloc((size_t)s->cut_cap * sizeof *s->cut);
     s->block_stats = calloc(IAS_CLASSES * ids, sizeof *s->block_stats);
-    s->pixel_pool = calloc((size_t)IAS_MAX_PIXELS * IAS_CLASSES * ids, sizeof *s->pixel_pool);
+    s->pixel_pool = calloc((size_t)s->max_pixels * IAS_CLASSES * ids, sizeof *s->pixel_pool);
     s->pdf = malloc((ids + 1) * sizeof *s->pdf);
     s->cdf = malloc((ids + 1) * sizeof *s->cdf);
     s->fpix = malloc((ids + 1) * sizeof *s->fpix);
@@ -320,9 +326,9 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->fp_stamp = calloc(IAS_CLASSES * ids, sizeof *s->fp_stamp);
     s->n_of = malloc(((size_t)job->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
-    s->pixel_seen = calloc((size_t)IAS_MAX_PIXELS * (size_t)(sh->visible_slots + 1), 1);
+    s->pixel_seen = calloc((size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
     if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix ||
-        !s->fb_cache || !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen) {
+        !s->fb_cache || !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen || !s->pixels) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -388,7 +394,7 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
 
 static pn_ias_stats *pixel_stats(ias_scratch *s, ias_pixel *px, int cls) {
     if (!px->stats[cls]) {
-        if (s->pool_used >= IAS_MAX_PIXELS * IAS_CLASSES) return NULL;
+        if (s->pool_used >= s->max_pixels * IAS_CLASSES) return NULL;
         px->stats[cls] = s->pixel_pool + (size_t)s->pool_used++ * (size_t)s->id_count;
     }
     return px->stats[cls];
@@ -770,7 +776,8 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     s->cut_used = 0;
     s->pool_used = 0;
     memset(s->block_class_used, 0, sizeof s->block_class_used);
-    const int np = batch->count < IAS_MAX_PIXELS ? batch->count : IAS_MAX_PIXELS;
+    if (batch->count > s->max_pixels) return PN_ERROR_INTERNAL; /* larger than any block */
+    const int np = batch->count;
     s->pixel_count = np;
     const float pixel_angle = 2.0f * job->camera.tan_half_fov /
                               (float)(job->camera.full_width < job->camera.full_height ? job->camera.full_width

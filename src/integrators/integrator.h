@@ -8,8 +8,10 @@
 
 #include <stdint.h>
 
-/* A set of pixels of the work image. All pixels of a batch lie in one 8x8 block of the image
- * (block_x, block_y in block units), which seeds that block's quasi-random sequence. */
+/* A set of pixels of the work image. All pixels of a batch lie in one block of the image
+ * (block_x, block_y in block units; blocks are job->block_size pixels square, 8x8 by default, for
+ * the tiled driver, 8x8 for the progressive ones), which seeds a block-adaptive integrator's
+ * quasi-random sequence. */
 typedef struct pn_batch {
     int block_x, block_y;
     int count;
