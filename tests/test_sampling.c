@@ -80,6 +80,17 @@ static void test_sobol_raw_values(void) {
     CHECK(pn_sobol_raw_u32(5, PN_SOBOL_DIMS) == 0);
 }
 
+/* The byte-table products equal the bit-by-bit products, for every dimension. */
+static void test_sobol_byte_tables(void) {
+    int bad = 0;
+    for (int dim = 0; dim < PN_SOBOL_DIMS; dim++)
+        for (uint32_t i = 0; i < 4096; i++) {
+            uint32_t index = i < 2048 ? i : i * 2654435761u;
+            if (pn_sobol_raw_u32(index, dim) != pn_sobol_raw_u32_by_bits(index, dim)) bad++;
+        }
+    CHECK_MSG(bad == 0, "%d points differ", bad);
+}
+
 static void test_sobol_range_and_determinism(void) {
     static const uint32_t scrambles[3] = {0u, 1u, 0xdeadbeefu};
     int bad = 0;
@@ -666,7 +677,7 @@ static void test_distribution2d(void) {
     }
 }
 
-PN_TESTS(TEST(test_sobol_tables), TEST(test_sobol_raw_values), TEST(test_sobol_range_and_determinism),
+PN_TESTS(TEST(test_sobol_tables), TEST(test_sobol_raw_values), TEST(test_sobol_byte_tables), TEST(test_sobol_range_and_determinism),
          TEST(test_sobol_scrambling_changes_points), TEST(test_sobol_1d_stratification),
          TEST(test_sobol_02_net), TEST(test_sobol_pairs_net), TEST(test_sobol_high_dims_fallback),
          TEST(test_uniform_triangle), TEST(test_concentric_disk), TEST(test_sphere_and_hemisphere),

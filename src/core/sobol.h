@@ -31,6 +31,10 @@ float pn_sobol_sample(uint32_t index, int dim, uint32_t scramble);
  * Exposed for tests and for callers that apply their own randomisation. */
 uint32_t pn_sobol_raw_u32(uint32_t index, int dim);
 
+/* The same point computed bit by bit from the generator matrix (pn_sobol_raw_u32 uses byte
+ * tables for the first dimensions); for tests. */
+uint32_t pn_sobol_raw_u32_by_bits(uint32_t index, int dim);
+
 /* Self-check for tests: rebuilds every generator matrix from the primitive polynomials and
  * initial direction numbers and compares it with the precomputed tables. */
 bool pn_sobol_tables_consistent(void);
