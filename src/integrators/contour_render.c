@@ -457,6 +457,61 @@ static void first_level_pattern(span_ctx *sc, int q, int p, uint8_t *pattern) {
         for (int a = 0; a <= p; a++, k++) pattern[k] = (uint8_t)pn_contour_sample_visible(ev, a * step, b * step);
 }
 
+/* G at span pixel q from the quadratic through the full integrations at a < m < b. */
+static pn_contour_g quadratic_g(const contour_scratch *s, int a, int m, int b, int q) {
+    double x0 = a, x1 = m, x2 = b, x = q;
+    double w0 = (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2));
+    double w1 = (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2));
+    double w2 = (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1));
+    pn_contour_g g;
+    g.g = lagrange3(s->g[a].g, s->g[m].g, s->g[b].g, w0, w1, w2);
+    for (int k = 0; k < 3; k++) g.dg[k] = lagrange3(s->g[a].dg[k], s->g[m].dg[k], s->g[b].dg[k], w0, w1, w2);
+    return g;
+}
+
+/* Our addition for long spans: |F(quadratic) - F(integrated)| at a check point, relative to the
+ * largest |F| of the three integrations, above which a run is split. */
+#define PN_CONTOUR_RUN_TOLERANCE 0.01
+/* Runs up to this many pixels (the driver's former batch rows) are interpolated unchecked. */
+#define PN_CONTOUR_UNCHECKED_RUN 8
+
+/* The pixels strictly between a and b, with full integrations at a, m and b, get G by quadratic
+ * interpolation (§5). A run longer than PN_CONTOUR_UNCHECKED_RUN is first checked: full
+ * integrations at the middles of [a, m] and [m, b] are compared with the quadratic; if either
+ * differs by more than the tolerance the two halves are interpolated separately (recursively,
+ * with the check points as their middles), so a long run along a scanline cannot smear a
+ * penumbra that the first-level pattern did not see change. */
+static void interpolate_run(span_ctx *sc, int a, int m, int b, int p) {
+    contour_scratch *s = sc->s;
+    int c1 = -1, c2 = -1;
+    if (b - a > PN_CONTOUR_UNCHECKED_RUN && m - a >= 2 && b - m >= 2) {
+        c1 = (a + m) / 2;
+        c2 = (m + b) / 2;
+        full_integration(sc, c1, p);
+        full_integration(sc, c2, p);
+        double fa = pn_dv3_dot(s->g[a].g, s->ev[a].ns), fm = pn_dv3_dot(s->g[m].g, s->ev[m].ns);
+        double fb = pn_dv3_dot(s->g[b].g, s->ev[b].ns);
+        double scale = fmax(fabs(fa), fmax(fabs(fm), fabs(fb)));
+        bool ok = true;
+        for (int c = 0; c < 2 && ok; c++) {
+            int q = c ? c2 : c1;
+            pn_contour_g g = quadratic_g(s, a, m, b, q);
+            double err = fabs(pn_dv3_dot(g.g, s->ev[q].ns) - pn_dv3_dot(s->g[q].g, s->ev[q].ns));
+            ok = err <= PN_CONTOUR_RUN_TOLERANCE * scale;
+        }
+        if (!ok) {
+            interpolate_run(sc, a, c1, m, p);
+            interpolate_run(sc, m, c2, b, p);
+            return;
+        }
+    }
+    for (int q = a + 1; q < b; q++) {
+        if (q == m || q == c1 || q == c2) continue;
+        s->g[q] = quadratic_g(s, a, m, b, q);
+        sc->t.interpolated++;
+    }
+}
+
 static void shade_span(span_ctx *sc) {
     const contour_data *cd = sc->cd;
     const int n = sc->n;
@@ -524,19 +579,7 @@ static void shade_span(span_ctx *sc) {
         if (end - key >= 2) {
             int mid = (key + end) / 2;
             full_integration(sc, mid, p);
-            double x0 = key, x1 = mid, x2 = end;
-            for (int q = key + 1; q < end; q++) {
-                if (q == mid) continue;
-                double x = q;
-                double w0 = (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2));
-                double w1 = (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2));
-                double w2 = (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1));
-                pn_contour_g *g = &s->g[q];
-                g->g = lagrange3(s->g[key].g, s->g[mid].g, s->g[end].g, w0, w1, w2);
-                for (int k = 0; k < 3; k++)
-                    g->dg[k] = lagrange3(s->g[key].dg[k], s->g[mid].dg[k], s->g[end].dg[k], w0, w1, w2);
-                sc->t.interpolated++;
-            }
+            interpolate_run(sc, key, mid, end, p);
         }
         if (j >= n) break;
         key = j;
