@@ -1,8 +1,9 @@
 /* contour_render.c — the image algorithm of Vedel 1993 §5 around the contour integration of §3
- * (contour.c): spans of pixels, shaft culling (Haines & Wallace 1991), first-level ray patterns
- * reused along a span with quadratic interpolation in between, adaptive first-level density;
- * and the `contour` / `contour-mc` integrators that shade with it. See contour.c's header for the
- * paper's parts and our departures.
+ * (contour.c): the image by scanlines (the default driver's whole-image hook, one job per row),
+ * spans of pixels along a row, shaft culling (Haines & Wallace 1991), first-level ray patterns
+ * reused along a span with quadratic interpolation in between (checked on long runs), adaptive
+ * first-level density; and the `contour` / `contour-mc` integrators that shade with it. See
+ * contour.c's header for the paper's parts and our departures.
  *
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
  * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
@@ -827,6 +828,7 @@ static void scanline_job(void *user, size_t index, int worker) {
         px[i][0] = sj->row_x0 + i;
         px[i][1] = y;
     }
+    /* A row is not one 8x8 block: contour draws its numbers per pixel and ignores block_x/y. */
     pn_batch batch = {sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px};
     pn_status st = render_pixels(job, &batch, sj->row_out[worker], sj->scratch[worker], cam->x0, cam->x1);
     if (st != PN_OK) {
