@@ -460,6 +460,98 @@ static void test_thread_determinism_and_bad_settings(void) {
     pn_context_free(ctx);
 }
 
+/* §5 spans along whole scanlines (the default driver renders contour by rows): spans longer than
+ * the 8-pixel rows of a block share first-level rays over more pixels (fewer rays per viewing
+ * ray at a bounded error), the image does not depend on the thread count, and a crop window that
+ * is not aligned to spans or blocks renders exactly the full image's pixels. */
+static pn_image render_spans(pn_context ctx, pn_scene scene, uint32_t span, int threads, const float *crop,
+                             pn_render_stats *stats) {
+    pn_render_settings s = {0};
+    s.integrator = PN_INTEGRATOR_CONTOUR;
+    s.spp = 1;
+    s.shadow_rays = 4;
+    s.width = 64;
+    s.height = 32;
+    s.contour_span = span;
+    s.threads = threads;
+    s.aovs = PN_AOV_SHADOW_RAYS | PN_AOV_GRADIENT;
+    if (crop) {
+        s.has_crop = 1;
+        memcpy(s.crop, crop, sizeof s.crop);
+    }
+    pn_image img = NULL;
+    pn_status st = pn_render(ctx, scene, &s, &img, stats);
+    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    return img;
+}
+
+static void test_scanline_spans(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_sphere_scene(ctx, "spans.pbrt", 0);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_render_settings rs = {0};
+    rs.spp = 1;
+    rs.shadow_rays = 4096;
+    rs.width = 64;
+    rs.height = 32;
+    rs.threads = 2;
+    pn_image ref = NULL;
+    CHECK(pn_render(ctx, scene, &rs, &ref, NULL) == PN_OK);
+    pn_render_stats s8, s32, s1;
+    pn_image a8 = render_spans(ctx, scene, 8, 2, NULL, &s8);
+    pn_image a32 = render_spans(ctx, scene, 32, 2, NULL, &s32);
+    pn_image b32 = render_spans(ctx, scene, 32, 1, NULL, &s1);
+    pn_image c32 = render_spans(ctx, scene, 32, 3, NULL, NULL);
+    const float crop[4] = {0.3f, 0.85f, 0.25f, 0.6f};
+    pn_image crop32 = render_spans(ctx, scene, 32, 2, crop, NULL);
+    CHECK(ref && a8 && a32 && b32 && c32 && crop32);
+    if (ref && a8 && a32 && b32 && c32 && crop32) {
+        double r8 = (double)s8.contour_shadow_rays / (double)s8.contour_viewing_rays;
+        double r32 = (double)s32.contour_shadow_rays / (double)s32.contour_viewing_rays;
+        CHECK_MSG(r32 < 0.9 * r8, "rays per viewing ray: span 32 %g, span 8 %g", r32, r8);
+        /* Longer runs interpolate more pixels between full integrations. */
+        CHECK(s32.contour_interpolated > s8.contour_interpolated);
+        double e8 = mean_rel_diff(ref, a8), e32 = mean_rel_diff(ref, a32);
+        CHECK_MSG(e8 < 0.02 && e32 < 0.02, "differences from the reference: span 8 %g, span 32 %g", e8, e32);
+        CHECK(s1.contour_shadow_rays == s32.contour_shadow_rays);
+        for (int l = 0; l < pn_image_layer_count(a32); l++) {
+            size_t n = (size_t)pn_image_width(a32) * pn_image_height(a32) * pn_image_layer_channels(a32, l) * sizeof(float);
+            CHECK(memcmp(pn_image_layer_data(a32, l), pn_image_layer_data(b32, l), n) == 0);
+            CHECK(memcmp(pn_image_layer_data(a32, l), pn_image_layer_data(c32, l), n) == 0);
+        }
+        /* pbrt's rounding of the crop window: pixel bounds ceil(res * crop). */
+        int x0 = (int)ceilf(64 * crop[0]), x1 = (int)ceilf(64 * crop[1]);
+        int y0 = (int)ceilf(32 * crop[2]), y1 = (int)ceilf(32 * crop[3]);
+        CHECK(x0 % 8 != 0 && pn_image_width(crop32) == x1 - x0 && pn_image_height(crop32) == y1 - y0);
+        CHECK(pn_image_layer_count(crop32) == pn_image_layer_count(a32));
+        if (pn_image_width(crop32) == x1 - x0 && pn_image_height(crop32) == y1 - y0 &&
+            pn_image_layer_count(crop32) == pn_image_layer_count(a32)) {
+            int mismatches = 0;
+            for (int l = 0; l < pn_image_layer_count(a32); l++) {
+                int c = pn_image_layer_channels(a32, l);
+                const float *full = pn_image_layer_data(a32, l), *part = pn_image_layer_data(crop32, l);
+                for (int y = y0; y < y1; y++)
+                    for (int x = x0; x < x1; x++)
+                        mismatches += memcmp(full + ((size_t)y * 64 + (size_t)x) * (size_t)c,
+                                             part + ((size_t)(y - y0) * (size_t)(x1 - x0) + (size_t)(x - x0)) * (size_t)c,
+                                             (size_t)c * sizeof(float)) != 0;
+            }
+            CHECK_MSG(mismatches == 0, "%d crop pixels differ from the full image", mismatches);
+        }
+    }
+    pn_image_free(ref);
+    pn_image_free(a8);
+    pn_image_free(a32);
+    pn_image_free(b32);
+    pn_image_free(c32);
+    pn_image_free(crop32);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 static void setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_contour_XXXXXX");
     if (!mkdtemp(tmpdir)) tmpdir[0] = 0;
@@ -470,4 +562,4 @@ static void test_setup(void) { setup(); CHECK(tmpdir[0] != 0); }
 PN_TESTS(TEST(test_setup), TEST(test_rectangle_matches_closed_form), TEST(test_horizon_clipping),
          TEST(test_triangle_source), TEST(test_gradient_matches_finite_differences), TEST(test_strip_threshold),
          TEST(test_marching_squares_with_rays), TEST(test_contour_matches_reference), TEST(test_unoccluded_closed_form),
-         TEST(test_thread_determinism_and_bad_settings))
+         TEST(test_thread_determinism_and_bad_settings), TEST(test_scanline_spans))

@@ -307,6 +307,8 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     double t0 = pn_clock_seconds();
     /* VPL integrators (issue 5): illumcut renders the whole window in one call. */
     pn_render_image_fn whole_image = pn_integrator_render_image(integ);
+    /* contour (issue 4): scanline jobs, so that its spans can be longer than a block's rows. */
+    if (!whole_image) whole_image = pn_contour_render_image(integ);
     if (whole_image) {
         pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
         if (ws != PN_OK) atomic_store(&rs.failed, (int)ws);

@@ -27,8 +27,9 @@
  *  - §4 gradients: with PN_AOV_GRADIENT, G and its derivatives (eq. 8-10) are accumulated; the
  *    points of the contour that come from dichotomy are replaced by points on the obstacle
  *    (Fig. 5), at the distance where the hidden sample's ray hit it.
- *  - §5 the image algorithm (contour_render.c): shade_contour_lights() cuts runs of adjacent
- *    pixels of a batch row on the same object (at most contour_span long) into spans; shaft
+ *  - §5 the image algorithm (contour_render.c): the default driver renders the image by
+ *    scanlines (contour_render_image(), one job per row); shade_contour_lights() cuts runs of
+ *    adjacent pixels of a row on the same object (at most contour_span long) into spans; shaft
  *    culling (Haines & Wallace 1991) of the scene's objects between the span and the source
  *    (shaft_has_candidates()) — no candidate: the unoccluded closed form, no rays; else
  *    shade_span(): a full contour integration at the first pixel, then only first-level rays at
@@ -53,9 +54,17 @@
  *    without checking whether the neighbour would have subdivided anyway; and at most one
  *    restart per integration (PN_CONTOUR_MAX_RESTARTS): after it, inconsistencies are accepted,
  *    which leaves the neighbour's contour as coarse as if the midpoint had not been sampled.
- *  - Spans cannot be longer than the batch's rows (8 pixels with the default tiled driver). A
- *    run whose first-level samples are all visible (or all hidden) is integrated at every pixel,
- *    which costs no ray beyond the first level. The raised first-level density is at most twice
+ *  - Spans also end at multiples of contour_span in full-image x (segments), so that a crop
+ *    window renders exactly the pixels of the full image: a row job renders the window's row
+ *    widened to whole segments and keeps the window's pixels (the extra pixels' rays are not
+ *    counted in the statistics). Drivers that hand out batches (the progressive ones) get spans
+ *    inside their batch rows as before. A run whose first-level samples are all visible (or all
+ *    hidden) is integrated at every pixel, which costs no ray beyond the first level.
+ *  - Runs longer than 8 pixels (possible now that spans follow scanlines) are checked before
+ *    the quadratic interpolation: two more full integrations, at the middles of the run's
+ *    halves; if the quadratic misses either by more than 1% of F the halves are interpolated
+ *    separately, recursively (interpolate_run()). Without it, long runs whose first-level
+ *    pattern does not change smeared penumbrae into streaks along the scanlines. The raised first-level density is at most twice
  *    the initial one per side (25 samples by default): more made every pattern check of a span
  *    cost 81 rays or more.
  *  - Rays to samples on the source's border aim a hair inside it (PN_CONTOUR_BORDER_INSET), so

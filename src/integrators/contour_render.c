@@ -1,8 +1,9 @@
 /* contour_render.c — the image algorithm of Vedel 1993 §5 around the contour integration of §3
- * (contour.c): spans of pixels, shaft culling (Haines & Wallace 1991), first-level ray patterns
- * reused along a span with quadratic interpolation in between, adaptive first-level density;
- * and the `contour` / `contour-mc` integrators that shade with it. See contour.c's header for the
- * paper's parts and our departures.
+ * (contour.c): the image by scanlines (the default driver's whole-image hook, one job per row),
+ * spans of pixels along a row, shaft culling (Haines & Wallace 1991), first-level ray patterns
+ * reused along a span with quadratic interpolation in between (checked on long runs), adaptive
+ * first-level density; and the `contour` / `contour-mc` integrators that shade with it. See
+ * contour.c's header for the paper's parts and our departures.
  *
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
  * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
@@ -13,14 +14,15 @@
 
 #include "core/rng.h"
 #include "core/sobol.h"
+#include "core/threadpool.h"
 #include "shade/bsdf.h"
 
 #include <stdatomic.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define PN_CONTOUR_MAX_P 32   /* first-level squares per side, at most */
-#define PN_CONTOUR_MAX_SPAN 64
 #define PN_CONTOUR_DISK_QUADS 5 /* a disk is a 12-gon of equal area: 5 quadrilaterals */
 
 typedef struct contour_light {
@@ -352,10 +354,11 @@ typedef struct contour_scratch {
     pixel_acc *acc;
     uint32_t *scramble;
     size_t array_size;      /* (N+1)^2 */
-    uint8_t *vis;           /* one array per pixel of the longest span */
+    int span_capacity;      /* pixels of the longest span the arrays below hold */
+    uint8_t *vis;           /* one sample array per pixel of the span */
     float *thit;
-    pn_contour_eval *ev;    /* PN_CONTOUR_MAX_SPAN */
-    pn_contour_g *g;        /* PN_CONTOUR_MAX_SPAN */
+    pn_contour_eval *ev;
+    pn_contour_g *g;
     int *span;              /* batch indices of the current span */
 } contour_scratch;
 
@@ -383,18 +386,26 @@ static void *contour_scratch_create(const pn_render_job *job) {
         return NULL;
     }
     s->array_size = (size_t)(cd->N + 1) * (size_t)(cd->N + 1);
-    /* One sample array per pixel of the longest span. */
-    size_t spans = job->contour_span < PN_CONTOUR_MAX_SPAN ? job->contour_span : PN_CONTOUR_MAX_SPAN;
-    s->vis = malloc(s->array_size * spans);
-    s->thit = (job->aovs & PN_AOV_GRADIENT) ? malloc(s->array_size * spans * sizeof *s->thit) : NULL;
-    s->ev = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->ev);
-    s->g = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->g);
-    s->span = malloc(PN_CONTOUR_MAX_SPAN * sizeof *s->span);
-    if (!s->vis || !s->ev || !s->g || !s->span || ((job->aovs & PN_AOV_GRADIENT) && !s->thit)) {
-        contour_scratch_free(s);
-        return NULL;
-    }
     return s;
+}
+
+/* Room for spans of up to n pixels: one sample array per pixel (grown on demand, as a span may
+ * now run along a whole scanline). */
+static bool ensure_span_capacity(contour_scratch *s, const pn_render_job *job, int n) {
+    if (n <= s->span_capacity) return true;
+    const bool gradient = (job->aovs & PN_AOV_GRADIENT) != 0;
+    free(s->vis);
+    free(s->thit);
+    free(s->ev);
+    free(s->g);
+    free(s->span);
+    s->vis = malloc(s->array_size * (size_t)n);
+    s->thit = gradient ? malloc(s->array_size * (size_t)n * sizeof *s->thit) : NULL;
+    s->ev = malloc((size_t)n * sizeof *s->ev);
+    s->g = malloc((size_t)n * sizeof *s->g);
+    s->span = malloc((size_t)n * sizeof *s->span);
+    s->span_capacity = (s->vis && s->ev && s->g && s->span && (!gradient || s->thit)) ? n : 0;
+    return s->span_capacity > 0;
 }
 
 static bool ensure_capacity(contour_scratch *s, int count) {
@@ -445,6 +456,61 @@ static void first_level_pattern(span_ctx *sc, int q, int p, uint8_t *pattern) {
     int step = ev->N / p;
     for (int b = 0, k = 0; b <= p; b++)
         for (int a = 0; a <= p; a++, k++) pattern[k] = (uint8_t)pn_contour_sample_visible(ev, a * step, b * step);
+}
+
+/* G at span pixel q from the quadratic through the full integrations at a < m < b. */
+static pn_contour_g quadratic_g(const contour_scratch *s, int a, int m, int b, int q) {
+    double x0 = a, x1 = m, x2 = b, x = q;
+    double w0 = (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2));
+    double w1 = (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2));
+    double w2 = (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1));
+    pn_contour_g g;
+    g.g = lagrange3(s->g[a].g, s->g[m].g, s->g[b].g, w0, w1, w2);
+    for (int k = 0; k < 3; k++) g.dg[k] = lagrange3(s->g[a].dg[k], s->g[m].dg[k], s->g[b].dg[k], w0, w1, w2);
+    return g;
+}
+
+/* Our addition for long spans: |F(quadratic) - F(integrated)| at a check point, relative to the
+ * largest |F| of the three integrations, above which a run is split. */
+#define PN_CONTOUR_RUN_TOLERANCE 0.01
+/* Runs up to this many pixels (the driver's former batch rows) are interpolated unchecked. */
+#define PN_CONTOUR_UNCHECKED_RUN 8
+
+/* The pixels strictly between a and b, with full integrations at a, m and b, get G by quadratic
+ * interpolation (§5). A run longer than PN_CONTOUR_UNCHECKED_RUN is first checked: full
+ * integrations at the middles of [a, m] and [m, b] are compared with the quadratic; if either
+ * differs by more than the tolerance the two halves are interpolated separately (recursively,
+ * with the check points as their middles), so a long run along a scanline cannot smear a
+ * penumbra that the first-level pattern did not see change. */
+static void interpolate_run(span_ctx *sc, int a, int m, int b, int p) {
+    contour_scratch *s = sc->s;
+    int c1 = -1, c2 = -1;
+    if (b - a > PN_CONTOUR_UNCHECKED_RUN && m - a >= 2 && b - m >= 2) {
+        c1 = (a + m) / 2;
+        c2 = (m + b) / 2;
+        full_integration(sc, c1, p);
+        full_integration(sc, c2, p);
+        double fa = pn_dv3_dot(s->g[a].g, s->ev[a].ns), fm = pn_dv3_dot(s->g[m].g, s->ev[m].ns);
+        double fb = pn_dv3_dot(s->g[b].g, s->ev[b].ns);
+        double scale = fmax(fabs(fa), fmax(fabs(fm), fabs(fb)));
+        bool ok = true;
+        for (int c = 0; c < 2 && ok; c++) {
+            int q = c ? c2 : c1;
+            pn_contour_g g = quadratic_g(s, a, m, b, q);
+            double err = fabs(pn_dv3_dot(g.g, s->ev[q].ns) - pn_dv3_dot(s->g[q].g, s->ev[q].ns));
+            ok = err <= PN_CONTOUR_RUN_TOLERANCE * scale;
+        }
+        if (!ok) {
+            interpolate_run(sc, a, c1, m, p);
+            interpolate_run(sc, m, c2, b, p);
+            return;
+        }
+    }
+    for (int q = a + 1; q < b; q++) {
+        if (q == m || q == c1 || q == c2) continue;
+        s->g[q] = quadratic_g(s, a, m, b, q);
+        sc->t.interpolated++;
+    }
 }
 
 static void shade_span(span_ctx *sc) {
@@ -514,19 +580,7 @@ static void shade_span(span_ctx *sc) {
         if (end - key >= 2) {
             int mid = (key + end) / 2;
             full_integration(sc, mid, p);
-            double x0 = key, x1 = mid, x2 = end;
-            for (int q = key + 1; q < end; q++) {
-                if (q == mid) continue;
-                double x = q;
-                double w0 = (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2));
-                double w1 = (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2));
-                double w2 = (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1));
-                pn_contour_g *g = &s->g[q];
-                g->g = lagrange3(s->g[key].g, s->g[mid].g, s->g[end].g, w0, w1, w2);
-                for (int k = 0; k < 3; k++)
-                    g->dg[k] = lagrange3(s->g[key].dg[k], s->g[mid].dg[k], s->g[end].dg[k], w0, w1, w2);
-                sc->t.interpolated++;
-            }
+            interpolate_run(sc, key, mid, end, p);
         }
         if (j >= n) break;
         key = j;
@@ -548,7 +602,7 @@ static int64_t object_key(const pn_hit *h) {
 static void shade_contour_lights(const pn_render_job *job, const contour_data *cd, const pn_batch *batch,
                                  contour_scratch *s, uint32_t eye_index, span_tally *tally) {
     const bool gradient = (job->aovs & PN_AOV_GRADIENT) != 0;
-    const int span_max = job->contour_span < PN_CONTOUR_MAX_SPAN ? (int)job->contour_span : PN_CONTOUR_MAX_SPAN;
+    const int span_max = (int)job->contour_span;
     for (int li = 0; li < cd->count; li++) {
         const contour_light *cl = &cd->lights[li];
         int q = 0;
@@ -565,8 +619,10 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 if (n > 0) {
                     const shade_point *prev = &s->sp[s->span[n - 1]];
                     int pq = s->span[n - 1];
+                    /* Spans also end at multiples of the maximum length in full-image x, so that
+                     * they do not depend on where a crop window or a batch begins. */
                     if (batch->pixels[q][1] != batch->pixels[pq][1] || batch->pixels[q][0] != batch->pixels[pq][0] + 1 ||
-                        sp->object != prev->object)
+                        sp->object != prev->object || batch->pixels[q][0] % span_max == 0)
                         break;
                 }
                 pn_contour_eval *ev = &s->ev[n];
@@ -624,11 +680,14 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
     }
 }
 
-static pn_status contour_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
-                                      void *scratch) {
-    contour_scratch *s = scratch;
+/* Renders the batch's pixels; the render's ray counts take only pixels with x in
+ * [count_x0, count_x1) (a scanline job renders pixels outside the window to complete its spans). */
+static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                               contour_scratch *s, int count_x0, int count_x1) {
     contour_data *cd = job->integrator_data;
     if (!ensure_capacity(s, batch->count)) return PN_ERROR_OUT_OF_MEMORY;
+    if (!ensure_span_capacity(s, job, (int)job->contour_span < batch->count ? (int)job->contour_span : batch->count))
+        return PN_ERROR_OUT_OF_MEMORY;
     const uint32_t spp = job->spp > 0 ? job->spp : 1;
     const uint32_t S = job->shadow_rays;
     span_tally tally = {0, 0, 0, 0, 0};
@@ -688,7 +747,8 @@ static pn_status contour_render_batch(const pn_render_job *job, const pn_batch *
             vec3 value = sp->value;
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             a->shadow_rays += sp->contour_rays;
-            if (sp->contour_rays > 0) {
+            int px = batch->pixels[q][0];
+            if (sp->contour_rays > 0 && px >= count_x0 && px < count_x1) {
                 viewing++;
                 contour_rays += sp->contour_rays;
             }
@@ -723,6 +783,96 @@ static pn_status contour_render_batch(const pn_render_job *job, const pn_batch *
     atomic_fetch_add(&cd->subdivisions, tally.subdivisions);
     atomic_fetch_add(&cd->culled, tally.culled);
     return PN_OK;
+}
+
+/* For drivers that hand out batches (the progressive drivers): spans stay inside the batch. */
+static pn_status contour_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
+                                      void *scratch) {
+    return render_pixels(job, batch, out, scratch, INT32_MIN, INT32_MAX);
+}
+
+/* ---- §5 by scanline: the default driver's whole-image hook ----------------------------------- */
+
+typedef struct scanline_jobs {
+    const pn_render_job *job;
+    pn_pixel_estimate *pixels; /* the window, width x height */
+    int width;
+    contour_scratch **scratch; /* per worker */
+    int32_t (**row_pixels)[2]; /* per worker: the pixels of one scanline job */
+    pn_pixel_estimate **row_out;
+    int row_x0, row_count;     /* the pixels a scanline job renders (the same for every row) */
+    atomic_int failed;
+} scanline_jobs;
+
+/* One job per scanline of the window: rows are independent, so the image does not depend on the
+ * thread count. The job renders the row from the start of the window's first span segment to
+ * the end of its last (segments: contour_span pixels from x = 0 of the full image), so a crop
+ * sees the same spans as the full image, and keeps the window's pixels. */
+static void scanline_job(void *user, size_t index, int worker) {
+    scanline_jobs *sj = user;
+    const pn_render_job *job = sj->job;
+    if (atomic_load(job->cancel) || atomic_load(&sj->failed)) return;
+    if (!sj->scratch[worker]) {
+        sj->scratch[worker] = contour_scratch_create(job);
+        sj->row_pixels[worker] = malloc((size_t)sj->row_count * sizeof **sj->row_pixels);
+        sj->row_out[worker] = malloc((size_t)sj->row_count * sizeof **sj->row_out);
+        if (!sj->scratch[worker] || !sj->row_pixels[worker] || !sj->row_out[worker]) {
+            atomic_store(&sj->failed, PN_ERROR_OUT_OF_MEMORY);
+            return;
+        }
+    }
+    const pn_camera *cam = &job->camera;
+    int y = cam->y0 + (int)index;
+    int32_t(*px)[2] = sj->row_pixels[worker];
+    for (int i = 0; i < sj->row_count; i++) {
+        px[i][0] = sj->row_x0 + i;
+        px[i][1] = y;
+    }
+    /* A row is not one 8x8 block: contour draws its numbers per pixel and ignores block_x/y. */
+    pn_batch batch = {sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px};
+    pn_status st = render_pixels(job, &batch, sj->row_out[worker], sj->scratch[worker], cam->x0, cam->x1);
+    if (st != PN_OK) {
+        atomic_store(&sj->failed, (int)st);
+        return;
+    }
+    memcpy(sj->pixels + (size_t)index * (size_t)sj->width, sj->row_out[worker] + (cam->x0 - sj->row_x0),
+           (size_t)sj->width * sizeof *sj->pixels);
+}
+
+static pn_status contour_render_image(const pn_render_job *job, struct pn_threadpool *pool,
+                                      pn_pixel_estimate *pixels, int width, int height) {
+    const pn_camera *cam = &job->camera;
+    const int S = (int)job->contour_span;
+    int workers = pn_threadpool_size(pool);
+    scanline_jobs sj;
+    memset(&sj, 0, sizeof sj);
+    sj.job = job;
+    sj.pixels = pixels;
+    sj.width = width;
+    sj.row_x0 = cam->x0 / S * S;
+    long row_x1 = ((long)cam->x1 + S - 1) / S * S;
+    if (row_x1 > cam->full_width) row_x1 = cam->full_width;
+    if (row_x1 < cam->x1) row_x1 = cam->x1;
+    sj.row_count = (int)(row_x1 - sj.row_x0);
+    sj.scratch = calloc((size_t)workers, sizeof *sj.scratch);
+    sj.row_pixels = calloc((size_t)workers, sizeof *sj.row_pixels);
+    sj.row_out = calloc((size_t)workers, sizeof *sj.row_out);
+    atomic_init(&sj.failed, 0);
+    if (sj.scratch && sj.row_pixels && sj.row_out) pn_threadpool_run(pool, (size_t)height, scanline_job, &sj);
+    else atomic_store(&sj.failed, PN_ERROR_OUT_OF_MEMORY);
+    for (int w = 0; w < workers; w++) {
+        if (sj.scratch) contour_scratch_free(sj.scratch[w]);
+        if (sj.row_pixels) free(sj.row_pixels[w]);
+        if (sj.row_out) free(sj.row_out[w]);
+    }
+    free(sj.scratch);
+    free(sj.row_pixels);
+    free(sj.row_out);
+    return (pn_status)atomic_load(&sj.failed);
+}
+
+pn_render_image_fn pn_contour_render_image(const pn_integrator *integrator) {
+    return integrator == &pn_integrator_contour ? contour_render_image : NULL;
 }
 
 const pn_integrator pn_integrator_contour = {

@@ -76,6 +76,9 @@ struct pn_threadpool;
 typedef pn_status (*pn_render_image_fn)(const pn_render_job *job, struct pn_threadpool *pool,
                                         pn_pixel_estimate *pixels, int width, int height);
 pn_render_image_fn pn_integrator_render_image(const pn_integrator *integrator);
+/* contour (issue 4): its scanline hook (contour_render.c), so that §5 spans can run along whole
+ * rows; non-NULL for pn_integrator_contour only. */
+pn_render_image_fn pn_contour_render_image(const pn_integrator *integrator);
 /* Adds the VPL integrators' AOV layers (PN_AOV_BOUND_EVALUATIONS, _CUT_SIZE, _PHASE1) to img. */
 struct pn_image_s;
 bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img);
