@@ -4,7 +4,7 @@
  * and illumcut-with-sampling images against the vpl image within their error bound on a diffuse
  * room at 1 and 4 samples per pixel; fewer bound evaluations than lightcuts (the amortisation of
  * Fig. 4), fewer shadow rays with sampling; bit-identical images for any thread count; the
- * Phase I image as an AOV. */
+ * Phase I image as an AOV; Phase I's choice of the cluster to refine. */
 #include "harness.h"
 
 #include "core/rng.h"
@@ -61,6 +61,23 @@ static void test_point_tree_invariants(void) {
     }
     CHECK(pn_illumcut_check_point_tree(r, 1, 0) == 1);
     free(r);
+}
+
+/* Phase I's refinement choice: the larger cluster while the light cone is narrow (the paper),
+ * the light cluster whenever its cone is wider than 20 degrees (only that can narrow it), never
+ * a leaf. */
+static void test_phase1_refinement_choice(void) {
+    /* narrow cone: the larger radius is refined */
+    CHECK(pn_illumcut_phase1_refines_light(1.0f, 2.0f, true, false, false));
+    CHECK(!pn_illumcut_phase1_refines_light(2.0f, 1.0f, true, false, false));
+    /* wide cone: Q, even when R is the larger cluster */
+    CHECK(pn_illumcut_phase1_refines_light(2.0f, 1.0f, false, false, false));
+    CHECK(pn_illumcut_phase1_refines_light(5.0f, 0.0f, false, false, false));
+    /* leaves are never refined */
+    CHECK(pn_illumcut_phase1_refines_light(0.0f, 1.0f, true, true, false));
+    CHECK(pn_illumcut_phase1_refines_light(0.0f, 1.0f, false, true, false));
+    CHECK(!pn_illumcut_phase1_refines_light(2.0f, 0.0f, true, false, true));
+    CHECK(!pn_illumcut_phase1_refines_light(1.0f, 3.0f, false, false, true));
 }
 
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, float error, int sampling, int threads,
@@ -258,4 +275,4 @@ static void teardown(void) {
     CHECK(system(cmd) == 0);
 }
 
-PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_illumcut_against_vpl), TEST(test_batch_interface), TEST(teardown))
+PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_phase1_refinement_choice), TEST(test_illumcut_against_vpl), TEST(test_batch_interface), TEST(teardown))

@@ -39,6 +39,11 @@
  *     VPL contributions (5% of the scene radius): closer than that, G is clamped and the pair's
  *     contribution varies no faster than at that distance; without it the descent would go down
  *     to single points and VPLs wherever VPLs lie on the shaded surfaces.
+ *   - Phase I refinement. The paper refines the larger cluster; here a pair whose light cone is
+ *     20 degrees or wider refines Q whatever the radii (pn_illumcut_phase1_refines_light):
+ *     refining R cannot narrow Q's cone, so it split R down to single points before Q was ever
+ *     split. The pairs shaded still meet the same criteria; on bathroom at 92x92 Phase I shades
+ *     17% (10K VPLs) to 39% (160K VPLs) fewer pairs.
  *   - Aperture is the full angle of the light cluster's cone (twice its half-angle); omni
  *     clusters have none; a directional cluster's is 2 asin(radius of its direction box).
  *   - Pairs whose L_UB is 0 (the VPLs cannot light any point of R: behind, facing away) are
@@ -307,6 +312,15 @@ static float light_aperture(const pn_light_node *q, int kind) {
     return 2.0f * asinf(fminf(1.0f, pn_light_node_radius(q)));
 }
 
+/* Phase I's choice of the cluster to refine for a pair that fails the criteria (not both
+ * leaves): the larger one, as the paper, except that a light cone wider than 20 degrees is
+ * narrowed only by refining Q — refining R there would split the point cluster down to single
+ * points first and multiply the pairs without bringing the pair closer to the criteria. */
+bool pn_illumcut_phase1_refines_light(float r_radius, float q_radius, bool q_narrow, bool r_leaf, bool q_leaf) {
+    if (q_leaf) return false;
+    return r_leaf || !q_narrow || q_radius > r_radius;
+}
+
 typedef struct ic_pair {
     int32_t r, q;
     int32_t kind;
@@ -365,12 +379,13 @@ static bool phase1_descend(ic_render *ir, pair_stack *st, int32_t group) {
             dRQ = fmaxf(v3_length(v3_sub(cR, cQ)) - rR - pn_light_node_radius(Q), clamp);
         }
         bool r_leaf = R->left < 0, q_leaf = Q->left < 0;
-        bool close_enough = fmaxf(rR, rQ) < IC_PHASE1_RATIO * dRQ && light_aperture(Q, pr.kind) < IC_PHASE1_APERTURE;
+        bool narrow = light_aperture(Q, pr.kind) < IC_PHASE1_APERTURE;
+        bool close_enough = fmaxf(rR, rQ) < IC_PHASE1_RATIO * dRQ && narrow;
         if (close_enough || (r_leaf && q_leaf)) {
             R->acc = v3_add(R->acc, shade_point(ir, &t->points[R->rep], Q, 0));
             continue;
         }
-        bool refine_q = r_leaf || (!q_leaf && rQ > rR);
+        bool refine_q = pn_illumcut_phase1_refines_light(rR, rQ, narrow, r_leaf, q_leaf);
         if (refine_q) {
             if (!stack_push(st, (ic_pair){pr.r, Q->left, pr.kind}) || !stack_push(st, (ic_pair){pr.r, Q->right, pr.kind}))
                 return false;

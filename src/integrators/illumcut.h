@@ -63,4 +63,9 @@ bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, v
  * invariant, -2 when out of memory. */
 int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, uint64_t seed);
 
+/* Phase I (illumcut.c): true when a pair failing the criteria refines its light cluster Q, false
+ * when it refines its point cluster R (radii of R and Q, whether Q's cone is under 20 degrees,
+ * which of the two are leaves; never both leaves). */
+bool pn_illumcut_phase1_refines_light(float r_radius, float q_radius, bool q_narrow, bool r_leaf, bool q_leaf);
+
 #endif
