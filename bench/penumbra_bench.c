@@ -11,7 +11,8 @@
  * Config lines: NAME SCENE REFERENCE CROP SETTINGS, where SCENE and REFERENCE may start with
  * "shared/" for ../shared, CROP is x0,x1,y0,y1 in fractions, SETTINGS is a comma list of spp=N,
  * threshold=T, shadow=N, seed=S, max=N, integrator=reference|ias|contour|contour-mc, sampler=irradiance|bvh (reference),
- * group=NAME, and for contour grid=N, steps=N, mcthreshold=T. '#' starts a comment.
+ * group=NAME, csa=SR (ias's cluster solid angle), and for contour grid=N, steps=N, mcthreshold=T.
+ * '#' starts a comment.
  *
  * Cases that share a group are one scene rendered by several integrators at several settings. For
  * every non-reference case of a group the bench adds an equal-quality row (the reference's time
@@ -93,6 +94,7 @@ static int parse_settings(const char *text, pn_render_settings *s, char *group, 
             else return 0;
         }
         else if (strcmp(tok, "group") == 0) snprintf(group, group_size, "%s", v);
+        else if (strcmp(tok, "csa") == 0) s->cluster_solid_angle = strtof(v, NULL); /* ias */
         else if (strcmp(tok, "driver") == 0) { /* progressive drivers (issue 6) */
             if (strcmp(v, "full") == 0) s->driver = PN_DRIVER_FULL;
             else if (strcmp(v, "dcm") == 0) s->driver = PN_DRIVER_DCM;
