@@ -146,7 +146,7 @@ void pn_cluster_light_sphere(const pn_light *l, vec3 *center, float *radius) {
     }
 }
 
-static void light_box(const pn_light *l, vec3 *lo, vec3 *hi) {
+void pn_cluster_light_box(const pn_light *l, vec3 *lo, vec3 *hi) {
     switch (l->kind) {
     case PN_LIGHT_TRIANGLE:
     case PN_LIGHT_RECTANGLE: {
@@ -282,7 +282,7 @@ static float cos_conservative(float t) {
 }
 
 /* The smallest cone (as pbrt-v4's DirectionCone union) containing cones (wa, ca) and (wb, cb). */
-static void merge_cones(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c) {
+void pn_cluster_merge_cones(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c) {
     if (ca <= -1.0f || cb <= -1.0f) {
         *w = ca <= -1.0f ? wa : wb;
         *c = -1.0f;
@@ -637,7 +637,7 @@ static void init_leaf(pn_cluster_node *nd, const pn_light *l, int light, int tre
     nd->light = light;
     nd->tree = tree;
     pn_cluster_light_sphere(l, &nd->center, &nd->radius);
-    light_box(l, &nd->bmin, &nd->bmax);
+    pn_cluster_light_box(l, &nd->bmin, &nd->bmax);
     nd->power = pn_cluster_light_power(l);
     if (tree == PN_TREE_OMNI) {
         nd->axis = v3(0.0f, 0.0f, 0.0f);
@@ -766,7 +766,7 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
                 nd->cos_spread = -1.0f;
                 nd->cos_emit = -1.0f;
             } else {
-                merge_cones(l->axis, l->cos_spread, r->axis, r->cos_spread, &nd->axis, &nd->cos_spread);
+                pn_cluster_merge_cones(l->axis, l->cos_spread, r->axis, r->cos_spread, &nd->axis, &nd->cos_spread);
                 nd->cos_emit = fminf(l->cos_emit, r->cos_emit);
             }
         }

@@ -130,6 +130,15 @@ void pn_cluster_merge_spheres(vec3 c1, float r1, vec3 c2, float r2, vec3 *center
  * 4 pi when p is inside (or on) the sphere. */
 float pn_cluster_solid_angle(vec3 center, float radius, vec3 p);
 
+/* Axis-aligned box of a light's emitting geometry (a point for point-like lights); shared with
+ * the light BVH (light_bvh.c). */
+void pn_cluster_light_box(const pn_light *l, vec3 *lo, vec3 *hi);
+
+/* The smallest cone holding the cones (wa, cos ca) and (wb, cos cb), as pbrt-v4's DirectionCone
+ * union, with its cosine rounded down so the cone never comes out too narrow; cos -1 is the whole
+ * sphere. Shared with the light BVH. */
+void pn_cluster_merge_cones(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c);
+
 /* True when light l certainly gives nothing to a point p with unit normal n (n = 0: no horizon
  * test): its geometry lies on or below p's tangent plane, p is behind a one-sided planar light,
  * or outside a spot light's cone; distant lights below the horizon. Environment lights: false. */

@@ -3,51 +3,15 @@
  * (12 buckets per axis), and stochastic descent. */
 #include "lights/light_bvh.h"
 
+#include "lights/cluster_tree.h"
+
 #include <stdlib.h>
 #include <string.h>
 
 #define BVH_BUCKETS 12
 
-/* ---- direction cones ------------------------------------------------------------------------ */
-
 static float safe_sqrt(float x) { return sqrtf(fmaxf(0.0f, x)); }
 static float safe_acos(float x) { return acosf(fminf(1.0f, fmaxf(-1.0f, x))); }
-
-/* Angle between unit vectors, accurate for nearly equal and nearly opposite ones. */
-static float angle_between(vec3 a, vec3 b) {
-    if (v3_dot(a, b) < 0.0f) return PN_PI - 2.0f * asinf(fminf(1.0f, 0.5f * v3_length(v3_add(a, b))));
-    return 2.0f * asinf(fminf(1.0f, 0.5f * v3_length(v3_sub(b, a))));
-}
-
-/* v rotated by angle t about the unit axis k (Rodrigues). */
-static vec3 rotate(vec3 v, vec3 k, float t) {
-    float c = cosf(t), s = sinf(t);
-    return v3_add(v3_add(v3_scale(v, c), v3_scale(v3_cross(k, v), s)), v3_scale(k, v3_dot(k, v) * (1.0f - c)));
-}
-
-/* The smallest cone (w, cos) holding the cones (wa, ca) and (wb, cb). */
-static void cone_union(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float *c) {
-    float ta = safe_acos(ca), tb = safe_acos(cb), td = angle_between(wa, wb);
-    if (fminf(td + tb, PN_PI) <= ta) {
-        *w = wa;
-        *c = ca;
-        return;
-    }
-    if (fminf(td + ta, PN_PI) <= tb) {
-        *w = wb;
-        *c = cb;
-        return;
-    }
-    float to = 0.5f * (ta + td + tb);
-    vec3 axis = v3_cross(wa, wb);
-    if (to >= PN_PI || v3_length2(axis) == 0.0f) {
-        *w = wa;
-        *c = -1.0f;
-        return;
-    }
-    *w = v3_normalize(rotate(wa, v3_normalize(axis), to - ta));
-    *c = cosf(to);
-}
 
 static pn_light_bounds bounds_union(const pn_light_bounds *a, const pn_light_bounds *b) {
     if (a->phi == 0.0f) return *b;
@@ -55,7 +19,7 @@ static pn_light_bounds bounds_union(const pn_light_bounds *a, const pn_light_bou
     pn_light_bounds u;
     u.bmin = v3_min(a->bmin, b->bmin);
     u.bmax = v3_max(a->bmax, b->bmax);
-    cone_union(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
+    pn_cluster_merge_cones(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
     u.cos_e = fminf(a->cos_e, b->cos_e);
     u.phi = a->phi + b->phi;
     u.two_sided = a->two_sided || b->two_sided;
@@ -63,14 +27,6 @@ static pn_light_bounds bounds_union(const pn_light_bounds *a, const pn_light_bou
 }
 
 /* ---- bounds of one light ------------------------------------------------------------------ */
-
-static void box_of_points(const vec3 *v, int n, pn_light_bounds *b) {
-    b->bmin = b->bmax = v[0];
-    for (int i = 1; i < n; i++) {
-        b->bmin = v3_min(b->bmin, v[i]);
-        b->bmax = v3_max(b->bmax, v[i]);
-    }
-}
 
 bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bounds *b) {
     memset(b, 0, sizeof *b);
@@ -100,26 +56,17 @@ bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bou
         b->cos_o = l->cos_falloff_start;
         b->cos_e = cosf(safe_acos(l->cos_total_width) - safe_acos(l->cos_falloff_start));
         break;
-    case PN_LIGHT_TRIANGLE: {
-        vec3 v[3] = {l->p, v3_add(l->p, l->e1), v3_add(l->p, l->e2)};
-        box_of_points(v, 3, b);
-        goto planar;
-    }
-    case PN_LIGHT_RECTANGLE: {
-        vec3 v[4] = {l->p, v3_add(l->p, l->e1), v3_add(l->p, l->e2), v3_add(v3_add(l->p, l->e1), l->e2)};
-        box_of_points(v, 4, b);
-        goto planar;
-    }
-    case PN_LIGHT_DISK: {
-        vec3 e = v3(l->radius * safe_sqrt(1.0f - l->n.x * l->n.x), l->radius * safe_sqrt(1.0f - l->n.y * l->n.y),
-                    l->radius * safe_sqrt(1.0f - l->n.z * l->n.z));
-        b->bmin = v3_sub(l->p, e);
-        b->bmax = v3_add(l->p, e);
-        goto planar;
-    }
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_RECTANGLE:
+    case PN_LIGHT_DISK:
+        pn_cluster_light_box(l, &b->bmin, &b->bmax);
+        b->w = l->n;
+        b->cos_o = 1.0f;
+        b->two_sided = l->two_sided;
+        b->phi = lum * l->area * PN_PI * (l->two_sided ? 2.0f : 1.0f);
+        break;
     case PN_LIGHT_SPHERE:
-        b->bmin = v3_sub(l->p, v3(l->radius, l->radius, l->radius));
-        b->bmax = v3_add(l->p, v3(l->radius, l->radius, l->radius));
+        pn_cluster_light_box(l, &b->bmin, &b->bmax);
         b->phi = lum * l->area * PN_PI;
         break;
     case PN_LIGHT_DISTANT:
@@ -127,13 +74,6 @@ bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bou
     case PN_LIGHT_KIND_COUNT:
         return false;
     }
-    if (!(b->phi > 0.0f) || !isfinite(b->phi)) return false;
-    return true;
-planar:
-    b->w = l->n;
-    b->cos_o = 1.0f;
-    b->two_sided = l->two_sided;
-    b->phi = lum * l->area * PN_PI * (l->two_sided ? 2.0f : 1.0f);
     return b->phi > 0.0f && isfinite(b->phi);
 }
 
@@ -152,18 +92,18 @@ static float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b)
 
 float pn_light_bounds_importance(const pn_light_bounds *b, vec3 p, vec3 n) {
     vec3 pc = v3_scale(v3_add(b->bmin, b->bmax), 0.5f);
-    float d2 = v3_length2(v3_sub(p, pc));
+    vec3 dp = v3_sub(p, pc);
+    float dc2 = v3_length2(dp);
     /* pbrt's guard against huge 1/d^2 near or inside big boxes: d^2 at least half the
      * diagonal's length (the units do not match; the rule is pbrt's). */
-    d2 = fmaxf(d2, 0.5f * v3_length(v3_sub(b->bmax, b->bmin)));
+    float d2 = fmaxf(dc2, 0.5f * v3_length(v3_sub(b->bmax, b->bmin)));
     if (!(d2 > 0.0f)) return 0.0f;
-    vec3 wi = v3_scale(v3_sub(p, pc), 1.0f / sqrtf(fmaxf(v3_length2(v3_sub(p, pc)), 1e-30f)));
+    vec3 wi = v3_scale(dp, 1.0f / sqrtf(fmaxf(dc2, 1e-30f)));
     float cos_w = v3_dot(b->w, wi);
     if (b->two_sided) cos_w = fabsf(cos_w);
     float sin_w = safe_sqrt(1.0f - cos_w * cos_w);
     /* The angle the box subtends from p (its bounding sphere); everything if p is inside. */
     float r2 = 0.25f * v3_length2(v3_sub(b->bmax, b->bmin));
-    float dc2 = v3_length2(v3_sub(pc, p));
     float cos_b = dc2 < r2 ? -1.0f : safe_sqrt(1.0f - r2 / dc2);
     float sin_b = safe_sqrt(1.0f - cos_b * cos_b);
     /* theta' = max(0, theta_w - theta_o - theta_b): the smallest angle between an emitting
