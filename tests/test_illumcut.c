@@ -18,7 +18,6 @@
 #include <string.h>
 #include <unistd.h>
 
-static char tmpdir[256];
 
 static vec3 rand_dir(pn_rng *rng) {
     for (;;) {
@@ -123,9 +122,7 @@ static bool same_beauty(pn_image a, pn_image b) {
 
 static void test_illumcut_against_vpl(void) {
     pn_context ctx = pn_context_new();
-    const char *path = pn_test_write_file(tmpdir, "room.pbrt", pn_test_room_scene(0, 32, 24));
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_scene scene = vpl_test_load(ctx, "room.pbrt", pn_test_room_scene(0, 32, 24));
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -194,9 +191,7 @@ static void test_illumcut_against_vpl(void) {
 static void test_batch_interface(void) {
     pn_context ctx = pn_context_new();
     const int W = 24, H = 16;
-    const char *path = pn_test_write_file(tmpdir, "room_batch.pbrt", pn_test_room_scene(0, W, H));
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_scene scene = vpl_test_load(ctx, "room_batch.pbrt", pn_test_room_scene(0, W, H));
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -264,15 +259,8 @@ static void test_batch_interface(void) {
     pn_context_free(ctx);
 }
 
-static void setup(void) {
-    snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_illumcut_XXXXXX");
-    CHECK(mkdtemp(tmpdir) != NULL);
-}
+static void setup(void) { vpl_test_setup("illumcut"); }
 
-static void teardown(void) {
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
-    CHECK(system(cmd) == 0);
-}
+static void teardown(void) { vpl_test_teardown(); }
 
 PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_phase1_refinement_choice), TEST(test_illumcut_against_vpl), TEST(test_batch_interface), TEST(teardown))

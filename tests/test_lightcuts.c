@@ -20,7 +20,6 @@
 #include <string.h>
 #include <unistd.h>
 
-static char tmpdir[256];
 
 static vec3 rand_dir(pn_rng *rng) {
     for (;;) {
@@ -274,17 +273,10 @@ static void test_representative_probability(void) {
     }
 }
 
-static pn_scene load(pn_context ctx, const char *name, const char *text) {
-    const char *path = pn_test_write_file(tmpdir, name, text);
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
-    return scene;
-}
-
 /* The lightcut guarantee, point by point, on a room with a glossy box. */
 static void test_lightcut_guarantee(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = load(ctx, "room.pbrt", pn_test_room_scene(1, 8, 8));
+    pn_scene scene = vpl_test_load(ctx, "room.pbrt", pn_test_room_scene(1, 8, 8));
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -387,7 +379,7 @@ static double mean_rel_error(pn_image a, pn_image b, double *max_rel) {
 
 static void test_lightcuts_image_against_vpl(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = load(ctx, "room_img.pbrt", pn_test_room_scene(0, 24, 18));
+    pn_scene scene = vpl_test_load(ctx, "room_img.pbrt", pn_test_room_scene(0, 24, 18));
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -436,7 +428,7 @@ static void test_lightcuts_image_against_vpl(void) {
  * as well as the oriented one) and a glossy sphere: lightcuts and illumcut against vpl. */
 static void test_all_light_kinds(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = load(ctx, "kinds.pbrt",
+    pn_scene scene = vpl_test_load(ctx, "kinds.pbrt",
                           "LookAt 0 -6 3  0 0 0.5  0 0 1\nCamera \"perspective\" \"float fov\" [ 50 ]\n"
                           "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 24 ]\nWorldBegin\n"
                           "LightSource \"infinite\" \"rgb L\" [ 0.2 0.25 0.3 ]\n"
@@ -473,16 +465,9 @@ static void test_all_light_kinds(void) {
     pn_context_free(ctx);
 }
 
-static void setup(void) {
-    snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_lightcuts_XXXXXX");
-    CHECK(mkdtemp(tmpdir) != NULL);
-}
+static void setup(void) { vpl_test_setup("lightcuts"); }
 
-static void teardown(void) {
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
-    CHECK(system(cmd) == 0);
-}
+static void teardown(void) { vpl_test_teardown(); }
 
 PN_TESTS(TEST(setup), TEST(test_bound_cos), TEST(test_bounds_never_below_truth), TEST(test_light_tree_structure),
          TEST(test_representative_probability), TEST(test_lightcut_guarantee), TEST(test_lightcuts_image_against_vpl), TEST(test_all_light_kinds),

@@ -16,7 +16,6 @@
 #include <string.h>
 #include <unistd.h>
 
-static char tmpdir[256];
 
 static vec3 rand_dir(pn_rng *rng) {
     for (;;) {
@@ -97,16 +96,9 @@ static void test_contribution_is_eq1(void) {
     CHECK(nonzero > 3000);
 }
 
-static pn_scene load(pn_context ctx, const char *name, const char *text) {
-    const char *path = pn_test_write_file(tmpdir, name, text);
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
-    return scene;
-}
-
 static void test_trace_is_deterministic(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = load(ctx, "room.pbrt", pn_test_room_scene(0, 8, 8));
+    pn_scene scene = vpl_test_load(ctx, "room.pbrt", pn_test_room_scene(0, 8, 8));
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -147,7 +139,7 @@ static void test_first_bounce_energy(void) {
              "Shape \"trianglemesh\" \"point3 P\" [ -%g -%g 0  %g -%g 0  %g %g 0  -%g %g 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
              "LightSource \"point\" \"point3 from\" [ 0 0 %g ] \"rgb I\" [ %g %g %g ]\n",
              kd, kd, kd, A, A, A, A, A, A, A, A, h, I, I, I);
-    pn_scene scene = load(ctx, "floor.pbrt", text);
+    pn_scene scene = vpl_test_load(ctx, "floor.pbrt", text);
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -187,7 +179,7 @@ static void test_vpl_image_closed_form(void) {
              "Shape \"trianglemesh\" \"point3 P\" [ -50 -50 0  50 -50 0  50 50 0  -50 50 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
              "LightSource \"point\" \"point3 from\" [ 0 0 %g ] \"rgb I\" [ %g %g %g ]\n",
              H, fov, W, W, kd, kd, kd, h, I, I, I);
-    pn_scene scene = load(ctx, "plane.pbrt", text);
+    pn_scene scene = vpl_test_load(ctx, "plane.pbrt", text);
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -229,7 +221,7 @@ static void test_vpl_image_closed_form(void) {
 /* A scene with no light renders black, without error. */
 static void test_no_lights(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = load(ctx, "dark.pbrt",
+    pn_scene scene = vpl_test_load(ctx, "dark.pbrt",
                           "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 30 ]\n"
                           "Film \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\nWorldBegin\n"
                           "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n");
@@ -305,16 +297,9 @@ static void test_cli_bad_values(void) {
     }
 }
 
-static void setup(void) {
-    snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_vpl_XXXXXX");
-    CHECK(mkdtemp(tmpdir) != NULL);
-}
+static void setup(void) { vpl_test_setup("vpl"); }
 
-static void teardown(void) {
-    char cmd[512];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
-    CHECK(system(cmd) == 0);
-}
+static void teardown(void) { vpl_test_teardown(); }
 
 PN_TESTS(TEST(setup), TEST(test_contribution_is_eq1), TEST(test_trace_is_deterministic), TEST(test_first_bounce_energy),
          TEST(test_vpl_image_closed_form), TEST(test_no_lights), TEST(test_cli_bad_values), TEST(teardown))

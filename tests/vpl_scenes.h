@@ -1,7 +1,35 @@
-/* vpl_scenes.h — small scenes shared by the VPL integrators' tests (test_vpl, test_lightcuts,
- * test_illumcut). */
+/* vpl_scenes.h — small scenes, a scratch folder and a scene loader shared by the VPL
+ * integrators' tests (test_vpl, test_lightcuts, test_illumcut). Include after harness.h. */
 #ifndef PN_TEST_VPL_SCENES_H
 #define PN_TEST_VPL_SCENES_H
+
+#include "penumbra/penumbra.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+
+/* The test's scratch folder: made by vpl_test_setup, removed with its files by
+ * vpl_test_teardown. */
+static char tmpdir[256];
+
+static inline void vpl_test_setup(const char *name) {
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_%s_XXXXXX", name);
+    CHECK(mkdtemp(tmpdir) != NULL);
+}
+
+static inline void vpl_test_teardown(void) {
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+    CHECK(system(cmd) == 0);
+}
+
+/* Writes `text` as tmpdir/name and loads it; NULL (and a failed check) if it does not load. */
+static inline pn_scene vpl_test_load(pn_context ctx, const char *name, const char *text) {
+    const char *path = pn_test_write_file(tmpdir, name, text);
+    pn_scene scene = NULL;
+    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    return scene;
+}
 
 /* A closed room (4 x 4 x 3) with a box standing on the floor, a point light and a rectangle
  * light under the ceiling: diffuse surfaces (the box glossy when `glossy`), occlusion, and
