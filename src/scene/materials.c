@@ -103,6 +103,7 @@ typedef struct builder {
     char model[384];  /* "Lambert kd=0.5 + Blinn ks=0.04 n=98" */
     char note[512];   /* "(roughness 0.1)" */
     bool v3;          /* a pbrt-v3 material name: "pbrt-v3" in the description, v3 bump map */
+    const char *type; /* the pbrt material type, as written */
 } builder;
 
 /* ---- small helpers ------------------------------------------------------------------------ */
@@ -445,7 +446,8 @@ static pn_status map_coatedconductor(builder *b, pn_err *err) {
     return PN_OK;
 }
 
-static pn_status map_dielectric(builder *b, bool thin, pn_err *err) {
+static pn_status map_dielectric(builder *b, pn_err *err) {
+    const bool thin = strcmp(b->type, "thindielectric") == 0;
     double eta = 1.5;
     pn_status st = pn_params_spectrum_value(b->ps, "eta", 550.0, 1.5, &eta, NULL, err);
     double roughness = 0, alpha = 0;
@@ -516,7 +518,8 @@ static pn_status map_diffusetransmission(builder *b, pn_err *err) {
     return PN_OK;
 }
 
-static pn_status map_substitute(builder *b, const char *type, pn_err *err) {
+static pn_status map_substitute(builder *b, pn_err *err) {
+    const char *type = b->type;
     pn_texref kd = constant_ref(v3(0.5f, 0.5f, 0.5f));
     pn_status st = PN_OK;
     if (strcmp(type, "hair") == 0) {
@@ -870,6 +873,48 @@ static pn_status map_mix_v3(builder *b, pn_err *err) {
 
 /* ---- entry points ----------------------------------------------------------------------- */
 
+/* Interface materials bound media; for rendering they are invisible. */
+static pn_status map_interface(builder *b, pn_err *err) {
+    (void)err;
+    b->m.kind = PN_MATERIAL_INTERFACE;
+    snprintf(b->model, sizeof b->model, "interface (invisible)");
+    return PN_OK;
+}
+
+/* Every pbrt material type penumbra reads, the pbrt-v4 names and then the pbrt-v3 ones. */
+typedef struct material_entry {
+    const char *type;
+    bool v3;
+    pn_status (*map)(builder *b, pn_err *err);
+} material_entry;
+
+static const material_entry material_table[] = {
+    {"diffuse", false, map_diffuse},
+    {"coateddiffuse", false, map_coateddiffuse},
+    {"conductor", false, map_conductor},
+    {"coatedconductor", false, map_coatedconductor},
+    {"dielectric", false, map_dielectric},
+    {"thindielectric", false, map_dielectric},
+    {"diffusetransmission", false, map_diffusetransmission},
+    {"measured", false, map_substitute},
+    {"hair", false, map_substitute},
+    {"subsurface", false, map_substitute},
+    {"mix", false, map_mix},
+    {"interface", false, map_interface},
+    {"none", false, map_interface},
+    {"matte", true, map_v3_matte},
+    {"plastic", true, map_v3_plastic},
+    {"substrate", true, map_v3_substrate},
+    {"uber", true, map_v3_uber},
+    {"glass", true, map_v3_glass},
+    {"metal", true, map_v3_metal},
+    {"mirror", true, map_v3_mirror},
+    {"translucent", true, map_substitute},
+    {"kdsubsurface", true, map_substitute},
+    {"fourier", true, map_substitute},
+    {"disney", true, map_substitute},
+};
+
 pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, const char *name,
                                 const pn_params *ps, int *out, pn_err *err) {
     if (out) *out = -1;
@@ -892,58 +937,15 @@ pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, cons
     b.m.eta = 1.0f;
     b.m.name = NULL;
 
-    pn_status st;
-    if (strcmp(type, "diffuse") == 0) {
-        st = map_diffuse(&b, err);
-    } else if (strcmp(type, "coateddiffuse") == 0) {
-        st = map_coateddiffuse(&b, err);
-    } else if (strcmp(type, "conductor") == 0) {
-        st = map_conductor(&b, err);
-    } else if (strcmp(type, "coatedconductor") == 0) {
-        st = map_coatedconductor(&b, err);
-    } else if (strcmp(type, "dielectric") == 0) {
-        st = map_dielectric(&b, false, err);
-    } else if (strcmp(type, "thindielectric") == 0) {
-        st = map_dielectric(&b, true, err);
-    } else if (strcmp(type, "diffusetransmission") == 0) {
-        st = map_diffusetransmission(&b, err);
-    } else if (strcmp(type, "measured") == 0 || strcmp(type, "hair") == 0 || strcmp(type, "subsurface") == 0) {
-        st = map_substitute(&b, type, err);
-    } else if (strcmp(type, "mix") == 0) {
-        st = map_mix(&b, err);
-    } else if (strcmp(type, "matte") == 0) {
-        b.v3 = true;
-        st = map_v3_matte(&b, err);
-    } else if (strcmp(type, "plastic") == 0) {
-        b.v3 = true;
-        st = map_v3_plastic(&b, err);
-    } else if (strcmp(type, "substrate") == 0) {
-        b.v3 = true;
-        st = map_v3_substrate(&b, err);
-    } else if (strcmp(type, "uber") == 0) {
-        b.v3 = true;
-        st = map_v3_uber(&b, err);
-    } else if (strcmp(type, "glass") == 0) {
-        b.v3 = true;
-        st = map_v3_glass(&b, err);
-    } else if (strcmp(type, "metal") == 0) {
-        b.v3 = true;
-        st = map_v3_metal(&b, err);
-    } else if (strcmp(type, "mirror") == 0) {
-        b.v3 = true;
-        st = map_v3_mirror(&b, err);
-    } else if (strcmp(type, "translucent") == 0 || strcmp(type, "kdsubsurface") == 0 ||
-               strcmp(type, "fourier") == 0 || strcmp(type, "disney") == 0) {
-        b.v3 = true;
-        st = map_substitute(&b, type, err);
-    } else if (strcmp(type, "interface") == 0 || strcmp(type, "none") == 0) {
-        b.m.kind = PN_MATERIAL_INTERFACE;
-        snprintf(b.model, sizeof b.model, "interface (invisible)");
-        st = PN_OK;
-    } else {
+    const material_entry *e = NULL;
+    for (size_t i = 0; i < sizeof material_table / sizeof material_table[0]; i++)
+        if (strcmp(type, material_table[i].type) == 0) e = &material_table[i];
+    if (!e)
         return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: unknown material type \"%s\"",
                           ps->loc.file ? ps->loc.file : "?", ps->loc.line, ps->loc.column, type);
-    }
+    b.type = type;
+    b.v3 = e->v3;
+    pn_status st = e->map(&b, err);
     if (st != PN_OK) return st;
 
     char head[256];
