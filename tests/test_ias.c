@@ -102,8 +102,14 @@ static void test_inverse_variance(void) {
 
 static char tmpdir[256];
 
-static const char *write_scene(const char *name, const char *text) {
-    return pn_test_write_file(tmpdir, name, text);
+/* Writes `text` as tmpdir/name and loads it with ctx; NULL, with the library's message printed
+ * and a failed check, if it does not load. */
+static pn_scene load_scene(pn_context ctx, const char *name, const char *text) {
+    const char *path = pn_test_write_file(tmpdir, name, text);
+    pn_scene scene = NULL;
+    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    if (!scene) fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+    return scene;
 }
 
 /* A room-like scene: a floor, a wall with a door-sized gap between two rooms, 24 point lights and
@@ -194,12 +200,9 @@ static void compare(pn_image ref, pn_image img, double scale, double *relmse, do
 }
 
 static void test_ias_matches_reference(void) {
-    const char *path = write_scene("many.pbrt", many_light_scene());
     pn_context ctx = pn_context_new();
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_scene scene = load_scene(ctx, "many.pbrt", many_light_scene());
     if (!scene) {
-        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
         pn_context_free(ctx);
         return;
     }
@@ -235,10 +238,8 @@ static void test_ias_matches_reference(void) {
  * pooled over the block, rest on too few pixels; measured here: box relMSE 1.5e-3 and the mean
  * 3.1% too bright. */
 static void test_ias_block_sizes(void) {
-    const char *path = write_scene("many.pbrt", many_light_scene());
     pn_context ctx = pn_context_new();
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_scene scene = load_scene(ctx, "many.pbrt", many_light_scene());
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -300,10 +301,8 @@ static void test_black_detection_keeps_lit_pixels(void) {
                               "LightSource \"point\" \"point3 from\" [ %g %g 2.5 ] \"rgb I\" [ 5 5 5 ]\n",
                               r * cos(a), r * sin(a));
     }
-    const char *path = write_scene("hole.pbrt", text);
     pn_context ctx = pn_context_new();
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_scene scene = load_scene(ctx, "hole.pbrt", text);
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -348,10 +347,8 @@ static void test_black_detection_keeps_lit_pixels(void) {
 
 /* The same image for any thread count (each block is rendered from its own seed and data). */
 static void test_ias_thread_determinism(void) {
-    const char *path = write_scene("many_t.pbrt", many_light_scene());
     pn_context ctx = pn_context_new();
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_scene scene = load_scene(ctx, "many_t.pbrt", many_light_scene());
     pn_image img[2] = {NULL, NULL};
     for (int t = 0; t < 2 && scene; t++) {
         pn_render_settings s = {0};
@@ -368,15 +365,12 @@ static void test_ias_thread_determinism(void) {
     pn_image_free(img[1]);
     pn_scene_free(scene);
     pn_context_free(ctx);
-    if (path) unlink(path);
 }
 
 /* The AOVs reproduce the paper's figures as false-colour pictures with a colour bar. */
 static void test_false_color_aov(void) {
-    const char *path = write_scene("many_fc.pbrt", many_light_scene());
     pn_context ctx = pn_context_new();
-    pn_scene scene = NULL;
-    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    pn_scene scene = load_scene(ctx, "many_fc.pbrt", many_light_scene());
     pn_render_settings s = {0};
     s.integrator = PN_INTEGRATOR_IAS;
     s.aovs = PN_AOV_PASSES | PN_AOV_VISIBLE_FRACTION | PN_AOV_NORMAL;
@@ -416,7 +410,6 @@ static void test_false_color_aov(void) {
     pn_image_free(img);
     pn_scene_free(scene);
     pn_context_free(ctx);
-    if (path) unlink(path);
 }
 
 static void test_setup(void) {
@@ -425,11 +418,12 @@ static void test_setup(void) {
 }
 
 static void test_teardown(void) {
+    const char *written[] = {"many.pbrt", "hole.pbrt", "many_t.pbrt", "many_fc.pbrt"};
     char path[600];
-    snprintf(path, sizeof path, "%s/many.pbrt", tmpdir);
-    unlink(path);
-    snprintf(path, sizeof path, "%s/hole.pbrt", tmpdir);
-    unlink(path);
+    for (size_t i = 0; i < sizeof written / sizeof written[0]; i++) {
+        snprintf(path, sizeof path, "%s/%s", tmpdir, written[i]);
+        unlink(path);
+    }
     CHECK(rmdir(tmpdir) == 0);
 }
 
