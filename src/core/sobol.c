@@ -1221,7 +1221,8 @@ static uint32_t raw_by_bits(uint32_t index, int dim) {
 
 /* For the first dimensions, the product by bytes: byte_table[d][k][b] is the generator matrix
  * times the index whose byte k is b and whose other bytes are 0, so a point is four lookups (the
- * matrix is linear over GF(2)). 64 KiB; about 1 ns a point where the bit loop took 7. */
+ * matrix is linear over GF(2)). 64 KiB, built once; four lookups where the loop takes one step
+ * per bit of the index. */
 #define PN_SOBOL_TABLE_DIMS 16
 static uint32_t byte_table[PN_SOBOL_TABLE_DIMS][4][256];
 static pthread_once_t byte_table_once = PTHREAD_ONCE_INIT;
