@@ -245,6 +245,8 @@ typedef struct pn_render_settings {
                                         with a low threshold: the paper's confidence relocation */
     int raw_radiance;                /* 1: interpolate radiance itself; 0 (default): radiance divided
                                         by the first-hit albedo of a primary ray, then multiplied back */
+    int primary_grid;                /* g x g primary rays per work pixel give the albedo and the
+                                        emitted radiance of the pixel (1..8; 0: the default 3) */
 } pn_render_settings;
 
 /* contour_flags bits. */

@@ -142,7 +142,9 @@ static const char render_help[] =
     "  --snapshot-every SEC   and every SEC seconds (out-12.5pct.exr); SIGUSR1 writes one now\n"
     "  --stop-at P            stop after P% of the work pixels and write the approximate image;\n"
     "                         with a lower --threshold: the paper's confidence relocation\n"
-    "  --raw-radiance         interpolate radiance itself, not radiance / first-hit albedo\n"
+    "  --raw-radiance         interpolate radiance itself, not (radiance - emitted) / albedo\n"
+    "  --primary-grid G       G x G primary rays per work pixel measure its albedo and the\n"
+    "                         emitted radiance it sees, 1..8 (default 3)\n"
     "  AOVs of these drivers: sampling_pattern, block_map, block_direction\n"
     "\n"
     "Options taking a value accept '--option VALUE' and '--option=VALUE'.\n"
@@ -1130,6 +1132,13 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             }
             o->settings.snapshot_percents = o->snapshot_percents;
             o->settings.snapshot_percent_count = count;
+        } else if (strcmp(name, "--primary-grid") == 0) {
+            long n;
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (!parse_long(value, 1, 8, &n))
+                return bad_value(cmd, name, value, "an integer from 1 to 8");
+            o->settings.primary_grid = (int)n;
         } else if (strcmp(name, "--raw-radiance") == 0) {
             if (!scanner_no_value(&s))
                 return EXIT_USAGE;
@@ -1159,8 +1168,9 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             return usage_error(cmd, "the AOVs sampling_pattern, block_map and block_direction need --driver");
         if (!progressive && (o->settings.work_scale || o->settings.snapshot_percent_count ||
                              o->settings.snapshot_every_seconds > 0.0 || o->settings.stop_percent > 0.0 ||
-                             o->settings.raw_radiance))
-            return usage_error(cmd, "--work-scale, --snapshots, --snapshot-every, --stop-at and --raw-radiance need --driver");
+                             o->settings.raw_radiance || o->settings.primary_grid))
+            return usage_error(cmd, "--work-scale, --snapshots, --snapshot-every, --stop-at, --raw-radiance and "
+                                    "--primary-grid need --driver");
     }
     if (o->scene_path == NULL)
         return usage_error(cmd, "missing the scene file");

@@ -63,9 +63,12 @@
  *    thresholding also asks the corners' luminance range to exceed 2 standard deviations of its
  *    noise, and the lazy test accepts deviations within 2 standard deviations of the pixel's
  *    estimate as well as within 1% (the integrator reports each pixel's variance).
- *  - What is interpolated is radiance divided by the first-hit albedo of the primary ray,
- *    multiplied back per pixel (progressive.c; --raw-radiance turns it off): texture is known from
- *    the primary buffer and need not be sampled. Tests and directions see the same values. */
+ *  - What is interpolated is (radiance - emitted) / albedo, multiplied back and the emitted part
+ *    added per pixel (progressive.c; --raw-radiance turns it off). Both come from primary rays
+ *    (3 x 3 over the pixel filter where the pixel centres' values change, --primary-grid): texture
+ *    and directly seen emitters (lamps, the sky between blinds) are known without evaluating the
+ *    pixel and need not be sampled. At evaluated pixels the integrator's own emitted part is
+ *    taken out where it reports one (reference, ias). Tests and directions see the same values. */
 #include "driver/dcm.h"
 
 #include "driver/progressive.h"

@@ -11,6 +11,7 @@
 
 #include "core/clock.h"
 #include "core/context.h"
+#include "core/rng.h"
 #include "film/downsample.h"
 #include "io/image.h"
 
@@ -30,8 +31,14 @@ float pn_prog_lum(const pn_prog *p, int x, int y) {
 }
 
 float pn_prog_lum_sigma(const pn_prog *p, int x, int y) {
-    float rv = p->relvar[pn_prog_index(p, x, y)];
-    return rv > 0.0f ? sqrtf(rv) * fabsf(pn_prog_lum(p, x, y)) : 0.0f;
+    size_t i = pn_prog_index(p, x, y);
+    float rv = p->relvar[i];
+    if (!(rv > 0.0f)) return 0.0f;
+    /* The variance is relative to the whole estimate, emission included; in the units of rad. */
+    const float *c = p->orig + 3 * i, *f = p->demod ? p->demod + 3 * i : NULL;
+    float l = f ? 0.2126f * c[0] / f[0] + 0.7152f * c[1] / f[1] + 0.0722f * c[2] / f[2]
+                : 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+    return sqrtf(rv) * fabsf(l);
 }
 
 bool pn_prog_request(pn_prog *p, int x, int y) {
@@ -70,8 +77,17 @@ static void store_estimates(pn_prog *p, int worker, const int32_t (*px)[2], cons
         p->orig[3 * k] = est[i].radiance.x;
         p->orig[3 * k + 1] = est[i].radiance.y;
         p->orig[3 * k + 2] = est[i].radiance.z;
-        for (int ch = 0; ch < 3; ch++)
-            p->rad[3 * k + ch] = p->demod ? p->orig[3 * k + ch] / p->demod[3 * k + ch] : p->orig[3 * k + ch];
+        if (p->demod) {
+            /* The integrator's own split where it reports one: the primary rays' estimate of the
+             * emitted part would leave a residual at emitter borders that interpolation spreads. */
+            const float *e = p->emit + 3 * k;
+            vec3 em = p->integ_emitted ? est[i].emitted : v3(e[0], e[1], e[2]);
+            p->rad[3 * k] = (p->orig[3 * k] - em.x) / p->demod[3 * k];
+            p->rad[3 * k + 1] = (p->orig[3 * k + 1] - em.y) / p->demod[3 * k + 1];
+            p->rad[3 * k + 2] = (p->orig[3 * k + 2] - em.z) / p->demod[3 * k + 2];
+        } else {
+            for (int ch = 0; ch < 3; ch++) p->rad[3 * k + ch] = p->orig[3 * k + ch];
+        }
         p->state[k] = PN_PX_EVALUATED;
         p->relvar[k] = isfinite(est[i].relative_variance) ? est[i].relative_variance : 0.0f;
         c->eye += est[i].eye_rays;
@@ -281,7 +297,7 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
         for (size_t i = 0; i < n; i++) {
             if ((p->state[i] & 3) == PN_PX_EVALUATED) memcpy(work + 3 * i, p->orig + 3 * i, 3 * sizeof *work);
             else if (p->demod)
-                for (int c = 0; c < 3; c++) work[3 * i + c] *= p->demod[3 * i + c];
+                for (int c = 0; c < 3; c++) work[3 * i + c] = work[3 * i + c] * p->demod[3 * i + c] + p->emit[3 * i + c];
         }
         ok = pn_gauss_downsample(work, p->W, p->H, 3, p->scale, (float *)pn_image_layer_data(img, 0), p->out_w,
                                  p->out_h, p->pool, p->filter_tmp);
@@ -318,7 +334,18 @@ typedef struct primary_run {
     pn_prog *p;
     float *depth;
     vec3 *normal;
+    unsigned char *refine; /* pixels whose demod and emit come from a g x g grid */
+    vec3 *mean;            /* their grid means: albedo factor, emitted */
 } primary_run;
+
+/* The demodulation factor of one primary ray: its first-hit albedo, floored so that dark texels
+ * do not blow the interpolated quotient up; 1 where there is no albedo (background, black). */
+static vec3 demod_factor(const pn_eye_path *path) {
+    if (!path->has_point) return v3(1, 1, 1);
+    vec3 a = path->first_albedo;
+    if (fmaxf(a.x, fmaxf(a.y, a.z)) < 1e-3f) return v3(1, 1, 1);
+    return v3(fmaxf(a.x, 0.02f), fmaxf(a.y, 0.02f), fmaxf(a.z, 0.02f));
+}
 
 static void primary_row(void *user, size_t row, int worker) {
     (void)worker;
@@ -339,21 +366,70 @@ static void primary_row(void *user, size_t row, int worker) {
                          (uint32_t)(path.hit.instance + 1) * 97u;
             p->tag[i] = (int32_t)(t & 0x7fffffffu);
             r->normal[i] = path.hit.ng;
-            if (p->demod) {
-                /* Demodulation: interpolate radiance / albedo, so that texture detail known from
-                 * one primary ray per pixel is not left to the interpolation. */
-                vec3 a = path.first_albedo;
-                float m = fmaxf(a.x, fmaxf(a.y, a.z));
-                float *f = p->demod + 3 * i;
-                f[0] = m < 1e-3f ? 1.0f : fmaxf(a.x, 0.02f);
-                f[1] = m < 1e-3f ? 1.0f : fmaxf(a.y, 0.02f);
-                f[2] = m < 1e-3f ? 1.0f : fmaxf(a.z, 0.02f);
-            }
         } else {
             p->tag[i] = -1;
             r->normal[i] = v3(0, 0, 0);
-            if (p->demod) p->demod[3 * i] = p->demod[3 * i + 1] = p->demod[3 * i + 2] = 1.0f;
         }
+        if (!p->demod) continue;
+        vec3 f = demod_factor(&path), e = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
+        float *fd = p->demod + 3 * i, *fe = p->emit + 3 * i;
+        fd[0] = f.x, fd[1] = f.y, fd[2] = f.z;
+        fe[0] = e.x, fe[1] = e.y, fe[2] = e.z;
+    }
+}
+
+/* Whether the pixel centres' albedo factor or emitted radiance differ between work pixels a and b
+ * by more than 2% (of the larger value). */
+static bool primary_differs(const pn_prog *p, size_t a, size_t b) {
+    for (int c = 0; c < 3; c++) {
+        float fa = p->demod[3 * a + c], fb = p->demod[3 * b + c];
+        float ea = p->emit[3 * a + c], eb = p->emit[3 * b + c];
+        if (fabsf(fa - fb) > 0.02f * fmaxf(fa, fb) || fabsf(ea - eb) > 0.02f * fmaxf(fabsf(ea), fabsf(eb))) return true;
+    }
+    return false;
+}
+
+/* Demodulation and emission split: what the drivers interpolate is (radiance - emitted) / albedo,
+ * both known from primary rays alone, so that neither texture detail nor directly seen emitters
+ * (lamps, the sky between blinds) are left to the interpolation. Where a pixel centre's values
+ * differ from a 4-neighbour's (texture, silhouettes, emitter borders), one centre ray misjudges
+ * the pixel, whose integrator estimate averages over its area: there the factors are the means of
+ * a g x g grid of jittered primary rays instead. */
+static void primary_refine_row(void *user, size_t row, int worker) {
+    (void)worker;
+    primary_run *r = user;
+    pn_prog *p = r->p;
+    int y = (int)row, g = p->primary_grid;
+    for (int x = 0; x < p->W; x++) {
+        size_t i = pn_prog_index(p, x, y);
+        if (!r->refine[i]) continue;
+        uint64_t key = pn_hash3(p->job.seed, (uint64_t)(x + p->wx0), (uint64_t)(y + p->wy0));
+        vec3 f = v3(0, 0, 0), e = v3(0, 0, 0);
+        double wsum = 0.0;
+        for (int j = 0; j < g; j++)
+            for (int k = 0; k < g; k++) {
+                /* Stratified over the camera's pixel filter, weighted as the integrators weight
+                 * their eye rays. */
+                uint64_t h = pn_hash3(key, (uint64_t)(j * g + k), 0x9e1a);
+                float u1 = ((float)k + pn_hash_unit(h)) / (float)g;
+                float u2 = ((float)j + pn_hash_unit(pn_hash64(h))) / (float)g;
+                float rx, ry, fw;
+                pn_camera_filter_sample(&p->job.camera, x + p->wx0, y + p->wy0, u1, u2, &rx, &ry, &fw);
+                vec3 o, d;
+                pn_camera_ray(&p->job.camera, rx, ry, 0.5f, 0.5f, &o, &d);
+                pn_eye_path sub;
+                pn_trace_eye_path(&p->job, o, d, pn_hash_unit(h ^ 0x51f7u), &sub);
+                f = v3_madd(f, demod_factor(&sub), fw);
+                if (v3_is_finite(sub.emitted)) e = v3_madd(e, sub.emitted, fw);
+                wsum += (double)fw;
+            }
+        float inv = wsum != 0.0 ? (float)(1.0 / wsum) : 0.0f;
+        if (inv == 0.0f) {
+            r->refine[i] = 0; /* keep the centre's values */
+            continue;
+        }
+        r->mean[2 * i] = v3_scale(f, inv);
+        r->mean[2 * i + 1] = v3_scale(e, inv);
     }
 }
 
@@ -370,17 +446,49 @@ pn_status pn_prog_build_primary(pn_prog *p) {
     if (p->tag) return PN_OK;
     double t0 = pn_clock_seconds();
     size_t n = (size_t)p->W * (size_t)p->H, ns = (size_t)(p->W + 1) * (size_t)(p->H + 1);
-    primary_run r = {p, malloc(n * sizeof(float)), malloc(n * sizeof(vec3))};
+    primary_run r = {p, malloc(n * sizeof(float)), malloc(n * sizeof(vec3)), NULL, NULL};
     p->tag = malloc(n * sizeof *p->tag);
     p->sat_right = calloc(ns, sizeof *p->sat_right);
     p->sat_down = calloc(ns, sizeof *p->sat_down);
-    if (!p->settings->raw_radiance) p->demod = malloc(3 * n * sizeof *p->demod);
-    if (!r.depth || !r.normal || !p->tag || !p->sat_right || !p->sat_down || (!p->settings->raw_radiance && !p->demod)) {
+    if (!p->settings->raw_radiance) {
+        p->demod = malloc(3 * n * sizeof *p->demod);
+        p->emit = malloc(3 * n * sizeof *p->emit);
+    }
+    if (!r.depth || !r.normal || !p->tag || !p->sat_right || !p->sat_down ||
+        (!p->settings->raw_radiance && (!p->demod || !p->emit))) {
         free(r.depth);
         free(r.normal);
         return PN_ERROR_OUT_OF_MEMORY;
     }
     pn_threadpool_run(p->pool, (size_t)p->H, primary_row, &r);
+    if (p->demod && p->primary_grid > 1) {
+        r.refine = calloc(n, 1);
+        r.mean = malloc(2 * n * sizeof *r.mean);
+        if (!r.refine || !r.mean) {
+            free(r.refine);
+            free(r.mean);
+            free(r.depth);
+            free(r.normal);
+            return PN_ERROR_OUT_OF_MEMORY;
+        }
+        for (int y = 0; y < p->H; y++)
+            for (int x = 0; x < p->W; x++) {
+                size_t i = pn_prog_index(p, x, y);
+                bool d = (x > 0 && primary_differs(p, i, i - 1)) || (x + 1 < p->W && primary_differs(p, i, i + 1)) ||
+                         (y > 0 && primary_differs(p, i, i - (size_t)p->W)) ||
+                         (y + 1 < p->H && primary_differs(p, i, i + (size_t)p->W));
+                r.refine[i] = d;
+                p->primary_refined += d;
+            }
+        pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
+        for (size_t i = 0; i < n; i++)
+            if (r.refine[i]) {
+                memcpy(p->demod + 3 * i, &r.mean[2 * i], 3 * sizeof(float));
+                memcpy(p->emit + 3 * i, &r.mean[2 * i + 1], 3 * sizeof(float));
+            }
+        free(r.refine);
+        free(r.mean);
+    }
     size_t stride = (size_t)p->W + 1;
     for (int y = 0; y < p->H; y++)
         for (int x = 0; x < p->W; x++) {
@@ -434,6 +542,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     int scale = s->work_scale > 0 ? s->work_scale : 3;
     if (s->work_scale < 0 || scale > 16)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)", s->work_scale);
+    if (s->primary_grid < 0 || s->primary_grid > 8)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "primary grid %d is out of range (1..8)", s->primary_grid);
     if (s->aovs & ~(uint32_t)(PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
                                "progressive drivers write only the sampling_pattern, block_map and block_direction AOVs");
@@ -456,6 +566,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->integ = integ;
     p->job = *job;
     p->scale = scale;
+    p->primary_grid = s->primary_grid > 0 ? s->primary_grid : 3;
+    p->integ_emitted = pn_integrator_reports_emitted(integ);
     float crop[4] = {0, 1, 0, 1};
     pn_camera_setup(&job->scene->camera, oc->full_width * scale, oc->full_height * scale, crop, &p->job.camera);
     p->job.camera.x0 = oc->x0 * scale;
@@ -569,6 +681,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->orig);
     free(p->relvar);
     free(p->demod);
+    free(p->emit);
     free(p->state);
     free(p->queue);
     free(p->tag);

@@ -40,9 +40,14 @@ struct pn_prog {
     int out_w, out_h;  /* output window */
     int wx0, wy0;      /* full-image coordinates of the work window's corner */
     float *rad;        /* W*H*3: what the drivers interpolate: evaluated or predicted radiance,
-                          divided by the demodulation factor */
+                          less the emitted part, divided by the demodulation factor */
     float *orig;       /* W*H*3: evaluated radiance as the integrator returned it */
     float *demod;      /* W*H*3: first-hit albedo factor (NULL: no demodulation) */
+    float *emit;       /* W*H*3: radiance the primary rays saw emitted (with demod) */
+    int primary_grid;  /* g: g x g primary rays per work pixel for demod and emit where the
+                          pixel centres' values change */
+    size_t primary_refined; /* pixels that got the g x g grid */
+    bool integ_emitted;     /* the integrator reports each estimate's emitted part */
     float *relvar;     /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
     unsigned char *state;
     size_t evaluated;

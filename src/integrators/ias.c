@@ -931,6 +931,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     for (int pi = 0; pi < np; pi++) {
         ias_pixel *px = &s->pixels[pi];
         out[pi].radiance = v3_is_finite(px->result) ? px->result : v3(0, 0, 0);
+        out[pi].emitted = v3_is_finite(px->result) && v3_is_finite(px->emitted) ? px->emitted : v3(0, 0, 0);
         out[pi].shadow_rays = px->shadow_rays;
         out[pi].passes = (uint32_t)px->pass_count;
         out[pi].clusters = (float)px->clusters;

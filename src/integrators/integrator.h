@@ -6,6 +6,7 @@
 
 #include "driver/render_job.h"
 
+#include <stdbool.h>
 #include <stdint.h>
 
 /* A set of pixels of the work image. All pixels of a batch lie in one block of the image
@@ -20,6 +21,8 @@ typedef struct pn_batch {
 
 typedef struct pn_pixel_estimate {
     vec3 radiance;
+    vec3 emitted;            /* the part of radiance that eye rays saw emitted, weighted as radiance
+                                (filled where pn_integrator_reports_emitted says so) */
     float relative_variance; /* s^2 / L^2 of the estimate (luminance), 0 when L = 0 */
     uint32_t eye_rays, shadow_rays, specular_rays;
     float depth;  /* first-hit distance of the first eye ray (INFINITY on a miss) */
@@ -56,6 +59,9 @@ typedef struct pn_integrator {
                               void *scratch);
 } pn_integrator;
 
+/* Whether the integrator fills pn_pixel_estimate.emitted (reference and ias); the progressive
+ * drivers then interpolate only the rest. */
+bool pn_integrator_reports_emitted(const pn_integrator *integrator);
 /* The table of integrators; NULL if unknown. */
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 

@@ -62,7 +62,7 @@ static void reference_scratch_free(void *p) {
 }
 
 typedef struct pixel_state {
-    vec3 weighted_sum;
+    vec3 weighted_sum, weighted_emitted;
     double weight_sum;
     double lum_mean, lum_m2; /* Welford on the luminance of eye-ray values */
     uint32_t n, shadow_rays, specular_rays;
@@ -131,9 +131,10 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
                                         &ps.shadow_rays, &embree_seconds))
                     value = v3_add(value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
             }
-            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            if (!v3_is_finite(value)) value = path.emitted = v3(0, 0, 0);
             ps.n++;
             ps.weighted_sum = v3_madd(ps.weighted_sum, value, fw);
+            ps.weighted_emitted = v3_madd(ps.weighted_emitted, path.emitted, fw);
             ps.weight_sum += (double)fw;
             double y = (double)v3_luminance(value);
             if (y != 0.0 || !v3_is_zero(value)) ps.any_nonzero = true;
@@ -145,7 +146,10 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
         o->shadow_rays = ps.shadow_rays;
         o->specular_rays = ps.specular_rays;
         o->embree_seconds = (float)(embree_seconds * PN_TIMING_STRIDE);
-        if (ps.weight_sum != 0.0) o->radiance = v3_scale(ps.weighted_sum, (float)(1.0 / ps.weight_sum));
+        if (ps.weight_sum != 0.0) {
+            o->radiance = v3_scale(ps.weighted_sum, (float)(1.0 / ps.weight_sum));
+            o->emitted = v3_scale(ps.weighted_emitted, (float)(1.0 / ps.weight_sum));
+        }
         double var_of_mean = ps.n > 1 ? ps.lum_m2 / ((double)(ps.n - 1) * (double)ps.n) : 0.0;
         o->relative_variance = ps.lum_mean > 0.0 ? (float)(var_of_mean / (ps.lum_mean * ps.lum_mean)) : 0.0f;
     }
@@ -178,6 +182,10 @@ const pn_integrator pn_integrator_reference = {
     "reference", reference_prepare, reference_release, NULL, reference_scratch_create, reference_scratch_free,
     reference_render_batch,
 };
+
+bool pn_integrator_reports_emitted(const pn_integrator *integrator) {
+    return integrator == &pn_integrator_reference || integrator == &pn_integrator_ias;
+}
 
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
     switch (kind) {
