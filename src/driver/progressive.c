@@ -378,23 +378,95 @@ static void primary_row(void *user, size_t row, int worker) {
     }
 }
 
-/* Whether the pixel centres' albedo factor or emitted radiance differ between work pixels a and b
- * by more than 2% (of the larger value). */
+/* Whether what the centres of work pixels a and b see differs so much that the filter-weighted
+ * mean of centre rays would misjudge a pixel between them: emitted radiance by more than 2% of
+ * the larger value (an emitter's or the sky's border), the albedo factor by more than 30% (strong
+ * texture, silhouettes against other materials; weaker texture is left to the filtered mean, as
+ * grids everywhere would cost a large part of a full render's eye rays on textured scenes). */
 static bool primary_differs(const pn_prog *p, size_t a, size_t b) {
     for (int c = 0; c < 3; c++) {
         float fa = p->demod[3 * a + c], fb = p->demod[3 * b + c];
+        if (fabsf(fa - fb) > 0.3f * fmaxf(fa, fb)) return true;
         float ea = p->emit[3 * a + c], eb = p->emit[3 * b + c];
-        if (fabsf(fa - fb) > 0.02f * fmaxf(fa, fb) || fabsf(ea - eb) > 0.02f * fmaxf(fabsf(ea), fabsf(eb))) return true;
+        if (fabsf(ea - eb) > 0.02f * fmaxf(fabsf(ea), fabsf(eb))) return true;
     }
     return false;
 }
 
+/* Weights of the camera's pixel filter per whole-pixel offset -R..R along one axis: the filter's
+ * integral over each neighbour's extent, from its table. Returns R. */
+static int filter_pixel_weights(const pn_filter_axis *ax, float *w, int max_r) {
+    int R = (int)ceilf(ax->radius - 0.5f);
+    if (R > max_r) R = max_r;
+    if (R < 0) R = 0;
+    for (int d = -R; d <= R; d++) w[d + R] = 0.0f;
+    if (ax->integral_abs <= 0.0f) { /* a box: the pixel itself */
+        for (int d = -R; d <= R; d++) w[d + R] = d == 0 ? 1.0f : 0.0f;
+        return R;
+    }
+    float bw = 2.0f * ax->radius / PN_FILTER_TABLE;
+    for (int b = 0; b < PN_FILTER_TABLE; b++) {
+        float c = -ax->radius + ((float)b + 0.5f) * bw;
+        int d = (int)floorf(c + 0.5f);
+        if (d >= -R && d <= R) w[d + R] += ax->f[b];
+    }
+    return R;
+}
+
+/* Replaces demod and emit by their pixel-filter-weighted means over the neighbouring pixel
+ * centres (clipped to the window): the integrator's eye rays spread over the filter's support,
+ * and one centre ray per pixel is a quadrature of that footprint at no extra cost. */
+static bool filter_primary(pn_prog *p) {
+    enum { MAXR = 4 };
+    float wx[2 * MAXR + 1], wy[2 * MAXR + 1];
+    int rx = filter_pixel_weights(&p->job.camera.filter_x, wx, MAXR);
+    int ry = filter_pixel_weights(&p->job.camera.filter_y, wy, MAXR);
+    size_t n = (size_t)p->W * (size_t)p->H;
+    float *tmp = malloc(6 * n * sizeof *tmp);
+    if (!tmp) return false;
+    float *src[2] = {p->demod, p->emit};
+    for (int a = 0; a < 2; a++) {
+        float *t = tmp + 3 * n * (size_t)a;
+        for (int y = 0; y < p->H; y++) /* horizontal pass into t */
+            for (int x = 0; x < p->W; x++) {
+                float acc[3] = {0, 0, 0}, ws = 0.0f;
+                for (int d = -rx; d <= rx; d++) {
+                    int xx = x + d;
+                    if (xx < 0 || xx >= p->W || wx[d + rx] == 0.0f) continue;
+                    const float *v = src[a] + 3 * pn_prog_index(p, xx, y);
+                    for (int c = 0; c < 3; c++) acc[c] += wx[d + rx] * v[c];
+                    ws += wx[d + rx];
+                }
+                for (int c = 0; c < 3; c++) t[3 * pn_prog_index(p, x, y) + c] = ws != 0.0f ? acc[c] / ws : 0.0f;
+            }
+    }
+    for (int a = 0; a < 2; a++) {
+        const float *t = tmp + 3 * n * (size_t)a;
+        for (int y = 0; y < p->H; y++) /* vertical pass back */
+            for (int x = 0; x < p->W; x++) {
+                float acc[3] = {0, 0, 0}, ws = 0.0f;
+                for (int d = -ry; d <= ry; d++) {
+                    int yy = y + d;
+                    if (yy < 0 || yy >= p->H || wy[d + ry] == 0.0f) continue;
+                    const float *v = t + 3 * pn_prog_index(p, x, yy);
+                    for (int c = 0; c < 3; c++) acc[c] += wy[d + ry] * v[c];
+                    ws += wy[d + ry];
+                }
+                float *o = src[a] + 3 * pn_prog_index(p, x, y);
+                for (int c = 0; c < 3; c++) o[c] = ws != 0.0f ? acc[c] / ws : t[3 * pn_prog_index(p, x, y) + c];
+            }
+    }
+    free(tmp);
+    return true;
+}
+
 /* Demodulation and emission split: what the drivers interpolate is (radiance - emitted) / albedo,
  * both known from primary rays alone, so that neither texture detail nor directly seen emitters
- * (lamps, the sky between blinds) are left to the interpolation. Where a pixel centre's values
- * differ from a 4-neighbour's (texture, silhouettes, emitter borders), one centre ray misjudges
- * the pixel, whose integrator estimate averages over its area: there the factors are the means of
- * a g x g grid of jittered primary rays instead. */
+ * (lamps, the sky between blinds) are left to the interpolation. The integrator's estimate of a
+ * pixel averages over its filter's footprint: filter_primary's mean of the centre rays stands for
+ * it, except where primary_differs finds a border (emitters, where a few per cent of coverage is a
+ * lot of light; strong albedo changes): there the factors are the means of a g x g grid of
+ * primary rays stratified over the pixel filter. */
 static void primary_refine_row(void *user, size_t row, int worker) {
     (void)worker;
     primary_run *r = user;
@@ -461,33 +533,39 @@ pn_status pn_prog_build_primary(pn_prog *p) {
         return PN_ERROR_OUT_OF_MEMORY;
     }
     pn_threadpool_run(p->pool, (size_t)p->H, primary_row, &r);
-    if (p->demod && p->primary_grid > 1) {
-        r.refine = calloc(n, 1);
-        r.mean = malloc(2 * n * sizeof *r.mean);
-        if (!r.refine || !r.mean) {
-            free(r.refine);
-            free(r.mean);
+    if (p->demod) {
+        bool grid = p->primary_grid > 1;
+        if (grid) {
+            r.refine = calloc(n, 1);
+            r.mean = malloc(2 * n * sizeof *r.mean);
+        }
+        if (grid && r.refine && r.mean) {
+            for (int y = 0; y < p->H; y++)
+                for (int x = 0; x < p->W; x++) {
+                    size_t i = pn_prog_index(p, x, y);
+                    bool d = (x > 0 && primary_differs(p, i, i - 1)) ||
+                             (x + 1 < p->W && primary_differs(p, i, i + 1)) ||
+                             (y > 0 && primary_differs(p, i, i - (size_t)p->W)) ||
+                             (y + 1 < p->H && primary_differs(p, i, i + (size_t)p->W));
+                    r.refine[i] = d;
+                    p->primary_refined += d;
+                }
+            pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
+        }
+        bool ok = (!grid || (r.refine && r.mean)) && filter_primary(p);
+        if (ok && grid)
+            for (size_t i = 0; i < n; i++)
+                if (r.refine[i]) {
+                    memcpy(p->demod + 3 * i, &r.mean[2 * i], 3 * sizeof(float));
+                    memcpy(p->emit + 3 * i, &r.mean[2 * i + 1], 3 * sizeof(float));
+                }
+        free(r.refine);
+        free(r.mean);
+        if (!ok) {
             free(r.depth);
             free(r.normal);
             return PN_ERROR_OUT_OF_MEMORY;
         }
-        for (int y = 0; y < p->H; y++)
-            for (int x = 0; x < p->W; x++) {
-                size_t i = pn_prog_index(p, x, y);
-                bool d = (x > 0 && primary_differs(p, i, i - 1)) || (x + 1 < p->W && primary_differs(p, i, i + 1)) ||
-                         (y > 0 && primary_differs(p, i, i - (size_t)p->W)) ||
-                         (y + 1 < p->H && primary_differs(p, i, i + (size_t)p->W));
-                r.refine[i] = d;
-                p->primary_refined += d;
-            }
-        pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
-        for (size_t i = 0; i < n; i++)
-            if (r.refine[i]) {
-                memcpy(p->demod + 3 * i, &r.mean[2 * i], 3 * sizeof(float));
-                memcpy(p->emit + 3 * i, &r.mean[2 * i + 1], 3 * sizeof(float));
-            }
-        free(r.refine);
-        free(r.mean);
     }
     size_t stride = (size_t)p->W + 1;
     for (int y = 0; y < p->H; y++)
