@@ -138,6 +138,7 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
     d = v3_scale(d, 1.0f / dist);
     float tmax = dist * (1.0f - 1e-4f) - c->eps;
     c->rays++;
+    c->rays_by[c->restarted ? PN_CPH_RESTART : c->phase]++;
     bool hidden;
     if (c->gradient) {
         pn_hit h;
@@ -147,6 +148,7 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
         hidden = pn_accel_occluded(c->accel, c->origin, d, 0.0f, tmax);
     }
     c->vis[k] = hidden ? VIS_HIDDEN : VIS_VISIBLE;
+    c->visible_rays += !hidden;
     return !hidden;
 }
 
@@ -266,6 +268,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     const int ci[4] = {i0, i0 + s, i0 + s, i0}, cj[4] = {j0, j0, j0 + s, j0 + s};
     bool v[4];
     int nv = 0;
+    c->phase = depth == 0 ? PN_CPH_FIRST : PN_CPH_SUBDIV;
     for (int k = 0; k < 4; k++) {
         v[k] = pn_contour_sample_visible(c, ci[k], cj[k]);
         nv += v[k];
@@ -280,6 +283,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     }
     /* Cases 2-4: crossings on the sides whose ends differ. */
     cvert x[4];
+    c->phase = PN_CPH_SIDE;
     for (int k = 0; k < 4; k++) {
         int k1 = (k + 1) & 3;
         if (v[k] != v[k1]) {
@@ -292,6 +296,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     const bool case4 = nv == 2 && v[0] == v[2];
     bool centre_visible = true;
     int mi = i0 + s / 2, mj = j0 + s / 2;
+    c->phase = PN_CPH_CENTRE;
     if (case4 && d >= 1) centre_visible = pn_contour_sample_visible(c, mi, mj);
     /* Pieces of contour: each leaves the visible region on side `exit` and comes back on side
      * `entry`; extra[] is its validity point (Fig. 4). */
@@ -312,6 +317,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     }
     const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
     if (test) {
+        c->phase = PN_CPH_DIAG;
         if (nv == 1 || nv == 3) { /* case 2: diagonal from the odd corner */
             int o = 0;
             for (int k = 0; k < 4; k++)
@@ -338,6 +344,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         if (!valid) {
             /* Quadtree subdivision. Side midpoints between equal corners are new samples; one
              * that disagrees means the neighbour's contour misses a crossing. */
+            c->phase = PN_CPH_SUBDIV;
             for (int k = 0; k < 4; k++) {
                 int k1 = (k + 1) & 3;
                 if (v[k] != v[k1]) continue;

@@ -8,6 +8,18 @@
 
 #include <stdint.h>
 
+/* What a shadow ray was traced for (bench instrumentation: PN_CONTOUR_TRACE, contour_render.c). */
+enum {
+    PN_CPH_PATTERN = 0, /* §5: first-level rays of a pixel checked against its run's pattern */
+    PN_CPH_FIRST,       /* first-level samples read by an integration (not traced by a check) */
+    PN_CPH_SIDE,        /* §3.1 dichotomy along a square's side */
+    PN_CPH_DIAG,        /* §3.2 validity point on a diagonal or semi-diagonal */
+    PN_CPH_CENTRE,      /* §3.1 case 4: the square's centre */
+    PN_CPH_SUBDIV,      /* §3.2 quadtree subdivision: side midpoints and sub-square corners */
+    PN_CPH_RESTART,     /* any ray traced by a pass restarted one level finer */
+    PN_CPH_COUNT
+};
+
 /* One approximate contour integration of one source at one receiving point M. */
 typedef struct pn_contour_eval {
     const pn_contour_source *src;
@@ -27,6 +39,10 @@ typedef struct pn_contour_eval {
     /* results */
     pn_contour_g acc;
     uint32_t rays;
+    int phase;                          /* PN_CPH_*: where the next rays are counted */
+    uint32_t rays_by[PN_CPH_COUNT];     /* rays by phase */
+    uint32_t visible_rays;              /* of `rays`, those that reached the source */
+    int why;                            /* render: 1 + why the pixel was integrated (0: it was not) */
     int max_depth;       /* deepest quadtree subdivision in the last pass */
     bool restart, restarted;
     uint32_t restarts, subdivisions;

@@ -19,6 +19,7 @@
 
 #include <stdatomic.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -50,6 +51,7 @@ typedef struct contour_data {
     int obstacle_count;
     float tol;
     int N, p0;
+    FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
 
@@ -209,6 +211,9 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     atomic_init(&cd->restarts, 0);
     atomic_init(&cd->subdivisions, 0);
     atomic_init(&cd->culled, 0);
+    /* Bench instrumentation: where the shadow rays go, per pixel (not used by tests or the CLI). */
+    const char *trace = getenv("PN_CONTOUR_TRACE");
+    if (trace && *trace) cd->trace = fopen(trace, "w");
     job->integrator_data = cd;
     return PN_OK;
 }
@@ -219,6 +224,7 @@ static pn_status contour_mc_prepare(pn_render_job *job, pn_err *err) { return co
 static void contour_release(pn_render_job *job) {
     contour_data *cd = job->integrator_data;
     if (!cd) return;
+    if (cd->trace) fclose(cd->trace);
     free(cd->lights);
     free(cd->skip);
     free(cd->obstacles);
@@ -337,6 +343,9 @@ typedef struct shade_point {
     vec3 value;      /* this eye ray's radiance so far */
     vec3 gradient;   /* this eye ray's irradiance-luminance gradient from contour lights */
     uint32_t contour_rays;
+    uint32_t rays_by[PN_CPH_COUNT], visible_rays; /* trace: rays by phase, visible ones */
+    unsigned why;    /* trace: bit r set when integrated for reason r (WHY_*) */
+    bool culled;     /* trace: a span of this pixel had no candidate obstacle */
     float fw;
     int64_t object;  /* what a span must stay on */
 } shade_point;
@@ -442,9 +451,13 @@ typedef struct span_ctx {
     span_tally t;
 } span_ctx;
 
+/* Why a pixel gets a full integration (trace statistics). */
+enum { WHY_START, WHY_CHANGE, WHY_MIDDLE, WHY_CHECK, WHY_UNIFORM, WHY_EVERY, WHY_COUNT };
+
 /* Full approximate contour integration at span pixel q with p first-level squares per side. */
-static void full_integration(span_ctx *sc, int q, int p) {
+static void full_integration(span_ctx *sc, int q, int p, int why) {
     pn_contour_eval *ev = &sc->s->ev[q];
+    ev->why |= 1 << why;
     pn_contour_integrate(ev, p);
     sc->s->g[q] = ev->acc;
     sc->t.integrations++;
@@ -454,6 +467,7 @@ static void full_integration(span_ctx *sc, int q, int p) {
 static void first_level_pattern(span_ctx *sc, int q, int p, uint8_t *pattern) {
     pn_contour_eval *ev = &sc->s->ev[q];
     int step = ev->N / p;
+    ev->phase = PN_CPH_PATTERN;
     for (int b = 0, k = 0; b <= p; b++)
         for (int a = 0; a <= p; a++, k++) pattern[k] = (uint8_t)pn_contour_sample_visible(ev, a * step, b * step);
 }
@@ -488,8 +502,8 @@ static void interpolate_run(span_ctx *sc, int a, int m, int b, int p) {
     if (b - a > PN_CONTOUR_UNCHECKED_RUN && m - a >= 2 && b - m >= 2) {
         c1 = (a + m) / 2;
         c2 = (m + b) / 2;
-        full_integration(sc, c1, p);
-        full_integration(sc, c2, p);
+        full_integration(sc, c1, p, WHY_CHECK);
+        full_integration(sc, c2, p, WHY_CHECK);
         double fa = pn_dv3_dot(s->g[a].g, s->ev[a].ns), fm = pn_dv3_dot(s->g[m].g, s->ev[m].ns);
         double fb = pn_dv3_dot(s->g[b].g, s->ev[b].ns);
         double scale = fmax(fabs(fa), fmax(fabs(fm), fabs(fb)));
@@ -536,7 +550,7 @@ static void shade_span(span_ctx *sc) {
     uint8_t key_pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
     uint8_t pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
     int key = 0;
-    full_integration(sc, key, p);
+    full_integration(sc, key, p, WHY_START);
     for (;;) {
         /* The density adapts to what the last full integration at a run's start needed. */
         const pn_contour_eval *ev = &s->ev[key];
@@ -550,7 +564,7 @@ static void shade_span(span_ctx *sc) {
         }
         if (key + 1 >= n) break;
         if (flags & PN_CONTOUR_NO_SPANS) {
-            full_integration(sc, ++key, p);
+            full_integration(sc, ++key, p, WHY_EVERY);
             continue;
         }
         /* Only first-level rays at the next pixels, while their pattern stays the same. */
@@ -566,9 +580,9 @@ static void shade_span(span_ctx *sc) {
         if (uniform) {
             /* Every first-level sample visible (or every one hidden): an integration traces no
              * more rays, so each pixel of the run gets its own. */
-            for (int q = key + 1; q < j; q++) full_integration(sc, q, p);
+            for (int q = key + 1; q < j; q++) full_integration(sc, q, p, WHY_UNIFORM);
             if (j >= n) break;
-            full_integration(sc, j, p);
+            full_integration(sc, j, p, WHY_CHANGE);
             key = j;
             continue;
         }
@@ -576,10 +590,10 @@ static void shade_span(span_ctx *sc) {
          * of the span; the pixels in between are interpolated with a third integration in the
          * middle. */
         int end = j < n ? j : n - 1;
-        if (end > key) full_integration(sc, end, p);
+        if (end > key) full_integration(sc, end, p, WHY_CHANGE);
         if (end - key >= 2) {
             int mid = (key + end) / 2;
-            full_integration(sc, mid, p);
+            full_integration(sc, mid, p, WHY_MIDDLE);
             interpolate_run(sc, key, mid, end, p);
         }
         if (j >= n) break;
@@ -652,6 +666,7 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     pn_contour_source_unoccluded(&cl->src, ev->m, ev->ns, ev->ng, gradient, &s->g[k]);
                 }
                 sc.t.culled++;
+                for (int k = 0; k < n; k++) s->sp[s->span[k]].culled = true;
             } else {
                 shade_span(&sc);
             }
@@ -669,6 +684,11 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, cl->emit));
                 sp->value = v3_add(sp->value, v3_scale(c, (float)f));
                 sp->contour_rays += s->ev[k].rays;
+                if (cd->trace) {
+                    for (int r = 0; r < PN_CPH_COUNT; r++) sp->rays_by[r] += s->ev[k].rays_by[r];
+                    sp->visible_rays += s->ev[k].visible_rays;
+                    sp->why |= (unsigned)s->ev[k].why;
+                }
                 if (gradient) {
                     float e = PN_PI * fmaxf(0.0f, v3_luminance(cl->emit));
                     sp->gradient = v3_add(sp->gradient, v3((float)pn_dv3_dot(s->g[k].dg[0], ns) * e,
@@ -751,6 +771,16 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             if (sp->contour_rays > 0 && px >= count_x0 && px < count_x1) {
                 viewing++;
                 contour_rays += sp->contour_rays;
+            }
+            if (cd->trace && i == 0 && px >= count_x0 && px < count_x1 && (sp->contour_rays > 0 || sp->culled)) {
+                /* x y class why rays-by-phase...: class 0 culled, 1 every ray visible, 2 every ray
+                 * hidden, 3 both (penumbra). */
+                int cls = sp->contour_rays == 0 ? 0 : sp->visible_rays == sp->contour_rays ? 1 : sp->visible_rays == 0 ? 2 : 3;
+                char line[160];
+                int len = snprintf(line, sizeof line, "%d %d %d %u", px, batch->pixels[q][1], cls, sp->why);
+                for (int r = 0; r < PN_CPH_COUNT; r++) len += snprintf(line + len, sizeof line - (size_t)len, " %u", sp->rays_by[r]);
+                snprintf(line + len, sizeof line - (size_t)len, "\n");
+                fputs(line, cd->trace);
             }
             a->n++;
             a->weighted_sum = v3_madd(a->weighted_sum, value, sp->fw);
