@@ -552,6 +552,49 @@ static void test_scanline_spans(void) {
     pn_context_free(ctx);
 }
 
+/* §3.2 inconsistencies without backtracking: a side whose traced samples change visibility more
+ * often than its ends is contradicted (its square must subdivide), unknown samples say nothing;
+ * a contradiction needs a restart only inside a side of a square already integrated, not at
+ * one of its corners nor beside it. */
+static void test_inconsistency_bookkeeping(void) {
+    enum { N = 8 };
+    uint8_t vis[(N + 1) * (N + 1)];
+    memset(vis, 0, sizeof vis);
+    pn_contour_eval ev;
+    memset(&ev, 0, sizeof ev);
+    ev.N = N;
+    ev.vis = vis;
+    /* Row j = 0: both ends visible (1), nothing traced inside: consistent. */
+    vis[0] = 1;
+    vis[8] = 1;
+    CHECK(!pn_contour_side_contradicted(&ev, 0, 0, 8, 0, 8));
+    CHECK(!pn_contour_side_contradicted(&ev, 8, 0, 0, 0, 8));
+    vis[4] = 1; /* a traced midpoint that agrees */
+    CHECK(!pn_contour_side_contradicted(&ev, 0, 0, 8, 0, 8));
+    vis[6] = 2; /* a hidden sample between two visible ends: two crossings the ends do not show */
+    CHECK(pn_contour_side_contradicted(&ev, 0, 0, 8, 0, 8));
+    CHECK(pn_contour_side_contradicted(&ev, 8, 0, 0, 0, 8));
+    /* Column i = 0 (stride N + 1): ends differ and one change inside is what they say. */
+    vis[8 * (N + 1)] = 2;
+    vis[2 * (N + 1)] = 1;
+    vis[6 * (N + 1)] = 2;
+    CHECK(!pn_contour_side_contradicted(&ev, 0, 0, 0, 8, 8));
+    vis[4 * (N + 1)] = 2;
+    vis[5 * (N + 1)] = 1; /* 1 . 1 . 2 1 2 . 2: three changes */
+    CHECK(pn_contour_side_contradicted(&ev, 0, 0, 0, 8, 8));
+    /* Leaves: the square (0, 0) of size 4 has been treated. */
+    CHECK(!pn_contour_treated_square_has_on_side(&ev, 2, 4));
+    pn_contour_add_leaf(&ev, 0, 0, 4);
+    CHECK(pn_contour_treated_square_has_on_side(&ev, 2, 4)); /* inside its top side */
+    CHECK(pn_contour_treated_square_has_on_side(&ev, 4, 1)); /* inside its right side */
+    CHECK(!pn_contour_treated_square_has_on_side(&ev, 4, 4)); /* its corner: it used that sample */
+    CHECK(!pn_contour_treated_square_has_on_side(&ev, 6, 4)); /* the side of an untreated square */
+    CHECK(!pn_contour_treated_square_has_on_side(&ev, 2, 2)); /* its inside, on no side */
+    /* More leaves than remembered: every contradiction restarts, as before. */
+    for (int l = 1; l <= PN_CONTOUR_MAX_LEAVES; l++) pn_contour_add_leaf(&ev, 4, 4, 4);
+    CHECK(pn_contour_treated_square_has_on_side(&ev, 6, 0));
+}
+
 static void setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_contour_XXXXXX");
     if (!mkdtemp(tmpdir)) tmpdir[0] = 0;
@@ -562,4 +605,5 @@ static void test_setup(void) { setup(); CHECK(tmpdir[0] != 0); }
 PN_TESTS(TEST(test_setup), TEST(test_rectangle_matches_closed_form), TEST(test_horizon_clipping),
          TEST(test_triangle_source), TEST(test_gradient_matches_finite_differences), TEST(test_strip_threshold),
          TEST(test_marching_squares_with_rays), TEST(test_contour_matches_reference), TEST(test_unoccluded_closed_form),
-         TEST(test_thread_determinism_and_bad_settings), TEST(test_scanline_spans))
+         TEST(test_thread_determinism_and_bad_settings), TEST(test_scanline_spans),
+         TEST(test_inconsistency_bookkeeping))

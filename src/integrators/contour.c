@@ -50,8 +50,12 @@
  *    closer to the silhouette).
  *  - The strip threshold is computed from the segment actually tested; its length halves with
  *    the square, which is the paper's "threshold divided by two".
- *  - A restart is triggered by any contradicted side midpoint that is not on the source border,
- *    without checking whether the neighbour would have subdivided anyway; and at most one
+ *  - A contradicted side midpoint (not on the source border) restarts the pass only when a square
+ *    already integrated in this pass has it inside one of its sides (the paper's "if the
+ *    neighbour had already been treated"); a square not yet treated finds the contradiction
+ *    among the samples already traced on its sides (pn_contour_side_contradicted, no rays) and
+ *    subdivides, as the paper's forced subdivision. (Before: every contradiction restarted;
+ *    bench/contour/RESULTS.md, "Where the rays go".) At most one
  *    restart per integration (PN_CONTOUR_MAX_RESTARTS): after it, inconsistencies are accepted,
  *    which leaves the neighbour's contour as coarse as if the midpoint had not been sampled.
  *  - Spans also end at multiples of contour_span in full-image x (segments), so that a crop
@@ -261,6 +265,46 @@ static bool piece_valid(const pn_contour_eval *c, cvert a, cvert x, cvert b) {
 
 /* ---- §3.1-3.2: one square of the marching squares ------------------------------------------ */
 
+void pn_contour_add_leaf(pn_contour_eval *c, int i0, int j0, int s) {
+    if (c->leaf_count < PN_CONTOUR_MAX_LEAVES) {
+        c->leaves[c->leaf_count][0] = (int16_t)i0;
+        c->leaves[c->leaf_count][1] = (int16_t)j0;
+        c->leaves[c->leaf_count][2] = (int16_t)s;
+    }
+    c->leaf_count++;
+}
+
+/* §3.2: a new sample (i, j) that contradicts the two ends of a side needs backtracking only if a
+ * square already integrated in this pass has (i, j) inside one of its sides (it integrated that
+ * side as a straight piece without the crossing). A square not yet treated will find the
+ * contradiction on its side itself (side_contradicted()) and subdivide. */
+bool pn_contour_treated_square_has_on_side(const pn_contour_eval *c, int i, int j) {
+    if (c->leaf_count > PN_CONTOUR_MAX_LEAVES) return true; /* not all remembered */
+    for (int l = 0; l < c->leaf_count; l++) {
+        int a = c->leaves[l][0], b = c->leaves[l][1], s = c->leaves[l][2];
+        bool on_h = (j == b || j == b + s) && i > a && i < a + s;
+        bool on_v = (i == a || i == a + s) && j > b && j < b + s;
+        if (on_h || on_v) return true;
+    }
+    return false;
+}
+
+/* True when the samples already traced inside the side from (ia, ja) to (ib, jb) (s cells long)
+ * change visibility more often than its ends say: the contour crosses it where the square's
+ * marching would not see it, which forces the square's subdivision (§3.2). Reads no new rays. */
+bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int ib, int jb, int s) {
+    int di = (ib - ia) / s, dj = (jb - ja) / s, changes = 0;
+    uint8_t last = c->vis[sample_index(c, ia, ja)], end = c->vis[sample_index(c, ib, jb)];
+    for (int t = 1; t < s; t++) {
+        uint8_t x = c->vis[sample_index(c, ia + t * di, ja + t * dj)];
+        if (x == VIS_UNKNOWN) continue;
+        changes += x != last;
+        last = x;
+    }
+    changes += end != last;
+    return changes > (c->vis[sample_index(c, ia, ja)] != end);
+}
+
 /* Sides k = 0..3 join corners k and k + 1 (counter-clockwise in (u, v)). */
 static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth) {
     if (c->restart) return;
@@ -276,9 +320,22 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     if (depth > c->max_depth) c->max_depth = depth;
     cvert corner[4];
     for (int k = 0; k < 4; k++) corner[k] = corner_vertex(c, ci[k], cj[k]);
-    if (nv == 0) return; /* case 1, hidden */
-    if (nv == 4) {       /* case 1, visible */
+    const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
+    bool forced = false;
+    if (test)
+        for (int k = 0; k < 4 && !forced; k++)
+            forced = pn_contour_side_contradicted(c, ci[k], cj[k], ci[(k + 1) & 3], cj[(k + 1) & 3], s);
+    if (forced) {
+        c->forced++;
+        goto subdivide;
+    }
+    if (nv == 0) { /* case 1, hidden */
+        pn_contour_add_leaf(c, i0, j0, s);
+        return;
+    }
+    if (nv == 4) { /* case 1, visible */
         add_polygon(c, corner, 4);
+        pn_contour_add_leaf(c, i0, j0, s);
         return;
     }
     /* Cases 2-4: crossings on the sides whose ends differ. */
@@ -315,7 +372,6 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         }
         pieces++;
     }
-    const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
     if (test) {
         c->phase = PN_CPH_DIAG;
         if (nv == 1 || nv == 3) { /* case 2: diagonal from the odd corner */
@@ -342,6 +398,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         for (int p = 0; p < pieces && valid; p++)
             if (has_extra[p]) valid = piece_valid(c, x[exits[p]], extra[p], x[entries[p]]);
         if (!valid) {
+        subdivide:
             /* Quadtree subdivision. Side midpoints between equal corners are new samples; one
              * that disagrees means the neighbour's contour misses a crossing. */
             c->phase = PN_CPH_SUBDIV;
@@ -351,7 +408,8 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
                 bool on_border = (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) ||
                                  (k == 3 && i0 == 0);
                 int hi = (ci[k] + ci[k1]) / 2, hj = (cj[k] + cj[k1]) / 2;
-                if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts) {
+                if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts &&
+                    pn_contour_treated_square_has_on_side(c, hi, hj)) {
                     c->restart = true;
                     return;
                 }
@@ -376,6 +434,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
             if (has_extra[p]) poly[n++] = extra[p];
             add_polygon(c, poly, n);
         }
+        pn_contour_add_leaf(c, i0, j0, s);
         return;
     }
     int n = 0;
@@ -390,6 +449,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         }
     }
     add_polygon(c, poly, n);
+    pn_contour_add_leaf(c, i0, j0, s);
 }
 
 void pn_contour_integrate(pn_contour_eval *c, int p) {
@@ -400,6 +460,7 @@ void pn_contour_integrate(pn_contour_eval *c, int p) {
         c->acc = (pn_contour_g){{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
         c->restart = false;
         c->max_depth = 0;
+        c->leaf_count = 0;
         int s = 1 << d;
         for (int b = 0; b < p && !c->restart; b++)
             for (int a = 0; a < p && !c->restart; a++) process_square(c, a * s, b * s, d, 0);

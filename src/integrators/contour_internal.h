@@ -20,6 +20,12 @@ enum {
     PN_CPH_COUNT
 };
 
+/* Squares of the current pass already integrated without subdivision, remembered so that a
+ * contradicted side midpoint restarts the pass only when such a square lies on that side
+ * (§3.2: only an already treated neighbour needs backtracking). More: treated as present. */
+#define PN_CONTOUR_MAX_LEAVES 128
+
+
 /* One approximate contour integration of one source at one receiving point M. */
 typedef struct pn_contour_eval {
     const pn_contour_source *src;
@@ -46,6 +52,9 @@ typedef struct pn_contour_eval {
     int max_depth;       /* deepest quadtree subdivision in the last pass */
     bool restart, restarted;
     uint32_t restarts, subdivisions;
+    uint32_t forced;     /* subdivisions forced by a contradiction already on a side (§3.2) */
+    int leaf_count;      /* leaves[]: (i0, j0, size) of the squares treated in this pass */
+    int16_t leaves[PN_CONTOUR_MAX_LEAVES][3];
     int p_used;          /* first-level squares per side at the end (after restarts) */
 } pn_contour_eval;
 
@@ -56,6 +65,16 @@ bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const p
 
 /* vis_M of sample (i, j) of the array (0 <= i, j <= N), tracing its ray the first time. */
 bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j);
+
+/* §3.2 inconsistencies, exposed for tests. A square integrated without subdivision in the current
+ * pass is remembered (pn_contour_add_leaf); pn_contour_treated_square_has_on_side() says whether
+ * one of them has sample (i, j) strictly inside a side (a contradiction there needs the pass to
+ * restart); pn_contour_side_contradicted() whether the samples already traced inside the side
+ * (ia, ja) -> (ib, jb), s cells long, change visibility more often than its ends say (the square
+ * must subdivide). Neither traces rays. */
+void pn_contour_add_leaf(pn_contour_eval *c, int i0, int j0, int s);
+bool pn_contour_treated_square_has_on_side(const pn_contour_eval *c, int i, int j);
+bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int ib, int jb, int s);
 
 /* The approximate contour integration of §3 with p x p first-level squares (N divisible by p,
  * N / p a power of two); the result is in c->acc (F = acc.g . ns, with the sign applied). */
