@@ -369,6 +369,7 @@ typedef struct contour_scratch {
     pn_contour_eval *ev;
     pn_contour_g *g;
     int *span;              /* batch indices of the current span */
+    int *density;           /* per contour light: first-level squares per side where the last span ended */
 } contour_scratch;
 
 static void contour_scratch_free(void *p) {
@@ -383,6 +384,7 @@ static void contour_scratch_free(void *p) {
     free(s->ev);
     free(s->g);
     free(s->span);
+    free(s->density);
     free(s);
 }
 
@@ -395,6 +397,11 @@ static void *contour_scratch_create(const pn_render_job *job) {
         return NULL;
     }
     s->array_size = (size_t)(cd->N + 1) * (size_t)(cd->N + 1);
+    s->density = calloc((size_t)cd->count + 1, sizeof *s->density);
+    if (!s->density) {
+        contour_scratch_free(s);
+        return NULL;
+    }
     return s;
 }
 
@@ -449,6 +456,7 @@ typedef struct span_ctx {
     contour_scratch *s;
     int n;
     span_tally t;
+    int *density; /* the first-level density carried from span to span along the row */
 } span_ctx;
 
 /* Why a pixel gets a full integration (trace statistics). */
@@ -542,7 +550,7 @@ static void shade_span(span_ctx *sc) {
         }
         return;
     }
-    int p = cd->p0;
+    int p = *sc->density;
     /* Raised density: at most twice the initial one per side (9 -> 25 samples by default). */
     int pmax = 2 * cd->p0;
     if (pmax > cd->N) pmax = cd->N;
@@ -599,6 +607,7 @@ static void shade_span(span_ctx *sc) {
         if (j >= n) break;
         key = j;
     }
+    *sc->density = p;
     for (int q = 0; q < n; q++) {
         sc->t.restarts += s->ev[q].restarts;
         sc->t.subdivisions += s->ev[q].subdivisions;
@@ -619,6 +628,9 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
     const int span_max = (int)job->contour_span;
     for (int li = 0; li < cd->count; li++) {
         const contour_light *cl = &cd->lights[li];
+        /* The first-level density adapts along the whole row (batch), not span by span: a span
+         * that restarted at the initial density made 8-pixel blocks at span 8. */
+        s->density[li] = cd->p0;
         int q = 0;
         while (q < batch->count) {
             /* A span: adjacent pixels of a row on the same object that see the source. */
@@ -658,7 +670,7 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
             }
             if (n == 0) continue;
-            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}};
+            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}, &s->density[li]};
             if (!(job->contour_flags & PN_CONTOUR_NO_SHAFT_CULLING) && !shaft_has_candidates(cd, cl, smin, smax)) {
                 /* Empty candidate list: the unoccluded closed form, no shadow rays. */
                 for (int k = 0; k < n; k++) {
