@@ -245,6 +245,8 @@ static void test_marching_squares_with_rays(void) {
     const int N = 2 << 8; /* 3 x 3 first-level samples, 8 dichotomy steps */
     uint8_t *vis = calloc((size_t)(N + 1) * (N + 1), 1);
     float *thit = calloc((size_t)(N + 1) * (N + 1), sizeof *thit);
+    uint8_t *vis2 = calloc((size_t)(N + 1) * (N + 1), 1);
+    float *thit2 = calloc((size_t)(N + 1) * (N + 1), sizeof *thit2);
     const pn_dvec3 points[] = {{0.2, -0.3, 0}, {-0.4, 0.5, 0.2}, {0.7, 0.05, -0.3}};
     for (size_t i = 0; i < sizeof points / sizeof points[0] && vis && thit; i++) {
         pn_dvec3 m = points[i];
@@ -262,9 +264,35 @@ static void test_marching_squares_with_rays(void) {
             double dg = pn_dv3_dot(ev.acc.dg[k], N_UP), dge = pn_dv3_dot(exact.dg[k], N_UP);
             CHECK_MSG(fabs(dg - dge) <= 0.03 * fabs(dge) + 1e-3, "point %zu axis %d: %g vs exact %g", i, k, dg, dge);
         }
+        /* A nearby point with this point's samples as the dichotomies' hint: the same precision
+         * with fewer rays than without it; a hint from far away (the contour elsewhere) still
+         * gives the right form factor, by the dichotomy. */
+        if (vis2 && thit2) {
+            const double shifts[2] = {0.002, 0.6}; /* the edge moves half a cell (2/512), or far */
+            for (int h = 0; h < 2; h++) {
+                pn_dvec3 m2 = pn_dv3_add(m, pn_dv3(0, shifts[h], 0));
+                pn_contour_eval plain, hinted;
+                memset(vis2, 0, (size_t)(N + 1) * (N + 1));
+                CHECK(pn_contour_eval_setup(&plain, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vis2, thit2,
+                                            false, 7));
+                pn_contour_integrate(&plain, 2);
+                memset(vis2, 0, (size_t)(N + 1) * (N + 1));
+                CHECK(pn_contour_eval_setup(&hinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vis2, thit2,
+                                            false, 7));
+                hinted.hint = vis;
+                pn_contour_integrate(&hinted, 2);
+                double fe2 = pn_dv3_dot(occluded_g(&cfg, m2, true).g, N_UP);
+                CHECK_NEAR(pn_dv3_dot(hinted.acc.g, N_UP), fe2, 0.01 * fe2);
+                CHECK_NEAR(pn_dv3_dot(plain.acc.g, N_UP), fe2, 0.01 * fe2);
+                if (h == 0) CHECK_MSG(hinted.rays < plain.rays, "point %zu: %u rays with the hint, %u without", i,
+                                      hinted.rays, plain.rays);
+            }
+        }
     }
     free(vis);
     free(thit);
+    free(vis2);
+    free(thit2);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }

@@ -48,7 +48,8 @@ typedef struct pn_contour_eval {
     int phase;                          /* PN_CPH_*: where the next rays are counted */
     uint32_t rays_by[PN_CPH_COUNT];     /* rays by phase */
     uint32_t visible_rays;              /* of `rays`, those that reached the source */
-    int why;                            /* render: 1 + why the pixel was integrated (0: it was not) */
+    int why;                            /* render: why the pixel was integrated (bits; 0: it was not) */
+    const uint8_t *hint; /* the sample array of a nearby pixel already integrated, or NULL */
     int max_depth;       /* deepest quadtree subdivision in the last pass */
     bool restart, restarted;
     uint32_t restarts, subdivisions;

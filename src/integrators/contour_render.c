@@ -370,6 +370,8 @@ typedef struct contour_scratch {
     pn_contour_g *g;
     int *span;              /* batch indices of the current span */
     int *density;           /* per contour light: first-level squares per side where the last span ended */
+    uint8_t *carry;         /* per contour light: the sample array of the last pixel integrated in the row */
+    int *carry_x;           /* its image x (INT32_MIN: none) */
 } contour_scratch;
 
 static void contour_scratch_free(void *p) {
@@ -385,6 +387,8 @@ static void contour_scratch_free(void *p) {
     free(s->g);
     free(s->span);
     free(s->density);
+    free(s->carry);
+    free(s->carry_x);
     free(s);
 }
 
@@ -398,7 +402,9 @@ static void *contour_scratch_create(const pn_render_job *job) {
     }
     s->array_size = (size_t)(cd->N + 1) * (size_t)(cd->N + 1);
     s->density = calloc((size_t)cd->count + 1, sizeof *s->density);
-    if (!s->density) {
+    s->carry = malloc(s->array_size * ((size_t)cd->count + 1));
+    s->carry_x = calloc((size_t)cd->count + 1, sizeof *s->carry_x);
+    if (!s->density || !s->carry || !s->carry_x) {
         contour_scratch_free(s);
         return NULL;
     }
@@ -457,7 +463,14 @@ typedef struct span_ctx {
     int n;
     span_tally t;
     int *density; /* the first-level density carried from span to span along the row */
+    int x0;       /* image x of the span's first pixel (span pixels are adjacent) */
+    uint8_t *carry;
+    int *carry_x;
 } span_ctx;
+
+/* Our departure (contour.c's header): integrations take the crossings of a pixel integrated before,
+ * at most this many pixels away along the row, as the first guess of their dichotomies. */
+#define PN_CONTOUR_HINT_DISTANCE 8
 
 /* Why a pixel gets a full integration (trace statistics). */
 enum { WHY_START, WHY_CHANGE, WHY_MIDDLE, WHY_CHECK, WHY_UNIFORM, WHY_EVERY, WHY_COUNT };
@@ -466,6 +479,16 @@ enum { WHY_START, WHY_CHANGE, WHY_MIDDLE, WHY_CHECK, WHY_UNIFORM, WHY_EVERY, WHY
 static void full_integration(span_ctx *sc, int q, int p, int why) {
     pn_contour_eval *ev = &sc->s->ev[q];
     ev->why |= 1 << why;
+    /* The hint for its dichotomies: the nearest pixel of the span integrated before it, or the
+     * last one integrated in the row before the span, at most PN_CONTOUR_HINT_DISTANCE away. */
+    ev->hint = NULL;
+    int best = -1;
+    for (int k = 0; k < sc->n; k++)
+        if (k != q && sc->s->ev[k].why && (best < 0 || abs(k - q) < abs(best - q))) best = k;
+    if (best >= 0 && abs(best - q) <= PN_CONTOUR_HINT_DISTANCE) ev->hint = sc->s->vis + (size_t)best * sc->s->array_size;
+    int cx = *sc->carry_x;
+    if (cx != INT32_MIN && sc->x0 + q - cx <= PN_CONTOUR_HINT_DISTANCE && (best < 0 || sc->x0 + q - cx < abs(best - q)))
+        ev->hint = sc->carry;
     pn_contour_integrate(ev, p);
     sc->s->g[q] = ev->acc;
     sc->t.integrations++;
@@ -608,6 +631,12 @@ static void shade_span(span_ctx *sc) {
         key = j;
     }
     *sc->density = p;
+    for (int q = n - 1; q >= 0; q--)
+        if (s->ev[q].why) {
+            memcpy(sc->carry, s->vis + (size_t)q * s->array_size, s->array_size);
+            *sc->carry_x = sc->x0 + q;
+            break;
+        }
     for (int q = 0; q < n; q++) {
         sc->t.restarts += s->ev[q].restarts;
         sc->t.subdivisions += s->ev[q].subdivisions;
@@ -631,6 +660,7 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
         /* The first-level density adapts along the whole row (batch), not span by span: a span
          * that restarted at the initial density made 8-pixel blocks at span 8. */
         s->density[li] = cd->p0;
+        s->carry_x[li] = INT32_MIN;
         int q = 0;
         while (q < batch->count) {
             /* A span: adjacent pixels of a row on the same object that see the source. */
@@ -670,7 +700,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
             }
             if (n == 0) continue;
-            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}, &s->density[li]};
+            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}, &s->density[li], batch->pixels[s->span[0]][0],
+                           s->carry + (size_t)li * s->array_size, &s->carry_x[li]};
             if (!(job->contour_flags & PN_CONTOUR_NO_SHAFT_CULLING) && !shaft_has_candidates(cd, cl, smin, smax)) {
                 /* Empty candidate list: the unoccluded closed form, no shadow rays. */
                 for (int k = 0; k < n; k++) {
