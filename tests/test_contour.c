@@ -623,6 +623,33 @@ static void test_inconsistency_bookkeeping(void) {
     CHECK(pn_contour_treated_square_has_on_side(&ev, 6, 0));
 }
 
+/* The pattern check's samples (§5, our departure): those next to a sample of the other
+ * visibility. A 3 x 3 pattern whose left column is hidden: the left and middle columns; a hidden
+ * corner: it and its two neighbours; a single hidden centre: the centre and its 4 neighbours. */
+static void test_pattern_boundary(void) {
+    const uint8_t left[9] = {0, 1, 1, 0, 1, 1, 0, 1, 1};
+    const uint8_t corner[9] = {0, 1, 1, 1, 1, 1, 1, 1, 1};
+    const uint8_t centre[9] = {1, 1, 1, 1, 0, 1, 1, 1, 1};
+    const uint8_t want_left[9] = {1, 1, 0, 1, 1, 0, 1, 1, 0};
+    const uint8_t want_corner[9] = {1, 1, 0, 1, 0, 0, 0, 0, 0};
+    const uint8_t want_centre[9] = {0, 1, 0, 1, 1, 1, 0, 1, 0};
+    uint8_t mask[9];
+    pn_contour_pattern_boundary(left, 2, mask);
+    CHECK(memcmp(mask, want_left, 9) == 0);
+    pn_contour_pattern_boundary(corner, 2, mask);
+    CHECK(memcmp(mask, want_corner, 9) == 0);
+    pn_contour_pattern_boundary(centre, 2, mask);
+    CHECK(memcmp(mask, want_centre, 9) == 0);
+    /* 5 x 5 with a hidden 2 x 2 block in a corner: 4 + 4 samples. */
+    uint8_t big[25], m25[25];
+    for (int k = 0; k < 25; k++) big[k] = (k % 5 < 2 && k / 5 < 2) ? 0 : 1;
+    pn_contour_pattern_boundary(big, 4, m25);
+    int count = 0;
+    for (int k = 0; k < 25; k++) count += m25[k];
+    CHECK(count == 3 + 4); /* hidden (0,0) has only hidden neighbours: not checked */
+    CHECK(!m25[0] && m25[1] && m25[5] && m25[6] && m25[2] && m25[7] && m25[10] && m25[11]);
+}
+
 static void setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_contour_XXXXXX");
     if (!mkdtemp(tmpdir)) tmpdir[0] = 0;
@@ -634,4 +661,4 @@ PN_TESTS(TEST(test_setup), TEST(test_rectangle_matches_closed_form), TEST(test_h
          TEST(test_triangle_source), TEST(test_gradient_matches_finite_differences), TEST(test_strip_threshold),
          TEST(test_marching_squares_with_rays), TEST(test_contour_matches_reference), TEST(test_unoccluded_closed_form),
          TEST(test_thread_determinism_and_bad_settings), TEST(test_scanline_spans),
-         TEST(test_inconsistency_bookkeeping))
+         TEST(test_inconsistency_bookkeeping), TEST(test_pattern_boundary))

@@ -64,6 +64,11 @@
  *    else the paper's dichotomy runs. The paper shares no ray between pixels and neither does
  *    this (the guess is checked with this pixel's own rays); the vertex keeps the dichotomy's
  *    one-cell precision. (bench/contour/RESULTS.md: 48.7 -> 41.1 rays per viewing ray at span 8.)
+ *  - The pattern check of §5 traces, at the pixels after a run's first, only the first-level
+ *    samples next to a sample of the other visibility in the run's pattern (all of them when
+ *    the pattern is uniform): a contour that moves changes the pattern there first. An occluded
+ *    island that appears at a sample far from the contour is seen at the run's next integration
+ *    instead. (8-13% fewer rays at the same average difference, bench/contour/RESULTS.md.)
  *  - The first-level density adapts along the whole row rather than per span (§5 does not say
  *    it restarts with each span; restarting made 8-pixel blocks).
  *  - Spans also end at multiples of contour_span in full-image x (segments), so that a crop

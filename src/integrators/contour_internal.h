@@ -81,6 +81,11 @@ bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int 
  * N / p a power of two); the result is in c->acc (F = acc.g . ns, with the sign applied). */
 void pn_contour_integrate(pn_contour_eval *c, int p);
 
+/* §5's pattern check (contour_render.c, our departure): mask[k] = 1 for the samples of a
+ * (p + 1) x (p + 1) first-level pattern (row by row) that have a 4-neighbour of the other
+ * visibility; the following pixels of a run check only those. */
+void pn_contour_pattern_boundary(const uint8_t *pattern, int p, uint8_t *mask);
+
 /* contour-mc (contour_mc.c): adaptive Monte Carlo sampling of the source in the manner of Kok &
  * Jansen 1992, with the same receiver setup, from cells x cells first cells; returns the form factor estimate and adds its rays
  * to c->rays. */

@@ -494,6 +494,16 @@ static void full_integration(span_ctx *sc, int q, int p, int why) {
     sc->t.integrations++;
 }
 
+void pn_contour_pattern_boundary(const uint8_t *pattern, int p, uint8_t *mask) {
+    for (int b = 0; b <= p; b++)
+        for (int a = 0; a <= p; a++) {
+            int k = b * (p + 1) + a;
+            uint8_t x = pattern[k];
+            mask[k] = (a > 0 && pattern[k - 1] != x) || (a < p && pattern[k + 1] != x) ||
+                      (b > 0 && pattern[k - p - 1] != x) || (b < p && pattern[k + p + 1] != x);
+        }
+}
+
 /* First-level pattern of pixel q at density p (traces the rays not yet traced). */
 static void first_level_pattern(span_ctx *sc, int q, int p, uint8_t *pattern) {
     pn_contour_eval *ev = &sc->s->ev[q];
@@ -579,7 +589,6 @@ static void shade_span(span_ctx *sc) {
     if (pmax > cd->N) pmax = cd->N;
     if (pmax > PN_CONTOUR_MAX_P) pmax = PN_CONTOUR_MAX_P;
     uint8_t key_pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
-    uint8_t pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
     int key = 0;
     full_integration(sc, key, p, WHY_START);
     for (;;) {
@@ -604,9 +613,20 @@ static void shade_span(span_ctx *sc) {
         bool uniform = true;
         for (int k = 1; k < np; k++) uniform = uniform && key_pattern[k] == key_pattern[0];
         int j = key + 1;
+        /* Our departure: only the samples next to a sample of the other visibility in the run's
+         * pattern (where a moving contour changes the pattern first) are checked, unless the
+         * pattern is uniform (then all are). */
+        uint8_t mask[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
+        if (!uniform) pn_contour_pattern_boundary(key_pattern, p, mask);
+        else memset(mask, 1, (size_t)np);
         for (; j < n; j++) {
-            first_level_pattern(sc, j, p, pattern);
-            if (memcmp(pattern, key_pattern, (size_t)np) != 0) break;
+            pn_contour_eval *ej = &s->ev[j];
+            int step = ej->N / p;
+            ej->phase = PN_CPH_PATTERN;
+            bool same = true;
+            for (int k = 0; k < np && same; k++)
+                if (mask[k]) same = (uint8_t)pn_contour_sample_visible(ej, k % (p + 1) * step, k / (p + 1) * step) == key_pattern[k];
+            if (!same) break;
         }
         if (uniform) {
             /* Every first-level sample visible (or every one hidden): an integration traces no
