@@ -69,6 +69,10 @@
  *    the pattern is uniform): a contour that moves changes the pattern there first. An occluded
  *    island that appears at a sample far from the contour is seen at the run's next integration
  *    instead. (8-13% fewer rays at the same average difference, bench/contour/RESULTS.md.)
+ *  - Spans also end where the shading normal turns by more than about 25 degrees between two
+ *    adjacent pixels (PN_CONTOUR_SPAN_CREASE_COS): the paper's spans cover "the same object",
+ *    and across a crease of one mesh (a box's edge) interpolating G from one face onto the other
+ *    is wrong where their horizons cut the source differently.
  *  - The first-level density adapts along the whole row rather than per span (§5 does not say
  *    it restarts with each span; restarting made 8-pixel blocks).
  *  - Spans also end at multiples of contour_span in full-image x (segments), so that a crop

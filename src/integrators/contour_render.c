@@ -472,6 +472,11 @@ typedef struct span_ctx {
  * at most this many pixels away along the row, as the first guess of their dichotomies. */
 #define PN_CONTOUR_HINT_DISTANCE 8
 
+/* Spans end where the shading normal turns by more than about 25 degrees between two pixels (a
+ * crease of one mesh: a box's edge, a wall meeting the floor): G interpolated from one face is
+ * wrong on the other, where other parts of the source are above the horizon. */
+#define PN_CONTOUR_SPAN_CREASE_COS 0.9f
+
 /* Why a pixel gets a full integration (trace statistics). */
 enum { WHY_START, WHY_CHANGE, WHY_MIDDLE, WHY_CHECK, WHY_UNIFORM, WHY_EVERY, WHY_COUNT };
 
@@ -698,7 +703,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     /* Spans also end at multiples of the maximum length in full-image x, so that
                      * they do not depend on where a crop window or a batch begins. */
                     if (batch->pixels[q][1] != batch->pixels[pq][1] || batch->pixels[q][0] != batch->pixels[pq][0] + 1 ||
-                        sp->object != prev->object || batch->pixels[q][0] % span_max == 0)
+                        sp->object != prev->object || batch->pixels[q][0] % span_max == 0 ||
+                        v3_dot(sp->b.ns, prev->b.ns) < PN_CONTOUR_SPAN_CREASE_COS)
                         break;
                 }
                 pn_contour_eval *ev = &s->ev[n];
