@@ -369,9 +369,11 @@ typedef struct contour_scratch {
     pn_contour_eval *ev;
     pn_contour_g *g;
     int *span;              /* batch indices of the current span */
-    int *density;           /* per contour light: first-level squares per side where the last span ended */
-    uint8_t *carry;         /* per contour light: the sample array of the last pixel integrated in the row */
-    int *carry_x;           /* its image x (INT32_MIN: none) */
+    /* Along the row, for the contour light being shaded (lights are shaded one after another,
+     * each over the whole row): */
+    int density;            /* first-level squares per side where the last span ended */
+    uint8_t *carry;         /* the sample array of the last pixel integrated */
+    int carry_x;            /* its image x (INT32_MIN: none) */
 } contour_scratch;
 
 static void contour_scratch_free(void *p) {
@@ -386,9 +388,7 @@ static void contour_scratch_free(void *p) {
     free(s->ev);
     free(s->g);
     free(s->span);
-    free(s->density);
     free(s->carry);
-    free(s->carry_x);
     free(s);
 }
 
@@ -401,10 +401,8 @@ static void *contour_scratch_create(const pn_render_job *job) {
         return NULL;
     }
     s->array_size = (size_t)(cd->N + 1) * (size_t)(cd->N + 1);
-    s->density = calloc((size_t)cd->count + 1, sizeof *s->density);
-    s->carry = malloc(s->array_size * ((size_t)cd->count + 1));
-    s->carry_x = calloc((size_t)cd->count + 1, sizeof *s->carry_x);
-    if (!s->density || !s->carry || !s->carry_x) {
+    s->carry = malloc(s->array_size);
+    if (!s->carry) {
         contour_scratch_free(s);
         return NULL;
     }
@@ -684,8 +682,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
         const contour_light *cl = &cd->lights[li];
         /* The first-level density adapts along the whole row (batch), not span by span: a span
          * that restarted at the initial density made 8-pixel blocks at span 8. */
-        s->density[li] = cd->p0;
-        s->carry_x[li] = INT32_MIN;
+        s->density = cd->p0;
+        s->carry_x = INT32_MIN;
         int q = 0;
         while (q < batch->count) {
             /* A span: adjacent pixels of a row on the same object that see the source. */
@@ -726,8 +724,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
             }
             if (n == 0) continue;
-            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}, &s->density[li], batch->pixels[s->span[0]][0],
-                           s->carry + (size_t)li * s->array_size, &s->carry_x[li]};
+            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}, &s->density, batch->pixels[s->span[0]][0], s->carry,
+                           &s->carry_x};
             if (!(job->contour_flags & PN_CONTOUR_NO_SHAFT_CULLING) && !shaft_has_candidates(cd, cl, smin, smax)) {
                 /* Empty candidate list: the unoccluded closed form, no shadow rays. */
                 for (int k = 0; k < n; k++) {
