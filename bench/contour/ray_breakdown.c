@@ -13,13 +13,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-enum { PHASES = 7, CLASSES = 4, WHYS = 6 };
+enum { PHASES = 7, CLASSES = 4, WHYS = 5 };
 static const char *phase_name[PHASES] = {"pattern check", "first level", "side dichotomy", "validity (diagonals)",
                                          "case-4 centre", "subdivision", "restart pass"};
 static const char *class_name[CLASSES] = {"no candidate obstacle (culled)", "every ray visible", "every ray hidden",
                                           "penumbra (both)"};
-static const char *why_name[WHYS] = {"span start", "pattern changed / span end", "run middle", "run check",
-                                     "uniform run", "every pixel (spans off)"};
+static const char *why_name[WHYS] = {"span start", "pattern changed / span end", "run middle", "uniform run",
+                                     "every pixel (spans off)"};
 
 static int to_8bit(float linear) {
     double v = linear <= 0.0f ? 0.0 : (double)linear;

@@ -476,7 +476,7 @@ typedef struct span_ctx {
 #define PN_CONTOUR_SPAN_CREASE_COS 0.9f
 
 /* Why a pixel gets a full integration (trace statistics). */
-enum { WHY_START, WHY_CHANGE, WHY_MIDDLE, WHY_CHECK, WHY_UNIFORM, WHY_EVERY, WHY_COUNT };
+enum { WHY_START, WHY_CHANGE, WHY_MIDDLE, WHY_UNIFORM, WHY_EVERY, WHY_COUNT };
 
 /* Full approximate contour integration at span pixel q with p first-level squares per side. */
 static void full_integration(span_ctx *sc, int q, int p, int why) {
@@ -528,44 +528,13 @@ static pn_contour_g quadratic_g(const contour_scratch *s, int a, int m, int b, i
     return g;
 }
 
-/* Our addition for long spans: |F(quadratic) - F(integrated)| at a check point, relative to the
- * largest |F| of the three integrations, above which a run is split. */
-#define PN_CONTOUR_RUN_TOLERANCE 0.01
-/* Runs up to this many pixels (the driver's former batch rows) are interpolated unchecked. */
-#define PN_CONTOUR_UNCHECKED_RUN 8
-
 /* The pixels strictly between a and b, with full integrations at a, m and b, get G by quadratic
- * interpolation (§5). A run longer than PN_CONTOUR_UNCHECKED_RUN is first checked: full
- * integrations at the middles of [a, m] and [m, b] are compared with the quadratic; if either
- * differs by more than the tolerance the two halves are interpolated separately (recursively,
- * with the check points as their middles), so a long run along a scanline cannot smear a
- * penumbra that the first-level pattern did not see change. */
-static void interpolate_run(span_ctx *sc, int a, int m, int b, int p) {
+ * interpolation (§5). (Branch contour-spans checked runs over 8 pixels with two more
+ * integrations; with spans ending at creases it no longer paid: bench/contour/RESULTS.md.) */
+static void interpolate_run(span_ctx *sc, int a, int m, int b) {
     contour_scratch *s = sc->s;
-    int c1 = -1, c2 = -1;
-    if (b - a > PN_CONTOUR_UNCHECKED_RUN && m - a >= 2 && b - m >= 2) {
-        c1 = (a + m) / 2;
-        c2 = (m + b) / 2;
-        full_integration(sc, c1, p, WHY_CHECK);
-        full_integration(sc, c2, p, WHY_CHECK);
-        double fa = pn_dv3_dot(s->g[a].g, s->ev[a].ns), fm = pn_dv3_dot(s->g[m].g, s->ev[m].ns);
-        double fb = pn_dv3_dot(s->g[b].g, s->ev[b].ns);
-        double scale = fmax(fabs(fa), fmax(fabs(fm), fabs(fb)));
-        bool ok = true;
-        for (int c = 0; c < 2 && ok; c++) {
-            int q = c ? c2 : c1;
-            pn_contour_g g = quadratic_g(s, a, m, b, q);
-            double err = fabs(pn_dv3_dot(g.g, s->ev[q].ns) - pn_dv3_dot(s->g[q].g, s->ev[q].ns));
-            ok = err <= PN_CONTOUR_RUN_TOLERANCE * scale;
-        }
-        if (!ok) {
-            interpolate_run(sc, a, c1, m, p);
-            interpolate_run(sc, m, c2, b, p);
-            return;
-        }
-    }
     for (int q = a + 1; q < b; q++) {
-        if (q == m || q == c1 || q == c2) continue;
+        if (q == m) continue;
         s->g[q] = quadratic_g(s, a, m, b, q);
         sc->t.interpolated++;
     }
@@ -648,7 +617,7 @@ static void shade_span(span_ctx *sc) {
         if (end - key >= 2) {
             int mid = (key + end) / 2;
             full_integration(sc, mid, p, WHY_MIDDLE);
-            interpolate_run(sc, key, mid, end, p);
+            interpolate_run(sc, key, mid, end);
         }
         if (j >= n) break;
         key = j;
