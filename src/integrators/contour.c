@@ -37,7 +37,7 @@
  *    integration (it opens the next run), so does the middle of the run, and the pixels in
  *    between get G by quadratic interpolation, projected on their own normal. The first-level
  *    density doubles after an integration that subdivided to depth two or restarted, and halves
- *    again after one that needed no subdivision.
+ *    again after one that needed no subdivision. Where the rays go: bench/contour/RESULTS.md.
  *
  * Departures from the paper, and why:
  *  - Each square's visible part is integrated as its own closed polygon (the square's visible

@@ -1,9 +1,11 @@
 /* contour_render.c — the image algorithm of Vedel 1993 §5 around the contour integration of §3
  * (contour.c): the image by scanlines (the default driver's whole-image hook, one job per row),
  * spans of pixels along a row, shaft culling (Haines & Wallace 1991), first-level ray patterns
- * reused along a span with quadratic interpolation in between (checked on long runs), adaptive
- * first-level density; and the `contour` / `contour-mc` integrators that shade with it. See
- * contour.c's header for the paper's parts and our departures.
+ * reused along a span with quadratic interpolation in between, adaptive first-level density
+ * carried along the row, spans ending at creases, the dichotomy hints of a nearby pixel; and the
+ * `contour` / `contour-mc` integrators that shade with it. See contour.c's header for the paper's
+ * parts and our departures. With PN_CONTOUR_TRACE=FILE in the environment, the rays of every
+ * counted pixel are written to FILE by phase (bench/contour/breakdown.sh).
  *
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
  * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
