@@ -53,8 +53,10 @@ scene() {
     for spec in "contour-paper;contour, the paper's 9 samples and 5 steps;--integrator contour" \
                 "contour-g5s4;contour tuned;--integrator contour --contour-grid 5 --contour-steps 4" \
                 "contour-g7s3;contour tuned;--integrator contour --contour-grid 7 --contour-steps 3 --contour-off adaptive" \
+                "contour-g6s3;contour tuned, fixed 6x6 first level, span 64;--integrator contour --contour-grid 6 --contour-steps 3 --contour-off adaptive --contour-span 64" \
                 "mc-same-rays;adaptive MC at about contour-paper's rays;--integrator contour-mc --contour-grid 3 --mc-threshold 0.02" \
                 "mc-g9;adaptive MC;--integrator contour-mc --contour-grid 9 --mc-threshold 0.02" \
+                "mc-g10;adaptive MC at about contour-g6s3's quality;--integrator contour-mc --contour-grid 10 --mc-threshold 0.02" \
                 "mc-g13;adaptive MC tuned to contour-g7s3's quality;--integrator contour-mc --contour-grid 13 --mc-threshold 0.02" \
                 ${EXTRA:+"$EXTRA"}; do
         n=${spec%%;*}; rest=${spec#*;}; label=${rest%%;*}; args=${rest#*;}

@@ -37,7 +37,7 @@
  *    integration (it opens the next run), so does the middle of the run, and the pixels in
  *    between get G by quadratic interpolation, projected on their own normal. The first-level
  *    density doubles after an integration that subdivided to depth two or restarted, and halves
- *    again after one that needed no subdivision.
+ *    again after one that needed no subdivision. Where the rays go: bench/contour/RESULTS.md.
  *
  * Departures from the paper, and why:
  *  - Each square's visible part is integrated as its own closed polygon (the square's visible
@@ -50,21 +50,42 @@
  *    closer to the silhouette).
  *  - The strip threshold is computed from the segment actually tested; its length halves with
  *    the square, which is the paper's "threshold divided by two".
- *  - A restart is triggered by any contradicted side midpoint that is not on the source border,
- *    without checking whether the neighbour would have subdivided anyway; and at most one
+ *  - A contradicted side midpoint (not on the source border) restarts the pass only when a square
+ *    already integrated in this pass has it inside one of its sides (the paper's "if the
+ *    neighbour had already been treated"); a square not yet treated finds the contradiction
+ *    among the samples already traced on its sides (pn_contour_side_contradicted, no rays) and
+ *    subdivides, as the paper's forced subdivision. (Before: every contradiction restarted;
+ *    bench/contour/RESULTS.md, "Where the rays go".) At most one
  *    restart per integration (PN_CONTOUR_MAX_RESTARTS): after it, inconsistencies are accepted,
  *    which leaves the neighbour's contour as coarse as if the midpoint had not been sampled.
+ *  - Dichotomies start from a guess (dichotomy()): the final interval where the nearest pixel
+ *    integrated before (at most 8 pixels away on the row, PN_CONTOUR_HINT_DISTANCE in
+ *    contour_render.c) saw the contour cross the same array line; two or three rays confirm it,
+ *    else the paper's dichotomy runs. The paper shares no ray between pixels and neither does
+ *    this (the guess is checked with this pixel's own rays); the vertex keeps the dichotomy's
+ *    one-cell precision. (bench/contour/RESULTS.md: 48.7 -> 41.1 rays per viewing ray at span 8.)
+ *  - The pattern check of §5 traces, at the pixels after a run's first, only the first-level
+ *    samples next to a sample of the other visibility in the run's pattern (all of them when
+ *    the pattern is uniform): a contour that moves changes the pattern there first. An occluded
+ *    island that appears at a sample far from the contour is seen at the run's next integration
+ *    instead. (8-13% fewer rays at the same average difference, bench/contour/RESULTS.md.)
+ *  - Spans also end where the shading normal turns by more than about 25 degrees between two
+ *    adjacent pixels (PN_CONTOUR_SPAN_CREASE_COS): the paper's spans cover "the same object",
+ *    and across a crease of one mesh (a box's edge) interpolating G from one face onto the other
+ *    is wrong where their horizons cut the source differently.
+ *  - The first-level density adapts along the whole row rather than per span (§5 does not say
+ *    it restarts with each span; restarting made 8-pixel blocks).
  *  - Spans also end at multiples of contour_span in full-image x (segments), so that a crop
  *    window renders exactly the pixels of the full image: a row job renders the window's row
  *    widened to whole segments and keeps the window's pixels (the extra pixels' rays are not
  *    counted in the statistics). Drivers that hand out batches (the progressive ones) get spans
  *    inside their batch rows as before. A run whose first-level samples are all visible (or all
  *    hidden) is integrated at every pixel, which costs no ray beyond the first level.
- *  - Runs longer than 8 pixels (possible now that spans follow scanlines) are checked before
- *    the quadratic interpolation: two more full integrations, at the middles of the run's
- *    halves; if the quadratic misses either by more than 1% of F the halves are interpolated
- *    separately, recursively (interpolate_run()). Without it, long runs whose first-level
- *    pattern does not change smeared penumbrae into streaks along the scanlines. The raised first-level density is at most twice
+ *  - (Branch contour-spans checked runs longer than 8 pixels with two more integrations before
+ *    the quadratic interpolation; the streaks it removed came mostly from spans that crossed
+ *    creases, and with spans ending there the check cost 8-26% of the rays on cornell-contour
+ *    for no better average difference, so interpolation is the paper's again.)
+ *  - The raised first-level density is at most twice
  *    the initial one per side (25 samples by default): more made every pattern check of a span
  *    cost 81 rays or more.
  *  - Rays to samples on the source's border aim a hair inside it (PN_CONTOUR_BORDER_INSET), so
@@ -138,6 +159,7 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
     d = v3_scale(d, 1.0f / dist);
     float tmax = dist * (1.0f - 1e-4f) - c->eps;
     c->rays++;
+    c->rays_by[c->restarted ? PN_CPH_RESTART : c->phase]++;
     bool hidden;
     if (c->gradient) {
         pn_hit h;
@@ -147,6 +169,7 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
         hidden = pn_accel_occluded(c->accel, c->origin, d, 0.0f, tmax);
     }
     c->vis[k] = hidden ? VIS_HIDDEN : VIS_VISIBLE;
+    c->visible_rays += !hidden;
     return !hidden;
 }
 
@@ -163,10 +186,45 @@ static cvert corner_vertex(const pn_contour_eval *c, int i, int j) {
 }
 
 /* Dichotomy along the array line from sample a to sample b (different visibility, 2^steps
- * cells apart): `steps` second-level rays; the vertex is the midpoint of the final interval. */
+ * cells apart): `steps` second-level rays; the vertex is the midpoint of the final interval.
+ * With a hint (the sample array of a nearby pixel integrated before, contour_render.c), the
+ * final interval where the hint's traced samples change along the line is tried first: if this
+ * pixel's samples at its ends differ the same way (2 rays), or those of the interval next to it
+ * on the side they point to (1 more), that is this pixel's final interval, without dichotomy.
+ * The vertex then has the dichotomy's precision (one cell); only which crossing is found, when
+ * the line crosses the contour several times, may differ. */
 static cvert dichotomy(pn_contour_eval *c, int ia, int ja, int ib, int jb, int steps) {
     bool va = pn_contour_sample_visible(c, ia, ja);
-    for (int s = 0; s < steps; s++) {
+    int s = 0;
+    if (c->hint && steps >= 2) {
+        /* The final interval where the nearby pixel's traced samples change along this line:
+         * if this pixel's samples at its ends differ the same way, the crossing is there. */
+        int n = 1 << steps, di = (ib - ia) / n, dj = (jb - ja) / n;
+        for (int t = 0; t < n; t++) {
+            uint8_t h0 = c->hint[sample_index(c, ia + t * di, ja + t * dj)];
+            uint8_t h1 = c->hint[sample_index(c, ia + (t + 1) * di, ja + (t + 1) * dj)];
+            if (!h0 || !h1 || h0 == h1) continue;
+            /* This pixel's own interval: the hint's, or the next one on the side the ends say
+             * the crossing moved to (one more ray). */
+            bool v0 = pn_contour_sample_visible(c, ia + t * di, ja + t * dj);
+            bool v1 = pn_contour_sample_visible(c, ia + (t + 1) * di, ja + (t + 1) * dj);
+            int found = -1;
+            if (v0 == va && v1 != va) found = t;
+            else if (v0 != va && t > 0 && pn_contour_sample_visible(c, ia + (t - 1) * di, ja + (t - 1) * dj) == va)
+                found = t - 1;
+            else if (v0 == va && v1 == va && t + 2 <= n && pn_contour_sample_visible(c, ia + (t + 2) * di, ja + (t + 2) * dj) != va)
+                found = t + 1;
+            if (found >= 0) {
+                ia += found * di;
+                ja += found * dj;
+                ib = ia + di;
+                jb = ja + dj;
+                s = steps;
+            }
+            break;
+        }
+    }
+    for (; s < steps; s++) {
         int mi = (ia + ib) / 2, mj = (ja + jb) / 2;
         if (pn_contour_sample_visible(c, mi, mj) == va) {
             ia = mi;
@@ -259,6 +317,46 @@ static bool piece_valid(const pn_contour_eval *c, cvert a, cvert x, cvert b) {
 
 /* ---- §3.1-3.2: one square of the marching squares ------------------------------------------ */
 
+void pn_contour_add_leaf(pn_contour_eval *c, int i0, int j0, int s) {
+    if (c->leaf_count < PN_CONTOUR_MAX_LEAVES) {
+        c->leaves[c->leaf_count][0] = (int16_t)i0;
+        c->leaves[c->leaf_count][1] = (int16_t)j0;
+        c->leaves[c->leaf_count][2] = (int16_t)s;
+    }
+    c->leaf_count++;
+}
+
+/* §3.2: a new sample (i, j) that contradicts the two ends of a side needs backtracking only if a
+ * square already integrated in this pass has (i, j) inside one of its sides (it integrated that
+ * side as a straight piece without the crossing). A square not yet treated will find the
+ * contradiction on its side itself (side_contradicted()) and subdivide. */
+bool pn_contour_treated_square_has_on_side(const pn_contour_eval *c, int i, int j) {
+    if (c->leaf_count > PN_CONTOUR_MAX_LEAVES) return true; /* not all remembered */
+    for (int l = 0; l < c->leaf_count; l++) {
+        int a = c->leaves[l][0], b = c->leaves[l][1], s = c->leaves[l][2];
+        bool on_h = (j == b || j == b + s) && i > a && i < a + s;
+        bool on_v = (i == a || i == a + s) && j > b && j < b + s;
+        if (on_h || on_v) return true;
+    }
+    return false;
+}
+
+/* True when the samples already traced inside the side from (ia, ja) to (ib, jb) (s cells long)
+ * change visibility more often than its ends say: the contour crosses it where the square's
+ * marching would not see it, which forces the square's subdivision (§3.2). Reads no new rays. */
+bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int ib, int jb, int s) {
+    int di = (ib - ia) / s, dj = (jb - ja) / s, changes = 0;
+    uint8_t last = c->vis[sample_index(c, ia, ja)], end = c->vis[sample_index(c, ib, jb)];
+    for (int t = 1; t < s; t++) {
+        uint8_t x = c->vis[sample_index(c, ia + t * di, ja + t * dj)];
+        if (x == VIS_UNKNOWN) continue;
+        changes += x != last;
+        last = x;
+    }
+    changes += end != last;
+    return changes > (c->vis[sample_index(c, ia, ja)] != end);
+}
+
 /* Sides k = 0..3 join corners k and k + 1 (counter-clockwise in (u, v)). */
 static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth) {
     if (c->restart) return;
@@ -266,6 +364,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     const int ci[4] = {i0, i0 + s, i0 + s, i0}, cj[4] = {j0, j0, j0 + s, j0 + s};
     bool v[4];
     int nv = 0;
+    c->phase = depth == 0 ? PN_CPH_FIRST : PN_CPH_SUBDIV;
     for (int k = 0; k < 4; k++) {
         v[k] = pn_contour_sample_visible(c, ci[k], cj[k]);
         nv += v[k];
@@ -273,13 +372,27 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     if (depth > c->max_depth) c->max_depth = depth;
     cvert corner[4];
     for (int k = 0; k < 4; k++) corner[k] = corner_vertex(c, ci[k], cj[k]);
-    if (nv == 0) return; /* case 1, hidden */
-    if (nv == 4) {       /* case 1, visible */
+    const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
+    bool forced = false;
+    if (test)
+        for (int k = 0; k < 4 && !forced; k++)
+            forced = pn_contour_side_contradicted(c, ci[k], cj[k], ci[(k + 1) & 3], cj[(k + 1) & 3], s);
+    if (forced) {
+        c->forced++;
+        goto subdivide;
+    }
+    if (nv == 0) { /* case 1, hidden */
+        pn_contour_add_leaf(c, i0, j0, s);
+        return;
+    }
+    if (nv == 4) { /* case 1, visible */
         add_polygon(c, corner, 4);
+        pn_contour_add_leaf(c, i0, j0, s);
         return;
     }
     /* Cases 2-4: crossings on the sides whose ends differ. */
     cvert x[4];
+    c->phase = PN_CPH_SIDE;
     for (int k = 0; k < 4; k++) {
         int k1 = (k + 1) & 3;
         if (v[k] != v[k1]) {
@@ -292,6 +405,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     const bool case4 = nv == 2 && v[0] == v[2];
     bool centre_visible = true;
     int mi = i0 + s / 2, mj = j0 + s / 2;
+    c->phase = PN_CPH_CENTRE;
     if (case4 && d >= 1) centre_visible = pn_contour_sample_visible(c, mi, mj);
     /* Pieces of contour: each leaves the visible region on side `exit` and comes back on side
      * `entry`; extra[] is its validity point (Fig. 4). */
@@ -310,8 +424,8 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         }
         pieces++;
     }
-    const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
     if (test) {
+        c->phase = PN_CPH_DIAG;
         if (nv == 1 || nv == 3) { /* case 2: diagonal from the odd corner */
             int o = 0;
             for (int k = 0; k < 4; k++)
@@ -336,15 +450,18 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         for (int p = 0; p < pieces && valid; p++)
             if (has_extra[p]) valid = piece_valid(c, x[exits[p]], extra[p], x[entries[p]]);
         if (!valid) {
+        subdivide:
             /* Quadtree subdivision. Side midpoints between equal corners are new samples; one
              * that disagrees means the neighbour's contour misses a crossing. */
+            c->phase = PN_CPH_SUBDIV;
             for (int k = 0; k < 4; k++) {
                 int k1 = (k + 1) & 3;
                 if (v[k] != v[k1]) continue;
                 bool on_border = (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) ||
                                  (k == 3 && i0 == 0);
                 int hi = (ci[k] + ci[k1]) / 2, hj = (cj[k] + cj[k1]) / 2;
-                if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts) {
+                if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts &&
+                    pn_contour_treated_square_has_on_side(c, hi, hj)) {
                     c->restart = true;
                     return;
                 }
@@ -369,6 +486,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
             if (has_extra[p]) poly[n++] = extra[p];
             add_polygon(c, poly, n);
         }
+        pn_contour_add_leaf(c, i0, j0, s);
         return;
     }
     int n = 0;
@@ -383,6 +501,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         }
     }
     add_polygon(c, poly, n);
+    pn_contour_add_leaf(c, i0, j0, s);
 }
 
 void pn_contour_integrate(pn_contour_eval *c, int p) {
@@ -393,6 +512,7 @@ void pn_contour_integrate(pn_contour_eval *c, int p) {
         c->acc = (pn_contour_g){{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
         c->restart = false;
         c->max_depth = 0;
+        c->leaf_count = 0;
         int s = 1 << d;
         for (int b = 0; b < p && !c->restart; b++)
             for (int a = 0; a < p && !c->restart; a++) process_square(c, a * s, b * s, d, 0);

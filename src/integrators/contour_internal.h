@@ -8,6 +8,24 @@
 
 #include <stdint.h>
 
+/* What a shadow ray was traced for (bench instrumentation: PN_CONTOUR_TRACE, contour_render.c). */
+enum {
+    PN_CPH_PATTERN = 0, /* §5: first-level rays of a pixel checked against its run's pattern */
+    PN_CPH_FIRST,       /* first-level samples read by an integration (not traced by a check) */
+    PN_CPH_SIDE,        /* §3.1 dichotomy along a square's side */
+    PN_CPH_DIAG,        /* §3.2 validity point on a diagonal or semi-diagonal */
+    PN_CPH_CENTRE,      /* §3.1 case 4: the square's centre */
+    PN_CPH_SUBDIV,      /* §3.2 quadtree subdivision: side midpoints and sub-square corners */
+    PN_CPH_RESTART,     /* any ray traced by a pass restarted one level finer */
+    PN_CPH_COUNT
+};
+
+/* Squares of the current pass already integrated without subdivision, remembered so that a
+ * contradicted side midpoint restarts the pass only when such a square lies on that side
+ * (§3.2: only an already treated neighbour needs backtracking). More: treated as present. */
+#define PN_CONTOUR_MAX_LEAVES 128
+
+
 /* One approximate contour integration of one source at one receiving point M. */
 typedef struct pn_contour_eval {
     const pn_contour_source *src;
@@ -27,9 +45,17 @@ typedef struct pn_contour_eval {
     /* results */
     pn_contour_g acc;
     uint32_t rays;
+    int phase;                          /* PN_CPH_*: where the next rays are counted */
+    uint32_t rays_by[PN_CPH_COUNT];     /* rays by phase */
+    uint32_t visible_rays;              /* of `rays`, those that reached the source */
+    int why;                            /* render: why the pixel was integrated (bits; 0: it was not) */
+    const uint8_t *hint; /* the sample array of a nearby pixel already integrated, or NULL */
     int max_depth;       /* deepest quadtree subdivision in the last pass */
     bool restart, restarted;
     uint32_t restarts, subdivisions;
+    uint32_t forced;     /* subdivisions forced by a contradiction already on a side (§3.2) */
+    int leaf_count;      /* leaves[]: (i0, j0, size) of the squares treated in this pass */
+    int16_t leaves[PN_CONTOUR_MAX_LEAVES][3];
     int p_used;          /* first-level squares per side at the end (after restarts) */
 } pn_contour_eval;
 
@@ -41,9 +67,24 @@ bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const p
 /* vis_M of sample (i, j) of the array (0 <= i, j <= N), tracing its ray the first time. */
 bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j);
 
+/* §3.2 inconsistencies, exposed for tests. A square integrated without subdivision in the current
+ * pass is remembered (pn_contour_add_leaf); pn_contour_treated_square_has_on_side() says whether
+ * one of them has sample (i, j) strictly inside a side (a contradiction there needs the pass to
+ * restart); pn_contour_side_contradicted() whether the samples already traced inside the side
+ * (ia, ja) -> (ib, jb), s cells long, change visibility more often than its ends say (the square
+ * must subdivide). Neither traces rays. */
+void pn_contour_add_leaf(pn_contour_eval *c, int i0, int j0, int s);
+bool pn_contour_treated_square_has_on_side(const pn_contour_eval *c, int i, int j);
+bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int ib, int jb, int s);
+
 /* The approximate contour integration of §3 with p x p first-level squares (N divisible by p,
  * N / p a power of two); the result is in c->acc (F = acc.g . ns, with the sign applied). */
 void pn_contour_integrate(pn_contour_eval *c, int p);
+
+/* §5's pattern check (contour_render.c, our departure): mask[k] = 1 for the samples of a
+ * (p + 1) x (p + 1) first-level pattern (row by row) that have a 4-neighbour of the other
+ * visibility; the following pixels of a run check only those. */
+void pn_contour_pattern_boundary(const uint8_t *pattern, int p, uint8_t *mask);
 
 /* contour-mc (contour_mc.c): adaptive Monte Carlo sampling of the source in the manner of Kok &
  * Jansen 1992, with the same receiver setup, from cells x cells first cells; returns the form factor estimate and adds its rays

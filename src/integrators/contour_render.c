@@ -1,9 +1,11 @@
 /* contour_render.c — the image algorithm of Vedel 1993 §5 around the contour integration of §3
  * (contour.c): the image by scanlines (the default driver's whole-image hook, one job per row),
  * spans of pixels along a row, shaft culling (Haines & Wallace 1991), first-level ray patterns
- * reused along a span with quadratic interpolation in between (checked on long runs), adaptive
- * first-level density; and the `contour` / `contour-mc` integrators that shade with it. See
- * contour.c's header for the paper's parts and our departures.
+ * reused along a span with quadratic interpolation in between, adaptive first-level density
+ * carried along the row, spans ending at creases, the dichotomy hints of a nearby pixel; and the
+ * `contour` / `contour-mc` integrators that shade with it. See contour.c's header for the paper's
+ * parts and our departures. With PN_CONTOUR_TRACE=FILE in the environment, the rays of every
+ * counted pixel are written to FILE by phase (bench/contour/breakdown.sh).
  *
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
  * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
@@ -19,6 +21,7 @@
 
 #include <stdatomic.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -50,6 +53,7 @@ typedef struct contour_data {
     int obstacle_count;
     float tol;
     int N, p0;
+    FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
 
@@ -209,6 +213,9 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     atomic_init(&cd->restarts, 0);
     atomic_init(&cd->subdivisions, 0);
     atomic_init(&cd->culled, 0);
+    /* Bench instrumentation: where the shadow rays go, per pixel (not used by tests or the CLI). */
+    const char *trace = getenv("PN_CONTOUR_TRACE");
+    if (trace && *trace) cd->trace = fopen(trace, "w");
     job->integrator_data = cd;
     return PN_OK;
 }
@@ -219,6 +226,7 @@ static pn_status contour_mc_prepare(pn_render_job *job, pn_err *err) { return co
 static void contour_release(pn_render_job *job) {
     contour_data *cd = job->integrator_data;
     if (!cd) return;
+    if (cd->trace) fclose(cd->trace);
     free(cd->lights);
     free(cd->skip);
     free(cd->obstacles);
@@ -337,6 +345,9 @@ typedef struct shade_point {
     vec3 value;      /* this eye ray's radiance so far */
     vec3 gradient;   /* this eye ray's irradiance-luminance gradient from contour lights */
     uint32_t contour_rays;
+    uint32_t rays_by[PN_CPH_COUNT], visible_rays; /* trace: rays by phase, visible ones */
+    unsigned why;    /* trace: bit r set when integrated for reason r (WHY_*) */
+    bool culled;     /* trace: a span of this pixel had no candidate obstacle */
     float fw;
     int64_t object;  /* what a span must stay on */
 } shade_point;
@@ -360,6 +371,11 @@ typedef struct contour_scratch {
     pn_contour_eval *ev;
     pn_contour_g *g;
     int *span;              /* batch indices of the current span */
+    /* Along the row, for the contour light being shaded (lights are shaded one after another,
+     * each over the whole row): */
+    int density;            /* first-level squares per side where the last span ended */
+    uint8_t *carry;         /* the sample array of the last pixel integrated */
+    int carry_x;            /* its image x (INT32_MIN: none) */
 } contour_scratch;
 
 static void contour_scratch_free(void *p) {
@@ -374,6 +390,7 @@ static void contour_scratch_free(void *p) {
     free(s->ev);
     free(s->g);
     free(s->span);
+    free(s->carry);
     free(s);
 }
 
@@ -386,6 +403,11 @@ static void *contour_scratch_create(const pn_render_job *job) {
         return NULL;
     }
     s->array_size = (size_t)(cd->N + 1) * (size_t)(cd->N + 1);
+    s->carry = malloc(s->array_size);
+    if (!s->carry) {
+        contour_scratch_free(s);
+        return NULL;
+    }
     return s;
 }
 
@@ -440,20 +462,58 @@ typedef struct span_ctx {
     contour_scratch *s;
     int n;
     span_tally t;
+    int *density; /* the first-level density carried from span to span along the row */
+    int x0;       /* image x of the span's first pixel (span pixels are adjacent) */
+    uint8_t *carry;
+    int *carry_x;
 } span_ctx;
 
+/* Our departure (contour.c's header): integrations take the crossings of a pixel integrated before,
+ * at most this many pixels away along the row, as the first guess of their dichotomies. */
+#define PN_CONTOUR_HINT_DISTANCE 8
+
+/* Spans end where the shading normal turns by more than about 25 degrees between two pixels (a
+ * crease of one mesh: a box's edge, a wall meeting the floor): G interpolated from one face is
+ * wrong on the other, where other parts of the source are above the horizon. */
+#define PN_CONTOUR_SPAN_CREASE_COS 0.9f
+
+/* Why a pixel gets a full integration (trace statistics). */
+enum { WHY_START, WHY_CHANGE, WHY_MIDDLE, WHY_UNIFORM, WHY_EVERY, WHY_COUNT };
+
 /* Full approximate contour integration at span pixel q with p first-level squares per side. */
-static void full_integration(span_ctx *sc, int q, int p) {
+static void full_integration(span_ctx *sc, int q, int p, int why) {
     pn_contour_eval *ev = &sc->s->ev[q];
+    ev->why |= 1 << why;
+    /* The hint for its dichotomies: the nearest pixel of the span integrated before it, or the
+     * last one integrated in the row before the span, at most PN_CONTOUR_HINT_DISTANCE away. */
+    ev->hint = NULL;
+    int best = -1;
+    for (int k = 0; k < sc->n; k++)
+        if (k != q && sc->s->ev[k].why && (best < 0 || abs(k - q) < abs(best - q))) best = k;
+    if (best >= 0 && abs(best - q) <= PN_CONTOUR_HINT_DISTANCE) ev->hint = sc->s->vis + (size_t)best * sc->s->array_size;
+    int cx = *sc->carry_x;
+    if (cx != INT32_MIN && sc->x0 + q - cx <= PN_CONTOUR_HINT_DISTANCE && (best < 0 || sc->x0 + q - cx < abs(best - q)))
+        ev->hint = sc->carry;
     pn_contour_integrate(ev, p);
     sc->s->g[q] = ev->acc;
     sc->t.integrations++;
+}
+
+void pn_contour_pattern_boundary(const uint8_t *pattern, int p, uint8_t *mask) {
+    for (int b = 0; b <= p; b++)
+        for (int a = 0; a <= p; a++) {
+            int k = b * (p + 1) + a;
+            uint8_t x = pattern[k];
+            mask[k] = (a > 0 && pattern[k - 1] != x) || (a < p && pattern[k + 1] != x) ||
+                      (b > 0 && pattern[k - p - 1] != x) || (b < p && pattern[k + p + 1] != x);
+        }
 }
 
 /* First-level pattern of pixel q at density p (traces the rays not yet traced). */
 static void first_level_pattern(span_ctx *sc, int q, int p, uint8_t *pattern) {
     pn_contour_eval *ev = &sc->s->ev[q];
     int step = ev->N / p;
+    ev->phase = PN_CPH_PATTERN;
     for (int b = 0, k = 0; b <= p; b++)
         for (int a = 0; a <= p; a++, k++) pattern[k] = (uint8_t)pn_contour_sample_visible(ev, a * step, b * step);
 }
@@ -470,44 +530,13 @@ static pn_contour_g quadratic_g(const contour_scratch *s, int a, int m, int b, i
     return g;
 }
 
-/* Our addition for long spans: |F(quadratic) - F(integrated)| at a check point, relative to the
- * largest |F| of the three integrations, above which a run is split. */
-#define PN_CONTOUR_RUN_TOLERANCE 0.01
-/* Runs up to this many pixels (the driver's former batch rows) are interpolated unchecked. */
-#define PN_CONTOUR_UNCHECKED_RUN 8
-
 /* The pixels strictly between a and b, with full integrations at a, m and b, get G by quadratic
- * interpolation (§5). A run longer than PN_CONTOUR_UNCHECKED_RUN is first checked: full
- * integrations at the middles of [a, m] and [m, b] are compared with the quadratic; if either
- * differs by more than the tolerance the two halves are interpolated separately (recursively,
- * with the check points as their middles), so a long run along a scanline cannot smear a
- * penumbra that the first-level pattern did not see change. */
-static void interpolate_run(span_ctx *sc, int a, int m, int b, int p) {
+ * interpolation (§5). (Branch contour-spans checked runs over 8 pixels with two more
+ * integrations; with spans ending at creases it no longer paid: bench/contour/RESULTS.md.) */
+static void interpolate_run(span_ctx *sc, int a, int m, int b) {
     contour_scratch *s = sc->s;
-    int c1 = -1, c2 = -1;
-    if (b - a > PN_CONTOUR_UNCHECKED_RUN && m - a >= 2 && b - m >= 2) {
-        c1 = (a + m) / 2;
-        c2 = (m + b) / 2;
-        full_integration(sc, c1, p);
-        full_integration(sc, c2, p);
-        double fa = pn_dv3_dot(s->g[a].g, s->ev[a].ns), fm = pn_dv3_dot(s->g[m].g, s->ev[m].ns);
-        double fb = pn_dv3_dot(s->g[b].g, s->ev[b].ns);
-        double scale = fmax(fabs(fa), fmax(fabs(fm), fabs(fb)));
-        bool ok = true;
-        for (int c = 0; c < 2 && ok; c++) {
-            int q = c ? c2 : c1;
-            pn_contour_g g = quadratic_g(s, a, m, b, q);
-            double err = fabs(pn_dv3_dot(g.g, s->ev[q].ns) - pn_dv3_dot(s->g[q].g, s->ev[q].ns));
-            ok = err <= PN_CONTOUR_RUN_TOLERANCE * scale;
-        }
-        if (!ok) {
-            interpolate_run(sc, a, c1, m, p);
-            interpolate_run(sc, m, c2, b, p);
-            return;
-        }
-    }
     for (int q = a + 1; q < b; q++) {
-        if (q == m || q == c1 || q == c2) continue;
+        if (q == m) continue;
         s->g[q] = quadratic_g(s, a, m, b, q);
         sc->t.interpolated++;
     }
@@ -528,15 +557,14 @@ static void shade_span(span_ctx *sc) {
         }
         return;
     }
-    int p = cd->p0;
+    int p = *sc->density;
     /* Raised density: at most twice the initial one per side (9 -> 25 samples by default). */
     int pmax = 2 * cd->p0;
     if (pmax > cd->N) pmax = cd->N;
     if (pmax > PN_CONTOUR_MAX_P) pmax = PN_CONTOUR_MAX_P;
     uint8_t key_pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
-    uint8_t pattern[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
     int key = 0;
-    full_integration(sc, key, p);
+    full_integration(sc, key, p, WHY_START);
     for (;;) {
         /* The density adapts to what the last full integration at a run's start needed. */
         const pn_contour_eval *ev = &s->ev[key];
@@ -550,7 +578,7 @@ static void shade_span(span_ctx *sc) {
         }
         if (key + 1 >= n) break;
         if (flags & PN_CONTOUR_NO_SPANS) {
-            full_integration(sc, ++key, p);
+            full_integration(sc, ++key, p, WHY_EVERY);
             continue;
         }
         /* Only first-level rays at the next pixels, while their pattern stays the same. */
@@ -559,16 +587,27 @@ static void shade_span(span_ctx *sc) {
         bool uniform = true;
         for (int k = 1; k < np; k++) uniform = uniform && key_pattern[k] == key_pattern[0];
         int j = key + 1;
+        /* Our departure: only the samples next to a sample of the other visibility in the run's
+         * pattern (where a moving contour changes the pattern first) are checked, unless the
+         * pattern is uniform (then all are). */
+        uint8_t mask[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
+        if (!uniform) pn_contour_pattern_boundary(key_pattern, p, mask);
+        else memset(mask, 1, (size_t)np);
         for (; j < n; j++) {
-            first_level_pattern(sc, j, p, pattern);
-            if (memcmp(pattern, key_pattern, (size_t)np) != 0) break;
+            pn_contour_eval *ej = &s->ev[j];
+            int step = ej->N / p;
+            ej->phase = PN_CPH_PATTERN;
+            bool same = true;
+            for (int k = 0; k < np && same; k++)
+                if (mask[k]) same = (uint8_t)pn_contour_sample_visible(ej, k % (p + 1) * step, k / (p + 1) * step) == key_pattern[k];
+            if (!same) break;
         }
         if (uniform) {
             /* Every first-level sample visible (or every one hidden): an integration traces no
              * more rays, so each pixel of the run gets its own. */
-            for (int q = key + 1; q < j; q++) full_integration(sc, q, p);
+            for (int q = key + 1; q < j; q++) full_integration(sc, q, p, WHY_UNIFORM);
             if (j >= n) break;
-            full_integration(sc, j, p);
+            full_integration(sc, j, p, WHY_CHANGE);
             key = j;
             continue;
         }
@@ -576,15 +615,22 @@ static void shade_span(span_ctx *sc) {
          * of the span; the pixels in between are interpolated with a third integration in the
          * middle. */
         int end = j < n ? j : n - 1;
-        if (end > key) full_integration(sc, end, p);
+        if (end > key) full_integration(sc, end, p, WHY_CHANGE);
         if (end - key >= 2) {
             int mid = (key + end) / 2;
-            full_integration(sc, mid, p);
-            interpolate_run(sc, key, mid, end, p);
+            full_integration(sc, mid, p, WHY_MIDDLE);
+            interpolate_run(sc, key, mid, end);
         }
         if (j >= n) break;
         key = j;
     }
+    *sc->density = p;
+    for (int q = n - 1; q >= 0; q--)
+        if (s->ev[q].why) {
+            memcpy(sc->carry, s->vis + (size_t)q * s->array_size, s->array_size);
+            *sc->carry_x = sc->x0 + q;
+            break;
+        }
     for (int q = 0; q < n; q++) {
         sc->t.restarts += s->ev[q].restarts;
         sc->t.subdivisions += s->ev[q].subdivisions;
@@ -605,6 +651,10 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
     const int span_max = (int)job->contour_span;
     for (int li = 0; li < cd->count; li++) {
         const contour_light *cl = &cd->lights[li];
+        /* The first-level density adapts along the whole row (batch), not span by span: a span
+         * that restarted at the initial density made 8-pixel blocks at span 8. */
+        s->density = cd->p0;
+        s->carry_x = INT32_MIN;
         int q = 0;
         while (q < batch->count) {
             /* A span: adjacent pixels of a row on the same object that see the source. */
@@ -622,7 +672,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     /* Spans also end at multiples of the maximum length in full-image x, so that
                      * they do not depend on where a crop window or a batch begins. */
                     if (batch->pixels[q][1] != batch->pixels[pq][1] || batch->pixels[q][0] != batch->pixels[pq][0] + 1 ||
-                        sp->object != prev->object || batch->pixels[q][0] % span_max == 0)
+                        sp->object != prev->object || batch->pixels[q][0] % span_max == 0 ||
+                        v3_dot(sp->b.ns, prev->b.ns) < PN_CONTOUR_SPAN_CREASE_COS)
                         break;
                 }
                 pn_contour_eval *ev = &s->ev[n];
@@ -644,7 +695,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
             }
             if (n == 0) continue;
-            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}};
+            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}, &s->density, batch->pixels[s->span[0]][0], s->carry,
+                           &s->carry_x};
             if (!(job->contour_flags & PN_CONTOUR_NO_SHAFT_CULLING) && !shaft_has_candidates(cd, cl, smin, smax)) {
                 /* Empty candidate list: the unoccluded closed form, no shadow rays. */
                 for (int k = 0; k < n; k++) {
@@ -652,6 +704,7 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     pn_contour_source_unoccluded(&cl->src, ev->m, ev->ns, ev->ng, gradient, &s->g[k]);
                 }
                 sc.t.culled++;
+                for (int k = 0; k < n; k++) s->sp[s->span[k]].culled = true;
             } else {
                 shade_span(&sc);
             }
@@ -669,6 +722,11 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, cl->emit));
                 sp->value = v3_add(sp->value, v3_scale(c, (float)f));
                 sp->contour_rays += s->ev[k].rays;
+                if (cd->trace) {
+                    for (int r = 0; r < PN_CPH_COUNT; r++) sp->rays_by[r] += s->ev[k].rays_by[r];
+                    sp->visible_rays += s->ev[k].visible_rays;
+                    sp->why |= (unsigned)s->ev[k].why;
+                }
                 if (gradient) {
                     float e = PN_PI * fmaxf(0.0f, v3_luminance(cl->emit));
                     sp->gradient = v3_add(sp->gradient, v3((float)pn_dv3_dot(s->g[k].dg[0], ns) * e,
@@ -751,6 +809,16 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             if (sp->contour_rays > 0 && px >= count_x0 && px < count_x1) {
                 viewing++;
                 contour_rays += sp->contour_rays;
+            }
+            if (cd->trace && i == 0 && px >= count_x0 && px < count_x1 && (sp->contour_rays > 0 || sp->culled)) {
+                /* x y class why rays-by-phase...: class 0 culled, 1 every ray visible, 2 every ray
+                 * hidden, 3 both (penumbra). */
+                int cls = sp->contour_rays == 0 ? 0 : sp->visible_rays == sp->contour_rays ? 1 : sp->visible_rays == 0 ? 2 : 3;
+                char line[160];
+                int len = snprintf(line, sizeof line, "%d %d %d %u", px, batch->pixels[q][1], cls, sp->why);
+                for (int r = 0; r < PN_CPH_COUNT; r++) len += snprintf(line + len, sizeof line - (size_t)len, " %u", sp->rays_by[r]);
+                snprintf(line + len, sizeof line - (size_t)len, "\n");
+                fputs(line, cd->trace);
             }
             a->n++;
             a->weighted_sum = v3_madd(a->weighted_sum, value, sp->fw);
