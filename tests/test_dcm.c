@@ -367,7 +367,13 @@ static void test_emitters_from_primary_rays(void) {
         s.stop_percent = raw < 0 ? 0.0 : 2.0;
         s.raw_radiance = raw > 0;
         pn_image img = NULL;
-        CHECK(pn_render(ctx, scene, &s, &img, NULL) == PN_OK);
+        pn_render_stats stats;
+        CHECK(pn_render(ctx, scene, &s, &img, &stats) == PN_OK);
+        /* Grids only along the strips' borders (the work image has 120 x 96 pixels); none
+         * without demodulation. */
+        if (raw == 0) CHECK_MSG(stats.primary_grid_pixels > 100 && stats.primary_grid_pixels < 2000, "%llu grid pixels",
+                                (unsigned long long)stats.primary_grid_pixels);
+        if (raw == 1) CHECK(stats.primary_grid_pixels == 0);
         if (raw < 0) full = img;
         else {
             err[raw] = rel_l1(ctx, full, img);

@@ -312,6 +312,8 @@ typedef struct pn_render_stats {
     uint32_t dcm_simple_blocks, dcm_complex_blocks; /* edge blocks that passed / failed the tests */
     uint32_t dcm_lazy_blocks;         /* quads that kept their parent's elements (lazy evaluation) */
     double primary_buffer_seconds;    /* the id/normal/depth buffer of primary rays */
+    uint64_t primary_grid_pixels;     /* work pixels whose albedo and emitted radiance came from a
+                                         grid of primary rays (--primary-grid) */
     double reconstruct_seconds_max;   /* longest reconstruction of an approximate image */
 } pn_render_stats;
 

@@ -1322,6 +1322,7 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
         json_u64(&w, "dcm_complex_blocks", stats->dcm_complex_blocks);
         json_u64(&w, "dcm_lazy_blocks", stats->dcm_lazy_blocks);
         json_double(&w, "primary_buffer_seconds", stats->primary_buffer_seconds);
+        json_u64(&w, "primary_grid_pixels", stats->primary_grid_pixels);
         json_double(&w, "reconstruct_seconds_max", stats->reconstruct_seconds_max);
     }
     if (o->settings.integrator == PN_INTEGRATOR_IAS) {

@@ -740,6 +740,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             stats->work_width = p->W;
             stats->work_height = p->H;
             stats->primary_buffer_seconds = p->primary_seconds;
+            stats->primary_grid_pixels = p->primary_refined;
             stats->reconstruct_seconds_max = p->reconstruct_seconds_max;
         }
         if (img_st != PN_OK) st = pn_context_fail(ctx, img_st, "out of memory for the output image");
