@@ -274,6 +274,31 @@ static void test_light_tree_structure(void) {
     free(stack);
     for (uint32_t i = 0; i < set.count; i++) CHECK(leaf_seen[i] == 1);
     free(leaf_seen);
+    /* Depth-first pre-order: a left child is the next node, a right child follows the left
+     * subtree, every subtree is the contiguous range [i, i + 2 count - 1). */
+    for (int i = 0; i < t.node_count; i++) {
+        const pn_light_node *n = &t.nodes[i];
+        if (n->left < 0) continue;
+        CHECK(n->left == i + 1);
+        CHECK(n->right == n->left + 2 * t.nodes[n->left].count - 1);
+        CHECK(n->right + 2 * t.nodes[n->right].count - 1 == i + 2 * n->count - 1);
+    }
+    /* Reordering the VPLs as the leaves: same VPL behind every node's representative, leaves
+     * numbered 0, 1, 2, ... in node order. */
+    pn_vpl *before = malloc(set.count * sizeof *before);
+    int32_t *rep_before = malloc((size_t)t.node_count * sizeof *rep_before);
+    memcpy(before, set.vpls, set.count * sizeof *before);
+    for (int i = 0; i < t.node_count; i++) rep_before[i] = t.nodes[i].rep;
+    CHECK(pn_light_tree_order_vpls(&t, &set, &err) == PN_OK);
+    int32_t next_leaf = 0;
+    for (int i = 0; i < t.node_count; i++) {
+        const pn_light_node *n = &t.nodes[i];
+        CHECK(memcmp(&set.vpls[n->rep], &before[rep_before[i]], sizeof *before) == 0);
+        if (n->left < 0) CHECK(n->rep == next_leaf++);
+    }
+    CHECK(next_leaf == (int32_t)set.count);
+    free(before);
+    free(rep_before);
     pn_light_tree_free(&t);
     free(set.vpls);
 }
