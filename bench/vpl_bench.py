@@ -192,8 +192,10 @@ def realistic(a, penumbra, common_for, lines, results):
         methods += [("%s %s" % (name, tag), os.path.join(d, "penumbra"), args) for name, args in METHODS[1:]]
     vcount = ["--vpls", str(a.vpls)]
     lines.append("Full-size renders against a crop reference (window %s of the image), %d VPLs, %d round(s) "
-                 "in alternation; time = median render s (all runs); speed-up = median over rounds of LC's "
-                 "time / the method's in the same round." % (a.crop_reference, a.vpls, a.repeats))
+                 "in alternation; render s = median (all runs); render CPU s = the process's user + system time "
+                 "minus that of a 1x1 lightcuts render with the same VPLs (parse, BVH, VPLs, tree); speed-up = "
+                 "median over rounds of LC's time / the method's in the same round (wall, CPU); phase I / II s "
+                 "and the counters are from the first round." % (a.crop_reference, a.vpls, a.repeats))
     lines.append("")
     lines.append("| scene | method | render s | render CPU s | preproc s | phase I / II s | shadow rays/px | bounds/px "
                  "| RMSE (crop) | rel. error (crop) | speed-up (wall) | speed-up (CPU) | peak MiB (render) | max RSS MiB | load |")
