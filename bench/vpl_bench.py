@@ -12,6 +12,17 @@ peak memory is that render's.
 usage: bench/vpl_bench.py [--build DIR] [--out DIR] [--scale F] [--vpls N] [--threads N]
                           [--scenes a,b,c] [--scaling 5000,20000,...] [--spp N]
 Writes OUT/vpl-bench.md (tables) and OUT/vpl-bench.json (every number).
+
+Large images (--crop-reference x0,x1,y0,y1): the all-VPL reference costs a full all-pairs sum per
+pixel, so at realistic sizes it is rendered on a crop window only (`--crop`, pbrt's rounding:
+pixels ceil(res * fraction)); the methods render the whole image and are compared on the same
+window, cut out of their images. `vpl` shades each pixel on its own, so its crop equals the same
+pixels of its full image (--verify-crop SCALE checks this at a small scale). With --repeats N the
+methods run in alternation (LC, IC, IC-S, LC, IC, IC-S, ...) and each speed-up is the median over
+the rounds of the ratio within a round (the machine is shared: absolute times drift, ratios of
+neighbouring runs less). --compare NAME=DIR adds the illumcut methods of another build (e.g.
+the code before a change) to the same rounds. Peak memory: the render's getrusage maximum RSS
+(stats) and /usr/bin/time's for the whole process.
 """
 import argparse
 import json
@@ -73,18 +84,221 @@ def flat_stats(stats_path):
     return out
 
 
+def env_for(penumbra):
+    """The build's own libpenumbra first (the binaries have a RUNPATH, which LD_LIBRARY_PATH
+    overrides), so that copies of older builds run with their own library."""
+    env = dict(os.environ)
+    env["LD_LIBRARY_PATH"] = os.path.dirname(os.path.abspath(penumbra))
+    return env
+
+
+def loadavg():
+    try:
+        with open("/proc/loadavg") as f:
+            return float(f.read().split()[0])
+    except OSError:
+        return -1.0
+
+
 def run(penumbra, scene, out, args, common):
     cmd = [penumbra, "render", scene, "-o", out + ".pfm", "--stats", out + ".json", "--quiet"] + common + args
+    timed = os.path.exists("/usr/bin/time")
+    if timed:
+        cmd = ["/usr/bin/time", "-f", "%M %U %S", "-o", out + ".rss"] + cmd
+    load0 = loadavg()
     t0 = time.time()
-    subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
+    subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL, env=env_for(penumbra))
     st = flat_stats(out + ".json")
     st["wall_seconds"] = time.time() - t0
+    st["load_before"] = load0
+    st["load_after"] = loadavg()
+    if timed:
+        with open(out + ".rss") as f:
+            rss, user, sys_ = f.read().split()[-3:]
+        st["max_rss_bytes"] = int(rss) * 1024
+        st["cpu_seconds"] = float(user) + float(sys_)
     return st
 
 
+def overhead_cpu(penumbra, scene, out, vpls, common):
+    """CPU seconds of everything but the render (parse, BVH, VPLs, light tree, image output): a
+    lightcuts render of one pixel with the same scene and VPLs. Subtracted from each process's
+    CPU time to give the render's CPU time."""
+    c = list(common)
+    c[c.index("--resolution") + 1] = "1x1"
+    st = run(penumbra, scene, out + "-overhead", ["--integrator", "lightcuts", "--vpls", str(vpls)], c)
+    return st.get("cpu_seconds", 0.0)
+
+
+def write_pfm(path, w, h, data):
+    with open(path, "wb") as f:
+        f.write(b"PF\n%d %d\n-1.0\n" % (w, h))
+        f.write(struct.pack("<%df" % (w * h * 3), *data))
+
+
+def crop_bounds(size, f0, f1):
+    """Pixel range [ceil(size * f0), ceil(size * f1)) in float32 arithmetic, as the renderer."""
+    f32 = lambda x: struct.unpack("<f", struct.pack("<f", x))[0]
+    import math
+    return int(math.ceil(f32(f32(float(size)) * f32(f0)))), int(math.ceil(f32(f32(float(size)) * f32(f1))))
+
+
+def cut_window(img, crop):
+    """The crop window of a full image (PFM rows run bottom to top)."""
+    w, h, d = img
+    x0, x1 = crop_bounds(w, crop[0], crop[1])
+    y0, y1 = crop_bounds(h, crop[2], crop[3])
+    out = []
+    for row in range(h - y1, h - y0):  # file rows of image rows y1-1 .. y0
+        out.extend(d[3 * (row * w + x0):3 * (row * w + x1)])
+    return x1 - x0, y1 - y0, out
+
+
 def diff(penumbra, ref, img):
-    p = subprocess.run([penumbra, "diff", "--json", ref, img], check=True, capture_output=True, text=True)
+    p = subprocess.run([penumbra, "diff", "--json", ref, img], check=True, capture_output=True, text=True,
+                       env=env_for(penumbra))
     return json.loads(p.stdout)
+
+
+def median(v):
+    v = sorted(v)
+    n = len(v)
+    return v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2])
+
+
+def verify_crop(a, penumbra, scene, common_for, crop):
+    """vpl's crop against the same window of its full image, at a small scale: the pixels must be
+    identical for the crop reference to stand for the full one."""
+    saved = a.scale
+    a.scale = a.verify_crop
+    res, common = common_for(scene)
+    a.scale = saved
+    base = os.path.join(a.out, "verify-crop-%s" % res)
+    vc = ["--integrator", "vpl", "--vpls", str(min(a.vpls, 20000))]
+    run(penumbra, scene, base + "-full", vc, common)
+    run(penumbra, scene, base + "-crop", vc + ["--crop", ",".join("%g" % c for c in crop)], common)
+    full = cut_window(read_pfm(base + "-full.pfm"), crop)
+    part = read_pfm(base + "-crop.pfm")
+    same = (full[0], full[1]) == (part[0], part[1]) and list(full[2]) == list(part[2])
+    return res, "%dx%d" % (part[0], part[1]), same
+
+
+def realistic(a, penumbra, common_for, lines, results):
+    """Full-size renders of every method against a crop reference, in alternating rounds."""
+    crop = [float(x) for x in a.crop_reference.split(",")]
+    methods = [(name, penumbra, args) for name, args in METHODS]
+    for spec in [c for c in a.compare.split(",") if c]:
+        tag, d = spec.split("=", 1)
+        methods += [("%s %s" % (name, tag), os.path.join(d, "penumbra"), args) for name, args in METHODS[1:]]
+    vcount = ["--vpls", str(a.vpls)]
+    lines.append("Full-size renders against a crop reference (window %s of the image), %d VPLs, %d round(s) "
+                 "in alternation; render s = median (all runs); render CPU s = the process's user + system time "
+                 "minus that of a 1x1 lightcuts render with the same VPLs (parse, BVH, VPLs, tree); speed-up = "
+                 "median over rounds of LC's time / the method's in the same round (wall, CPU); phase I / II s "
+                 "and the counters are from the first round." % (a.crop_reference, a.vpls, a.repeats))
+    lines.append("")
+    lines.append("| scene | method | render s | render CPU s | preproc s | phase I / II s | shadow rays/px | bounds/px "
+                 "| RMSE (crop) | rel. error (crop) | speed-up (wall) | speed-up (CPU) | peak MiB (render) | max RSS MiB | load |")
+    lines.append("|---" * 15 + "|")
+    for s in a.scenes.split(","):
+        scene = os.path.join(SHARED, "scenes", s, s + ".pbrt")
+        if a.verify_crop > 0:
+            vres, wsize, same = verify_crop(a, penumbra, scene, common_for, crop)
+            lines.append("| %s %s | vpl crop %s = full image's window: %s | | | | | | | | | | | | | |" % (
+                s, vres, wsize, "identical" if same else "DIFFERENT"))
+            print(lines[-1], flush=True)
+        res, common = common_for(scene)
+        base = os.path.join(a.out, "%s-%s-n%d" % (s, res, a.vpls))
+        cropargs = ["--crop", ",".join("%g" % c for c in crop)]
+        ref = run(penumbra, scene, base + "-vpl-crop", ["--integrator", "vpl"] + vcount + cropargs, common)
+        refimg = read_pfm(base + "-vpl-crop.pfm")
+        row = {"vpl_crop": ref, "runs": {}}
+        lines.append("| %s %s | all VPLs (crop %dx%d) | %.2f | - | %.2f | - | %.0f | - | 0 | 0 | - | - | %.0f | %.0f | %.1f |" % (
+            s, res, refimg[0], refimg[1], ref["render_seconds"], ref["preprocess_seconds"],
+            ref["shadow_rays_per_pixel_mean"], ref["peak_memory_bytes"] / 2**20, ref.get("max_rss_bytes", 0) / 2**20,
+            ref["load_before"]))
+        print(lines[-1], flush=True)
+        over = overhead_cpu(penumbra, scene, base, a.vpls, common)
+        runs = {name: [] for name, _, _ in methods}
+        for k in range(a.repeats):
+            for name, binary, args in methods:
+                tag = name.replace("(", "").replace(")", "").replace("%", "").replace(" ", "-").replace(".", "").lower()
+                out = base + "-" + tag
+                st = run(binary, scene, out, args + vcount, common)
+                if k == 0:
+                    w = cut_window(read_pfm(out + ".pfm"), crop)
+                    write_pfm(out + "-window.pfm", *w)
+                    d = diff(penumbra, base + "-vpl-crop.pfm", out + "-window.pfm")
+                    st["rmse_crop"] = d["rmse"]
+                    st["mean_relative_error_crop"] = mean_relative_error(refimg, w)
+                st["render_cpu_seconds"] = st.get("cpu_seconds", 0.0) - over
+                runs[name].append(st)
+                print("  round %d %s %s: %.2f s, %.1f CPU s (load %.1f)" % (
+                    k, s, name, st["render_seconds"], st["render_cpu_seconds"], st["load_before"]), flush=True)
+        lc = runs[METHODS[0][0]]
+        for name, _, _ in methods:
+            r = runs[name]
+            first = r[0]
+            ratios = [lc[k]["render_seconds"] / r[k]["render_seconds"] for k in range(len(r))]
+            times = [x["render_seconds"] for x in r]
+            cpu = [x["render_cpu_seconds"] for x in r]
+            cratios = [lc[k]["render_cpu_seconds"] / r[k]["render_cpu_seconds"] for k in range(len(r))]
+            lines.append("| %s | %s | %.2f (%s) | %.1f (%s) | %.2f | %.2f / %.2f | %.0f | %.0f | %.5f | %.4f | %.2f (%s) | %.2f (%s) | %.0f | %.0f | %.1f-%.1f |" % (
+                s, name, median(times), ", ".join("%.1f" % t for t in times), median(cpu), ", ".join("%.1f" % t for t in cpu),
+                first["preprocess_seconds"],
+                first.get("phase1_seconds", 0), first.get("phase2_seconds", 0), first["shadow_rays_per_pixel_mean"],
+                first["bound_evaluations_per_pixel_mean"], first["rmse_crop"], first["mean_relative_error_crop"],
+                median(ratios), ", ".join("%.2f" % x for x in ratios), median(cratios), ", ".join("%.2f" % x for x in cratios),
+                max(x["peak_memory_bytes"] for x in r) / 2**20,
+                max(x.get("max_rss_bytes", 0) for x in r) / 2**20, min(x["load_before"] for x in r),
+                max(x["load_before"] for x in r)))
+            print(lines[-1], flush=True)
+        row["runs"] = runs
+        results["scenes"][s] = row
+
+
+def scaling(a, penumbra, common_for, lines, results):
+    """Render time and peak memory against the VPL count, alternating the methods per count."""
+    s = a.scenes.split(",")[0]
+    scene = os.path.join(SHARED, "scenes", s, s + ".pbrt")
+    saved = a.scale
+    a.scale = a.scaling_scale if a.scaling_scale > 0 else a.scale
+    res, common = common_for(scene)
+    a.scale = saved
+    methods = [(n, args) for n, args in METHODS if n.split("(")[0] in a.scaling_methods.split(",")]
+    lines += ["", "Render s (median of %d alternating rounds) and peak memory against the VPL count, %s at %s." % (
+        a.repeats, s, res), ""]
+    lines.append("| VPLs | " + " | ".join("%s s | %s CPU s | %s MiB" % (n, n, n) for n, _ in methods) +
+                 " | preproc s | " + " | ".join("speed-up %s (wall / CPU)" % n for n, _ in methods[1:]) + " | load |")
+    lines.append("|---" * (4 * len(methods) + 2) + "|")
+    for n in [int(x) for x in a.scaling.split(",") if x]:
+        base = os.path.join(a.out, "%s-%s-n%d" % (s, res, n))
+        over = overhead_cpu(penumbra, scene, base, n, common)
+        runs = {name: [] for name, _ in methods}
+        for k in range(a.repeats):
+            for name, args in methods:
+                tag = name.split("(")[0].lower()
+                st = run(penumbra, scene, base + "-" + tag, args + ["--vpls", str(n)], common)
+                st["render_cpu_seconds"] = st.get("cpu_seconds", 0.0) - over
+                runs[name].append(st)
+                print("  %d VPLs round %d %s: %.2f s, %.1f CPU s (load %.1f)" % (
+                    n, k, name, st["render_seconds"], st["render_cpu_seconds"], st["load_before"]), flush=True)
+        cells = []
+        for name, _ in methods:
+            cells.append("%.2f" % median([x["render_seconds"] for x in runs[name]]))
+            cells.append("%.1f" % median([x["render_cpu_seconds"] for x in runs[name]]))
+            cells.append("%.0f" % (max(x.get("max_rss_bytes", x["peak_memory_bytes"]) for x in runs[name]) / 2**20))
+        ratio = []
+        for name, _ in methods[1:]:
+            ratio.append("%.2f / %.2f" % (
+                median([runs[methods[0][0]][k]["render_seconds"] / runs[name][k]["render_seconds"] for k in range(a.repeats)]),
+                median([runs[methods[0][0]][k]["render_cpu_seconds"] / runs[name][k]["render_cpu_seconds"]
+                        for k in range(a.repeats)])))
+        loads = [x["load_before"] for r in runs.values() for x in r]
+        lines.append("| %d | " % n + " | ".join(cells) + " | %.2f | " % runs[methods[0][0]][0]["preprocess_seconds"] +
+                     " | ".join(ratio) + " | %.1f-%.1f |" % (min(loads), max(loads)))
+        print(lines[-1], flush=True)
+        results["scaling"][str(n)] = runs
 
 
 def main():
@@ -98,6 +312,12 @@ def main():
     ap.add_argument("--scenes", default="bathroom,staircase,living-room")
     ap.add_argument("--scaling", default="5000,20000,80000,320000")
     ap.add_argument("--resolution-sweep", default="", help="scales for a resolution sweep of the first scene")
+    ap.add_argument("--crop-reference", default="", help="x0,x1,y0,y1: full-size renders against a vpl crop")
+    ap.add_argument("--verify-crop", type=float, default=0.0, help="scale at which to check vpl crop = full window")
+    ap.add_argument("--repeats", type=int, default=1, help="alternating rounds (--crop-reference, scaling)")
+    ap.add_argument("--compare", default="", help="NAME=BUILDDIR,...: illumcut methods of other builds too")
+    ap.add_argument("--scaling-scale", type=float, default=0.0, help="resolution of the VPL-count scaling")
+    ap.add_argument("--scaling-methods", default="LC,IC,IC-S")
     a = ap.parse_args()
     penumbra = os.path.join(a.build, "penumbra")
     os.makedirs(a.out, exist_ok=True)
@@ -105,12 +325,25 @@ def main():
     lines = ["# IlluminationCut bench (%g of the film resolution, %d spp, %d VPLs, %d threads)" % (a.scale, a.spp, a.vpls, a.threads), ""]
 
     def common_for(scene):
-        info = subprocess.run([penumbra, "info", scene], capture_output=True, text=True).stdout
+        info = subprocess.run([penumbra, "info", scene], capture_output=True, text=True, env=env_for(penumbra)).stdout
         film = [l for l in info.splitlines() if l.startswith("film")][0].split()[1]
         fw, fh = (int(x) for x in film.split("x"))
         res = "%dx%d" % (max(1, round(fw * a.scale)), max(1, round(fh * a.scale)))
         return res, ["--resolution", res, "--threads", str(a.threads), "--seed", "0", "--spp", str(a.spp)]
 
+    if a.crop_reference or a.repeats > 1:
+        if a.crop_reference:
+            realistic(a, penumbra, common_for, lines, results)
+        if a.scaling:
+            scaling(a, penumbra, common_for, lines, results)
+        lines.insert(1, "Command: `%s`" % " ".join(["python3", "bench/vpl_bench.py"] + sys.argv[1:]))
+        lines.insert(2, "")
+        with open(os.path.join(a.out, "vpl-bench.md"), "w") as f:
+            f.write("\n".join(lines) + "\n")
+        with open(os.path.join(a.out, "vpl-bench.json"), "w") as f:
+            json.dump(results, f, indent=1)
+        print("\n".join(lines))
+        return 0
     lines.append("Table 1 (ours). Speed-up: LC render time / method render time.")
     lines.append("")
     lines.append("| scene | method | preproc s | render s | shadow rays/px | bounds/px | RMSE | rel. error | speed-up | peak MiB |")

@@ -69,6 +69,37 @@ static void test_bound_cos(void) {
     CHECK(tight > 100);
 }
 
+/* The Blinn-Phong lobe bound over an exponent range: never below (n + 2) / (2 pi) c^n for any
+ * exponent n of the range and cosine c <= cb (checked on a fine grid of n), within rounding of
+ * the largest grid value (it is the maximum, not a looser product), and the one-exponent value
+ * when n_min = n_max. */
+static void test_lobe_bound(void) {
+    pn_rng rng;
+    pn_rng_seed(&rng, 17, 2);
+    for (int t = 0; t < 2000; t++) {
+        float cb = t % 10 == 0 ? 1.0f : (t % 10 == 1 ? 0.0f : pn_rng_float(&rng));
+        if (t % 3 == 0) cb = 1.0f - 0.01f * pn_rng_float(&rng); /* near 1: the stationary point is large */
+        float n0 = 1.0f + 500.0f * pn_rng_float(&rng), n1 = n0 + (t % 4 == 0 ? 0.0f : 2000.0f * pn_rng_float(&rng));
+        float bound = pn_bound_lobe(cb, n0, n1);
+        double best = 0.0;
+        for (int k = 0; k <= 400; k++) {
+            double n = (double)n0 + ((double)n1 - (double)n0) * k / 400.0;
+            for (int j = 0; j <= 4; j++) {
+                double c = (double)cb * (1.0 - 0.25 * j);
+                double f = (n + 2.0) / (2.0 * (double)PN_PI) * pow(c, n);
+                CHECK_MSG(f <= (double)bound * 1.0001 + 1e-12, "cb %g n [%g, %g]: lobe %g at n %g > bound %g", (double)cb,
+                          (double)n0, (double)n1, f, n, (double)bound);
+                if (j == 0 && f > best) best = f;
+            }
+        }
+        /* The grid misses the maximum by at most a step of n: allow that much. */
+        double step = ((double)n1 - (double)n0) / 400.0;
+        double slack = step > 0.0 ? best * expm1(step * (1.0 / ((double)n0 + 2.0) - log(fmax((double)cb, 1e-30)))) : 0.0;
+        CHECK_MSG((double)bound <= best * 1.0001 + slack + 1e-12, "cb %g n [%g, %g]: bound %g above the maximum %g",
+                  (double)cb, (double)n0, (double)n1, (double)bound, best);
+    }
+}
+
 /* Random receiver and VPL clusters: for every point, the luminance of the summed exact
  * contributions of the cluster's VPLs (eq. 2 with V = 1) never exceeds L_UB (eq. 5), and every
  * single pair's M G per channel never exceeds M_max G_max. */
@@ -103,11 +134,15 @@ static void test_bounds_never_below_truth(void) {
             r->wo = tight ? wo_shared : rand_dir(&rng);
             if (v3_dot(r->wo, r->ns) < 0.0f) r->wo = v3_neg(r->wo);
             r->kd = v3(pn_rng_float(&rng), pn_rng_float(&rng), pn_rng_float(&rng));
-            r->ks = glossy ? v3(pn_rng_float(&rng), pn_rng_float(&rng), pn_rng_float(&rng)) : v3(0, 0, 0);
-            r->exponent = 1.0f + 200.0f * pn_rng_float(&rng);
+            /* Glossy trials mix in Lambert points (k_spec 0, exponent 1), whose exponent stays out
+             * of the range as in the point tree's nodes. */
+            bool lambert = !glossy || (t % 6 == 3 && i % 3 == 1);
+            r->ks = lambert ? v3(0, 0, 0) : v3(pn_rng_float(&rng), pn_rng_float(&rng), pn_rng_float(&rng));
+            r->exponent = lambert ? 1.0f : 1.0f + 200.0f * pn_rng_float(&rng);
             vec3 refl = pn_reflect(r->wo, r->ns);
             if (i == 0) {
                 rb = (pn_receiver_bounds){r->p, r->p, r->ns, 0.0f, refl, 0.0f, r->kd, r->ks, r->exponent, r->exponent, 1, 0, 1, 0};
+                if (lambert) rb.n_min = INFINITY, rb.n_max = -INFINITY;
             } else {
                 rb.lo = v3_min(rb.lo, r->p);
                 rb.hi = v3_max(rb.hi, r->p);
@@ -115,8 +150,10 @@ static void test_bounds_never_below_truth(void) {
                 pn_cone_merge(rb.r_axis, rb.r_half, refl, 0.0f, &rb.r_axis, &rb.r_half);
                 rb.kd_max = v3_max(rb.kd_max, r->kd);
                 rb.ks_max = v3_max(rb.ks_max, r->ks);
-                rb.n_min = fminf(rb.n_min, r->exponent);
-                rb.n_max = fmaxf(rb.n_max, r->exponent);
+                if (!lambert) {
+                    rb.n_min = fminf(rb.n_min, r->exponent);
+                    rb.n_max = fmaxf(rb.n_max, r->exponent);
+                }
             }
         }
         int kind = t % 3;
@@ -237,6 +274,31 @@ static void test_light_tree_structure(void) {
     free(stack);
     for (uint32_t i = 0; i < set.count; i++) CHECK(leaf_seen[i] == 1);
     free(leaf_seen);
+    /* Depth-first pre-order: a left child is the next node, a right child follows the left
+     * subtree, every subtree is the contiguous range [i, i + 2 count - 1). */
+    for (int i = 0; i < t.node_count; i++) {
+        const pn_light_node *n = &t.nodes[i];
+        if (n->left < 0) continue;
+        CHECK(n->left == i + 1);
+        CHECK(n->right == n->left + 2 * t.nodes[n->left].count - 1);
+        CHECK(n->right + 2 * t.nodes[n->right].count - 1 == i + 2 * n->count - 1);
+    }
+    /* Reordering the VPLs as the leaves: same VPL behind every node's representative, leaves
+     * numbered 0, 1, 2, ... in node order. */
+    pn_vpl *before = malloc(set.count * sizeof *before);
+    int32_t *rep_before = malloc((size_t)t.node_count * sizeof *rep_before);
+    memcpy(before, set.vpls, set.count * sizeof *before);
+    for (int i = 0; i < t.node_count; i++) rep_before[i] = t.nodes[i].rep;
+    CHECK(pn_light_tree_order_vpls(&t, &set, &err) == PN_OK);
+    int32_t next_leaf = 0;
+    for (int i = 0; i < t.node_count; i++) {
+        const pn_light_node *n = &t.nodes[i];
+        CHECK(memcmp(&set.vpls[n->rep], &before[rep_before[i]], sizeof *before) == 0);
+        if (n->left < 0) CHECK(n->rep == next_leaf++);
+    }
+    CHECK(next_leaf == (int32_t)set.count);
+    free(before);
+    free(rep_before);
     pn_light_tree_free(&t);
     free(set.vpls);
 }
@@ -469,6 +531,6 @@ static void setup(void) { vpl_test_setup("lightcuts"); }
 
 static void teardown(void) { vpl_test_teardown(); }
 
-PN_TESTS(TEST(setup), TEST(test_bound_cos), TEST(test_bounds_never_below_truth), TEST(test_light_tree_structure),
+PN_TESTS(TEST(setup), TEST(test_bound_cos), TEST(test_lobe_bound), TEST(test_bounds_never_below_truth), TEST(test_light_tree_structure),
          TEST(test_representative_probability), TEST(test_lightcut_guarantee), TEST(test_lightcuts_image_against_vpl), TEST(test_all_light_kinds),
          TEST(teardown))

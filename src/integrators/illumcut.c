@@ -17,8 +17,8 @@
  * one side empty creates no node (the compression). Nodes keep their box, cone of shading
  * normals, cone of reflected view directions, a representative point (chosen at random in
  * proportion to the point count, as Multidimensional Lightcuts), the BRDF ranges (k_diff and
- * k_spec maxima per channel, exponent min/max), and `color` (the minimum Phase I luminance of
- * their points).
+ * k_spec maxima per channel, exponent min/max over the glossy points), and `color` (the minimum
+ * Phase I luminance of their points).
  *
  * Phase I: both trees descended until max(r(R), r(Q)) < 0.1 d(R, Q) and the light cluster's cone
  * aperture is below 20 degrees; the pair is then shaded once, at R's representative point with
@@ -171,7 +171,11 @@ static void leaf_attributes(ic_tree *t, ic_node *n, uint64_t seed) {
     n->n_half = n->r_half = 0.0f;
     n->kd_max = p0->r.kd;
     n->ks_max = p0->r.ks;
-    n->n_min = n->n_max = p0->r.exponent;
+    /* Exponent range over the glossy points only: a Lambert point (k_spec = 0, exponent 1)
+     * would otherwise widen a glossy node's range to [1, n_max] and its lobe bound with it. */
+    bool g0 = !v3_is_zero(p0->r.ks);
+    n->n_min = g0 ? p0->r.exponent : INFINITY;
+    n->n_max = g0 ? p0->r.exponent : -INFINITY;
     for (int32_t i = 1; i < n->count; i++) {
         const ic_point *p = &t->points[n->first + i];
         n->lo = v3_min(n->lo, p->r.p);
@@ -180,8 +184,10 @@ static void leaf_attributes(ic_tree *t, ic_node *n, uint64_t seed) {
         pn_cone_merge(n->r_axis, n->r_half, pn_reflect(p->r.wo, p->r.ns), 0.0f, &n->r_axis, &n->r_half);
         n->kd_max = v3_max(n->kd_max, p->r.kd);
         n->ks_max = v3_max(n->ks_max, p->r.ks);
-        n->n_min = fminf(n->n_min, p->r.exponent);
-        n->n_max = fmaxf(n->n_max, p->r.exponent);
+        if (!v3_is_zero(p->r.ks)) {
+            n->n_min = fminf(n->n_min, p->r.exponent);
+            n->n_max = fmaxf(n->n_max, p->r.exponent);
+        }
     }
     n->rep = n->first + (int32_t)(pn_hash_unit(pn_hash3(seed, (uint64_t)n->first, 1)) * (float)n->count);
     if (n->rep >= n->first + n->count) n->rep = n->first + n->count - 1;
@@ -511,10 +517,18 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, uint64_t *bo
     ic_tree *t = &ir->tree;
     const float delta = ir->job->error_bound;
     const float min_dist2 = ir->d->set.min_dist2;
+    /* Counted locally and added once: the callers' totals of neighbouring groups share cache
+     * lines, and two workers incrementing them on every pair kept those lines moving between
+     * the cores. */
+    uint64_t n_bounds = 0, n_pairs = 0;
+    bool ok = true;
     while (W->n > 0) {
         ic_pair pr = W->v[--W->n];
         if (group < 0 && ir->group_of_node[pr.r] >= 0) {
-            if (!stack_push(&ir->groups[ir->group_of_node[pr.r]].pending, pr)) return false;
+            if (!stack_push(&ir->groups[ir->group_of_node[pr.r]].pending, pr)) {
+                ok = false;
+                break;
+            }
             continue;
         }
         ic_node *R = &t->nodes[pr.r];
@@ -525,13 +539,13 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, uint64_t *bo
             pn_receiver_bounds rb = node_bounds(R);
             pn_light_bounds lb = pn_light_node_bounds(Q, pr.kind);
             float ub = pn_bound_error(&rb, &lb, Q->intensity, min_dist2);
-            (*bound_evals)++;
+            n_bounds++;
             R->bound_acc += 1.0f / (float)R->count;
             if (ub <= 0.0f) continue; /* nothing of Q reaches R */
             shade = delta * R->color > ub; /* IsIllumAwarePair, eq. 4-5 */
         }
         if (shade) {
-            (*pairs)++;
+            n_pairs++;
             R->pair_acc += 1.0f;
             if (group >= 0) {
                 adaptive_sampling(ir, R->first, R->first + R->count, Q);
@@ -549,21 +563,31 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, uint64_t *bo
                     if (G->first >= R->first + R->count) break;
                     int32_t a = R->first > G->first ? R->first : G->first;
                     int32_t b = R->first + R->count < G->first + G->count ? R->first + R->count : G->first + G->count;
-                    if (a < b && !group_add_item(&ir->groups[g], (ic_item){a, b, pr.q})) return false;
+                    if (a < b && !group_add_item(&ir->groups[g], (ic_item){a, b, pr.q})) {
+                        ok = false;
+                        break;
+                    }
                 }
+                if (!ok) break;
             }
             continue;
         }
         bool refine_q = r_leaf || (light_radius(ir, Q, pr.kind) > node_radius(R));
         if (refine_q) {
-            if (!stack_push(W, (ic_pair){pr.r, Q->left, pr.kind}) || !stack_push(W, (ic_pair){pr.r, Q->right, pr.kind}))
-                return false;
+            if (!stack_push(W, (ic_pair){pr.r, Q->left, pr.kind}) || !stack_push(W, (ic_pair){pr.r, Q->right, pr.kind})) {
+                ok = false;
+                break;
+            }
         } else {
-            if (!stack_push(W, (ic_pair){R->left, pr.q, pr.kind}) || !stack_push(W, (ic_pair){R->right, pr.q, pr.kind}))
-                return false;
+            if (!stack_push(W, (ic_pair){R->left, pr.q, pr.kind}) || !stack_push(W, (ic_pair){R->right, pr.q, pr.kind})) {
+                ok = false;
+                break;
+            }
         }
     }
-    return true;
+    *bound_evals += n_bounds;
+    *pairs += n_pairs;
+    return ok;
 }
 
 typedef struct ic_worker_totals {
@@ -891,7 +915,9 @@ int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, ui
             if (atan2f(v3_length(v3_cross(r->ns, n->n_axis)), v3_dot(r->ns, n->n_axis)) > n->n_half + 1e-4f) bad = why = 6;
             vec3 refl = pn_reflect(r->wo, r->ns);
             if (atan2f(v3_length(v3_cross(refl, n->r_axis)), v3_dot(refl, n->r_axis)) > n->r_half + 1e-4f) bad = why = 7;
-            if (r->kd.x > n->kd_max.x || r->ks.y > n->ks_max.y || r->exponent < n->n_min || r->exponent > n->n_max) bad = why = 8;
+            bool glossy = !v3_is_zero(r->ks);
+            if (r->kd.x > n->kd_max.x || r->ks.y > n->ks_max.y || (glossy && (r->exponent < n->n_min || r->exponent > n->n_max)))
+                bad = why = 8;
         }
     }
     for (int i = 0; i < count && !bad; i++)

@@ -24,7 +24,9 @@ pn_status pn_vpl_prepare(pn_render_job *job, bool with_tree, pn_err *err) {
     if (with_tree) {
         float diag = 2.0f * job->lights->scene_radius;
         st = pn_light_tree_build(&d->set, diag, job->seed, &d->tree, err);
+        if (st == PN_OK) st = pn_light_tree_order_vpls(&d->tree, &d->set, err);
         if (st != PN_OK) {
+            pn_light_tree_free(&d->tree);
             pn_vpl_set_free(&d->set);
             free(d);
             return st;

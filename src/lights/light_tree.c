@@ -135,6 +135,52 @@ static int32_t build_kind(pn_light_tree *t, int kind, int32_t first, int32_t cou
     return list[0].node;
 }
 
+/* Renumbers the nodes in depth-first pre-order (each node followed by its left subtree, then its
+ * right one; the trees one after the other). The agglomerative build appends a parent after all
+ * the nodes merged before it, so a parent and its children lie far apart in memory and a top-down
+ * descent (a cut, a Phase II pair stack) missed the cache on nearly every child it visited; in
+ * pre-order a left child is the next node and subtrees are contiguous. Same tree, same
+ * representatives: only the indices change. */
+static bool depth_first_order(pn_light_tree *t) {
+    if (t->node_count == 0) return true;
+    pn_light_node *dst = malloc((size_t)t->node_count * sizeof *dst);
+    int32_t *stack = malloc((size_t)t->node_count * sizeof *stack);
+    if (!dst || !stack) {
+        free(dst);
+        free(stack);
+        return false;
+    }
+    int32_t m = 0;
+    for (int k = 0; k < PN_VPL_KIND_COUNT; k++) {
+        if (t->roots[k] < 0) continue;
+        int32_t sp = 0;
+        stack[sp++] = t->roots[k];
+        t->roots[k] = m;
+        while (sp > 0) {
+            int32_t at = m++;
+            dst[at] = t->nodes[stack[--sp]];
+            if (dst[at].left >= 0) {
+                stack[sp++] = dst[at].right; /* popped after the whole left subtree */
+                stack[sp++] = dst[at].left;
+            }
+        }
+    }
+    free(stack);
+    /* The children's new indices (dst still holds the old ones): the left child is the next node,
+     * the right one follows the left subtree, which has 2 * (its VPLs) - 1 nodes (every internal
+     * node has two children, every leaf one VPL). */
+    for (int32_t i = 0; i < m; i++) {
+        if (dst[i].left < 0) continue;
+        int32_t left_count = t->nodes[dst[i].left].count;
+        dst[i].left = i + 1;
+        dst[i].right = i + 1 + (2 * left_count - 1);
+    }
+    free(t->nodes);
+    t->nodes = dst;
+    t->node_count = m;
+    return true;
+}
+
 pn_status pn_light_tree_build(const pn_vpl_set *set, float scene_diagonal, uint64_t seed, pn_light_tree *out,
                               pn_err *err) {
     memset(out, 0, sizeof *out);
@@ -188,12 +234,49 @@ pn_status pn_light_tree_build(const pn_vpl_set *set, float scene_diagonal, uint6
     free(list);
     free(best);
     free(best_cost);
+    if (!depth_first_order(out)) {
+        pn_light_tree_free(out);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory ordering the light tree of %u VPLs", n);
+    }
     for (int32_t i = 0; i < out->node_count; i++) {
         pn_light_node *nd = &out->nodes[i];
         nd->cos_half = nd->half >= PN_PI ? -1.0f : cosf(nd->half);
         nd->sin_half = nd->half >= PN_PI ? 0.0f : sinf(nd->half);
     }
     out->seconds = pn_clock_seconds() - t0;
+    return PN_OK;
+}
+
+pn_status pn_light_tree_order_vpls(pn_light_tree *tree, pn_vpl_set *set, pn_err *err) {
+    double t0 = pn_clock_seconds();
+    uint32_t n = set->count;
+    if (n == 0) return PN_OK;
+    pn_vpl *vpls = malloc((size_t)n * sizeof *vpls);
+    int32_t *to = malloc((size_t)n * sizeof *to);
+    if (!vpls || !to) {
+        free(vpls);
+        free(to);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory ordering %u VPLs", n);
+    }
+    /* The nodes are in pre-order (depth_first_order), so their leaves come in the order of a
+     * depth-first walk. */
+    uint32_t m = 0;
+    for (int32_t i = 0; i < tree->node_count; i++) {
+        pn_light_node *nd = &tree->nodes[i];
+        if (nd->left >= 0) continue;
+        to[nd->rep] = (int32_t)m;
+        vpls[m++] = set->vpls[nd->rep];
+    }
+    if (m != n) { /* every VPL is one leaf */
+        free(vpls);
+        free(to);
+        return pn_err_set(err, PN_ERROR_INTERNAL, "light tree has %u leaves for %u VPLs", m, n);
+    }
+    for (int32_t i = 0; i < tree->node_count; i++) tree->nodes[i].rep = to[tree->nodes[i].rep];
+    free(to);
+    free(set->vpls);
+    set->vpls = vpls;
+    tree->seconds += pn_clock_seconds() - t0;
     return PN_OK;
 }
 

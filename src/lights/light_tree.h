@@ -23,7 +23,10 @@
  * sorts the clusters in Morton order and every cluster looks for its best partner among its
  * PN_LIGHT_TREE_WINDOW neighbours on each side of that order; mutually-best pairs are merged,
  * and rounds repeat until one cluster remains (a locally-ordered agglomerative clustering). It
- * uses the same metric at O(n log n) cost; trees differ slightly from the exact greedy ones. */
+ * uses the same metric at O(n log n) cost; trees differ slightly from the exact greedy ones.
+ *
+ * Layout: the nodes are stored in depth-first pre-order, one tree after the other (a node's left
+ * child is the next node; every subtree is a contiguous range). */
 #ifndef PN_LIGHTS_LIGHT_TREE_H
 #define PN_LIGHTS_LIGHT_TREE_H
 
@@ -56,6 +59,13 @@ typedef struct pn_light_tree {
 pn_status pn_light_tree_build(const pn_vpl_set *set, float scene_diagonal, uint64_t seed, pn_light_tree *out,
                               pn_err *err);
 void pn_light_tree_free(pn_light_tree *tree);
+
+/* Reorders the VPL set as the tree's leaves (depth-first) and renumbers the representatives, so
+ * that the representatives of nearby nodes are nearby in memory: a descent that shades
+ * representatives (a cut, Phase I and II of illumcut) otherwise reads each VPL from a random place
+ * of the set. The tree and the set keep the same VPLs and representatives. Time added to
+ * tree->seconds. */
+pn_status pn_light_tree_order_vpls(pn_light_tree *tree, pn_vpl_set *set, pn_err *err);
 
 /* The Lightcuts metric of a node with this box, cone and intensity. */
 float pn_light_tree_metric(int kind, vec3 lo, vec3 hi, float half, float weight, float scene_diagonal);

@@ -69,6 +69,19 @@ float pn_bound_geometric(const pn_receiver_bounds *r, const pn_light_bounds *q, 
     return g;
 }
 
+float pn_bound_lobe(float cb, float n_min, float n_max) {
+    /* f(n) = (n + 2) cb^n / (2 pi): ln f = ln(n + 2) + n ln cb is concave in n, so over
+     * [n_min, n_max] f is largest at the stationary point n* = -1 / ln cb - 2 clamped to the
+     * range (n_max when cb >= 1, where f only grows). Tighter than (n_max + 2) cb^n_min, which
+     * pairs the largest factor with the largest power, and equal to it for one exponent. */
+    float n = n_max;
+    if (cb < 1.0f && n_min < n_max) {
+        if (cb <= 0.0f) n = n_min;
+        else n = mnf(n_max, mxf(n_min, -1.0f / logf(cb) - 2.0f));
+    }
+    return (n + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, n);
+}
+
 vec3 pn_bound_material(const pn_receiver_bounds *r, const pn_light_bounds *q) {
     vec3 lo, hi; /* point-to-light vectors s - p */
     if (q->kind == PN_VPL_DIRECTIONAL) {
@@ -83,9 +96,7 @@ vec3 pn_bound_material(const pn_receiver_bounds *r, const pn_light_bounds *q) {
     vec3 m = v3_scale(r->kd_max, PN_INV_PI);
     if (!v3_is_zero(r->ks_max)) {
         float cb = mxf(0.0f, pn_bound_cos_cs(lo, hi, r->r_axis, r->r_cos, r->r_sin));
-        /* cos^n is largest for the smallest n (cos <= 1), (n + 2) for the largest. */
-        float lobe = (r->n_max + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, r->n_min);
-        m = v3_madd(m, r->ks_max, lobe);
+        m = v3_madd(m, r->ks_max, pn_bound_lobe(cb, r->n_min, r->n_max));
     }
     return v3_scale(m, cos_theta);
 }

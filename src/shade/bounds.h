@@ -19,7 +19,8 @@
 
 /* A cluster of receiving points: box of positions, cone of shading normals, cone of reflected
  * view directions, and per-channel maxima / range of the BRDF parameters (Lambert k_diff,
- * Blinn-Phong k_spec and exponent n). */
+ * Blinn-Phong k_spec and exponent n). The exponent range is over the points with a non-zero
+ * k_spec only (a Lambert point has no lobe to bound); it is unused when ks_max is zero. */
 typedef struct pn_receiver_bounds {
     vec3 lo, hi;
     vec3 n_axis;
@@ -65,6 +66,10 @@ float pn_box_distance2(vec3 alo, vec3 ahi, vec3 blo, vec3 bhi);
 /* G_max: upper bound of the geometric term (cos phi / max(d^2, min_dist2) for oriented VPLs,
  * 1 / max(d^2, min_dist2) for omni ones, 1 for directional ones) over every pair. */
 float pn_bound_geometric(const pn_receiver_bounds *r, const pn_light_bounds *q, float min_dist2);
+
+/* Upper bound of the normalised Blinn-Phong lobe (n + 2) / (2 pi) cos^n over every exponent n in
+ * [n_min, n_max] and every cosine in [0, cb]. */
+float pn_bound_lobe(float cb, float n_min, float n_max);
 
 /* M_max: per-channel upper bound of the BRDF times cos theta (eq. 1) over every pair. */
 vec3 pn_bound_material(const pn_receiver_bounds *r, const pn_light_bounds *q);
