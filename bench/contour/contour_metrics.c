@@ -13,12 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-static int to_8bit(float linear) {
-    double v = linear <= 0.0f ? 0.0 : (double)linear;
-    double s = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
-    if (s > 1.0) s = 1.0;
-    return (int)lround(s * 255.0);
-}
+#include "display8.h"
+
 
 int main(int argc, char **argv) {
     if (argc < 3) {

@@ -13,6 +13,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "display8.h"
+
 enum { PHASES = 7, CLASSES = 4, WHYS = 5 };
 static const char *phase_name[PHASES] = {"pattern check", "first level", "side dichotomy", "validity (diagonals)",
                                          "case-4 centre", "subdivision", "restart pass"};
@@ -21,12 +23,6 @@ static const char *class_name[CLASSES] = {"no candidate obstacle (culled)", "eve
 static const char *why_name[WHYS] = {"span start", "pattern changed / span end", "run middle", "uniform run",
                                      "every pixel (spans off)"};
 
-static int to_8bit(float linear) {
-    double v = linear <= 0.0f ? 0.0 : (double)linear;
-    double s = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
-    if (s > 1.0) s = 1.0;
-    return (int)lround(s * 255.0);
-}
 
 int main(int argc, char **argv) {
     if (argc < 6) {
