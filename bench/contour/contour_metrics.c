@@ -15,7 +15,6 @@
 
 #include "display8.h"
 
-
 int main(int argc, char **argv) {
     if (argc < 3) {
         fprintf(stderr, "usage: contour_metrics REFERENCE IMAGE [--error-png FILE] [--closeup x,y,w,h,FILE]...\n");
