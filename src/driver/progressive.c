@@ -36,9 +36,8 @@ float pn_prog_lum_sigma(const pn_prog *p, int x, int y) {
     if (!(rv > 0.0f)) return 0.0f;
     /* The variance is relative to the whole estimate, emission included; in the units of rad. */
     const float *c = p->orig + 3 * i, *f = p->demod ? p->demod + 3 * i : NULL;
-    float l = f ? 0.2126f * c[0] / f[0] + 0.7152f * c[1] / f[1] + 0.0722f * c[2] / f[2]
-                : 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
-    return sqrtf(rv) * fabsf(l);
+    vec3 v = f ? v3(c[0] / f[0], c[1] / f[1], c[2] / f[2]) : v3(c[0], c[1], c[2]);
+    return sqrtf(rv) * fabsf(v3_luminance(v));
 }
 
 bool pn_prog_request(pn_prog *p, int x, int y) {
@@ -335,7 +334,6 @@ typedef struct primary_run {
     float *depth;
     vec3 *normal;
     unsigned char *refine; /* pixels whose demod and emit come from a g x g grid */
-    vec3 *mean;            /* their grid means: albedo factor, emitted */
 } primary_run;
 
 /* The demodulation factor of one primary ray: its first-hit albedo, floored so that dark texels
@@ -495,13 +493,12 @@ static void primary_refine_row(void *user, size_t row, int worker) {
                 if (v3_is_finite(sub.emitted)) e = v3_madd(e, sub.emitted, fw);
                 wsum += (double)fw;
             }
-        float inv = wsum != 0.0 ? (float)(1.0 / wsum) : 0.0f;
-        if (inv == 0.0f) {
-            r->refine[i] = 0; /* keep the centre's values */
-            continue;
-        }
-        r->mean[2 * i] = v3_scale(f, inv);
-        r->mean[2 * i + 1] = v3_scale(e, inv);
+        if (wsum == 0.0) continue; /* keep the filtered centre values */
+        f = v3_scale(f, (float)(1.0 / wsum));
+        e = v3_scale(e, (float)(1.0 / wsum));
+        float *fd = p->demod + 3 * i, *fe = p->emit + 3 * i;
+        fd[0] = f.x, fd[1] = f.y, fd[2] = f.z;
+        fe[0] = e.x, fe[1] = e.y, fe[2] = e.z;
     }
 }
 
@@ -518,7 +515,7 @@ pn_status pn_prog_build_primary(pn_prog *p) {
     if (p->tag) return PN_OK;
     double t0 = pn_clock_seconds();
     size_t n = (size_t)p->W * (size_t)p->H, ns = (size_t)(p->W + 1) * (size_t)(p->H + 1);
-    primary_run r = {p, malloc(n * sizeof(float)), malloc(n * sizeof(vec3)), NULL, NULL};
+    primary_run r = {p, malloc(n * sizeof(float)), malloc(n * sizeof(vec3)), NULL};
     p->tag = malloc(n * sizeof *p->tag);
     p->sat_right = calloc(ns, sizeof *p->sat_right);
     p->sat_down = calloc(ns, sizeof *p->sat_down);
@@ -534,12 +531,15 @@ pn_status pn_prog_build_primary(pn_prog *p) {
     }
     pn_threadpool_run(p->pool, (size_t)p->H, primary_row, &r);
     if (p->demod) {
+        /* Borders are found on the centre values, the filter replaces them, then the grids
+         * overwrite the border pixels. */
         bool grid = p->primary_grid > 1;
-        if (grid) {
-            r.refine = calloc(n, 1);
-            r.mean = malloc(2 * n * sizeof *r.mean);
+        if (grid && !(r.refine = calloc(n, 1))) {
+            free(r.depth);
+            free(r.normal);
+            return PN_ERROR_OUT_OF_MEMORY;
         }
-        if (grid && r.refine && r.mean) {
+        if (grid)
             for (int y = 0; y < p->H; y++)
                 for (int x = 0; x < p->W; x++) {
                     size_t i = pn_prog_index(p, x, y);
@@ -550,17 +550,9 @@ pn_status pn_prog_build_primary(pn_prog *p) {
                     r.refine[i] = d;
                     p->primary_refined += d;
                 }
-            pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
-        }
-        bool ok = (!grid || (r.refine && r.mean)) && filter_primary(p);
-        if (ok && grid)
-            for (size_t i = 0; i < n; i++)
-                if (r.refine[i]) {
-                    memcpy(p->demod + 3 * i, &r.mean[2 * i], 3 * sizeof(float));
-                    memcpy(p->emit + 3 * i, &r.mean[2 * i + 1], 3 * sizeof(float));
-                }
+        bool ok = filter_primary(p);
+        if (ok && grid) pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
         free(r.refine);
-        free(r.mean);
         if (!ok) {
             free(r.depth);
             free(r.normal);
