@@ -430,6 +430,12 @@ static void test_stop_and_aovs(void) {
     CHECK_STR_CONTAINS(pn_context_error_message(ctx), "work scale");
     pn_context_clear_error(ctx);
     bad = s;
+    bad.primary_grid = 9;
+    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK(img == NULL);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "primary grid");
+    pn_context_clear_error(ctx);
+    bad = s;
     bad.aovs = PN_AOV_DEPTH;
     CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
     pn_context_clear_error(ctx);
