@@ -59,6 +59,14 @@
  *    transition the block fails (the tangent is unknown); blocks with fewer than two inner
  *    pixels per layer (k = 2) skip it.
  *  - Elements are evaluated on RGB with the luminance-derived direction.
+ *  - Edge blocks that a visible line crosses are drawn segment by segment (draw_segmented): the
+ *    visible lines cut the block into segments of 4-connected pixels, and a pixel whose element
+ *    line would reach across a line, or end on a pixel not yet evaluated, takes the
+ *    inverse-squared-distance mean of the evaluated pixels of its own segment instead. The paper
+ *    draws elements across the whole block; with a third of the image in edge blocks still under
+ *    boundary evaluation at 6% (staircase at 1230 x 690 work pixels), the elements blended
+ *    balusters and trims into the wall behind them. At 6% this cut rel L2 from 0.046 to 0.030
+ *    on staircase and from 0.019 to 0.015 on bathroom (bench/progressive/README.md).
  *  - Monte Carlo noise (the paper's RADIANCE pixels are nearly noise-free): contrast
  *    thresholding also asks the corners' luminance range to exceed 2 standard deviations of its
  *    noise, and the lazy test accepts deviations within 2 standard deviations of the pixel's
@@ -432,6 +440,8 @@ static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, 
     }
 }
 
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir);
+
 static void draw_elements(const pn_prog *p, float *img, const dcm_block *b) {
     int x1, y1;
     block_extent(p, b, &x1, &y1);
@@ -440,11 +450,105 @@ static void draw_elements(const pn_prog *p, float *img, const dcm_block *b) {
     gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
     /* an edge block still under boundary evaluation: oriented by what its boundary holds now */
     int dir = b->kind == DCM_PENDING ? pn_dcm_least_discrepancy(lum, w, h, NULL) : b->dir;
+    if (draw_segmented(p, img, b, rgb, dir)) return;
     int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
     for (int y = 0; y < ye; y++)
         for (int x = 0; x < xe; x++)
             pn_dcm_element_value(rgb, 3, w, h, dir, (float)x, (float)y,
                                  img + 3 * pn_prog_index(p, b->x0 + x, b->y0 + y));
+}
+
+/* Segment-aware drawing of an edge block (a departure, see the header). The visible lines of the
+ * primary buffer cut the block, widened by DCM_SEG_MARGIN pixels on each side, into segments:
+ * 4-connected pixels that no visible line separates. When a visible line crosses the block, a
+ * pixel keeps its element value where both ends of the element's line are evaluated pixels of
+ * its own segment, and otherwise takes the inverse-squared-distance mean of the evaluated
+ * pixels of its segment, preferring those that are, like it, next to a visible line or not; a
+ * pixel whose segment holds none keeps the element. Returns false (nothing drawn) for blocks
+ * without a visible line or too large. */
+#define DCM_SEG_MARGIN 1
+#define DCM_SEG_SIDE (16 + 1 + 2 * DCM_SEG_MARGIN)
+
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir) {
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    int wx0 = b->x0 > DCM_SEG_MARGIN ? b->x0 - DCM_SEG_MARGIN : 0;
+    int wy0 = b->y0 > DCM_SEG_MARGIN ? b->y0 - DCM_SEG_MARGIN : 0;
+    int wx1 = x1 + DCM_SEG_MARGIN < p->W - 1 ? x1 + DCM_SEG_MARGIN : p->W - 1;
+    int wy1 = y1 + DCM_SEG_MARGIN < p->H - 1 ? y1 + DCM_SEG_MARGIN : p->H - 1;
+    if (!pn_prog_visible_line(p, b->x0, b->y0, x1, y1)) return false;
+    int ww = wx1 - wx0 + 1, wh = wy1 - wy0 + 1;
+    if (ww > DCM_SEG_SIDE || wh > DCM_SEG_SIDE) return false;
+    int16_t label[DCM_SEG_SIDE * DCM_SEG_SIDE], stack[DCM_SEG_SIDE * DCM_SEG_SIDE];
+    int16_t known[DCM_SEG_SIDE * DCM_SEG_SIDE];
+    int n = ww * wh, segments = 0, nk = 0;
+    for (int i = 0; i < n; i++) label[i] = -1;
+    for (int i = 0; i < n; i++) {
+        if (label[i] >= 0) continue;
+        int top = 0;
+        label[i] = (int16_t)segments;
+        stack[top++] = (int16_t)i;
+        while (top > 0) {
+            int j = stack[--top], x = j % ww, y = j / ww, gx = wx0 + x, gy = wy0 + y;
+            int nb[4] = {-1, -1, -1, -1};
+            if (x + 1 < ww && !pn_prog_line_right(p, gx, gy)) nb[0] = j + 1;
+            if (x > 0 && !pn_prog_line_right(p, gx - 1, gy)) nb[1] = j - 1;
+            if (y + 1 < wh && !pn_prog_line_down(p, gx, gy)) nb[2] = j + ww;
+            if (y > 0 && !pn_prog_line_down(p, gx, gy - 1)) nb[3] = j - ww;
+            for (int m = 0; m < 4; m++)
+                if (nb[m] >= 0 && label[nb[m]] < 0) {
+                    label[nb[m]] = (int16_t)segments;
+                    stack[top++] = (int16_t)nb[m];
+                }
+        }
+        segments++;
+    }
+    unsigned char near[DCM_SEG_SIDE * DCM_SEG_SIDE]; /* next to a visible line: a mixed pixel */
+    for (int i = 0; i < n; i++) {
+        int gx = wx0 + i % ww, gy = wy0 + i / ww;
+        near[i] = pn_prog_line_right(p, gx, gy) || pn_prog_line_down(p, gx, gy) || (gx > 0 && pn_prog_line_right(p, gx - 1, gy)) ||
+                  (gy > 0 && pn_prog_line_down(p, gx, gy - 1));
+        if (pn_prog_known(p, gx, gy)) known[nk++] = (int16_t)i;
+    }
+    int w = x1 - b->x0, h = y1 - b->y0;
+    int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
+    for (int y = b->y0; y < ye; y++)
+        for (int x = b->x0; x < xe; x++) {
+            int i = (y - wy0) * ww + (x - wx0);
+            float *o = img + 3 * pn_prog_index(p, x, y);
+            double acc[3] = {0, 0, 0}, wsum = 0;
+            /* First from pixels as near to a visible line as this one (pixels next to a line
+             * mix both sides under the pixel filter), then from any of its segment. */
+            for (int pass = 0; pass < 2 && wsum <= 0.0; pass++)
+            for (int m = 0; m < nk; m++) {
+                int j = known[m];
+                if (label[j] != label[i] || (pass == 0 && near[j] != near[i])) continue;
+                int dx = wx0 + j % ww - x, dy = wy0 + j / ww - y;
+                double wt = 1.0 / (double)(dx * dx + dy * dy > 0 ? dx * dx + dy * dy : 1);
+                const float *v = p->rad + 3 * pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
+                for (int c = 0; c < 3; c++) acc[c] += wt * (double)v[c];
+                wsum += wt;
+            }
+            bool use_elem = wsum <= 0.0;
+            if (!use_elem) {
+                /* The element stays where both ends of its line through the pixel are evaluated
+                 * pixels of the pixel's own segment. */
+                float nx, ny, tmin, tmax, fx = (float)(x - b->x0), fy = (float)(y - b->y0);
+                direction(dir, &nx, &ny);
+                slab(w, h, fx, fy, nx, ny, &tmin, &tmax);
+                int ax = b->x0 + (int)lrintf(clampf(fx + fminf(tmin, 0.0f) * nx, 0.0f, (float)w));
+                int ay = b->y0 + (int)lrintf(clampf(fy + fminf(tmin, 0.0f) * ny, 0.0f, (float)h));
+                int bx = b->x0 + (int)lrintf(clampf(fx + fmaxf(tmax, 0.0f) * nx, 0.0f, (float)w));
+                int by = b->y0 + (int)lrintf(clampf(fy + fmaxf(tmax, 0.0f) * ny, 0.0f, (float)h));
+                use_elem = label[(ay - wy0) * ww + (ax - wx0)] == label[i] && label[(by - wy0) * ww + (bx - wx0)] == label[i] &&
+                           pn_prog_known(p, ax, ay) && pn_prog_known(p, bx, by);
+            }
+            if (!use_elem)
+                for (int c = 0; c < 3; c++) o[c] = (float)(acc[c] / wsum);
+            else
+                pn_dcm_element_value(loop, 3, w, h, dir, (float)(x - b->x0), (float)(y - b->y0), o);
+        }
+    return true;
 }
 
 typedef struct draw_run {

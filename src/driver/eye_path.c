@@ -3,6 +3,7 @@
 #include "driver/render_job.h"
 
 #include "core/rng.h"
+#include "core/sobol.h"
 #include "shade/bsdf.h"
 
 #include <string.h>
@@ -69,4 +70,17 @@ void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specula
         d = v3_normalize(next);
         tmin = 0.0f;
     }
+}
+
+uint32_t pn_pixel_scramble(const pn_render_job *job, int px, int py) {
+    return (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+}
+
+void pn_pixel_eye_sample(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, vec3 *o, vec3 *d,
+                         float *fw, float *u_specular) {
+    float rx, ry;
+    pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble),
+                            &rx, &ry, fw);
+    pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), o, d);
+    *u_specular = pn_sobol_sample(i, 4, scramble);
 }

@@ -377,18 +377,54 @@ static void primary_row(void *user, size_t row, int worker) {
 }
 
 /* Whether what the centres of work pixels a and b see differs so much that the filter-weighted
- * mean of centre rays would misjudge a pixel between them: emitted radiance by more than 2% of
- * the larger value (an emitter's or the sky's border), the albedo factor by more than 30% (strong
- * texture, silhouettes against other materials; weaker texture is left to the filtered mean, as
- * grids everywhere would cost a large part of a full render's eye rays on textured scenes). */
-static bool primary_differs(const pn_prog *p, size_t a, size_t b) {
+ * mean of centre rays would misjudge a pixel between them. Bit 1: the albedo factor by more than
+ * 30% (strong texture, silhouettes against other materials; weaker texture is left to the
+ * filtered mean, as grids everywhere would cost a large part of a full render's eye rays on
+ * textured scenes). Bit 2: emitted radiance by more than 2% of the larger value (an emitter's or
+ * the sky's border). */
+static int primary_differs(const pn_prog *p, size_t a, size_t b) {
+    int d = 0;
     for (int c = 0; c < 3; c++) {
         float fa = p->demod[3 * a + c], fb = p->demod[3 * b + c];
-        if (fabsf(fa - fb) > 0.3f * fmaxf(fa, fb)) return true;
+        if (fabsf(fa - fb) > 0.3f * fmaxf(fa, fb)) d |= 1;
         float ea = p->emit[3 * a + c], eb = p->emit[3 * b + c];
-        if (fabsf(ea - eb) > 0.02f * fmaxf(fabsf(ea), fabsf(eb))) return true;
+        if (fabsf(ea - eb) > 0.02f * fmaxf(fabsf(ea), fabsf(eb))) d |= 2;
     }
-    return false;
+    return d;
+}
+
+/* Marks the pixels whose demod and emit the grid (or the integrator's eye rays) replace: those
+ * next to an albedo border, and those whose pixel filter reaches an emitter's border (a few per
+ * cent of an emitter's coverage is a lot of light, and the filter spreads it over R pixels). */
+static size_t mark_refined(const pn_prog *p, unsigned char *refine) {
+    int R = (int)ceilf(fmaxf(p->job.camera.filter_x.radius, p->job.camera.filter_y.radius) - 0.5f);
+    if (R < 0) R = 0;
+    if (R > 4) R = 4;
+    for (int y = 0; y < p->H; y++)
+        for (int x = 0; x < p->W; x++) {
+            size_t i = pn_prog_index(p, x, y);
+            int d = (x > 0 ? primary_differs(p, i, i - 1) : 0) | (x + 1 < p->W ? primary_differs(p, i, i + 1) : 0) |
+                    (y > 0 ? primary_differs(p, i, i - (size_t)p->W) : 0) |
+                    (y + 1 < p->H ? primary_differs(p, i, i + (size_t)p->W) : 0);
+            refine[i] = (unsigned char)d;
+        }
+    size_t count = 0;
+    for (int y = 0; y < p->H; y++)
+        for (int x = 0; x < p->W; x++) {
+            size_t i = pn_prog_index(p, x, y);
+            bool r = (refine[i] & 1) != 0;
+            for (int dy = -R; dy <= R && !r; dy++)
+                for (int dx = -R; dx <= R && !r; dx++) {
+                    int xx = x + dx, yy = y + dy;
+                    r = xx >= 0 && yy >= 0 && xx < p->W && yy < p->H && (refine[pn_prog_index(p, xx, yy)] & 2);
+                }
+            refine[i] |= r ? 4 : 0;
+        }
+    for (size_t i = 0; i < (size_t)p->W * (size_t)p->H; i++) {
+        refine[i] = (refine[i] & 4) != 0;
+        count += refine[i];
+    }
+    return count;
 }
 
 /* Weights of the camera's pixel filter per whole-pixel offset -R..R along one axis: the filter's
@@ -462,9 +498,11 @@ static bool filter_primary(pn_prog *p) {
  * both known from primary rays alone, so that neither texture detail nor directly seen emitters
  * (lamps, the sky between blinds) are left to the interpolation. The integrator's estimate of a
  * pixel averages over its filter's footprint: filter_primary's mean of the centre rays stands for
- * it, except where primary_differs finds a border (emitters, where a few per cent of coverage is a
- * lot of light; strong albedo changes): there the factors are the means of a g x g grid of
- * primary rays stratified over the pixel filter. */
+ * it, except where mark_refined finds a border (emitters, where a few per cent of coverage is a
+ * lot of light; strong albedo changes): there the factors are the means of the integrator's own
+ * eye rays where it reports which they are (pn_integrator_pixel_eye_samples: `reference` at a
+ * fixed --spp), so that emitted light and albedo are weighed exactly as in its estimate, and
+ * otherwise of a g x g grid of primary rays stratified over the pixel filter. */
 static void primary_refine_row(void *user, size_t row, int worker) {
     (void)worker;
     primary_run *r = user;
@@ -476,6 +514,20 @@ static void primary_refine_row(void *user, size_t row, int worker) {
         uint64_t key = pn_hash3(p->job.seed, (uint64_t)(x + p->wx0), (uint64_t)(y + p->wy0));
         vec3 f = v3(0, 0, 0), e = v3(0, 0, 0);
         double wsum = 0.0;
+        if (p->pixel_samples > 0) { /* the integrator's own eye rays */
+            int px = x + p->wx0, py = y + p->wy0;
+            uint32_t scramble = pn_pixel_scramble(&p->job, px, py);
+            for (uint32_t s = 0; s < p->pixel_samples; s++) {
+                float fw, u_specular;
+                vec3 o, d;
+                pn_pixel_eye_sample(&p->job, px, py, scramble, s, &o, &d, &fw, &u_specular);
+                pn_eye_path sub;
+                pn_trace_eye_path(&p->job, o, d, u_specular, &sub);
+                f = v3_madd(f, demod_factor(&sub), fw);
+                if (v3_is_finite(sub.emitted)) e = v3_madd(e, sub.emitted, fw);
+                wsum += (double)fw;
+            }
+        } else
         for (int j = 0; j < g; j++)
             for (int k = 0; k < g; k++) {
                 /* Stratified over the camera's pixel filter, weighted as the integrators weight
@@ -539,17 +591,7 @@ pn_status pn_prog_build_primary(pn_prog *p) {
             free(r.normal);
             return PN_ERROR_OUT_OF_MEMORY;
         }
-        if (grid)
-            for (int y = 0; y < p->H; y++)
-                for (int x = 0; x < p->W; x++) {
-                    size_t i = pn_prog_index(p, x, y);
-                    bool d = (x > 0 && primary_differs(p, i, i - 1)) ||
-                             (x + 1 < p->W && primary_differs(p, i, i + 1)) ||
-                             (y > 0 && primary_differs(p, i, i - (size_t)p->W)) ||
-                             (y + 1 < p->H && primary_differs(p, i, i + (size_t)p->W));
-                    r.refine[i] = d;
-                    p->primary_refined += d;
-                }
+        if (grid) p->primary_refined = mark_refined(p, r.refine);
         bool ok = filter_primary(p);
         if (ok && grid) pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
         free(r.refine);
@@ -580,6 +622,14 @@ static uint32_t sat_sum(const uint32_t *sat, int W, int x0, int y0, int x1, int 
     size_t stride = (size_t)W + 1;
     return sat[(size_t)(y1 + 1) * stride + (size_t)(x1 + 1)] - sat[(size_t)y0 * stride + (size_t)(x1 + 1)] -
            sat[(size_t)(y1 + 1) * stride + (size_t)x0] + sat[(size_t)y0 * stride + (size_t)x0];
+}
+
+bool pn_prog_line_right(const pn_prog *p, int x, int y) {
+    return p->tag && x + 1 < p->W && sat_sum(p->sat_right, p->W, x, y, x, y) > 0;
+}
+
+bool pn_prog_line_down(const pn_prog *p, int x, int y) {
+    return p->tag && y + 1 < p->H && sat_sum(p->sat_down, p->W, x, y, x, y) > 0;
 }
 
 bool pn_prog_visible_line(const pn_prog *p, int x0, int y0, int x1, int y1) {
@@ -638,6 +688,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->scale = scale;
     p->primary_grid = s->primary_grid > 0 ? s->primary_grid : 3;
     p->integ_emitted = pn_integrator_reports_emitted(integ);
+    p->pixel_samples = pn_integrator_pixel_eye_samples(integ, &p->job);
     float crop[4] = {0, 1, 0, 1};
     pn_camera_setup(&job->scene->camera, oc->full_width * scale, oc->full_height * scale, crop, &p->job.camera);
     p->job.camera.x0 = oc->x0 * scale;

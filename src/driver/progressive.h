@@ -48,6 +48,8 @@ struct pn_prog {
                           pixel centres' values change */
     size_t primary_refined; /* pixels that got the g x g grid */
     bool integ_emitted;     /* the integrator reports each estimate's emitted part */
+    uint32_t pixel_samples; /* the integrator's eye rays per pixel in pn_pixel_eye_sample's
+                               convention (0: unknown); they replace the g x g grid */
     float *relvar;     /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
     unsigned char *state;
     size_t evaluated;
@@ -110,6 +112,9 @@ pn_status pn_prog_build_primary(pn_prog *p);
 /* Whether a visible line (a change of object tag, a normal bend or a depth jump between two
  * 4-neighbours, both inside the rectangle) crosses [x0, x1] x [y0, y1] (inclusive). */
 bool pn_prog_visible_line(const pn_prog *p, int x0, int y0, int x1, int y1);
+/* Whether a visible line separates work pixel (x, y) from its right / lower neighbour. */
+bool pn_prog_line_right(const pn_prog *p, int x, int y);
+bool pn_prog_line_down(const pn_prog *p, int x, int y);
 static inline float pn_prog_evaluated_percent(const pn_prog *p) {
     return (float)(100.0 * (double)p->evaluated / ((double)p->W * (double)p->H));
 }

@@ -60,4 +60,12 @@ typedef struct pn_eye_path {
  * the first reflect/refract choice; deeper choices use a hash of (seed, u_specular, depth). */
 void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specular, pn_eye_path *path);
 
+/* Eye sample i of full-image pixel (px, py) in the per-pixel convention of the `reference`
+ * integrator: one scrambled Sobol sequence per pixel (the scramble a hash of the seed and the
+ * pixel), dimensions 0-1 the position under the pixel filter (its weight in *fw), 2-3 the lens,
+ * 4 the specular choice. The camera ray goes to *o, *d; pn_trace_eye_path takes *u_specular. */
+uint32_t pn_pixel_scramble(const pn_render_job *job, int px, int py);
+void pn_pixel_eye_sample(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, vec3 *o, vec3 *d,
+                         float *fw, float *u_specular);
+
 #endif

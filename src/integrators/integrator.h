@@ -62,6 +62,10 @@ typedef struct pn_integrator {
 /* Whether the integrator fills pn_pixel_estimate.emitted (reference and ias); the progressive
  * drivers then interpolate only the rest. */
 bool pn_integrator_reports_emitted(const pn_integrator *integrator);
+/* How many eye rays per pixel the integrator traces as samples 0..n-1 of pn_pixel_eye_sample,
+ * every one weighted by its filter weight in the pixel's estimate (reference at a fixed --spp);
+ * 0 when it samples the pixel otherwise (adaptive eye-ray counts, ias's block sequences). */
+uint32_t pn_integrator_pixel_eye_samples(const pn_integrator *integrator, const pn_render_job *job);
 /* The table of integrators; NULL if unknown. */
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 

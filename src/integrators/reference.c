@@ -94,7 +94,7 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
     for (int pi = 0; pi < batch->count; pi++) {
         int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
         /* One scrambled Sobol sequence per pixel: the value is independent of the batch. */
-        uint32_t scramble = (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+        uint32_t scramble = pn_pixel_scramble(job, px, py);
         uint32_t index = 0;
         pixel_state ps;
         memset(&ps, 0, sizeof ps);
@@ -104,16 +104,13 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
         double embree_seconds = 0.0;
         while (!pixel_done(job, &ps)) {
             uint32_t i = index++;
-            float rx, ry, fw;
-            pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble),
-                                    pn_sobol_sample(i, 1, scramble), &rx, &ry, &fw);
+            float fw, u_specular;
             vec3 ro, rd;
-            pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble),
-                          &ro, &rd);
+            pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
             const bool timed = i % PN_TIMING_STRIDE == 0u;
             double t_start = timed ? pn_clock_seconds() : 0.0;
             pn_eye_path path;
-            pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+            pn_trace_eye_path(job, ro, rd, u_specular, &path);
             if (timed) embree_seconds += pn_clock_seconds() - t_start;
             if (ps.n == 0) {
                 o->depth = path.first_depth;
@@ -185,6 +182,10 @@ const pn_integrator pn_integrator_reference = {
 
 bool pn_integrator_reports_emitted(const pn_integrator *integrator) {
     return integrator == &pn_integrator_reference || integrator == &pn_integrator_ias;
+}
+
+uint32_t pn_integrator_pixel_eye_samples(const pn_integrator *integrator, const pn_render_job *job) {
+    return integrator == &pn_integrator_reference ? job->spp : 0;
 }
 
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
