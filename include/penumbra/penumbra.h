@@ -247,9 +247,9 @@ typedef struct pn_render_settings {
                                         by the first-hit albedo of a primary ray, then multiplied back */
     int primary_grid;                /* g x g primary rays per work pixel give the albedo and the
                                         emitted radiance of the pixel where they change (1..8; 0:
-                                        the default 3; 1: centre rays only). With `reference`
-                                        at a fixed spp its own eye rays replace the grid, so
-                                        emitters match its estimate exactly */
+                                        the default 3; 1: centre rays only). Along emitters,
+                                        `reference` at a fixed spp traces its own eye rays
+                                        instead, so emitters match its estimate exactly */
 } pn_render_settings;
 
 /* contour_flags bits. */

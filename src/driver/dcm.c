@@ -65,15 +65,16 @@
  *    inverse-squared-distance mean of the evaluated pixels of its own segment instead. The paper
  *    draws elements across the whole block; with a third of the image in edge blocks still under
  *    boundary evaluation at 6% (staircase at 1230 x 690 work pixels), the elements blended
- *    balusters and trims into the wall behind them. At 6% this cut rel L2 from 0.046 to 0.030
- *    on staircase and from 0.019 to 0.015 on bathroom (bench/progressive/README.md).
+ *    balusters and trims into the wall behind them (bench/progressive/README.md has the
+ *    measurements).
  *  - Monte Carlo noise (the paper's RADIANCE pixels are nearly noise-free): contrast
  *    thresholding also asks the corners' luminance range to exceed 2 standard deviations of its
  *    noise, and the lazy test accepts deviations within 2 standard deviations of the pixel's
  *    estimate as well as within 1% (the integrator reports each pixel's variance).
  *  - What is interpolated is (radiance - emitted) / albedo, multiplied back and the emitted part
  *    added per pixel (progressive.c; --raw-radiance turns it off). Both come from primary rays
- *    (3 x 3 over the pixel filter where the pixel centres' values change, --primary-grid): texture
+ *    (3 x 3 over the pixel filter where the pixel centres' values change, --primary-grid; along
+ *    emitters `reference`'s own eye rays where its eye-ray count is fixed): texture
  *    and directly seen emitters (lamps, the sky between blinds) are known without evaluating the
  *    pixel and need not be sampled. At evaluated pixels the integrator's own emitted part is
  *    taken out where it reports one (reference, ias). Tests and directions see the same values. */
