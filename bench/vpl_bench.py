@@ -27,8 +27,9 @@ Equal RMSE (--equal-rmse, with --crop-reference): each method is run at every er
 --sweep (e.g. "LC=0.005,0.01,0.02;IC=0.015,0.03;IC-S=0.01,0.02"), the levels interleaved (the
 first level of every method, then the second, ...), and its render CPU time is interpolated
 log-log in RMSE (crop) at common targets: the RMSE of lightcuts at 1% and of illumcut at 1.5%
-(when those levels are in the sweep). A target outside a method's RMSE range is extrapolated from
-its two nearest points and marked "extrap.". --reference-dir reuses the vpl crop references of an
+(when those levels are in the sweep). A target outside a method's RMSE range is not extrapolated:
+the time is then a bound (">" the time of its most accurate level when the target is below all
+its RMSEs, "<" that of its least accurate one when above), and so is the ratio. --reference-dir reuses the vpl crop references of an
 earlier run (same scene, resolution, VPLs and crop; file names as this script writes them).
 """
 import argparse
@@ -318,23 +319,24 @@ METHOD_ARGS = {
 
 def loglog_at(points, target):
     """CPU time at RMSE `target` by log-log interpolation over points [(error, rmse, cpu)], taken
-    in order of the error parameter; returns (cpu, extrapolated)."""
+    in order of the error parameter; returns (cpu, mark): mark "" when interpolated, ">" when the
+    target is below every RMSE of the sweep (cpu is then the time of the most accurate point, a
+    lower bound), "<" when it is above every RMSE (cpu is the time of the least accurate point,
+    an upper bound)."""
     pts = sorted(points)
+    if not pts:
+        return float("nan"), "?"
     for (e0, r0, c0), (e1, r1, c1) in zip(pts, pts[1:]):
+        if r0 == target:
+            return c0, ""
         if min(r0, r1) <= target <= max(r0, r1) and r0 != r1:
             t = (math.log(target) - math.log(r0)) / (math.log(r1) - math.log(r0))
-            return math.exp(math.log(c0) + t * (math.log(c1) - math.log(c0))), False
-        if r0 == target:
-            return c0, False
-    if len(pts) < 2:
-        return (pts[0][2], True) if pts else (float("nan"), True)
-    # Extrapolate from the two points nearest in log RMSE.
-    near = sorted(pts, key=lambda p: abs(math.log(p[1]) - math.log(target)))[:2]
-    (e0, r0, c0), (e1, r1, c1) = near
-    if r0 == r1:
-        return c0, True
-    t = (math.log(target) - math.log(r0)) / (math.log(r1) - math.log(r0))
-    return math.exp(math.log(c0) + t * (math.log(c1) - math.log(c0))), True
+            return math.exp(math.log(c0) + t * (math.log(c1) - math.log(c0))), ""
+    if pts[-1][1] == target:
+        return pts[-1][2], ""
+    if target < min(p[1] for p in pts):
+        return min(pts, key=lambda p: p[1])[2], ">"
+    return max(pts, key=lambda p: p[1])[2], "<"
 
 
 def equal_rmse(a, penumbra, common_for, lines, results):
@@ -392,10 +394,11 @@ def equal_rmse(a, penumbra, common_for, lines, results):
                   "|---|---|---|---|---|---|---|---|---|"]
         for name, _ in sweep:
             for st in runs[name]:
-                lines.append("| %s | %g%% | %.1f | %.2f | %.0f | %.0f | %.6f | %.4f | %.1f |" % (
+                lines.append("| %s | %g%% | %.1f | %.2f | %.0f | %.0f | %.6f | %.4f | %s |" % (
                     name, 100 * st["error_parameter"], st["render_cpu_seconds"], st["render_seconds"],
                     st["shadow_rays_per_pixel_mean"], st["bound_evaluations_per_pixel_mean"], st["rmse_crop"],
-                    st["mean_relative_error_crop"], st["load_before"]))
+                    st["mean_relative_error_crop"],
+                    "%.1f" % st["load_before"] if st["load_before"] >= 0 else "-"))  # - : reused run
         targets = []
         for name, e in (("LC", 0.01), ("IC", 0.015)):
             hit = [st for st in runs.get(name, []) if abs(st["error_parameter"] - e) < 1e-9]
@@ -412,9 +415,17 @@ def equal_rmse(a, penumbra, common_for, lines, results):
                 c, ex = loglog_at([(st["error_parameter"], st["rmse_crop"], st["render_cpu_seconds"])
                                    for st in runs[name] if st["rmse_crop"] > 0 and st["render_cpu_seconds"] > 0], target)
                 cpus[name] = (c, ex)
-                cells.append("%.1f%s" % (c, " (extrap.)" if ex else ""))
+                cells.append("%s%.1f" % (ex, c))
             lc = cpus[sweep[0][0]]
-            ratios = ["%.2f%s" % (lc[0] / cpus[n][0], " (extrap.)" if lc[1] or cpus[n][1] else "") for n, _ in sweep[1:]]
+            flip = {">": "<", "<": ">", "": ""}
+
+            def ratio(n):
+                # LC's time over the method's; a bound on either side makes the ratio a bound.
+                m = flip[cpus[n][1]] if cpus[n][1] else lc[1]
+                if cpus[n][1] and lc[1] and flip[cpus[n][1]] != lc[1]:
+                    return "?"
+                return "%s%.2f" % (m, lc[0] / cpus[n][0])
+            ratios = [ratio(n) for n, _ in sweep[1:]]
             lines.append("| %s | " % label + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
             eq[label] = {n: cpus[n] for n, _ in sweep}
         print("\n".join(lines), flush=True)
