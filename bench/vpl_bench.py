@@ -23,14 +23,17 @@ the rounds of the ratio within a round (the machine is shared: absolute times dr
 neighbouring runs less). --compare NAME=DIR adds the illumcut methods of another build (e.g.
 the code before a change) to the same rounds. Peak memory: the render's getrusage maximum RSS
 (stats) and /usr/bin/time's for the whole process.
+
 Equal RMSE (--equal-rmse, with --crop-reference): each method is run at every error parameter of
 --sweep (e.g. "LC=0.005,0.01,0.02;IC=0.015,0.03;IC-S=0.01,0.02"), the levels interleaved (the
 first level of every method, then the second, ...), and its render CPU time is interpolated
-log-log in RMSE (crop) at common targets: the RMSE of lightcuts at 1% and of illumcut at 1.5%
-(when those levels are in the sweep). A target outside a method's RMSE range is not extrapolated:
-the time is then a bound (">" the time of its most accurate level when the target is below all
-its RMSEs, "<" that of its least accurate one when above), and so is the ratio. --reference-dir reuses the vpl crop references of an
-earlier run (same scene, resolution, VPLs and crop; file names as this script writes them).
+log-log in the crop's RMSE at common targets, the RMSE of lightcuts at 1% and of illumcut at 1.5%
+when those levels are in the sweep (then the same for the mean relative error). A target outside
+a method's range is not extrapolated: the time is given as a bound (">" the time of its most
+accurate level when the target is below all its errors, "<" that of its least accurate level when
+above), and so is the ratio. --reference-dir reuses the vpl crop references of an earlier run
+(same scene, resolution, VPLs and crop; file names as this script writes them); --reuse reuses
+the runs already in --out (an interrupted sweep).
 """
 import argparse
 import json
@@ -399,35 +402,36 @@ def equal_rmse(a, penumbra, common_for, lines, results):
                     st["shadow_rays_per_pixel_mean"], st["bound_evaluations_per_pixel_mean"], st["rmse_crop"],
                     st["mean_relative_error_crop"],
                     "%.1f" % st["load_before"] if st["load_before"] >= 0 else "-"))  # - : reused run
-        targets = []
-        for name, e in (("LC", 0.01), ("IC", 0.015)):
-            hit = [st for st in runs.get(name, []) if abs(st["error_parameter"] - e) < 1e-9]
-            if hit:
-                targets.append(("RMSE of %s(%g%%) = %.6f" % (name, 100 * e, hit[0]["rmse_crop"]), hit[0]["rmse_crop"]))
-        lines += ["", "%s, render CPU s interpolated log-log at equal RMSE; ratio = LC's / the method's:" % s, "",
-                  "| target | " + " | ".join("%s CPU s" % n for n, _ in sweep) + " | " +
-                  " | ".join("ratio %s" % n for n, _ in sweep[1:]) + " |",
-                  "|---" * (1 + 2 * len(sweep) - 1) + "|"]
         eq = {}
-        for label, target in targets:
-            cells, cpus = [], {}
-            for name, _ in sweep:
-                c, ex = loglog_at([(st["error_parameter"], st["rmse_crop"], st["render_cpu_seconds"])
-                                   for st in runs[name] if st["rmse_crop"] > 0 and st["render_cpu_seconds"] > 0], target)
-                cpus[name] = (c, ex)
-                cells.append("%s%.1f" % (ex, c))
-            lc = cpus[sweep[0][0]]
-            flip = {">": "<", "<": ">", "": ""}
+        for key, metric, fmt in (("rmse_crop", "RMSE", "%.6f"), ("mean_relative_error_crop", "mean relative error", "%.4f")):
+            targets = []
+            for name, e in (("LC", 0.01), ("IC", 0.015)):
+                hit = [st for st in runs.get(name, []) if abs(st["error_parameter"] - e) < 1e-9]
+                if hit:
+                    targets.append((("%s of %s(%g%%) = " + fmt) % (metric, name, 100 * e, hit[0][key]), hit[0][key]))
+            lines += ["", "%s, render CPU s interpolated log-log at equal %s; ratio = LC's / the method's:" % (s, metric), "",
+                      "| target | " + " | ".join("%s CPU s" % n for n, _ in sweep) + " | " +
+                      " | ".join("ratio %s" % n for n, _ in sweep[1:]) + " |",
+                      "|---" * (1 + 2 * len(sweep) - 1) + "|"]
+            for label, target in targets:
+                cells, cpus = [], {}
+                for name, _ in sweep:
+                    c, ex = loglog_at([(st["error_parameter"], st[key], st["render_cpu_seconds"])
+                                       for st in runs[name] if st[key] > 0 and st["render_cpu_seconds"] > 0], target)
+                    cpus[name] = (c, ex)
+                    cells.append("%s%.1f" % (ex, c))
+                lc = cpus[sweep[0][0]]
+                flip = {">": "<", "<": ">", "": ""}
 
-            def ratio(n):
-                # LC's time over the method's; a bound on either side makes the ratio a bound.
-                m = flip[cpus[n][1]] if cpus[n][1] else lc[1]
-                if cpus[n][1] and lc[1] and flip[cpus[n][1]] != lc[1]:
-                    return "?"
-                return "%s%.2f" % (m, lc[0] / cpus[n][0])
-            ratios = [ratio(n) for n, _ in sweep[1:]]
-            lines.append("| %s | " % label + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
-            eq[label] = {n: cpus[n] for n, _ in sweep}
+                def ratio(n):
+                    # LC's time over the method's; a bound on either side makes the ratio a bound.
+                    m = flip[cpus[n][1]] if cpus[n][1] else lc[1]
+                    if cpus[n][1] and lc[1] and flip[cpus[n][1]] != lc[1]:
+                        return "?"
+                    return "%s%.2f" % (m, lc[0] / cpus[n][0])
+                ratios = [ratio(n) for n, _ in sweep[1:]]
+                lines.append("| %s | " % label + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
+                eq[label] = {n: cpus[n] for n, _ in sweep}
         print("\n".join(lines), flush=True)
         results["scenes"][s] = {"runs": runs, "equal_rmse": eq}
         with open(os.path.join(a.out, "vpl-bench.json"), "w") as f:
