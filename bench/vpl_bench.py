@@ -23,9 +23,21 @@ the rounds of the ratio within a round (the machine is shared: absolute times dr
 neighbouring runs less). --compare NAME=DIR adds the illumcut methods of another build (e.g.
 the code before a change) to the same rounds. Peak memory: the render's getrusage maximum RSS
 (stats) and /usr/bin/time's for the whole process.
+
+Equal RMSE (--equal-rmse, with --crop-reference): each method is run at every error parameter of
+--sweep (e.g. "LC=0.005,0.01,0.02;IC=0.015,0.03;IC-S=0.01,0.02"), the levels interleaved (the
+first level of every method, then the second, ...), and its render CPU time is interpolated
+log-log in the crop's RMSE at common targets, the RMSE of lightcuts at 1% and of illumcut at 1.5%
+when those levels are in the sweep (then the same for the mean relative error). A target outside
+a method's range is not extrapolated: the time is given as a bound (">" the time of its most
+accurate level when the target is below all its errors, "<" that of its least accurate level when
+above), and so is the ratio. --reference-dir reuses the vpl crop references of an earlier run
+(same scene, resolution, VPLs and crop; file names as this script writes them); --reuse reuses
+the runs already in --out (an interrupted sweep).
 """
 import argparse
 import json
+import math
 import os
 import struct
 import subprocess
@@ -301,6 +313,131 @@ def scaling(a, penumbra, common_for, lines, results):
         results["scaling"][str(n)] = runs
 
 
+METHOD_ARGS = {
+    "LC": ["--integrator", "lightcuts"],
+    "IC": ["--integrator", "illumcut"],
+    "IC-S": ["--integrator", "illumcut", "--visibility", "sampling"],
+}
+
+
+def loglog_at(points, target):
+    """CPU time at RMSE `target` by log-log interpolation over points [(error, rmse, cpu)], taken
+    in order of the error parameter; returns (cpu, mark): mark "" when interpolated, ">" when the
+    target is below every RMSE of the sweep (cpu is then the time of the most accurate point, a
+    lower bound), "<" when it is above every RMSE (cpu is the time of the least accurate point,
+    an upper bound)."""
+    pts = sorted(points)
+    if not pts:
+        return float("nan"), "?"
+    for (e0, r0, c0), (e1, r1, c1) in zip(pts, pts[1:]):
+        if r0 == target:
+            return c0, ""
+        if min(r0, r1) <= target <= max(r0, r1) and r0 != r1:
+            t = (math.log(target) - math.log(r0)) / (math.log(r1) - math.log(r0))
+            return math.exp(math.log(c0) + t * (math.log(c1) - math.log(c0))), ""
+    if pts[-1][1] == target:
+        return pts[-1][2], ""
+    if target < min(p[1] for p in pts):
+        return min(pts, key=lambda p: p[1])[2], ">"
+    return max(pts, key=lambda p: p[1])[2], "<"
+
+
+def equal_rmse(a, penumbra, common_for, lines, results):
+    """Error-parameter sweeps of every method on the full image against the vpl crop; CPU time
+    interpolated at common RMSE targets."""
+    crop = [float(x) for x in a.crop_reference.split(",")]
+    sweep = []
+    for part in [p for p in a.sweep.split(";") if p]:
+        name, levels = part.split("=", 1)
+        sweep.append((name.strip(), [float(x) for x in levels.split(",") if x]))
+    vcount = ["--vpls", str(a.vpls)]
+    cropargs = ["--crop", ",".join("%g" % c for c in crop)]
+    lines.append("Equal RMSE: full-image renders against the vpl crop (window %s), %d VPLs, one run per "
+                 "level, levels interleaved across methods. render CPU s = the process's user + system time "
+                 "minus that of a 1x1 lightcuts render with the same VPLs." % (a.crop_reference, a.vpls))
+    for s in a.scenes.split(","):
+        scene = os.path.join(SHARED, "scenes", s, s + ".pbrt")
+        res, common = common_for(scene)
+        base = os.path.join(a.out, "%s-%s-n%d" % (s, res, a.vpls))
+        refpath = base + "-vpl-crop.pfm"
+        if a.reference_dir:
+            refpath = os.path.join(a.reference_dir, "%s-%s-n%d-vpl-crop.pfm" % (s, res, a.vpls))
+        else:
+            run(penumbra, scene, base + "-vpl-crop", ["--integrator", "vpl"] + vcount + cropargs, common)
+        refimg = read_pfm(refpath)
+        over = overhead_cpu(penumbra, scene, base, a.vpls, common)
+        runs = {name: [] for name, _ in sweep}
+        depth = max(len(levels) for _, levels in sweep)
+        for i in range(depth):
+            for name, levels in sweep:
+                if i >= len(levels):
+                    continue
+                e = levels[i]
+                out = base + "-eq-%s-%g" % (name.lower(), e)
+                if a.reuse and all(os.path.exists(out + x) for x in (".pfm", ".json", ".rss")):
+                    st = flat_stats(out + ".json")  # --reuse: a run of an interrupted sweep
+                    with open(out + ".rss") as f:
+                        rss, user, sys_ = f.read().split()[-3:]
+                    st.update(max_rss_bytes=int(rss) * 1024, cpu_seconds=float(user) + float(sys_),
+                              load_before=-1.0, wall_seconds=0.0)
+                else:
+                    st = run(penumbra, scene, out, METHOD_ARGS[name] + ["--error", "%g" % e] + vcount, common)
+                w = cut_window(read_pfm(out + ".pfm"), crop)
+                write_pfm(out + "-window.pfm", *w)
+                st["rmse_crop"] = diff(penumbra, refpath, out + "-window.pfm")["rmse"]
+                st["mean_relative_error_crop"] = mean_relative_error(refimg, w)
+                st["render_cpu_seconds"] = st.get("cpu_seconds", 0.0) - over
+                st["error_parameter"] = e
+                runs[name].append(st)
+                print("  %s %s(%g): %.1f CPU s, %.2f s, RMSE %.6f (load %.1f)" % (
+                    s, name, e, st["render_cpu_seconds"], st["render_seconds"], st["rmse_crop"], st["load_before"]),
+                    flush=True)
+        lines += ["", "%s %s, sweep:" % (s, res), "",
+                  "| method | error | render CPU s | render s | shadow rays/px | bounds/px | RMSE (crop) | rel. error (crop) | load |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for name, _ in sweep:
+            for st in runs[name]:
+                lines.append("| %s | %g%% | %.1f | %.2f | %.0f | %.0f | %.6f | %.4f | %s |" % (
+                    name, 100 * st["error_parameter"], st["render_cpu_seconds"], st["render_seconds"],
+                    st["shadow_rays_per_pixel_mean"], st["bound_evaluations_per_pixel_mean"], st["rmse_crop"],
+                    st["mean_relative_error_crop"],
+                    "%.1f" % st["load_before"] if st["load_before"] >= 0 else "-"))  # - : reused run
+        eq = {}
+        for key, metric, fmt in (("rmse_crop", "RMSE", "%.6f"), ("mean_relative_error_crop", "mean relative error", "%.4f")):
+            targets = []
+            for name, e in (("LC", 0.01), ("IC", 0.015)):
+                hit = [st for st in runs.get(name, []) if abs(st["error_parameter"] - e) < 1e-9]
+                if hit:
+                    targets.append((("%s of %s(%g%%) = " + fmt) % (metric, name, 100 * e, hit[0][key]), hit[0][key]))
+            lines += ["", "%s, render CPU s interpolated log-log at equal %s; ratio = LC's / the method's:" % (s, metric), "",
+                      "| target | " + " | ".join("%s CPU s" % n for n, _ in sweep) + " | " +
+                      " | ".join("ratio %s" % n for n, _ in sweep[1:]) + " |",
+                      "|---" * (1 + 2 * len(sweep) - 1) + "|"]
+            for label, target in targets:
+                cells, cpus = [], {}
+                for name, _ in sweep:
+                    c, ex = loglog_at([(st["error_parameter"], st[key], st["render_cpu_seconds"])
+                                       for st in runs[name] if st[key] > 0 and st["render_cpu_seconds"] > 0], target)
+                    cpus[name] = (c, ex)
+                    cells.append("%s%.1f" % (ex, c))
+                lc = cpus[sweep[0][0]]
+                flip = {">": "<", "<": ">", "": ""}
+
+                def ratio(n):
+                    # LC's time over the method's; a bound on either side makes the ratio a bound.
+                    m = flip[cpus[n][1]] if cpus[n][1] else lc[1]
+                    if cpus[n][1] and lc[1] and flip[cpus[n][1]] != lc[1]:
+                        return "?"
+                    return "%s%.2f" % (m, lc[0] / cpus[n][0])
+                ratios = [ratio(n) for n, _ in sweep[1:]]
+                lines.append("| %s | " % label + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
+                eq[label] = {n: cpus[n] for n, _ in sweep}
+        print("\n".join(lines), flush=True)
+        results["scenes"][s] = {"runs": runs, "equal_rmse": eq}
+        with open(os.path.join(a.out, "vpl-bench.json"), "w") as f:
+            json.dump(results, f, indent=1)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--build", default="build")
@@ -318,6 +455,11 @@ def main():
     ap.add_argument("--compare", default="", help="NAME=BUILDDIR,...: illumcut methods of other builds too")
     ap.add_argument("--scaling-scale", type=float, default=0.0, help="resolution of the VPL-count scaling")
     ap.add_argument("--scaling-methods", default="LC,IC,IC-S")
+    ap.add_argument("--equal-rmse", action="store_true", help="error sweeps, CPU time at equal RMSE (--crop-reference)")
+    ap.add_argument("--sweep", default="LC=0.005,0.01,0.02;IC=0.015,0.03,0.06;IC-S=0.01,0.02,0.04",
+                    help="NAME=e1,e2,...;... for --equal-rmse (NAME: LC, IC, IC-S; LC first)")
+    ap.add_argument("--reuse", action="store_true", help="--equal-rmse: reuse the runs already in --out")
+    ap.add_argument("--reference-dir", default="", help="reuse the vpl crop references in this folder")
     a = ap.parse_args()
     penumbra = os.path.join(a.build, "penumbra")
     os.makedirs(a.out, exist_ok=True)
@@ -331,6 +473,13 @@ def main():
         res = "%dx%d" % (max(1, round(fw * a.scale)), max(1, round(fh * a.scale)))
         return res, ["--resolution", res, "--threads", str(a.threads), "--seed", "0", "--spp", str(a.spp)]
 
+    if a.equal_rmse:
+        equal_rmse(a, penumbra, common_for, lines, results)
+        lines.insert(1, "Command: `%s`" % " ".join(["python3", "bench/vpl_bench.py"] + sys.argv[1:]))
+        lines.insert(2, "")
+        with open(os.path.join(a.out, "vpl-bench.md"), "w") as f:
+            f.write("\n".join(lines) + "\n")
+        return 0
     if a.crop_reference or a.repeats > 1:
         if a.crop_reference:
             realistic(a, penumbra, common_for, lines, results)
