@@ -517,37 +517,41 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
         for (int x = b->x0; x < xe; x++) {
             int i = (y - wy0) * ww + (x - wx0);
             float *o = img + 3 * pn_prog_index(p, x, y);
-            double acc[3] = {0, 0, 0}, wsum = 0;
+            if (pn_prog_known(p, x, y)) { /* restored from the integrator's value anyway */
+                memcpy(o, p->rad + 3 * pn_prog_index(p, x, y), 3 * sizeof *o);
+                continue;
+            }
+            /* The element stays where both ends of its line through the pixel are evaluated
+             * pixels of the pixel's own segment. */
+            float nx, ny, tmin, tmax, fx = (float)(x - b->x0), fy = (float)(y - b->y0);
+            direction(dir, &nx, &ny);
+            slab(w, h, fx, fy, nx, ny, &tmin, &tmax);
+            int ax = b->x0 + (int)lrintf(clampf(fx + fminf(tmin, 0.0f) * nx, 0.0f, (float)w));
+            int ay = b->y0 + (int)lrintf(clampf(fy + fminf(tmin, 0.0f) * ny, 0.0f, (float)h));
+            int bx = b->x0 + (int)lrintf(clampf(fx + fmaxf(tmax, 0.0f) * nx, 0.0f, (float)w));
+            int by = b->y0 + (int)lrintf(clampf(fy + fmaxf(tmax, 0.0f) * ny, 0.0f, (float)h));
+            if (label[(ay - wy0) * ww + (ax - wx0)] == label[i] && label[(by - wy0) * ww + (bx - wx0)] == label[i] &&
+                pn_prog_known(p, ax, ay) && pn_prog_known(p, bx, by)) {
+                pn_dcm_element_value(loop, 3, w, h, dir, fx, fy, o);
+                continue;
+            }
             /* First from pixels as near to a visible line as this one (pixels next to a line
              * mix both sides under the pixel filter), then from any of its segment. */
+            double acc[3] = {0, 0, 0}, wsum = 0;
             for (int pass = 0; pass < 2 && wsum <= 0.0; pass++)
-            for (int m = 0; m < nk; m++) {
-                int j = known[m];
-                if (label[j] != label[i] || (pass == 0 && near[j] != near[i])) continue;
-                int dx = wx0 + j % ww - x, dy = wy0 + j / ww - y;
-                double wt = 1.0 / (double)(dx * dx + dy * dy > 0 ? dx * dx + dy * dy : 1);
-                const float *v = p->rad + 3 * pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
-                for (int c = 0; c < 3; c++) acc[c] += wt * (double)v[c];
-                wsum += wt;
-            }
-            bool use_elem = wsum <= 0.0;
-            if (!use_elem) {
-                /* The element stays where both ends of its line through the pixel are evaluated
-                 * pixels of the pixel's own segment. */
-                float nx, ny, tmin, tmax, fx = (float)(x - b->x0), fy = (float)(y - b->y0);
-                direction(dir, &nx, &ny);
-                slab(w, h, fx, fy, nx, ny, &tmin, &tmax);
-                int ax = b->x0 + (int)lrintf(clampf(fx + fminf(tmin, 0.0f) * nx, 0.0f, (float)w));
-                int ay = b->y0 + (int)lrintf(clampf(fy + fminf(tmin, 0.0f) * ny, 0.0f, (float)h));
-                int bx = b->x0 + (int)lrintf(clampf(fx + fmaxf(tmax, 0.0f) * nx, 0.0f, (float)w));
-                int by = b->y0 + (int)lrintf(clampf(fy + fmaxf(tmax, 0.0f) * ny, 0.0f, (float)h));
-                use_elem = label[(ay - wy0) * ww + (ax - wx0)] == label[i] && label[(by - wy0) * ww + (bx - wx0)] == label[i] &&
-                           pn_prog_known(p, ax, ay) && pn_prog_known(p, bx, by);
-            }
-            if (!use_elem)
+                for (int m = 0; m < nk; m++) {
+                    int j = known[m];
+                    if (label[j] != label[i] || (pass == 0 && near[j] != near[i])) continue;
+                    int dx = wx0 + j % ww - x, dy = wy0 + j / ww - y;
+                    double wt = 1.0 / (double)(dx * dx + dy * dy);
+                    const float *v = p->rad + 3 * pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
+                    for (int c = 0; c < 3; c++) acc[c] += wt * (double)v[c];
+                    wsum += wt;
+                }
+            if (wsum > 0.0)
                 for (int c = 0; c < 3; c++) o[c] = (float)(acc[c] / wsum);
             else
-                pn_dcm_element_value(loop, 3, w, h, dir, (float)(x - b->x0), (float)(y - b->y0), o);
+                pn_dcm_element_value(loop, 3, w, h, dir, fx, fy, o);
         }
     return true;
 }
