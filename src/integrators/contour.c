@@ -369,16 +369,23 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         v[k] = pn_contour_sample_visible(c, ci[k], cj[k]);
         nv += v[k];
     }
-    if (depth > c->max_depth) c->max_depth = depth;
+    if (depth > c->max_depth && c->island_nest == 0) c->max_depth = depth;
     cvert corner[4];
     for (int k = 0; k < 4; k++) corner[k] = corner_vertex(c, ci[k], cj[k]);
     const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
-    bool forced = false;
+    bool forced = false, island = false;
     if (test)
         for (int k = 0; k < 4 && !forced; k++)
             forced = pn_contour_side_contradicted(c, ci[k], cj[k], ci[(k + 1) & 3], cj[(k + 1) & 3], s);
+    if (test && !forced && (nv == 0 || nv == 4) && c->probe_count > 0 &&
+        pn_contour_probe_contradicts(c, i0, j0, s, nv == 4 ? VIS_VISIBLE : VIS_HIDDEN)) {
+        /* An island probe inside a square whose corners agree: subdivide down to it. */
+        forced = island = true;
+        c->islands_found++;
+    }
     if (forced) {
         c->forced++;
+        if (island) c->island_nest++;
         goto subdivide;
     }
     if (nv == 0) { /* case 1, hidden */
@@ -463,6 +470,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
                 if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts &&
                     pn_contour_treated_square_has_on_side(c, hi, hj)) {
                     c->restart = true;
+                    if (island) c->island_nest--;
                     return;
                 }
             }
@@ -472,6 +480,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
             process_square(c, i0 + h, j0, d - 1, depth + 1);
             process_square(c, i0 + h, j0 + h, d - 1, depth + 1);
             process_square(c, i0, j0 + h, d - 1, depth + 1);
+            if (island) c->island_nest--;
             return;
         }
     }
@@ -504,6 +513,99 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
     pn_contour_add_leaf(c, i0, j0, s);
 }
 
+/* ---- islands carried along the row (our departure) ------------------------------------------ */
+
+bool pn_contour_probe_contradicts(const pn_contour_eval *c, int i0, int j0, int s, uint8_t corners) {
+    for (int k = 0; k < c->probe_count; k++) {
+        int i = c->probe[k][0], j = c->probe[k][1];
+        if (i <= i0 || i >= i0 + s || j <= j0 || j >= j0 + s) continue;
+        uint8_t x = c->vis[sample_index(c, i, j)];
+        if (x != VIS_UNKNOWN && x != corners) return true;
+    }
+    return false;
+}
+
+static void add_probe(pn_contour_eval *c, int i, int j) {
+    if (c->probe_count >= PN_CONTOUR_MAX_PROBES) return;
+    bool traced = c->vis[sample_index(c, i, j)] != VIS_UNKNOWN;
+    c->probe[c->probe_count][0] = (int16_t)i;
+    c->probe[c->probe_count][1] = (int16_t)j;
+    c->probe_count++;
+    c->phase = PN_CPH_PROBE;
+    pn_contour_sample_visible(c, i, j);
+    c->islands_probed += !traced;
+}
+
+void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
+    c->probe_count = 0;
+    if ((c->flags & PN_CONTOUR_NO_VALIDITY) || p <= 0) return;
+    const int s = c->N / p;
+    if (s < 4) return; /* the probes sit on the square's 4 x 4 sub-lattice */
+    const int q = s / 4;
+    if (hint && !(c->flags & PN_CONTOUR_NO_ISLANDS))
+    for (int b = 0; b < p; b++)
+        for (int a = 0; a < p; a++) {
+            const int i0 = a * s, j0 = b * s;
+            uint8_t corners = VIS_UNKNOWN;
+            bool agree = true;
+            for (int k = 0; k < 4 && agree; k++) {
+                uint8_t x = hint[sample_index(c, i0 + (k & 1) * s, j0 + (k >> 1) * s)];
+                if (x == VIS_UNKNOWN) continue;
+                if (corners == VIS_UNKNOWN) corners = x;
+                agree = x == corners;
+            }
+            if (!agree || corners == VIS_UNKNOWN) continue;
+            /* The hint's samples of the other visibility inside the square (sides included,
+             * corners not): the island. */
+            const uint8_t other = corners == VIS_VISIBLE ? VIS_HIDDEN : VIS_VISIBLE;
+            double si = 0.0, sj = 0.0;
+            int count = 0;
+            for (int j = j0; j <= j0 + s; j++)
+                for (int i = i0; i <= i0 + s; i++)
+                    if (hint[sample_index(c, i, j)] == other) {
+                        si += i;
+                        sj += j;
+                        count++;
+                    }
+            if (count == 0) continue;
+            const double ci = si / count, cj = sj / count;
+            int oi = (int)floor((ci - i0) / q + 0.5), oj = (int)floor((cj - j0) / q + 0.5);
+            oi = oi < 1 ? 1 : oi > 3 ? 3 : oi;
+            oj = oj < 1 ? 1 : oj > 3 ? 3 : oj;
+            add_probe(c, i0 + oi * q, j0 + oj * q);
+            if (c->vis[sample_index(c, i0 + oi * q, j0 + oj * q)] == other) continue;
+            /* Not there: the hint's island sample nearest the centroid, if strictly inside. */
+            int bi = -1, bj = -1;
+            double best = INFINITY;
+            for (int j = j0 + 1; j < j0 + s; j++)
+                for (int i = i0 + 1; i < i0 + s; i++)
+                    if (hint[sample_index(c, i, j)] == other) {
+                        double d2 = (i - ci) * (i - ci) + (j - cj) * (j - cj);
+                        if (d2 < best) {
+                            best = d2;
+                            bi = i;
+                            bj = j;
+                        }
+                    }
+            if (bi >= 0 && !(bi == i0 + oi * q && bj == j0 + oj * q)) add_probe(c, bi, bj);
+        }
+    /* Scouts: probes at the centre (scout 1) or the four quarter centres (scout 2) of the
+     * first-level squares whose corners agree here. */
+    if (c->scout > 0)
+        for (int b = 0; b < p; b++)
+            for (int a = 0; a < p; a++) {
+                const int i0 = a * s, j0 = b * s;
+                c->phase = PN_CPH_FIRST;
+                bool v0 = pn_contour_sample_visible(c, i0, j0);
+                if (pn_contour_sample_visible(c, i0 + s, j0) != v0 || pn_contour_sample_visible(c, i0, j0 + s) != v0 ||
+                    pn_contour_sample_visible(c, i0 + s, j0 + s) != v0)
+                    continue;
+                if (c->scout == 1) add_probe(c, i0 + 2 * q, j0 + 2 * q);
+                else
+                    for (int k = 0; k < 4; k++) add_probe(c, i0 + (1 + 2 * (k & 1)) * q, j0 + (1 + (k & 2)) * q);
+            }
+}
+
 void pn_contour_integrate(pn_contour_eval *c, int p) {
     c->restarted = false;
     for (;;) {
@@ -513,6 +615,7 @@ void pn_contour_integrate(pn_contour_eval *c, int p) {
         c->restart = false;
         c->max_depth = 0;
         c->leaf_count = 0;
+        c->island_nest = 0;
         int s = 1 << d;
         for (int b = 0; b < p && !c->restart; b++)
             for (int a = 0; a < p && !c->restart; a++) process_square(c, a * s, b * s, d, 0);

@@ -54,6 +54,8 @@ typedef struct contour_data {
     float tol;
     int N, p0;
     FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
+    int scout;
+    uint32_t off; /* PN_CONTOUR_OFF: internal flag bits (contour_internal.h) for bench A/B runs */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
 
@@ -216,6 +218,15 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     /* Bench instrumentation: where the shadow rays go, per pixel (not used by tests or the CLI). */
     const char *trace = getenv("PN_CONTOUR_TRACE");
     if (trace && *trace) cd->trace = fopen(trace, "w");
+    /* Bench A/B switches for our departures, comma-separated names (not used by tests or the CLI). */
+    const char *off = getenv("PN_CONTOUR_OFF");
+    if (off && strstr(off, "islands")) cd->off |= PN_CONTOUR_NO_ISLANDS;
+    if (off && strstr(off, "half")) cd->off |= PN_CONTOUR_NO_HALF_CHECK;
+    /* Scout probes (contour.c): one at the centre of each agreeing first-level square by
+     * default; PN_CONTOUR_SCOUT=0/1/2 for none / the centre / the four quarter centres. */
+    cd->scout = off && strstr(off, "scouts") ? 0 : 1;
+    const char *scout = getenv("PN_CONTOUR_SCOUT");
+    if (scout && *scout >= '0' && *scout <= '2') cd->scout = *scout - '0';
     job->integrator_data = cd;
     return PN_OK;
 }
@@ -494,6 +505,9 @@ static void full_integration(span_ctx *sc, int q, int p, int why) {
     int cx = *sc->carry_x;
     if (cx != INT32_MIN && sc->x0 + q - cx <= PN_CONTOUR_HINT_DISTANCE && (best < 0 || sc->x0 + q - cx < abs(best - q)))
         ev->hint = sc->carry;
+    /* Our departure: islands the hint pixel found are probed here (contour.c). */
+    ev->scout = why == WHY_UNIFORM ? 0 : sc->cd->scout;
+    pn_contour_probe_islands(ev, ev->hint, p);
     pn_contour_integrate(ev, p);
     sc->s->g[q] = ev->acc;
     sc->t.integrations++;
@@ -540,6 +554,26 @@ static void interpolate_run(span_ctx *sc, int a, int m, int b) {
         s->g[q] = quadratic_g(s, a, m, b, q);
         sc->t.interpolated++;
     }
+}
+
+/* Our departure (shade_span): a uniform run checks half of the first-level samples at its pixels
+ * from this many pixels after its first on, and a quarter from the second number on. */
+#define PN_CONTOUR_UNIFORM_HALF_AFTER 2
+#define PN_CONTOUR_UNIFORM_QUARTER_AFTER 6
+
+/* Whether pixel j's first-level samples (those of mask; with part = 2 or 4 only the samples (a, b)
+ * with a + (part / 2) b = x modulo part: a checkerboard or a quarter that moves with the pixel's
+ * x) match the pattern at density p; traces what it checks. */
+static bool check_pattern(contour_scratch *s, int j, int p, const uint8_t *pattern, const uint8_t *mask, int part, int x) {
+    pn_contour_eval *ej = &s->ev[j];
+    const int step = ej->N / p, np = (p + 1) * (p + 1);
+    ej->phase = PN_CPH_PATTERN;
+    for (int k = 0; k < np; k++) {
+        int a = k % (p + 1), b = k / (p + 1);
+        if (!mask[k] || (part > 1 && ((a + (part / 2) * b - x) % part + part) % part != 0)) continue;
+        if ((uint8_t)pn_contour_sample_visible(ej, a * step, b * step) != pattern[k]) return false;
+    }
+    return true;
 }
 
 static void shade_span(span_ctx *sc) {
@@ -594,18 +628,44 @@ static void shade_span(span_ctx *sc) {
         if (!uniform) pn_contour_pattern_boundary(key_pattern, p, mask);
         else memset(mask, 1, (size_t)np);
         for (; j < n; j++) {
-            pn_contour_eval *ej = &s->ev[j];
-            int step = ej->N / p;
-            ej->phase = PN_CPH_PATTERN;
-            bool same = true;
-            for (int k = 0; k < np && same; k++)
-                if (mask[k]) same = (uint8_t)pn_contour_sample_visible(ej, k % (p + 1) * step, k / (p + 1) * step) == key_pattern[k];
-            if (!same) break;
+            /* Our departure: deep in a uniform run, each pixel checks half of the samples (a
+             * checkerboard alternating with x); a pixel where the half differs has the other
+             * half of the pixel before it checked too, so the run ends where it really did. */
+            int part = 1;
+            if (uniform && !(sc->cd->off & PN_CONTOUR_NO_HALF_CHECK))
+                part = j - key >= PN_CONTOUR_UNIFORM_QUARTER_AFTER ? 4 : j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER ? 2 : 1;
+            bool same = check_pattern(s, j, p, key_pattern, mask, part, sc->x0 + j);
+            if (!same) {
+                /* The pixels before it checked in part: completed, back to the last that matches. */
+                for (int b = j - 1; b > key && s->ev[b].partial; b--) {
+                    if (check_pattern(s, b, p, key_pattern, mask, 1, 0)) {
+                        s->ev[b].partial = false;
+                        break;
+                    }
+                    j = b;
+                }
+                break;
+            }
+            s->ev[j].partial = part > 1;
         }
         if (uniform) {
             /* Every first-level sample visible (or every one hidden): an integration traces no
-             * more rays, so each pixel of the run gets its own. */
-            for (int q = key + 1; q < j; q++) full_integration(sc, q, p, WHY_UNIFORM);
+             * more rays, so each pixel of the run gets its own; a pixel checked by half gets the
+             * closed form of the whole source (visible) or nothing (hidden), which is what that
+             * integration would give. */
+            for (int q = key + 1; q < j; q++) {
+                if (!s->ev[q].partial) {
+                    full_integration(sc, q, p, WHY_UNIFORM);
+                } else if (key_pattern[0]) {
+                    const pn_contour_eval *eq = &s->ev[q];
+                    pn_contour_source_unoccluded(&sc->cl->src, eq->m, eq->ns, eq->ng, (sc->job->aovs & PN_AOV_GRADIENT) != 0,
+                                                 &s->g[q]);
+                    sc->t.interpolated++;
+                } else {
+                    zero_g(&s->g[q]);
+                    sc->t.interpolated++;
+                }
+            }
             if (j >= n) break;
             full_integration(sc, j, p, WHY_CHANGE);
             key = j;
@@ -690,6 +750,7 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     }
                     continue;
                 }
+                ev->flags |= cd->off;
                 s->span[n++] = q;
                 box_add(&smin, &smax, v3_sub(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
