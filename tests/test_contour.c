@@ -12,6 +12,7 @@
 #include "penumbra/penumbra.h"
 #include "scene/scene.h"
 
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -580,6 +581,139 @@ static void test_scanline_spans(void) {
     pn_context_free(ctx);
 }
 
+/* Islands (our departure, contour.c): a small occluder whose shadow on the source falls inside
+ * one first-level square of the paper's 3 x 3 grid and covers none of its 9 samples. Without
+ * probes the marching squares see the whole source; the scout at the square's centre finds the
+ * island and the subdivision integrates it; a nearby point with no scout but that point's
+ * samples as its hint probes the island the hint found and integrates it too. */
+static const char *island_scene =
+    "LookAt 0 -3 3  0 0 0  0 0 1\n"
+    "Camera \"perspective\" \"float fov\" [ 40 ]\n"
+    "Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]\n"
+    "WorldBegin\n"
+    "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [ -0.35 -0.35 1  -0.15 -0.35 1  -0.15 -0.15 1  -0.35 -0.15 1 ]\n"
+    "   \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+    "AttributeBegin\n"
+    "  AreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ]\n"
+    "  Shape \"trianglemesh\" \"point3 P\" [ -1 -1 2  -1 1 2  1 1 2  1 -1 2 ]\n"
+    "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+    "AttributeEnd\n";
+
+/* The form factor at M (below both, normal +z) of the source minus the occluder's shadow on it. */
+static double island_exact(pn_dvec3 m) {
+    const double h = 2.0, zo = 1.0, t = (h - m.z) / (zo - m.z);
+    double x0 = m.x + (-0.35 - m.x) * t, x1 = m.x + (-0.15 - m.x) * t;
+    double y0 = m.y + (-0.35 - m.y) * t, y1 = m.y + (-0.15 - m.y) * t;
+    return rect_ff_at(m, N_UP, -1, 1, -1, 1, h) - rect_ff_at(m, N_UP, x0, x1, y0, y1, h);
+}
+
+static void test_island_probes(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = NULL;
+    pn_status st = pn_scene_load(ctx, pn_test_write_file(tmpdir, "island.pbrt", island_scene), &scene);
+    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    if (st != PN_OK) {
+        pn_context_free(ctx);
+        return;
+    }
+    const struct pn_scene_s *sc = scene;
+    const pn_light *l = &sc->lights->lights[0];
+    pn_contour_source src;
+    pn_contour_source_rectangle(&src, l->p, l->e1, l->e2, l->n, l->two_sided);
+    pn_render_job job;
+    memset(&job, 0, sizeof job);
+    job.accel = sc->accel;
+    const int N = 2 << 5; /* the paper's settings: 3 x 3 first-level samples, 5 dichotomy steps */
+    const size_t size = (size_t)(N + 1) * (N + 1);
+    uint8_t *va = calloc(size, 1), *vb = calloc(size, 1);
+    if (va && vb) {
+        const pn_dvec3 m = {0.0, 0.0, 0.0}, m2 = {0.03, 0.0, 0.0};
+        const double full = rect_ff_at(m, N_UP, -1, 1, -1, 1, 2.0), fe = island_exact(m), fe2 = island_exact(m2);
+        CHECK(full - fe > 0.02 * full); /* the island hides a few percent of the source */
+        pn_contour_eval plain, scout, hinted, unhinted;
+        /* No probes: the island is missed. */
+        CHECK(pn_contour_eval_setup(&plain, &job, &src, pn_dv3_to(m), v3(0, 0, 1), v3(0, 0, 1), N, va, NULL, false, 7));
+        pn_contour_probe_islands(&plain, NULL, 2);
+        pn_contour_integrate(&plain, 2);
+        CHECK_NEAR(pn_dv3_dot(plain.acc.g, N_UP), full, 1e-6 * full);
+        /* A scout at each square's centre: found, and integrated to 10% of its form factor. */
+        memset(va, 0, size);
+        CHECK(pn_contour_eval_setup(&scout, &job, &src, pn_dv3_to(m), v3(0, 0, 1), v3(0, 0, 1), N, va, NULL, false, 7));
+        scout.scout = 1;
+        pn_contour_probe_islands(&scout, NULL, 2);
+        CHECK(scout.probe_count == 4);
+        pn_contour_integrate(&scout, 2);
+        double f = pn_dv3_dot(scout.acc.g, N_UP);
+        CHECK_MSG(scout.islands_found >= 1 && fabs(f - fe) < 0.1 * (full - fe), "scout: F %g, exact %g, unoccluded %g",
+                  f, fe, full);
+        /* A nearby point, no scout: with the first point's samples as its hint, one probe finds
+         * the island; without the hint it is missed. */
+        CHECK(pn_contour_eval_setup(&hinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vb, NULL, false, 7));
+        hinted.hint = va;
+        pn_contour_probe_islands(&hinted, va, 2);
+        CHECK(hinted.probe_count >= 1 && hinted.probe_count <= 2);
+        pn_contour_integrate(&hinted, 2);
+        double f2 = pn_dv3_dot(hinted.acc.g, N_UP);
+        CHECK_MSG(hinted.islands_found >= 1 && fabs(f2 - fe2) < 0.1 * (full - fe2), "hint: F %g, exact %g", f2, fe2);
+        /* The probe check itself: the hidden probe contradicts its square when the corners are
+         * visible, not when they are hidden, and says nothing about the square beside it. */
+        const int pi = hinted.probe[0][0], pj = hinted.probe[0][1], i0 = pi / 32 * 32, j0 = pj / 32 * 32;
+        CHECK(vb[(size_t)pj * (N + 1) + (size_t)pi] == 2 && pi % 32 != 0 && pj % 32 != 0);
+        CHECK(pn_contour_probe_contradicts(&hinted, i0, j0, 32, 1));
+        CHECK(!pn_contour_probe_contradicts(&hinted, i0, j0, 32, 2));
+        CHECK(!pn_contour_probe_contradicts(&hinted, 32 - i0, j0, 32, 1));
+        memset(vb, 0, size);
+        CHECK(pn_contour_eval_setup(&unhinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vb, NULL, false, 7));
+        pn_contour_probe_islands(&unhinted, NULL, 2);
+        pn_contour_integrate(&unhinted, 2);
+        CHECK(unhinted.islands_found == 0 && pn_dv3_dot(unhinted.acc.g, N_UP) > fe2 + 0.5 * (full - fe2));
+    }
+    free(va);
+    free(vb);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* Uniform runs (our departure, contour_render.c): deep in a run whose first-level samples are all
+ * visible, pixels check a half, then a quarter, of them and get the closed form: fewer rays, and
+ * an image as close to the reference as with every sample checked (not identical: the pixels so
+ * checked are not integrated, so later integrations take their dichotomy hints from others). */
+static void test_uniform_runs_check_part(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_sphere_scene(ctx, "uniform.pbrt", 0);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_render_settings rs = {0};
+    rs.spp = 1;
+    rs.shadow_rays = 4096;
+    rs.width = 64;
+    rs.height = 32;
+    rs.threads = 2;
+    pn_image ref = NULL;
+    CHECK(pn_render(ctx, scene, &rs, &ref, NULL) == PN_OK);
+    pn_render_stats sp, sa;
+    pn_image part = render_spans(ctx, scene, 32, 2, NULL, &sp);
+    setenv("PN_CONTOUR_OFF", "half", 1);
+    pn_image all = render_spans(ctx, scene, 32, 2, NULL, &sa);
+    unsetenv("PN_CONTOUR_OFF");
+    CHECK(ref && part && all);
+    if (ref && part && all) {
+        CHECK(sp.contour_viewing_rays == sa.contour_viewing_rays);
+        CHECK_MSG(sp.contour_shadow_rays < 0.9 * sa.contour_shadow_rays, "rays: %llu checking part, %llu all",
+                  (unsigned long long)sp.contour_shadow_rays, (unsigned long long)sa.contour_shadow_rays);
+        double ep = mean_rel_diff(ref, part), ea = mean_rel_diff(ref, all);
+        CHECK_MSG(ep < 1.1 * ea + 1e-3, "differences from the reference: %g checking part, %g all", ep, ea);
+    }
+    pn_image_free(ref);
+    pn_image_free(part);
+    pn_image_free(all);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 /* §3.2 inconsistencies without backtracking: a side whose traced samples change visibility more
  * often than its ends is contradicted (its square must subdivide), unknown samples say nothing;
  * a contradiction needs a restart only inside a side of a square already integrated, not at
@@ -724,4 +858,4 @@ PN_TESTS(TEST(test_setup), TEST(test_rectangle_matches_closed_form), TEST(test_h
          TEST(test_marching_squares_with_rays), TEST(test_contour_matches_reference), TEST(test_unoccluded_closed_form),
          TEST(test_thread_determinism_and_bad_settings), TEST(test_scanline_spans),
          TEST(test_inconsistency_bookkeeping), TEST(test_pattern_boundary),
-         TEST(test_spans_end_at_creases))
+         TEST(test_spans_end_at_creases), TEST(test_island_probes), TEST(test_uniform_runs_check_part))
