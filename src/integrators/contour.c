@@ -589,9 +589,13 @@ void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
                     }
             if (bi >= 0 && !(bi == i0 + oi * q && bj == j0 + oj * q)) add_probe(c, bi, bj);
         }
-    /* Scouts: probes at the centre (scout 1) or the four quarter centres (scout 2) of the
-     * first-level squares whose corners agree here. */
-    if (c->scout > 0)
+    /* Scouts: probes on a lattice fixed by the initial first level (scout_p0 squares per side):
+     * the centre (scout 1), the four quarter centres (2) or the 3 x 3 inner points of the 4 x 4
+     * sub-lattice (3) of each initial square; inside every first-level square whose corners agree
+     * here, at whatever density (a square of a doubled density holds a quarter of them). */
+    if (c->scout > 0) {
+        const int p0 = c->scout_p0 > 0 && c->scout_p0 <= p ? c->scout_p0 : p, s0 = c->N / p0, q0 = s0 / 4;
+        if (q0 < 1) return;
         for (int b = 0; b < p; b++)
             for (int a = 0; a < p; a++) {
                 const int i0 = a * s, j0 = b * s;
@@ -600,10 +604,20 @@ void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
                 if (pn_contour_sample_visible(c, i0 + s, j0) != v0 || pn_contour_sample_visible(c, i0, j0 + s) != v0 ||
                     pn_contour_sample_visible(c, i0 + s, j0 + s) != v0)
                     continue;
-                if (c->scout == 1) add_probe(c, i0 + 2 * q, j0 + 2 * q);
-                else
-                    for (int k = 0; k < 4; k++) add_probe(c, i0 + (1 + 2 * (k & 1)) * q, j0 + (1 + (k & 2)) * q);
+                for (int j = j0 + 1; j < j0 + s; j++) {
+                    int oj = (j % s0) / q0;
+                    if (j % q0 != 0) continue;
+                    for (int i = i0 + 1; i < i0 + s; i++) {
+                        int oi = (i % s0) / q0;
+                        if (i % q0 != 0) continue;
+                        bool take = c->scout == 1 ? oi == 2 && oj == 2
+                                  : c->scout == 2 ? (oi == 1 || oi == 3) && (oj == 1 || oj == 3)
+                                                  : oi != 0 && oj != 0;
+                        if (take) add_probe(c, i, j);
+                    }
+                }
             }
+    }
 }
 
 void pn_contour_integrate(pn_contour_eval *c, int p) {

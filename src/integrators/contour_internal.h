@@ -27,7 +27,7 @@ enum {
 #define PN_CONTOUR_MAX_LEAVES 128
 
 /* Island probes per integration, at most (pn_contour_probe_islands). */
-#define PN_CONTOUR_MAX_PROBES 16
+#define PN_CONTOUR_MAX_PROBES 64
 
 /* Internal flag bits of pn_contour_eval.flags (beside the public PN_CONTOUR_* bits), set by the
  * bench through the environment (PN_CONTOUR_OFF, contour_render.c) to measure a mechanism's
@@ -71,7 +71,8 @@ typedef struct pn_contour_eval {
      * corners all have one visibility and that holds a probe of the other is subdivided. */
     int probe_count;
     int16_t probe[PN_CONTOUR_MAX_PROBES][2];
-    int scout;           /* probes at the centres of agreeing first-level squares: 0, 1 or 4 per square */
+    int scout;           /* scout probes in agreeing first-level squares (pn_contour_probe_islands): 0-3 */
+    int scout_p0;        /* the initial first-level squares per side, which fix the scouts' lattice */
     bool partial;        /* render: only half of its first-level samples were checked (uniform run) */
     int island_nest;     /* > 0 inside a subdivision forced by a probe (not counted in max_depth) */
     uint32_t islands_probed, islands_found; /* probes traced; probes that contradicted their square */

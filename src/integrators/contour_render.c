@@ -55,6 +55,7 @@ typedef struct contour_data {
     int N, p0;
     FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
     int scout;
+    int penumbra_part; /* PN_CONTOUR_PART: runs with a contour check 1/part of their samples */
     uint32_t off; /* PN_CONTOUR_OFF: internal flag bits (contour_internal.h) for bench A/B runs */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
@@ -218,15 +219,23 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     /* Bench instrumentation: where the shadow rays go, per pixel (not used by tests or the CLI). */
     const char *trace = getenv("PN_CONTOUR_TRACE");
     if (trace && *trace) cd->trace = fopen(trace, "w");
-    /* Bench A/B switches for our departures, comma-separated names (not used by tests or the CLI). */
+    /* Switches for measuring our departures (bench/contour/RESULTS.md; the CLI has no option for
+     * them): PN_CONTOUR_OFF, comma-separated: "islands" (no island probes from the hint pixel),
+     * "half" (uniform runs check every first-level sample), "scouts" (no scout probes);
+     * PN_CONTOUR_SCOUT=0..3, the scout probes per initial first-level square (0; 1: its centre;
+     * 2: its four quarter centres; 3: the 9 inner points of its 4 x 4 sub-lattice), by default 3
+     * with a fixed first-level density and 1 with the adaptive one (RESULTS.md: with the adaptive
+     * density 3 costs up to twice the rays on hall-many for a small gain); PN_CONTOUR_PART=1, 2
+     * or 4: runs with a contour check 1 / PART of their samples from their third pixel on
+     * (default 2). */
     const char *off = getenv("PN_CONTOUR_OFF");
     if (off && strstr(off, "islands")) cd->off |= PN_CONTOUR_NO_ISLANDS;
     if (off && strstr(off, "half")) cd->off |= PN_CONTOUR_NO_HALF_CHECK;
-    /* Scout probes (contour.c): one at the centre of each agreeing first-level square by
-     * default; PN_CONTOUR_SCOUT=0/1/2 for none / the centre / the four quarter centres. */
-    cd->scout = off && strstr(off, "scouts") ? 0 : 1;
+    cd->scout = off && strstr(off, "scouts") ? 0 : (job->contour_flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY) ? 3 : 1;
     const char *scout = getenv("PN_CONTOUR_SCOUT");
-    if (scout && *scout >= '0' && *scout <= '2') cd->scout = *scout - '0';
+    if (scout && *scout >= '0' && *scout <= '3') cd->scout = *scout - '0';
+    const char *part = getenv("PN_CONTOUR_PART");
+    cd->penumbra_part = part && (*part == '1' || *part == '4') ? *part - '0' : 2;
     job->integrator_data = cd;
     return PN_OK;
 }
@@ -507,6 +516,7 @@ static void full_integration(span_ctx *sc, int q, int p, int why) {
         ev->hint = sc->carry;
     /* Our departure: islands the hint pixel found are probed here (contour.c). */
     ev->scout = why == WHY_UNIFORM ? 0 : sc->cd->scout;
+    ev->scout_p0 = sc->cd->p0;
     pn_contour_probe_islands(ev, ev->hint, p);
     pn_contour_integrate(ev, p);
     sc->s->g[q] = ev->acc;
@@ -634,6 +644,8 @@ static void shade_span(span_ctx *sc) {
             int part = 1;
             if (uniform && !(sc->cd->off & PN_CONTOUR_NO_HALF_CHECK))
                 part = j - key >= PN_CONTOUR_UNIFORM_QUARTER_AFTER ? 4 : j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER ? 2 : 1;
+            else if (!uniform && sc->cd->penumbra_part > 1 && j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER)
+                part = sc->cd->penumbra_part;
             bool same = check_pattern(s, j, p, key_pattern, mask, part, sc->x0 + j);
             if (!same) {
                 /* The pixels before it checked in part: completed, back to the last that matches. */
