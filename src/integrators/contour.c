@@ -357,6 +357,30 @@ bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int 
     return changes > (c->vis[sample_index(c, ia, ja)] != end);
 }
 
+/* Whether point (u, v) lies inside the polygon (even-odd rule, in the source's (u, v)). */
+static bool inside_polygon(const cvert *p, int n, double u, double v) {
+    bool in = false;
+    for (int a = 0, b = n - 1; a < n; b = a++)
+        if ((p[a].v > v) != (p[b].v > v) && u < (p[b].u - p[a].u) * (v - p[a].v) / (p[b].v - p[a].v) + p[a].u) in = !in;
+    return in;
+}
+
+/* True when a traced probe strictly inside the square (i0, j0, s) has a visibility other than the
+ * visible polygons of the square's approximate contour say. */
+static bool probe_misplaced(const pn_contour_eval *c, int i0, int j0, int s, cvert (*poly)[12], const int *counts,
+                            int polys) {
+    for (int k = 0; k < c->probe_count; k++) {
+        int i = c->probe[k][0], j = c->probe[k][1];
+        if (i <= i0 || i >= i0 + s || j <= j0 || j >= j0 + s) continue;
+        uint8_t x = c->vis[sample_index(c, i, j)];
+        if (x == VIS_UNKNOWN) continue;
+        bool in = false;
+        for (int p = 0; p < polys && !in; p++) in = inside_polygon(poly[p], counts[p], (double)i / c->N, (double)j / c->N);
+        if (in != (x == VIS_VISIBLE)) return true;
+    }
+    return false;
+}
+
 /* Sides k = 0..3 join corners k and k + 1 (counter-clockwise in (u, v)). */
 static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth) {
     if (c->restart) return;
@@ -485,31 +509,41 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         }
     }
     /* The visible part as polygons, counter-clockwise like the square. */
-    cvert poly[12];
+    cvert poly[2][12];
+    int counts[2] = {0, 0}, polys = 0;
     if (case4 && !centre_visible) {
         for (int p = 0; p < pieces; p++) {
             int k = exits[p], n = 0;
-            poly[n++] = x[entries[p]];
-            poly[n++] = corner[k];
-            poly[n++] = x[k];
-            if (has_extra[p]) poly[n++] = extra[p];
-            add_polygon(c, poly, n);
+            poly[p][n++] = x[entries[p]];
+            poly[p][n++] = corner[k];
+            poly[p][n++] = x[k];
+            if (has_extra[p]) poly[p][n++] = extra[p];
+            counts[polys++] = n;
         }
-        pn_contour_add_leaf(c, i0, j0, s);
-        return;
-    }
-    int n = 0;
-    for (int k = 0; k < 4; k++) {
-        int k1 = (k + 1) & 3;
-        if (v[k]) poly[n++] = corner[k];
-        if (v[k] != v[k1]) {
-            poly[n++] = x[k];
-            if (v[k])
-                for (int p = 0; p < pieces; p++)
-                    if (exits[p] == k && has_extra[p]) poly[n++] = extra[p];
+    } else {
+        int n = 0;
+        for (int k = 0; k < 4; k++) {
+            int k1 = (k + 1) & 3;
+            if (v[k]) poly[0][n++] = corner[k];
+            if (v[k] != v[k1]) {
+                poly[0][n++] = x[k];
+                if (v[k])
+                    for (int p = 0; p < pieces; p++)
+                        if (exits[p] == k && has_extra[p]) poly[0][n++] = extra[p];
+            }
         }
+        counts[polys++] = n;
     }
-    add_polygon(c, poly, n);
+    /* Our departure: a probe inside the square that the contour puts on the wrong side (an
+     * island or a bay of the silhouette the marching did not see) subdivides the square. */
+    if (test && c->probe_count > 0 && probe_misplaced(c, i0, j0, s, poly, counts, polys)) {
+        island = true;
+        c->islands_found++;
+        c->forced++;
+        c->island_nest++;
+        goto subdivide;
+    }
+    for (int p = 0; p < polys; p++) add_polygon(c, poly[p], counts[p]);
     pn_contour_add_leaf(c, i0, j0, s);
 }
 
@@ -591,19 +625,14 @@ void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
         }
     /* Scouts: probes on a lattice fixed by the initial first level (scout_p0 squares per side):
      * the centre (scout 1), the four quarter centres (2) or the 3 x 3 inner points of the 4 x 4
-     * sub-lattice (3) of each initial square; inside every first-level square whose corners agree
-     * here, at whatever density (a square of a doubled density holds a quarter of them). */
+     * sub-lattice (3) of each initial square, strictly inside the first-level squares at
+     * whatever density (a square of a doubled density holds a quarter of them). */
     if (c->scout > 0) {
         const int p0 = c->scout_p0 > 0 && c->scout_p0 <= p ? c->scout_p0 : p, s0 = c->N / p0, q0 = s0 / 4;
         if (q0 < 1) return;
         for (int b = 0; b < p; b++)
             for (int a = 0; a < p; a++) {
                 const int i0 = a * s, j0 = b * s;
-                c->phase = PN_CPH_FIRST;
-                bool v0 = pn_contour_sample_visible(c, i0, j0);
-                if (pn_contour_sample_visible(c, i0 + s, j0) != v0 || pn_contour_sample_visible(c, i0, j0 + s) != v0 ||
-                    pn_contour_sample_visible(c, i0 + s, j0 + s) != v0)
-                    continue;
                 for (int j = j0 + 1; j < j0 + s; j++) {
                     int oj = (j % s0) / q0;
                     if (j % q0 != 0) continue;

@@ -96,14 +96,17 @@ void pn_contour_add_leaf(pn_contour_eval *c, int i0, int j0, int s);
 bool pn_contour_treated_square_has_on_side(const pn_contour_eval *c, int i, int j);
 bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int ib, int jb, int s);
 
-/* Our departure (islands carried along the row): before integrating with p x p first-level
- * squares, looks in `hint` (the sample array of a nearby pixel already integrated) for islands:
- * samples of one visibility strictly inside a first-level square whose (known) corners all have
- * the other. For each such square it traces a probe here at the point of the square's 4 x 4
- * sub-lattice nearest the island's centroid, and when that one does not show the island, at the
- * hint's island sample nearest the centroid. The probes are kept in c->probe; process_square()
- * subdivides a square whose corners agree and that holds a probe of the other visibility, down
- * to where the probe is a corner, so that the island's contour is integrated. */
+/* Our departure (islands): before integrating with p x p first-level squares, traces probes:
+ *  - islands carried from `hint` (the sample array of a nearby pixel already integrated, or
+ *    NULL): samples of one visibility strictly inside a first-level square whose (known) corners
+ *    all have the other. For each such square a probe at the point of the square's 4 x 4
+ *    sub-lattice nearest the island's centroid, and when that one does not show the island, at
+ *    the hint's island sample nearest the centroid;
+ *  - scouts (c->scout, c->scout_p0): fixed points of each first-level square.
+ * The probes are kept in c->probe. process_square() subdivides a square whose corners agree and
+ * that holds a probe of the other visibility (pn_contour_probe_contradicts), or whose approximate
+ * contour puts a probe on the wrong side, down to where the probe is a corner, so that the
+ * island's contour is integrated. */
 void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p);
 
 /* True when one of c's probes lies strictly inside the square (i0, j0, s) with a visibility
@@ -118,6 +121,13 @@ void pn_contour_integrate(pn_contour_eval *c, int p);
  * (p + 1) x (p + 1) first-level pattern (row by row) that have a 4-neighbour of the other
  * visibility; the following pixels of a run check only those. */
 void pn_contour_pattern_boundary(const uint8_t *pattern, int p, uint8_t *mask);
+
+/* Our departure (contour_render.c): whether the unoccluded form factor at receiver m, a
+ * fraction w of the way from a to b along a run, is within tol (relative) of the linear
+ * interpolation between a and b; if so the run is interpolated linearly without its middle
+ * integration. */
+bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eval *a, const pn_contour_eval *m,
+                              const pn_contour_eval *b, double w, double tol);
 
 /* contour-mc (contour_mc.c): adaptive Monte Carlo sampling of the source in the manner of Kok &
  * Jansen 1992, with the same receiver setup, from cells x cells first cells; returns the form factor estimate and adds its rays

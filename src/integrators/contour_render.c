@@ -28,6 +28,12 @@
 #define PN_CONTOUR_MAX_P 32   /* first-level squares per side, at most */
 #define PN_CONTOUR_DISK_QUADS 5 /* a disk is a 12-gon of equal area: 5 quadrilaterals */
 
+/* Our departure (shade_span): a run whose unoccluded form factor at its middle pixel is within
+ * this fraction of the linear interpolation between its ends is interpolated linearly, without
+ * the middle integration (cornell-contour at 800x800, 3x3 fixed, span 64: 11.9 -> 10.0 rays per
+ * viewing ray; bench/contour/RESULTS.md). */
+#define PN_CONTOUR_LINEAR_TOL 0.003
+
 typedef struct contour_light {
     int index; /* in job->lights */
     pn_contour_source src;
@@ -56,6 +62,7 @@ typedef struct contour_data {
     FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
     int scout;
     int penumbra_part; /* PN_CONTOUR_PART: runs with a contour check 1/part of their samples */
+    double linear_tol; /* PN_CONTOUR_LINEAR_TOL */
     uint32_t off; /* PN_CONTOUR_OFF: internal flag bits (contour_internal.h) for bench A/B runs */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
@@ -227,7 +234,8 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
      * with a fixed first-level density and 1 with the adaptive one (RESULTS.md: with the adaptive
      * density 3 costs up to twice the rays on hall-many for a small gain); PN_CONTOUR_PART=1, 2
      * or 4: runs with a contour check 1 / PART of their samples from their third pixel on
-     * (default 2). */
+     * (default 2); PN_CONTOUR_LINEAR_TOL: the tolerance of run_is_linear (0: every run of 3
+     * pixels or more gets its middle integration and the quadratic, as in the paper). */
     const char *off = getenv("PN_CONTOUR_OFF");
     if (off && strstr(off, "islands")) cd->off |= PN_CONTOUR_NO_ISLANDS;
     if (off && strstr(off, "half")) cd->off |= PN_CONTOUR_NO_HALF_CHECK;
@@ -236,6 +244,8 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     if (scout && *scout >= '0' && *scout <= '3') cd->scout = *scout - '0';
     const char *part = getenv("PN_CONTOUR_PART");
     cd->penumbra_part = part && (*part == '1' || *part == '4') ? *part - '0' : 2;
+    const char *lin = getenv("PN_CONTOUR_LINEAR_TOL");
+    cd->linear_tol = lin ? atof(lin) : PN_CONTOUR_LINEAR_TOL;
     job->integrator_data = cd;
     return PN_OK;
 }
@@ -566,6 +576,19 @@ static void interpolate_run(span_ctx *sc, int a, int m, int b) {
     }
 }
 
+
+bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eval *a, const pn_contour_eval *m,
+                              const pn_contour_eval *b, double w, double tol) {
+    const pn_contour_eval *at[3] = {a, m, b};
+    double fu[3];
+    for (int k = 0; k < 3; k++) {
+        pn_contour_g g;
+        pn_contour_source_unoccluded(src, at[k]->m, at[k]->ns, at[k]->ng, false, &g);
+        fu[k] = pn_dv3_dot(g.g, at[k]->ns);
+    }
+    return fabs(fu[1] - ((1.0 - w) * fu[0] + w * fu[2])) <= tol * fabs(fu[1]);
+}
+
 /* Our departure (shade_span): a uniform run checks half of the first-level samples at its pixels
  * from this many pixels after its first on, and a quarter from the second number on. */
 #define PN_CONTOUR_UNIFORM_HALF_AFTER 2
@@ -688,7 +711,21 @@ static void shade_span(span_ctx *sc) {
          * middle. */
         int end = j < n ? j : n - 1;
         if (end > key) full_integration(sc, end, p, WHY_CHANGE);
-        if (end - key >= 2) {
+        /* Our departure: when the unoccluded form factor is linear along the run to within
+         * PN_CONTOUR_LINEAR_TOL at its middle, the run is interpolated linearly between its ends
+         * without the middle integration (run_is_linear()). */
+        const bool linear = end - key >= 2 && sc->cd->linear_tol > 0.0 &&
+                            pn_contour_run_is_linear(&sc->cl->src, &s->ev[key], &s->ev[(key + end) / 2], &s->ev[end],
+                                                     (double)((key + end) / 2 - key) / (double)(end - key), sc->cd->linear_tol);
+        if (linear) {
+            for (int q = key + 1; q < end; q++) {
+                double w = (double)(q - key) / (double)(end - key);
+                s->g[q].g = pn_dv3_add(pn_dv3_scale(s->g[key].g, 1.0 - w), pn_dv3_scale(s->g[end].g, w));
+                for (int k = 0; k < 3; k++)
+                    s->g[q].dg[k] = pn_dv3_add(pn_dv3_scale(s->g[key].dg[k], 1.0 - w), pn_dv3_scale(s->g[end].dg[k], w));
+                sc->t.interpolated++;
+            }
+        } else if (end - key >= 2) {
             int mid = (key + end) / 2;
             full_integration(sc, mid, p, WHY_MIDDLE);
             interpolate_run(sc, key, mid, end);
