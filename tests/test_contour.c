@@ -678,6 +678,98 @@ static void test_island_probes(void) {
     pn_context_free(ctx);
 }
 
+/* The form factor at M (normal +z) of the part [u0, u1] x [v0, v1] of the source's sample
+ * lattice (contour.c warps it by t + 0.0618 t (1 - t) in u and v). */
+static double lattice_rect_ff(const pn_contour_source *src, pn_dvec3 m, double u0, double u1, double v0, double v1) {
+    const double uu[4] = {u0, u1, u1, u0}, vv[4] = {v0, v0, v1, v1};
+    pn_dvec3 p[4];
+    for (int k = 0; k < 4; k++) {
+        double u = uu[k] + 0.0618 * uu[k] * (1.0 - uu[k]), v = vv[k] + 0.0618 * vv[k] * (1.0 - vv[k]);
+        p[k] = pn_dv3_sub(pn_contour_source_point(src, u, v), m);
+    }
+    pn_contour_g g = {{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
+    pn_contour_add_polygon(&g, p, 4, N_UP, N_UP, 1.0, false);
+    return fabs(pn_dv3_dot(g.g, N_UP));
+}
+
+/* An island in a first-level square that another obstacle's contour also crosses (case 3), off
+ * both diagonals (the validity test's dichotomies miss it), on a sample array filled beforehand
+ * (no rays). Without scouts the square is integrated as the edge alone; with them the scout
+ * inside the island is on the visible side of the square's approximate contour, the square is
+ * subdivided and the island integrated. */
+static void test_island_beside_a_contour(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = NULL;
+    pn_status st = pn_scene_load(ctx, pn_test_write_file(tmpdir, "island2.pbrt", island_scene), &scene);
+    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    if (st != PN_OK) {
+        pn_context_free(ctx);
+        return;
+    }
+    const struct pn_scene_s *sc = scene;
+    const pn_light *l = &sc->lights->lights[0];
+    pn_contour_source src;
+    pn_contour_source_rectangle(&src, l->p, l->e1, l->e2, l->n, l->two_sided);
+    pn_render_job job;
+    memset(&job, 0, sizeof job);
+    job.accel = sc->accel;
+    enum { N = 64 }; /* 3 x 3 first-level samples, 5 dichotomy steps */
+    static uint8_t vis[(N + 1) * (N + 1)];
+    const pn_dvec3 m = {0.0, 0.0, 0.0};
+    /* Hidden: the strip j <= 6 and the island 23 <= i <= 30, 13 <= j <= 18 (in the square
+     * i, j <= 32, away from the diagonals j = i and j = 32 - i). */
+    const double cell = 1.0 / N;
+    const double full = lattice_rect_ff(&src, m, 0, 1, 0, 1), strip = lattice_rect_ff(&src, m, 0, 1, 0, 6.5 * cell);
+    const double island = lattice_rect_ff(&src, m, 22.5 * cell, 30.5 * cell, 12.5 * cell, 18.5 * cell);
+    double f[2];
+    uint32_t found[2], rays[2];
+    for (int scout = 0; scout < 2; scout++) {
+        for (int j = 0; j <= N; j++)
+            for (int i = 0; i <= N; i++)
+                vis[j * (N + 1) + i] = (j <= 6 || (i >= 23 && i <= 30 && j >= 13 && j <= 18)) ? 2 : 1;
+        pn_contour_eval ev;
+        CHECK(pn_contour_eval_setup(&ev, &job, &src, pn_dv3_to(m), v3(0, 0, 1), v3(0, 0, 1), N, vis, NULL, false, 7));
+        ev.scout = scout ? 3 : 0;
+        ev.scout_p0 = 2;
+        pn_contour_probe_islands(&ev, NULL, 2);
+        pn_contour_integrate(&ev, 2);
+        f[scout] = pn_dv3_dot(ev.acc.g, N_UP);
+        found[scout] = ev.islands_found;
+        rays[scout] = ev.rays;
+    }
+    CHECK(rays[0] == 0 && rays[1] == 0);
+    CHECK_MSG(found[0] == 0 && fabs(f[0] - (full - strip)) < 0.05 * island, "no scouts: F %g, the edge alone %g", f[0],
+              full - strip);
+    /* (The island is 8 x 6 cells: its contour, one cell from the truth, is 26% off.) */
+    CHECK_MSG(found[1] >= 1 && fabs(f[1] - (full - strip - island)) < 0.35 * island,
+              "scouts: F %g, exact %g, the edge alone %g", f[1], full - strip - island, full - strip);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* Runs interpolated linearly (our departure, contour_render.c): only where the unoccluded form
+ * factor is linear along the run to the tolerance. Below the middle of a square source it peaks:
+ * not linear; far to its side, over a short run, it is. */
+static void test_run_is_linear(void) {
+    pn_contour_source src;
+    pn_contour_source_rectangle(&src, v3(-1, -1, 2), v3(2, 0, 0), v3(0, 2, 0), v3(0, 0, -1), false);
+    pn_contour_eval e[3];
+    memset(e, 0, sizeof e);
+    const double xs[2][3] = {{-3.0, 0.0, 3.0}, {5.0, 5.05, 5.1}};
+    bool lin[2];
+    for (int c = 0; c < 2; c++) {
+        for (int k = 0; k < 3; k++) {
+            e[k].m = pn_dv3(xs[c][k], 0.0, 0.0);
+            e[k].ns = e[k].ng = N_UP;
+        }
+        lin[c] = pn_contour_run_is_linear(&src, &e[0], &e[1], &e[2], 0.5, 0.003);
+    }
+    CHECK(!lin[0]);
+    CHECK(lin[1]);
+    /* A tolerance of 0 takes only an exactly linear run. */
+    CHECK(!pn_contour_run_is_linear(&src, &e[0], &e[1], &e[2], 0.5, 0.0));
+}
+
 /* Uniform runs (our departure, contour_render.c): deep in a run whose first-level samples are all
  * visible, pixels check a half, then a quarter, of them and get the closed form: fewer rays, and
  * an image as close to the reference as with every sample checked (not identical: the pixels so
@@ -861,4 +953,5 @@ PN_TESTS(TEST(test_setup), TEST(test_rectangle_matches_closed_form), TEST(test_h
          TEST(test_marching_squares_with_rays), TEST(test_contour_matches_reference), TEST(test_unoccluded_closed_form),
          TEST(test_thread_determinism_and_bad_settings), TEST(test_scanline_spans),
          TEST(test_inconsistency_bookkeeping), TEST(test_pattern_boundary),
-         TEST(test_spans_end_at_creases), TEST(test_island_probes), TEST(test_uniform_runs_check_part))
+         TEST(test_spans_end_at_creases), TEST(test_island_probes), TEST(test_island_beside_a_contour),
+         TEST(test_run_is_linear), TEST(test_uniform_runs_check_part))
