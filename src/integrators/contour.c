@@ -35,7 +35,8 @@
  *    shade_span(): a full contour integration at the first pixel, then only first-level rays at
  *    the next pixels while their pattern stays the same; the pixel where it changed gets a full
  *    integration (it opens the next run), so does the middle of the run, and the pixels in
- *    between get G by quadratic interpolation, projected on their own normal. The first-level
+ *    between get G by quadratic interpolation, projected on their own normal (or linear
+ *    interpolation without the middle, see the departures). The first-level
  *    density doubles after an integration that subdivided to depth two or restarted, and halves
  *    again after one that needed no subdivision. Where the rays go: bench/contour/RESULTS.md.
  *
@@ -69,6 +70,29 @@
  *    the pattern is uniform): a contour that moves changes the pattern there first. An occluded
  *    island that appears at a sample far from the contour is seen at the run's next integration
  *    instead. (8-13% fewer rays at the same average difference, bench/contour/RESULTS.md.)
+ *    From a run's third pixel on, only part of those samples is checked: half (a checkerboard
+ *    that alternates with x) in a run with a contour, half and from the sixth pixel a quarter in
+ *    a uniform run; where a part differs, the pixels before it that were checked in part are
+ *    checked in full, back to the last that matches, so the run ends where a full check would
+ *    end it unless a change came and went between two checks of the same sample. A pixel of a
+ *    uniform run so checked gets the closed form of the whole source (visible) or nothing
+ *    (hidden), what its integration would give. (Section "Islands, partial checks" of
+ *    bench/contour/RESULTS.md: 800x800 cornell-contour, hall-many, bathroom-72.)
+ *  - Islands (pn_contour_probe_islands): occluded islands between first-level samples (the
+ *    killeroo's legs and ears seen from the floor) are invisible to §3.1's marching and biased
+ *    the paper's 3x3 grid bright by +1.7 levels in penumbra. Before each integration, probes
+ *    are traced: scouts on a lattice fixed by the initial grid (the centre of each initial
+ *    square with the adaptive density; the 3 x 3 inner points of its 4 x 4 sub-lattice with a
+ *    fixed one), and the islands the hint pixel found (a sample inside one of its squares whose
+ *    corners all had the other visibility), one or two probes each. A square whose corners
+ *    agree and that holds a probe of the other visibility, or whose approximate contour puts a
+ *    probe on the wrong side, is subdivided (§3.2's forced subdivision) down to where the probe
+ *    is a corner, and the island's contour is integrated like any other. These subdivisions do
+ *    not count in the depth that raises the first-level density.
+ *  - A run whose unoccluded form factor at its middle pixel is within 0.3% of the linear
+ *    interpolation between its ends (pn_contour_run_is_linear, no rays) is interpolated
+ *    linearly, without the middle integration of §5's quadratic; the quadratic stays where the
+ *    geometry bends it (under a light, where the form factor peaks between the ends).
  *  - Spans also end where the shading normal turns by more than about 25 degrees between two
  *    adjacent pixels (PN_CONTOUR_SPAN_CREASE_COS): the paper's spans cover "the same object",
  *    and across a crease of one mesh (a box's edge) interpolating G from one face onto the other
