@@ -60,7 +60,7 @@ typedef struct contour_data {
     float tol;
     int N, p0;
     FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
-    int scout;
+    int scout;         /* PN_CONTOUR_SCOUT: scout probes per initial first-level square, 0-3 */
     int penumbra_part; /* PN_CONTOUR_PART: runs with a contour check 1/part of their samples */
     double linear_tol; /* PN_CONTOUR_LINEAR_TOL */
     uint32_t off; /* PN_CONTOUR_OFF: internal flag bits (contour_internal.h) for bench A/B runs */
@@ -524,7 +524,8 @@ static void full_integration(span_ctx *sc, int q, int p, int why) {
     int cx = *sc->carry_x;
     if (cx != INT32_MIN && sc->x0 + q - cx <= PN_CONTOUR_HINT_DISTANCE && (best < 0 || sc->x0 + q - cx < abs(best - q)))
         ev->hint = sc->carry;
-    /* Our departure: islands the hint pixel found are probed here (contour.c). */
+    /* Our departure (contour.c): scouts, and probes where the hint pixel found islands (no
+     * scouts in uniform runs: there the pattern check decides). */
     ev->scout = why == WHY_UNIFORM ? 0 : sc->cd->scout;
     ev->scout_p0 = sc->cd->p0;
     pn_contour_probe_islands(ev, ev->hint, p);
@@ -576,7 +577,7 @@ static void interpolate_run(span_ctx *sc, int a, int m, int b) {
     }
 }
 
-
+/* (contour_internal.h) */
 bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eval *a, const pn_contour_eval *m,
                               const pn_contour_eval *b, double w, double tol) {
     const pn_contour_eval *at[3] = {a, m, b};
@@ -589,8 +590,8 @@ bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eva
     return fabs(fu[1] - ((1.0 - w) * fu[0] + w * fu[2])) <= tol * fabs(fu[1]);
 }
 
-/* Our departure (shade_span): a uniform run checks half of the first-level samples at its pixels
- * from this many pixels after its first on, and a quarter from the second number on. */
+/* Our departure (shade_span): runs check part of their first-level samples from this many pixels
+ * after their first on (half; PN_CONTOUR_PART), and uniform runs a quarter from the second. */
 #define PN_CONTOUR_UNIFORM_HALF_AFTER 2
 #define PN_CONTOUR_UNIFORM_QUARTER_AFTER 6
 
@@ -661,9 +662,10 @@ static void shade_span(span_ctx *sc) {
         if (!uniform) pn_contour_pattern_boundary(key_pattern, p, mask);
         else memset(mask, 1, (size_t)np);
         for (; j < n; j++) {
-            /* Our departure: deep in a uniform run, each pixel checks half of the samples (a
-             * checkerboard alternating with x); a pixel where the half differs has the other
-             * half of the pixel before it checked too, so the run ends where it really did. */
+            /* Our departure: from a run's third pixel on, each pixel checks part of the samples
+             * (half, moving with x; in a uniform run a quarter from its sixth pixel); where the
+             * part differs, the pixels before it checked in part are checked in full back to the
+             * last that matches, so the run ends where a full check would end it. */
             int part = 1;
             if (uniform && !(sc->cd->off & PN_CONTOUR_NO_HALF_CHECK))
                 part = j - key >= PN_CONTOUR_UNIFORM_QUARTER_AFTER ? 4 : j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER ? 2 : 1;
