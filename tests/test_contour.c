@@ -730,7 +730,6 @@ static void test_island_beside_a_contour(void) {
         pn_contour_eval ev;
         CHECK(pn_contour_eval_setup(&ev, &job, &src, pn_dv3_to(m), v3(0, 0, 1), v3(0, 0, 1), N, vis, NULL, false, 7));
         ev.scout = scout ? 3 : 0;
-        ev.scout_p0 = 2;
         pn_contour_probe_islands(&ev, NULL, 2);
         pn_contour_integrate(&ev, 2);
         f[scout] = pn_dv3_dot(ev.acc.g, N_UP);

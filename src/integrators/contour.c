@@ -647,28 +647,19 @@ void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
                     }
             if (bi >= 0 && !(bi == i0 + oi * q && bj == j0 + oj * q)) add_probe(c, bi, bj);
         }
-    /* Scouts: probes on a lattice fixed by the initial first level (scout_p0 squares per side):
-     * the centre (scout 1), the four quarter centres (2) or the 3 x 3 inner points of the 4 x 4
-     * sub-lattice (3) of each initial square, strictly inside the first-level squares at
-     * whatever density (a square of a doubled density holds a quarter of them). */
+    /* Scouts: probes on a lattice of the whole source, the same for any grid: the points
+     * (k N / 4, l N / 4) for odd k, l (scout 1: 4 points, the centres of the paper's 3 x 3
+     * grid's squares), (k N / 8, l N / 8) for odd k, l (scout 2: 16) or for 0 < k, l < 8
+     * (scout 3: 49, the 3 x 3 inner points of each square of the 3 x 3 grid's 4 x 4
+     * sub-lattice), leaving out those on a first-level square's side. */
     if (c->scout > 0) {
-        const int p0 = c->scout_p0 > 0 && c->scout_p0 <= p ? c->scout_p0 : p, s0 = c->N / p0, q0 = s0 / 4;
-        if (q0 < 1) return;
-        for (int b = 0; b < p; b++)
-            for (int a = 0; a < p; a++) {
-                const int i0 = a * s, j0 = b * s;
-                for (int j = j0 + 1; j < j0 + s; j++) {
-                    int oj = (j % s0) / q0;
-                    if (j % q0 != 0) continue;
-                    for (int i = i0 + 1; i < i0 + s; i++) {
-                        int oi = (i % s0) / q0;
-                        if (i % q0 != 0) continue;
-                        bool take = c->scout == 1 ? oi == 2 && oj == 2
-                                  : c->scout == 2 ? (oi == 1 || oi == 3) && (oj == 1 || oj == 3)
-                                                  : oi != 0 && oj != 0;
-                        if (take) add_probe(c, i, j);
-                    }
-                }
+        const int m = c->scout == 1 ? 4 : 8;
+        for (int l = 1; l < m; l++)
+            for (int k = 1; k < m; k++) {
+                if (c->scout < 3 && (!(k & 1) || !(l & 1))) continue;
+                const int i = (k * c->N + m / 2) / m, j = (l * c->N + m / 2) / m;
+                if (i % s == 0 || j % s == 0) continue;
+                add_probe(c, i, j);
             }
     }
 }

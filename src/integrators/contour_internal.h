@@ -27,7 +27,7 @@ enum {
 #define PN_CONTOUR_MAX_LEAVES 128
 
 /* Island probes per integration, at most (pn_contour_probe_islands). */
-#define PN_CONTOUR_MAX_PROBES 64
+#define PN_CONTOUR_MAX_PROBES 128
 
 /* Internal flag bits of pn_contour_eval.flags (beside the public PN_CONTOUR_* bits), set by the
  * bench through the environment (PN_CONTOUR_OFF, contour_render.c) to measure a mechanism's
@@ -71,8 +71,7 @@ typedef struct pn_contour_eval {
      * corners all have one visibility and that holds a probe of the other is subdivided. */
     int probe_count;
     int16_t probe[PN_CONTOUR_MAX_PROBES][2];
-    int scout;           /* scout probes in agreeing first-level squares (pn_contour_probe_islands): 0-3 */
-    int scout_p0;        /* the initial first-level squares per side, which fix the scouts' lattice */
+    int scout;           /* scout probes (pn_contour_probe_islands): 0-3 */
     bool partial;        /* render: only half of its first-level samples were checked (uniform run) */
     int island_nest;     /* > 0 inside a subdivision forced by a probe (not counted in max_depth) */
     uint32_t islands_probed, islands_found; /* probes traced; probes that contradicted their square */
@@ -102,7 +101,6 @@ bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int 
  *    all have the other. For each such square a probe at the point of the square's 4 x 4
  *    sub-lattice nearest the island's centroid, and when that one does not show the island, at
  *    the hint's island sample nearest the centroid;
- *  - scouts (c->scout, c->scout_p0): fixed points of each first-level square.
  * The probes are kept in c->probe. process_square() subdivides a square whose corners agree and
  * that holds a probe of the other visibility (pn_contour_probe_contradicts), or whose approximate
  * contour puts a probe on the wrong side, down to where the probe is a corner, so that the

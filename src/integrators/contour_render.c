@@ -60,7 +60,7 @@ typedef struct contour_data {
     float tol;
     int N, p0;
     FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
-    int scout;         /* PN_CONTOUR_SCOUT: scout probes per initial first-level square, 0-3 */
+    int scout;         /* PN_CONTOUR_SCOUT: the scout lattice, 0-3 (contour.c) */
     int penumbra_part; /* PN_CONTOUR_PART: runs with a contour check 1/part of their samples */
     double linear_tol; /* PN_CONTOUR_LINEAR_TOL */
     uint32_t off; /* PN_CONTOUR_OFF: internal flag bits (contour_internal.h) for bench A/B runs */
@@ -229,8 +229,8 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     /* Switches for measuring our departures (bench/contour/RESULTS.md; the CLI has no option for
      * them): PN_CONTOUR_OFF, comma-separated: "islands" (no island probes from the hint pixel),
      * "half" (uniform runs check every first-level sample), "scouts" (no scout probes);
-     * PN_CONTOUR_SCOUT=0..3, the scout probes per initial first-level square (0; 1: its centre;
-     * 2: its four quarter centres; 3: the 9 inner points of its 4 x 4 sub-lattice), by default 3
+     * PN_CONTOUR_SCOUT=0..3, the scout probes (contour.c: 0; 1: 4 points, the centres of the 3 x 3
+     * grid's squares; 2: 16; 3: 49, the inner points of an 8 x 8 lattice), by default 3
      * with a fixed first-level density and 1 with the adaptive one (RESULTS.md: with the adaptive
      * density 3 costs up to twice the rays on hall-many for a small gain); PN_CONTOUR_PART=1, 2
      * or 4: runs with a contour check 1 / PART of their samples from their third pixel on
@@ -527,7 +527,6 @@ static void full_integration(span_ctx *sc, int q, int p, int why) {
     /* Our departure (contour.c): scouts, and probes where the hint pixel found islands (no
      * scouts in uniform runs: there the pattern check decides). */
     ev->scout = why == WHY_UNIFORM ? 0 : sc->cd->scout;
-    ev->scout_p0 = sc->cd->p0;
     pn_contour_probe_islands(ev, ev->hint, p);
     pn_contour_integrate(ev, p);
     sc->s->g[q] = ev->acc;
