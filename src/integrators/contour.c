@@ -81,9 +81,10 @@
  *  - Islands (pn_contour_probe_islands): occluded islands between first-level samples (the
  *    killeroo's legs and ears seen from the floor) are invisible to §3.1's marching and biased
  *    the paper's 3x3 grid bright by +1.7 levels in penumbra. Before each integration, probes
- *    are traced: scouts on a lattice fixed by the initial grid (the centre of each initial
- *    square with the adaptive density; the 3 x 3 inner points of its 4 x 4 sub-lattice with a
- *    fixed one), and the islands the hint pixel found (a sample inside one of its squares whose
+ *    are traced: scouts on a lattice of the whole source (with the adaptive density the 4
+ *    centres of the 3 x 3 grid's squares; with a fixed one the 49 inner points of an 8 x 8
+ *    lattice, for the 3 x 3 grid the 3 x 3 inner points of each square's 4 x 4 sub-lattice),
+ *    and the islands the hint pixel found (a sample inside one of its squares whose
  *    corners all had the other visibility), one or two probes each. A square whose corners
  *    agree and that holds a probe of the other visibility, or whose approximate contour puts a
  *    probe on the wrong side, is subdivided (§3.2's forced subdivision) down to where the probe
