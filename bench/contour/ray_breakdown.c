@@ -15,9 +15,9 @@
 
 #include "display8.h"
 
-enum { PHASES = 7, CLASSES = 4, WHYS = 5 };
+enum { PHASES = 8, CLASSES = 4, WHYS = 5 };
 static const char *phase_name[PHASES] = {"pattern check", "first level", "side dichotomy", "validity (diagonals)",
-                                         "case-4 centre", "subdivision", "restart pass"};
+                                         "case-4 centre", "subdivision", "restart pass", "island probe"};
 static const char *class_name[CLASSES] = {"no candidate obstacle (culled)", "every ray visible", "every ray hidden",
                                           "penumbra (both)"};
 static const char *why_name[WHYS] = {"span start", "pattern changed / span end", "run middle", "uniform run",
@@ -44,8 +44,8 @@ int main(int argc, char **argv) {
     int x, y, cls;
     unsigned wh;
     unsigned r[PHASES];
-    while (fscanf(f, "%d %d %d %u %u %u %u %u %u %u %u", &x, &y, &cls, &wh, &r[0], &r[1], &r[2], &r[3], &r[4], &r[5],
-                  &r[6]) == 11) {
+    while (fscanf(f, "%d %d %d %u %u %u %u %u %u %u %u %u", &x, &y, &cls, &wh, &r[0], &r[1], &r[2], &r[3], &r[4], &r[5],
+                  &r[6], &r[7]) == 12) {
         int ix = x - x0, iy = y - y0;
         if (ix < 0 || iy < 0 || ix >= w || iy >= h || cls < 0 || cls >= CLASSES) continue;
         size_t k = (size_t)iy * (size_t)w + (size_t)ix;

@@ -9,12 +9,14 @@
 #
 #   bench/contour/table1.sh [BUILD_DIR] [OUT_DIR]      (defaults: build, bench/results/contour)
 #
-# Environment: PN_SHARED (default ../shared), THREADS (default 2).
+# Environment: PN_SHARED (default ../shared), THREADS (default 2), RES (film side, default 512,
+# the scenes' own; the paper renders 800: RES=800, same crops, close-up scaled).
 set -eu
 BUILD=${1:-build}
 OUT=${2:-bench/results/contour}
 SHARED=${PN_SHARED:-../shared}
 THREADS=${THREADS:-2}
+RES=${RES:-512}
 P="$BUILD/penumbra"
 M="$BUILD/contour_metrics"
 mkdir -p "$OUT"
@@ -28,7 +30,7 @@ run() {
     name=$1 scene=$2 crop=$3 label=$4
     shift 4
     start=$(date +%s.%N)
-    "$P" render "$SHARED/scenes/$scene" --crop "$crop" --spp 1 --threads "$THREADS" --quiet \
+    "$P" render "$SHARED/scenes/$scene" --resolution "${RES}x${RES}" --crop "$crop" --spp 1 --threads "$THREADS" --quiet \
         -o "$OUT/$name.pfm" --png "$OUT/$name.png" --stats "$OUT/$name.json" "$@" 2>/dev/null
     end=$(date +%s.%N)
     rays=$(sed -n 's/.*"contour_shadow_rays_per_viewing_ray": *\([0-9.e+-]*\).*/\1/p' "$OUT/$name.json")
@@ -46,7 +48,7 @@ run() {
 scene() {
     key=$1 file=$2 crop=$3 other=$4
     CLOSEUPS=""
-    "$P" render "$SHARED/scenes/$file" --crop "$crop" --spp 1 --shadow-rays 1024 --threads "$THREADS" --quiet \
+    "$P" render "$SHARED/scenes/$file" --resolution "${RES}x${RES}" --crop "$crop" --spp 1 --shadow-rays 1024 --threads "$THREADS" --quiet \
         -o "$OUT/$key.ref.pfm" --png "$OUT/$key.ref.png" 2>/dev/null
     if [ -n "$5" ]; then CLOSEUPS="--closeup $5,$OUT/$key.ref.closeup.png"; "$M" "$OUT/$key.ref.pfm" "$OUT/$key.ref.pfm" $CLOSEUPS >/dev/null; fi
     printf '| %s | reference | `--shadow-rays 1024` | 1024.0 | - | - | - | - |\n' "$key" >> "$TABLE"
@@ -54,6 +56,8 @@ scene() {
                 "contour-g5s4;contour tuned;--integrator contour --contour-grid 5 --contour-steps 4" \
                 "contour-g7s3;contour tuned;--integrator contour --contour-grid 7 --contour-steps 3 --contour-off adaptive" \
                 "contour-g6s3;contour tuned, fixed 6x6 first level, span 64;--integrator contour --contour-grid 6 --contour-steps 3 --contour-off adaptive --contour-span 64" \
+                "contour-fixed64;contour, the paper's 9 samples and 5 steps, fixed density, span 64;--integrator contour --contour-off adaptive --contour-span 64" \
+                "mc-g2;adaptive MC, its coarsest grid (fewest rays);--integrator contour-mc --contour-grid 2 --mc-threshold 0.02" \
                 "mc-same-rays;adaptive MC at about contour-paper's rays;--integrator contour-mc --contour-grid 3 --mc-threshold 0.02" \
                 "mc-g9;adaptive MC;--integrator contour-mc --contour-grid 9 --mc-threshold 0.02" \
                 "mc-g10;adaptive MC at about contour-g6s3's quality;--integrator contour-mc --contour-grid 10 --mc-threshold 0.02" \
@@ -68,7 +72,8 @@ scene() {
 
 # cornell-contour: the lower half (floor, blocks, penumbrae of the sphere and the killeroo).
 EXTRA="mc-g17;adaptive MC, finer;--integrator contour-mc --contour-grid 17 --mc-threshold 0.02"
-scene cornell-contour cornell-contour/cornell-contour.pbrt 0.25,0.75,0.5,1 4 176,176,64,64
+C=$((176 * RES / 512)),$((176 * RES / 512)),$((64 * RES / 512)),$((64 * RES / 512))
+scene cornell-contour cornell-contour/cornell-contour.pbrt 0.25,0.75,0.5,1 4 "$C"
 EXTRA=""
 # The many-light scenes: small crops; their point and disk lights (hall-many) go to the
 # reference estimator with as many rays as the reference uses.

@@ -35,7 +35,8 @@
  *    shade_span(): a full contour integration at the first pixel, then only first-level rays at
  *    the next pixels while their pattern stays the same; the pixel where it changed gets a full
  *    integration (it opens the next run), so does the middle of the run, and the pixels in
- *    between get G by quadratic interpolation, projected on their own normal. The first-level
+ *    between get G by quadratic interpolation, projected on their own normal (or linear
+ *    interpolation without the middle, see the departures). The first-level
  *    density doubles after an integration that subdivided to depth two or restarted, and halves
  *    again after one that needed no subdivision. Where the rays go: bench/contour/RESULTS.md.
  *
@@ -69,6 +70,30 @@
  *    the pattern is uniform): a contour that moves changes the pattern there first. An occluded
  *    island that appears at a sample far from the contour is seen at the run's next integration
  *    instead. (8-13% fewer rays at the same average difference, bench/contour/RESULTS.md.)
+ *    From a run's third pixel on, only part of those samples is checked: half (a checkerboard
+ *    that alternates with x) in a run with a contour, half and from the sixth pixel a quarter in
+ *    a uniform run; where a part differs, the pixels before it that were checked in part are
+ *    checked in full, back to the last that matches, so the run ends where a full check would
+ *    end it unless a change came and went between two checks of the same sample. A pixel of a
+ *    uniform run so checked gets the closed form of the whole source (visible) or nothing
+ *    (hidden), what its integration would give. (Section "Islands, partial checks" of
+ *    bench/contour/RESULTS.md: 800x800 cornell-contour, hall-many, bathroom-72.)
+ *  - Islands (pn_contour_probe_islands): occluded islands between first-level samples (the
+ *    killeroo's legs and ears seen from the floor) are invisible to §3.1's marching and biased
+ *    the paper's 3x3 grid bright by +1.7 levels in penumbra. Before each integration, probes
+ *    are traced: scouts on a lattice of the whole source (with the adaptive density the 4
+ *    centres of the 3 x 3 grid's squares; with a fixed one the 49 inner points of an 8 x 8
+ *    lattice, for the 3 x 3 grid the 3 x 3 inner points of each square's 4 x 4 sub-lattice),
+ *    and the islands the hint pixel found (a sample inside one of its squares whose
+ *    corners all had the other visibility), one or two probes each. A square whose corners
+ *    agree and that holds a probe of the other visibility, or whose approximate contour puts a
+ *    probe on the wrong side, is subdivided (§3.2's forced subdivision) down to where the probe
+ *    is a corner, and the island's contour is integrated like any other. These subdivisions do
+ *    not count in the depth that raises the first-level density.
+ *  - A run whose unoccluded form factor at its middle pixel is within 0.3% of the linear
+ *    interpolation between its ends (pn_contour_run_is_linear, no rays) is interpolated
+ *    linearly, without the middle integration of §5's quadratic; the quadratic stays where the
+ *    geometry bends it (under a light, where the form factor peaks between the ends).
  *  - Spans also end where the shading normal turns by more than about 25 degrees between two
  *    adjacent pixels (PN_CONTOUR_SPAN_CREASE_COS): the paper's spans cover "the same object",
  *    and across a crease of one mesh (a box's edge) interpolating G from one face onto the other
@@ -357,6 +382,30 @@ bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int 
     return changes > (c->vis[sample_index(c, ia, ja)] != end);
 }
 
+/* Whether point (u, v) lies inside the polygon (even-odd rule, in the source's (u, v)). */
+static bool inside_polygon(const cvert *p, int n, double u, double v) {
+    bool in = false;
+    for (int a = 0, b = n - 1; a < n; b = a++)
+        if ((p[a].v > v) != (p[b].v > v) && u < (p[b].u - p[a].u) * (v - p[a].v) / (p[b].v - p[a].v) + p[a].u) in = !in;
+    return in;
+}
+
+/* True when a traced probe strictly inside the square (i0, j0, s) has a visibility other than the
+ * visible polygons of the square's approximate contour say. */
+static bool probe_misplaced(const pn_contour_eval *c, int i0, int j0, int s, cvert (*poly)[12], const int *counts,
+                            int polys) {
+    for (int k = 0; k < c->probe_count; k++) {
+        int i = c->probe[k][0], j = c->probe[k][1];
+        if (i <= i0 || i >= i0 + s || j <= j0 || j >= j0 + s) continue;
+        uint8_t x = c->vis[sample_index(c, i, j)];
+        if (x == VIS_UNKNOWN) continue;
+        bool in = false;
+        for (int p = 0; p < polys && !in; p++) in = inside_polygon(poly[p], counts[p], (double)i / c->N, (double)j / c->N);
+        if (in != (x == VIS_VISIBLE)) return true;
+    }
+    return false;
+}
+
 /* Sides k = 0..3 join corners k and k + 1 (counter-clockwise in (u, v)). */
 static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth) {
     if (c->restart) return;
@@ -369,16 +418,23 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         v[k] = pn_contour_sample_visible(c, ci[k], cj[k]);
         nv += v[k];
     }
-    if (depth > c->max_depth) c->max_depth = depth;
+    if (depth > c->max_depth && c->island_nest == 0) c->max_depth = depth;
     cvert corner[4];
     for (int k = 0; k < 4; k++) corner[k] = corner_vertex(c, ci[k], cj[k]);
     const bool test = d >= 1 && !(c->flags & PN_CONTOUR_NO_VALIDITY);
-    bool forced = false;
+    bool forced = false, island = false;
     if (test)
         for (int k = 0; k < 4 && !forced; k++)
             forced = pn_contour_side_contradicted(c, ci[k], cj[k], ci[(k + 1) & 3], cj[(k + 1) & 3], s);
+    if (test && !forced && (nv == 0 || nv == 4) && c->probe_count > 0 &&
+        pn_contour_probe_contradicts(c, i0, j0, s, nv == 4 ? VIS_VISIBLE : VIS_HIDDEN)) {
+        /* An island probe inside a square whose corners agree: subdivide down to it. */
+        forced = island = true;
+        c->islands_found++;
+    }
     if (forced) {
         c->forced++;
+        if (island) c->island_nest++;
         goto subdivide;
     }
     if (nv == 0) { /* case 1, hidden */
@@ -463,6 +519,7 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
                 if (pn_contour_sample_visible(c, hi, hj) != v[k] && !on_border && (int)c->restarts < c->max_restarts &&
                     pn_contour_treated_square_has_on_side(c, hi, hj)) {
                     c->restart = true;
+                    if (island) c->island_nest--;
                     return;
                 }
             }
@@ -472,36 +529,140 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
             process_square(c, i0 + h, j0, d - 1, depth + 1);
             process_square(c, i0 + h, j0 + h, d - 1, depth + 1);
             process_square(c, i0, j0 + h, d - 1, depth + 1);
+            if (island) c->island_nest--;
             return;
         }
     }
     /* The visible part as polygons, counter-clockwise like the square. */
-    cvert poly[12];
+    cvert poly[2][12];
+    int counts[2] = {0, 0}, polys = 0;
     if (case4 && !centre_visible) {
         for (int p = 0; p < pieces; p++) {
             int k = exits[p], n = 0;
-            poly[n++] = x[entries[p]];
-            poly[n++] = corner[k];
-            poly[n++] = x[k];
-            if (has_extra[p]) poly[n++] = extra[p];
-            add_polygon(c, poly, n);
+            poly[p][n++] = x[entries[p]];
+            poly[p][n++] = corner[k];
+            poly[p][n++] = x[k];
+            if (has_extra[p]) poly[p][n++] = extra[p];
+            counts[polys++] = n;
         }
-        pn_contour_add_leaf(c, i0, j0, s);
-        return;
-    }
-    int n = 0;
-    for (int k = 0; k < 4; k++) {
-        int k1 = (k + 1) & 3;
-        if (v[k]) poly[n++] = corner[k];
-        if (v[k] != v[k1]) {
-            poly[n++] = x[k];
-            if (v[k])
-                for (int p = 0; p < pieces; p++)
-                    if (exits[p] == k && has_extra[p]) poly[n++] = extra[p];
+    } else {
+        int n = 0;
+        for (int k = 0; k < 4; k++) {
+            int k1 = (k + 1) & 3;
+            if (v[k]) poly[0][n++] = corner[k];
+            if (v[k] != v[k1]) {
+                poly[0][n++] = x[k];
+                if (v[k])
+                    for (int p = 0; p < pieces; p++)
+                        if (exits[p] == k && has_extra[p]) poly[0][n++] = extra[p];
+            }
         }
+        counts[polys++] = n;
     }
-    add_polygon(c, poly, n);
+    /* Our departure: a probe inside the square that the contour puts on the wrong side (an
+     * island or a bay of the silhouette the marching did not see) subdivides the square. */
+    if (test && c->probe_count > 0 && probe_misplaced(c, i0, j0, s, poly, counts, polys)) {
+        island = true;
+        c->islands_found++;
+        c->forced++;
+        c->island_nest++;
+        goto subdivide;
+    }
+    for (int p = 0; p < polys; p++) add_polygon(c, poly[p], counts[p]);
     pn_contour_add_leaf(c, i0, j0, s);
+}
+
+/* ---- islands carried along the row (our departure) ------------------------------------------ */
+
+bool pn_contour_probe_contradicts(const pn_contour_eval *c, int i0, int j0, int s, uint8_t corners) {
+    for (int k = 0; k < c->probe_count; k++) {
+        int i = c->probe[k][0], j = c->probe[k][1];
+        if (i <= i0 || i >= i0 + s || j <= j0 || j >= j0 + s) continue;
+        uint8_t x = c->vis[sample_index(c, i, j)];
+        if (x != VIS_UNKNOWN && x != corners) return true;
+    }
+    return false;
+}
+
+static void add_probe(pn_contour_eval *c, int i, int j) {
+    if (c->probe_count >= PN_CONTOUR_MAX_PROBES) return;
+    bool traced = c->vis[sample_index(c, i, j)] != VIS_UNKNOWN;
+    c->probe[c->probe_count][0] = (int16_t)i;
+    c->probe[c->probe_count][1] = (int16_t)j;
+    c->probe_count++;
+    c->phase = PN_CPH_PROBE;
+    pn_contour_sample_visible(c, i, j);
+    c->islands_probed += !traced;
+}
+
+void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
+    c->probe_count = 0;
+    if ((c->flags & PN_CONTOUR_NO_VALIDITY) || p <= 0) return;
+    const int s = c->N / p;
+    if (s < 4) return; /* the probes sit on the square's 4 x 4 sub-lattice */
+    const int q = s / 4;
+    if (hint && !(c->flags & PN_CONTOUR_NO_ISLANDS))
+    for (int b = 0; b < p; b++)
+        for (int a = 0; a < p; a++) {
+            const int i0 = a * s, j0 = b * s;
+            uint8_t corners = VIS_UNKNOWN;
+            bool agree = true;
+            for (int k = 0; k < 4 && agree; k++) {
+                uint8_t x = hint[sample_index(c, i0 + (k & 1) * s, j0 + (k >> 1) * s)];
+                if (x == VIS_UNKNOWN) continue;
+                if (corners == VIS_UNKNOWN) corners = x;
+                agree = x == corners;
+            }
+            if (!agree || corners == VIS_UNKNOWN) continue;
+            /* The hint's samples of the other visibility inside the square (sides included,
+             * corners not): the island. */
+            const uint8_t other = corners == VIS_VISIBLE ? VIS_HIDDEN : VIS_VISIBLE;
+            double si = 0.0, sj = 0.0;
+            int count = 0;
+            for (int j = j0; j <= j0 + s; j++)
+                for (int i = i0; i <= i0 + s; i++)
+                    if (hint[sample_index(c, i, j)] == other) {
+                        si += i;
+                        sj += j;
+                        count++;
+                    }
+            if (count == 0) continue;
+            const double ci = si / count, cj = sj / count;
+            int oi = (int)floor((ci - i0) / q + 0.5), oj = (int)floor((cj - j0) / q + 0.5);
+            oi = oi < 1 ? 1 : oi > 3 ? 3 : oi;
+            oj = oj < 1 ? 1 : oj > 3 ? 3 : oj;
+            add_probe(c, i0 + oi * q, j0 + oj * q);
+            if (c->vis[sample_index(c, i0 + oi * q, j0 + oj * q)] == other) continue;
+            /* Not there: the hint's island sample nearest the centroid, if strictly inside. */
+            int bi = -1, bj = -1;
+            double best = INFINITY;
+            for (int j = j0 + 1; j < j0 + s; j++)
+                for (int i = i0 + 1; i < i0 + s; i++)
+                    if (hint[sample_index(c, i, j)] == other) {
+                        double d2 = (i - ci) * (i - ci) + (j - cj) * (j - cj);
+                        if (d2 < best) {
+                            best = d2;
+                            bi = i;
+                            bj = j;
+                        }
+                    }
+            if (bi >= 0 && !(bi == i0 + oi * q && bj == j0 + oj * q)) add_probe(c, bi, bj);
+        }
+    /* Scouts: probes on a lattice of the whole source, the same for any grid: the points
+     * (k N / 4, l N / 4) for odd k, l (scout 1: 4 points, the centres of the paper's 3 x 3
+     * grid's squares), (k N / 8, l N / 8) for odd k, l (scout 2: 16) or for 0 < k, l < 8
+     * (scout 3: 49, the 3 x 3 inner points of each square of the 3 x 3 grid's 4 x 4
+     * sub-lattice), leaving out those on a first-level square's side. */
+    if (c->scout > 0) {
+        const int m = c->scout == 1 ? 4 : 8;
+        for (int l = 1; l < m; l++)
+            for (int k = 1; k < m; k++) {
+                if (c->scout < 3 && (!(k & 1) || !(l & 1))) continue;
+                const int i = (k * c->N + m / 2) / m, j = (l * c->N + m / 2) / m;
+                if (i % s == 0 || j % s == 0) continue;
+                add_probe(c, i, j);
+            }
+    }
 }
 
 void pn_contour_integrate(pn_contour_eval *c, int p) {
@@ -513,6 +674,7 @@ void pn_contour_integrate(pn_contour_eval *c, int p) {
         c->restart = false;
         c->max_depth = 0;
         c->leaf_count = 0;
+        c->island_nest = 0;
         int s = 1 << d;
         for (int b = 0; b < p && !c->restart; b++)
             for (int a = 0; a < p && !c->restart; a++) process_square(c, a * s, b * s, d, 0);

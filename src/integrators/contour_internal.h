@@ -17,6 +17,7 @@ enum {
     PN_CPH_CENTRE,      /* §3.1 case 4: the square's centre */
     PN_CPH_SUBDIV,      /* §3.2 quadtree subdivision: side midpoints and sub-square corners */
     PN_CPH_RESTART,     /* any ray traced by a pass restarted one level finer */
+    PN_CPH_PROBE,       /* island probes from a nearby pixel's sample array (pn_contour_probe_islands) */
     PN_CPH_COUNT
 };
 
@@ -24,6 +25,15 @@ enum {
  * contradicted side midpoint restarts the pass only when such a square lies on that side
  * (§3.2: only an already treated neighbour needs backtracking). More: treated as present. */
 #define PN_CONTOUR_MAX_LEAVES 128
+
+/* Island probes per integration, at most (pn_contour_probe_islands). */
+#define PN_CONTOUR_MAX_PROBES 128
+
+/* Internal flag bits of pn_contour_eval.flags (beside the public PN_CONTOUR_* bits), set by the
+ * bench through the environment (PN_CONTOUR_OFF, contour_render.c) to measure a mechanism's
+ * effect: */
+#define PN_CONTOUR_NO_ISLANDS (1u << 16) /* no island probes from the hint */
+#define PN_CONTOUR_NO_HALF_CHECK (1u << 17) /* uniform runs check every first-level sample */
 
 
 /* One approximate contour integration of one source at one receiving point M. */
@@ -57,6 +67,14 @@ typedef struct pn_contour_eval {
     int leaf_count;      /* leaves[]: (i0, j0, size) of the squares treated in this pass */
     int16_t leaves[PN_CONTOUR_MAX_LEAVES][3];
     int p_used;          /* first-level squares per side at the end (after restarts) */
+    /* Island probes (pn_contour_probe_islands): samples traced before the marching; a square whose
+     * corners all have one visibility and that holds a probe of the other is subdivided. */
+    int probe_count;
+    int16_t probe[PN_CONTOUR_MAX_PROBES][2];
+    int scout;           /* scout probes (pn_contour_probe_islands): 0-3 */
+    bool partial;        /* render: only half of its first-level samples were checked (uniform run) */
+    int island_nest;     /* > 0 inside a subdivision forced by a probe (not counted in max_depth) */
+    uint32_t islands_probed, islands_found; /* probes traced; probes that contradicted their square */
 } pn_contour_eval;
 
 /* Prepares an evaluation; the caller owns vis (zeroed, (N+1)^2) and thit (same size, only read
@@ -77,6 +95,22 @@ void pn_contour_add_leaf(pn_contour_eval *c, int i0, int j0, int s);
 bool pn_contour_treated_square_has_on_side(const pn_contour_eval *c, int i, int j);
 bool pn_contour_side_contradicted(const pn_contour_eval *c, int ia, int ja, int ib, int jb, int s);
 
+/* Our departure (islands): before integrating with p x p first-level squares, traces probes:
+ *  - islands carried from `hint` (the sample array of a nearby pixel already integrated, or
+ *    NULL): samples of one visibility strictly inside a first-level square whose (known) corners
+ *    all have the other. For each such square a probe at the point of the square's 4 x 4
+ *    sub-lattice nearest the island's centroid, and when that one does not show the island, at
+ *    the hint's island sample nearest the centroid;
+ * The probes are kept in c->probe. process_square() subdivides a square whose corners agree and
+ * that holds a probe of the other visibility (pn_contour_probe_contradicts), or whose approximate
+ * contour puts a probe on the wrong side, down to where the probe is a corner, so that the
+ * island's contour is integrated. */
+void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p);
+
+/* True when one of c's probes lies strictly inside the square (i0, j0, s) with a visibility
+ * other than `corners` (1 visible, 2 hidden). Reads no new rays. */
+bool pn_contour_probe_contradicts(const pn_contour_eval *c, int i0, int j0, int s, uint8_t corners);
+
 /* The approximate contour integration of §3 with p x p first-level squares (N divisible by p,
  * N / p a power of two); the result is in c->acc (F = acc.g . ns, with the sign applied). */
 void pn_contour_integrate(pn_contour_eval *c, int p);
@@ -85,6 +119,13 @@ void pn_contour_integrate(pn_contour_eval *c, int p);
  * (p + 1) x (p + 1) first-level pattern (row by row) that have a 4-neighbour of the other
  * visibility; the following pixels of a run check only those. */
 void pn_contour_pattern_boundary(const uint8_t *pattern, int p, uint8_t *mask);
+
+/* Our departure (contour_render.c): whether the unoccluded form factor at receiver m, a
+ * fraction w of the way from a to b along a run, is within tol (relative) of the linear
+ * interpolation between a and b; if so the run is interpolated linearly without its middle
+ * integration. */
+bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eval *a, const pn_contour_eval *m,
+                              const pn_contour_eval *b, double w, double tol);
 
 /* contour-mc (contour_mc.c): adaptive Monte Carlo sampling of the source in the manner of Kok &
  * Jansen 1992, with the same receiver setup, from cells x cells first cells; returns the form factor estimate and adds its rays

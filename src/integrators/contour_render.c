@@ -28,6 +28,12 @@
 #define PN_CONTOUR_MAX_P 32   /* first-level squares per side, at most */
 #define PN_CONTOUR_DISK_QUADS 5 /* a disk is a 12-gon of equal area: 5 quadrilaterals */
 
+/* Our departure (shade_span): a run whose unoccluded form factor at its middle pixel is within
+ * this fraction of the linear interpolation between its ends is interpolated linearly, without
+ * the middle integration (cornell-contour at 800x800, 3x3 fixed, span 64: 11.9 -> 10.0 rays per
+ * viewing ray; bench/contour/RESULTS.md). */
+#define PN_CONTOUR_LINEAR_TOL 0.003
+
 typedef struct contour_light {
     int index; /* in job->lights */
     pn_contour_source src;
@@ -54,6 +60,10 @@ typedef struct contour_data {
     float tol;
     int N, p0;
     FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
+    int scout;         /* PN_CONTOUR_SCOUT: the scout lattice, 0-3 (contour.c) */
+    int penumbra_part; /* PN_CONTOUR_PART: runs with a contour check 1/part of their samples */
+    double linear_tol; /* PN_CONTOUR_LINEAR_TOL */
+    uint32_t off; /* PN_CONTOUR_OFF: internal flag bits (contour_internal.h) for bench A/B runs */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
 
@@ -216,6 +226,26 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     /* Bench instrumentation: where the shadow rays go, per pixel (not used by tests or the CLI). */
     const char *trace = getenv("PN_CONTOUR_TRACE");
     if (trace && *trace) cd->trace = fopen(trace, "w");
+    /* Switches for measuring our departures (bench/contour/RESULTS.md; the CLI has no option for
+     * them): PN_CONTOUR_OFF, comma-separated: "islands" (no island probes from the hint pixel),
+     * "half" (uniform runs check every first-level sample), "scouts" (no scout probes);
+     * PN_CONTOUR_SCOUT=0..3, the scout probes (contour.c: 0; 1: 4 points, the centres of the 3 x 3
+     * grid's squares; 2: 16; 3: 49, the inner points of an 8 x 8 lattice), by default 3
+     * with a fixed first-level density and 1 with the adaptive one (RESULTS.md: with the adaptive
+     * density 3 costs up to twice the rays on hall-many for a small gain); PN_CONTOUR_PART=1, 2
+     * or 4: runs with a contour check 1 / PART of their samples from their third pixel on
+     * (default 2); PN_CONTOUR_LINEAR_TOL: the tolerance of run_is_linear (0: every run of 3
+     * pixels or more gets its middle integration and the quadratic, as in the paper). */
+    const char *off = getenv("PN_CONTOUR_OFF");
+    if (off && strstr(off, "islands")) cd->off |= PN_CONTOUR_NO_ISLANDS;
+    if (off && strstr(off, "half")) cd->off |= PN_CONTOUR_NO_HALF_CHECK;
+    cd->scout = off && strstr(off, "scouts") ? 0 : (job->contour_flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY) ? 3 : 1;
+    const char *scout = getenv("PN_CONTOUR_SCOUT");
+    if (scout && *scout >= '0' && *scout <= '3') cd->scout = *scout - '0';
+    const char *part = getenv("PN_CONTOUR_PART");
+    cd->penumbra_part = part && (*part == '1' || *part == '4') ? *part - '0' : 2;
+    const char *lin = getenv("PN_CONTOUR_LINEAR_TOL");
+    cd->linear_tol = lin ? atof(lin) : PN_CONTOUR_LINEAR_TOL;
     job->integrator_data = cd;
     return PN_OK;
 }
@@ -494,6 +524,10 @@ static void full_integration(span_ctx *sc, int q, int p, int why) {
     int cx = *sc->carry_x;
     if (cx != INT32_MIN && sc->x0 + q - cx <= PN_CONTOUR_HINT_DISTANCE && (best < 0 || sc->x0 + q - cx < abs(best - q)))
         ev->hint = sc->carry;
+    /* Our departure (contour.c): scouts, and probes where the hint pixel found islands (no
+     * scouts in uniform runs: there the pattern check decides). */
+    ev->scout = why == WHY_UNIFORM ? 0 : sc->cd->scout;
+    pn_contour_probe_islands(ev, ev->hint, p);
     pn_contour_integrate(ev, p);
     sc->s->g[q] = ev->acc;
     sc->t.integrations++;
@@ -540,6 +574,39 @@ static void interpolate_run(span_ctx *sc, int a, int m, int b) {
         s->g[q] = quadratic_g(s, a, m, b, q);
         sc->t.interpolated++;
     }
+}
+
+/* (contour_internal.h) */
+bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eval *a, const pn_contour_eval *m,
+                              const pn_contour_eval *b, double w, double tol) {
+    const pn_contour_eval *at[3] = {a, m, b};
+    double fu[3];
+    for (int k = 0; k < 3; k++) {
+        pn_contour_g g;
+        pn_contour_source_unoccluded(src, at[k]->m, at[k]->ns, at[k]->ng, false, &g);
+        fu[k] = pn_dv3_dot(g.g, at[k]->ns);
+    }
+    return fabs(fu[1] - ((1.0 - w) * fu[0] + w * fu[2])) <= tol * fabs(fu[1]);
+}
+
+/* Our departure (shade_span): runs check part of their first-level samples from this many pixels
+ * after their first on (half; PN_CONTOUR_PART), and uniform runs a quarter from the second. */
+#define PN_CONTOUR_UNIFORM_HALF_AFTER 2
+#define PN_CONTOUR_UNIFORM_QUARTER_AFTER 6
+
+/* Whether pixel j's first-level samples (those of mask; with part = 2 or 4 only the samples (a, b)
+ * with a + (part / 2) b = x modulo part: a checkerboard or a quarter that moves with the pixel's
+ * x) match the pattern at density p; traces what it checks. */
+static bool check_pattern(contour_scratch *s, int j, int p, const uint8_t *pattern, const uint8_t *mask, int part, int x) {
+    pn_contour_eval *ej = &s->ev[j];
+    const int step = ej->N / p, np = (p + 1) * (p + 1);
+    ej->phase = PN_CPH_PATTERN;
+    for (int k = 0; k < np; k++) {
+        int a = k % (p + 1), b = k / (p + 1);
+        if (!mask[k] || (part > 1 && ((a + (part / 2) * b - x) % part + part) % part != 0)) continue;
+        if ((uint8_t)pn_contour_sample_visible(ej, a * step, b * step) != pattern[k]) return false;
+    }
+    return true;
 }
 
 static void shade_span(span_ctx *sc) {
@@ -594,18 +661,47 @@ static void shade_span(span_ctx *sc) {
         if (!uniform) pn_contour_pattern_boundary(key_pattern, p, mask);
         else memset(mask, 1, (size_t)np);
         for (; j < n; j++) {
-            pn_contour_eval *ej = &s->ev[j];
-            int step = ej->N / p;
-            ej->phase = PN_CPH_PATTERN;
-            bool same = true;
-            for (int k = 0; k < np && same; k++)
-                if (mask[k]) same = (uint8_t)pn_contour_sample_visible(ej, k % (p + 1) * step, k / (p + 1) * step) == key_pattern[k];
-            if (!same) break;
+            /* Our departure: from a run's third pixel on, each pixel checks part of the samples
+             * (half, moving with x; in a uniform run a quarter from its sixth pixel); where the
+             * part differs, the pixels before it checked in part are checked in full back to the
+             * last that matches, so the run ends where a full check would end it. */
+            int part = 1;
+            if (uniform && !(sc->cd->off & PN_CONTOUR_NO_HALF_CHECK))
+                part = j - key >= PN_CONTOUR_UNIFORM_QUARTER_AFTER ? 4 : j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER ? 2 : 1;
+            else if (!uniform && sc->cd->penumbra_part > 1 && j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER)
+                part = sc->cd->penumbra_part;
+            bool same = check_pattern(s, j, p, key_pattern, mask, part, sc->x0 + j);
+            if (!same) {
+                /* The pixels before it checked in part: completed, back to the last that matches. */
+                for (int b = j - 1; b > key && s->ev[b].partial; b--) {
+                    if (check_pattern(s, b, p, key_pattern, mask, 1, 0)) {
+                        s->ev[b].partial = false;
+                        break;
+                    }
+                    j = b;
+                }
+                break;
+            }
+            s->ev[j].partial = part > 1;
         }
         if (uniform) {
             /* Every first-level sample visible (or every one hidden): an integration traces no
-             * more rays, so each pixel of the run gets its own. */
-            for (int q = key + 1; q < j; q++) full_integration(sc, q, p, WHY_UNIFORM);
+             * more rays, so each pixel of the run gets its own; a pixel checked by half gets the
+             * closed form of the whole source (visible) or nothing (hidden), which is what that
+             * integration would give. */
+            for (int q = key + 1; q < j; q++) {
+                if (!s->ev[q].partial) {
+                    full_integration(sc, q, p, WHY_UNIFORM);
+                } else if (key_pattern[0]) {
+                    const pn_contour_eval *eq = &s->ev[q];
+                    pn_contour_source_unoccluded(&sc->cl->src, eq->m, eq->ns, eq->ng, (sc->job->aovs & PN_AOV_GRADIENT) != 0,
+                                                 &s->g[q]);
+                    sc->t.interpolated++;
+                } else {
+                    zero_g(&s->g[q]);
+                    sc->t.interpolated++;
+                }
+            }
             if (j >= n) break;
             full_integration(sc, j, p, WHY_CHANGE);
             key = j;
@@ -616,7 +712,21 @@ static void shade_span(span_ctx *sc) {
          * middle. */
         int end = j < n ? j : n - 1;
         if (end > key) full_integration(sc, end, p, WHY_CHANGE);
-        if (end - key >= 2) {
+        /* Our departure: when the unoccluded form factor is linear along the run to within
+         * PN_CONTOUR_LINEAR_TOL at its middle, the run is interpolated linearly between its ends
+         * without the middle integration (run_is_linear()). */
+        const bool linear = end - key >= 2 && sc->cd->linear_tol > 0.0 &&
+                            pn_contour_run_is_linear(&sc->cl->src, &s->ev[key], &s->ev[(key + end) / 2], &s->ev[end],
+                                                     (double)((key + end) / 2 - key) / (double)(end - key), sc->cd->linear_tol);
+        if (linear) {
+            for (int q = key + 1; q < end; q++) {
+                double w = (double)(q - key) / (double)(end - key);
+                s->g[q].g = pn_dv3_add(pn_dv3_scale(s->g[key].g, 1.0 - w), pn_dv3_scale(s->g[end].g, w));
+                for (int k = 0; k < 3; k++)
+                    s->g[q].dg[k] = pn_dv3_add(pn_dv3_scale(s->g[key].dg[k], 1.0 - w), pn_dv3_scale(s->g[end].dg[k], w));
+                sc->t.interpolated++;
+            }
+        } else if (end - key >= 2) {
             int mid = (key + end) / 2;
             full_integration(sc, mid, p, WHY_MIDDLE);
             interpolate_run(sc, key, mid, end);
@@ -690,6 +800,7 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     }
                     continue;
                 }
+                ev->flags |= cd->off;
                 s->span[n++] = q;
                 box_add(&smin, &smax, v3_sub(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
