@@ -58,6 +58,12 @@
  *    boundaries into spans). First-order test: when the inner layer is exhausted without a
  *    transition the block fails (the tangent is unknown); blocks with fewer than two inner
  *    pixels per layer (k = 2) skip it.
+ *  - Smooth blocks interpolate noise-filtered corners (lattice_mean): each corner is the mean of
+ *    itself and those of its 8 neighbours on the block lattice that agree with it within the
+ *    noise and that no visible line separates from it. With 16 eye rays per pixel, bilinear
+ *    interpolation of single corners spread their Monte Carlo noise over whole blocks; at 6%
+ *    smooth blocks held 85% of hall-many's error. Evaluated pixels are still drawn as evaluated,
+ *    so the image still converges to the full render.
  *  - Elements are evaluated on RGB with the luminance-derived direction.
  *  - Edge blocks that a visible line crosses are drawn segment by segment (draw_segmented): the
  *    visible lines cut the block into segments of 4-connected pixels, and a pixel whose element
@@ -425,9 +431,39 @@ static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rg
  * row and column), so that blocks can be drawn in parallel and in any order. */
 static int draw_end(int v1, int last) { return v1 == last ? v1 + 1 : v1; }
 
+/* A corner of a smooth block of size k, as drawn (a departure for Monte Carlo pixels, see the
+ * header): the mean of its value and those of its 8 lattice neighbours at distance k that agree
+ * with it within PN_DCM_NOISE standard deviations of their difference and that no visible line
+ * separates from it. Noise-free pixels (no variance reported) agree only when equal. */
+static void lattice_mean(const pn_prog *p, int x, int y, int k, float *out) {
+    const float *c = p->rad + 3 * pn_prog_index(p, x, y);
+    memcpy(out, c, 3 * sizeof *out);
+    if (k <= 1 || !pn_prog_known(p, x, y)) return;
+    float lc = pn_prog_lum(p, x, y), sc = pn_prog_lum_sigma(p, x, y);
+    double acc[3] = {c[0], c[1], c[2]};
+    int count = 1;
+    for (int dy = -k; dy <= k; dy += k)
+        for (int dx = -k; dx <= k; dx += k) {
+            int xx = x + dx, yy = y + dy;
+            if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= p->W || yy >= p->H || !pn_prog_known(p, xx, yy)) continue;
+            float ln = pn_prog_lum(p, xx, yy), sn = pn_prog_lum_sigma(p, xx, yy);
+            if (!(fabsf(ln - lc) <= PN_DCM_NOISE * sqrtf(sc * sc + sn * sn))) continue;
+            if (pn_prog_visible_line(p, x < xx ? x : xx, y < yy ? y : yy, x < xx ? xx : x, y < yy ? yy : y)) continue;
+            const float *v = p->rad + 3 * pn_prog_index(p, xx, yy);
+            for (int ch = 0; ch < 3; ch++) acc[ch] += (double)v[ch];
+            count++;
+        }
+    for (int ch = 0; ch < 3; ch++) out[ch] = (float)(acc[ch] / count);
+}
+
 static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, int y1) {
-    const float *c00 = p->rad + 3 * pn_prog_index(p, x0, y0), *c10 = p->rad + 3 * pn_prog_index(p, x1, y0);
-    const float *c01 = p->rad + 3 * pn_prog_index(p, x0, y1), *c11 = p->rad + 3 * pn_prog_index(p, x1, y1);
+    float s00[3], s10[3], s01[3], s11[3];
+    int k = x1 - x0 > y1 - y0 ? x1 - x0 : y1 - y0;
+    lattice_mean(p, x0, y0, k, s00);
+    lattice_mean(p, x1, y0, k, s10);
+    lattice_mean(p, x0, y1, k, s01);
+    lattice_mean(p, x1, y1, k, s11);
+    const float *c00 = s00, *c10 = s10, *c01 = s01, *c11 = s11;
     float iw = x1 > x0 ? 1.0f / (float)(x1 - x0) : 0.0f, ih = y1 > y0 ? 1.0f / (float)(y1 - y0) : 0.0f;
     int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
     for (int y = y0; y < ye; y++) {
