@@ -493,10 +493,13 @@ static void test_thread_determinism_and_bad_settings(void) {
  * the 8-pixel rows of a block share first-level rays over more pixels (fewer rays per viewing
  * ray at a bounded error), the image does not depend on the thread count, and a crop window that
  * is not aligned to spans or blocks renders exactly the full image's pixels. */
+static uint32_t spans_flags; /* contour_flags of render_spans */
+
 static pn_image render_spans(pn_context ctx, pn_scene scene, uint32_t span, int threads, const float *crop,
                              pn_render_stats *stats) {
     pn_render_settings s = {0};
     s.integrator = PN_INTEGRATOR_CONTOUR;
+    s.contour_flags = spans_flags;
     s.spp = 1;
     s.shadow_rays = 4;
     s.width = 64;
@@ -790,9 +793,9 @@ static void test_uniform_runs_check_part(void) {
     CHECK(pn_render(ctx, scene, &rs, &ref, NULL) == PN_OK);
     pn_render_stats sp, sa;
     pn_image part = render_spans(ctx, scene, 32, 2, NULL, &sp);
-    setenv("PN_CONTOUR_OFF", "half", 1);
+    spans_flags = PN_CONTOUR_NO_HALF_CHECK;
     pn_image all = render_spans(ctx, scene, 32, 2, NULL, &sa);
-    unsetenv("PN_CONTOUR_OFF");
+    spans_flags = 0;
     CHECK(ref && part && all);
     if (ref && part && all) {
         CHECK(sp.contour_viewing_rays == sa.contour_viewing_rays);

@@ -258,7 +258,12 @@ enum {
     PN_CONTOUR_NO_SPANS = 1u << 1,         /* a full contour integration at every pixel */
     PN_CONTOUR_NO_VALIDITY = 1u << 2,      /* no corner test, no subdivision (the Fig. 6 failure) */
     PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3, /* keep the first-level grid fixed */
-    PN_CONTOUR_NO_RESTARTS = 1u << 4  /* accept inconsistencies instead of restarting finer */
+    PN_CONTOUR_NO_RESTARTS = 1u << 4, /* accept inconsistencies instead of restarting finer */
+    /* Our departures from the paper, on by default (bench/contour/RESULTS.md measures each): */
+    PN_CONTOUR_NO_ISLANDS = 1u << 5,    /* no island probes from a nearby pixel's contour */
+    PN_CONTOUR_NO_HALF_CHECK = 1u << 6, /* uniform runs check every first-level sample */
+    PN_CONTOUR_NO_SCOUTS = 1u << 7,     /* no scout probes inside agreeing first-level squares */
+    PN_CONTOUR_NO_LINEAR_RUNS = 1u << 8 /* every run gets its middle integration (the quadratic) */
 };
 
 /* ---------------------------------------------------------------------------------------- */

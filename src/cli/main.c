@@ -120,7 +120,10 @@ static const char render_help[] =
     "  --contour-off LIST     switch parts off for comparisons, comma-separated: shaft (shaft\n"
     "                         culling), spans (integrate every pixel), validity (the corner\n"
     "                         test, Fig. 6's failure), adaptive (fixed first-level density),\n"
-    "                         restarts (accept inconsistencies instead of restarting finer)\n"
+    "                         restarts (accept inconsistencies instead of restarting finer);\n"
+    "                         our departures: islands (probes of a nearby pixel's islands),\n"
+    "                         half (partial pattern checks in uniform runs), scouts (probes in\n"
+    "                         agreeing squares), linear (linear runs without a middle integration)\n"
     "  --mc-threshold T       contour-mc: refine a cell while its standard error exceeds T times\n"
     "                         the source's unoccluded form factor (default 0.002)\n"
     "  --mc-max-rays N        contour-mc: shadow rays per source and point, at most (default 256)\n"
@@ -1031,9 +1034,14 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 else if (len == 8 && strncmp(p, "adaptive", 8) == 0)
                     o->settings.contour_flags |= PN_CONTOUR_NO_ADAPTIVE_DENSITY;
                 else if (len == 8 && strncmp(p, "restarts", 8) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_RESTARTS;
+                else if (len == 7 && strncmp(p, "islands", 7) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_ISLANDS;
+                else if (len == 4 && strncmp(p, "half", 4) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_HALF_CHECK;
+                else if (len == 6 && strncmp(p, "scouts", 6) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_SCOUTS;
+                else if (len == 6 && strncmp(p, "linear", 6) == 0) o->settings.contour_flags |= PN_CONTOUR_NO_LINEAR_RUNS;
                 else
                     return bad_value(cmd, name, value,
-                                     "a comma-separated list of shaft, spans, validity, adaptive, restarts");
+                                     "a comma-separated list of shaft, spans, validity, adaptive, restarts, islands, "
+                                     "half, scouts, linear");
                 p += len;
                 if (*p == ',') p++;
             }

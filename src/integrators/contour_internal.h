@@ -29,13 +29,6 @@ enum {
 /* Island probes per integration, at most (pn_contour_probe_islands). */
 #define PN_CONTOUR_MAX_PROBES 128
 
-/* Internal flag bits of pn_contour_eval.flags (beside the public PN_CONTOUR_* bits), set by the
- * bench through the environment (PN_CONTOUR_OFF, contour_render.c) to measure a mechanism's
- * effect: */
-#define PN_CONTOUR_NO_ISLANDS (1u << 16) /* no island probes from the hint */
-#define PN_CONTOUR_NO_HALF_CHECK (1u << 17) /* uniform runs check every first-level sample */
-
-
 /* One approximate contour integration of one source at one receiving point M. */
 typedef struct pn_contour_eval {
     const pn_contour_source *src;

@@ -63,7 +63,7 @@ typedef struct contour_data {
     int scout;         /* PN_CONTOUR_SCOUT: the scout lattice, 0-3 (contour.c) */
     int penumbra_part; /* PN_CONTOUR_PART: runs with a contour check 1/part of their samples */
     double linear_tol; /* PN_CONTOUR_LINEAR_TOL */
-    uint32_t off; /* PN_CONTOUR_OFF: internal flag bits (contour_internal.h) for bench A/B runs */
+    uint32_t off; /* the PN_CONTOUR_NO_ISLANDS / NO_HALF_CHECK bits of contour_flags, for every evaluation */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
 
@@ -226,26 +226,22 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     /* Bench instrumentation: where the shadow rays go, per pixel (not used by tests or the CLI). */
     const char *trace = getenv("PN_CONTOUR_TRACE");
     if (trace && *trace) cd->trace = fopen(trace, "w");
-    /* Switches for measuring our departures (bench/contour/RESULTS.md; the CLI has no option for
-     * them): PN_CONTOUR_OFF, comma-separated: "islands" (no island probes from the hint pixel),
-     * "half" (uniform runs check every first-level sample), "scouts" (no scout probes);
-     * PN_CONTOUR_SCOUT=0..3, the scout probes (contour.c: 0; 1: 4 points, the centres of the 3 x 3
-     * grid's squares; 2: 16; 3: 49, the inner points of an 8 x 8 lattice), by default 3
-     * with a fixed first-level density and 1 with the adaptive one (RESULTS.md: with the adaptive
-     * density 3 costs up to twice the rays on hall-many for a small gain); PN_CONTOUR_PART=1, 2
-     * or 4: runs with a contour check 1 / PART of their samples from their third pixel on
-     * (default 2); PN_CONTOUR_LINEAR_TOL: the tolerance of run_is_linear (0: every run of 3
-     * pixels or more gets its middle integration and the quadratic, as in the paper). */
-    const char *off = getenv("PN_CONTOUR_OFF");
-    if (off && strstr(off, "islands")) cd->off |= PN_CONTOUR_NO_ISLANDS;
-    if (off && strstr(off, "half")) cd->off |= PN_CONTOUR_NO_HALF_CHECK;
-    cd->scout = off && strstr(off, "scouts") ? 0 : (job->contour_flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY) ? 3 : 1;
+    /* Our departures are switched off by contour_flags (--contour-off islands,half,scouts,linear).
+     * Tuning knobs for the bench only (bench/contour/RESULTS.md), from the environment:
+     * PN_CONTOUR_SCOUT=0..3, the scout probes (contour.c: 0; 1: 4 points, the centres of the
+     * 3 x 3 grid's squares; 2: 16; 3: 49, the inner points of an 8 x 8 lattice), by default 3 with
+     * a fixed first-level density and 1 with the adaptive one (with the adaptive density 3 costs
+     * up to twice the rays on hall-many for a small gain); PN_CONTOUR_PART=1, 2 or 4: runs with a
+     * contour check 1 / PART of their samples from their third pixel on (default 2);
+     * PN_CONTOUR_LINEAR_TOL: the tolerance of run_is_linear. */
+    cd->off = job->contour_flags & (PN_CONTOUR_NO_ISLANDS | PN_CONTOUR_NO_HALF_CHECK);
+    cd->scout = (job->contour_flags & PN_CONTOUR_NO_SCOUTS) ? 0 : (job->contour_flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY) ? 3 : 1;
     const char *scout = getenv("PN_CONTOUR_SCOUT");
-    if (scout && *scout >= '0' && *scout <= '3') cd->scout = *scout - '0';
+    if (scout && *scout >= '0' && *scout <= '3' && !(job->contour_flags & PN_CONTOUR_NO_SCOUTS)) cd->scout = *scout - '0';
     const char *part = getenv("PN_CONTOUR_PART");
     cd->penumbra_part = part && (*part == '1' || *part == '4') ? *part - '0' : 2;
     const char *lin = getenv("PN_CONTOUR_LINEAR_TOL");
-    cd->linear_tol = lin ? atof(lin) : PN_CONTOUR_LINEAR_TOL;
+    cd->linear_tol = (job->contour_flags & PN_CONTOUR_NO_LINEAR_RUNS) ? 0.0 : lin ? atof(lin) : PN_CONTOUR_LINEAR_TOL;
     job->integrator_data = cd;
     return PN_OK;
 }
