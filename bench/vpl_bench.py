@@ -473,22 +473,23 @@ def main():
         res = "%dx%d" % (max(1, round(fw * a.scale)), max(1, round(fh * a.scale)))
         return res, ["--resolution", res, "--threads", str(a.threads), "--seed", "0", "--spp", str(a.spp)]
 
-    if a.equal_rmse:
-        equal_rmse(a, penumbra, common_for, lines, results)
+    def write_report():
+        """The markdown report, headed by the command that made it."""
         lines.insert(1, "Command: `%s`" % " ".join(["python3", "bench/vpl_bench.py"] + sys.argv[1:]))
         lines.insert(2, "")
         with open(os.path.join(a.out, "vpl-bench.md"), "w") as f:
             f.write("\n".join(lines) + "\n")
+
+    if a.equal_rmse:
+        equal_rmse(a, penumbra, common_for, lines, results)
+        write_report()
         return 0
     if a.crop_reference or a.repeats > 1:
         if a.crop_reference:
             realistic(a, penumbra, common_for, lines, results)
         if a.scaling:
             scaling(a, penumbra, common_for, lines, results)
-        lines.insert(1, "Command: `%s`" % " ".join(["python3", "bench/vpl_bench.py"] + sys.argv[1:]))
-        lines.insert(2, "")
-        with open(os.path.join(a.out, "vpl-bench.md"), "w") as f:
-            f.write("\n".join(lines) + "\n")
+        write_report()
         with open(os.path.join(a.out, "vpl-bench.json"), "w") as f:
             json.dump(results, f, indent=1)
         print("\n".join(lines))

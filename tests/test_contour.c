@@ -614,22 +614,30 @@ static double island_exact(pn_dvec3 m) {
     return rect_ff_at(m, N_UP, -1, 1, -1, 1, h) - rect_ff_at(m, N_UP, x0, x1, y0, y1, h);
 }
 
+/* Loads the island scene (written as `name`) and sets up its rectangle source and a job with its
+ * accelerator; false (and everything freed) if it does not load. */
+static bool load_island(pn_context ctx, const char *name, pn_scene *scene, pn_contour_source *src, pn_render_job *job) {
+    *scene = NULL;
+    pn_status st = pn_scene_load(ctx, pn_test_write_file(tmpdir, name, island_scene), scene);
+    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    if (st != PN_OK) return false;
+    const struct pn_scene_s *sc = *scene;
+    const pn_light *l = &sc->lights->lights[0];
+    pn_contour_source_rectangle(src, l->p, l->e1, l->e2, l->n, l->two_sided);
+    memset(job, 0, sizeof *job);
+    job->accel = sc->accel;
+    return true;
+}
+
 static void test_island_probes(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = NULL;
-    pn_status st = pn_scene_load(ctx, pn_test_write_file(tmpdir, "island.pbrt", island_scene), &scene);
-    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
-    if (st != PN_OK) {
+    pn_scene scene;
+    pn_contour_source src;
+    pn_render_job job;
+    if (!load_island(ctx, "island.pbrt", &scene, &src, &job)) {
         pn_context_free(ctx);
         return;
     }
-    const struct pn_scene_s *sc = scene;
-    const pn_light *l = &sc->lights->lights[0];
-    pn_contour_source src;
-    pn_contour_source_rectangle(&src, l->p, l->e1, l->e2, l->n, l->two_sided);
-    pn_render_job job;
-    memset(&job, 0, sizeof job);
-    job.accel = sc->accel;
     const int N = 2 << 5; /* the paper's settings: 3 x 3 first-level samples, 5 dichotomy steps */
     const size_t size = (size_t)(N + 1) * (N + 1);
     uint8_t *va = calloc(size, 1), *vb = calloc(size, 1);
@@ -702,20 +710,13 @@ static double lattice_rect_ff(const pn_contour_source *src, pn_dvec3 m, double u
  * subdivided and the island integrated. */
 static void test_island_beside_a_contour(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = NULL;
-    pn_status st = pn_scene_load(ctx, pn_test_write_file(tmpdir, "island2.pbrt", island_scene), &scene);
-    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
-    if (st != PN_OK) {
+    pn_scene scene;
+    pn_contour_source src;
+    pn_render_job job;
+    if (!load_island(ctx, "island2.pbrt", &scene, &src, &job)) {
         pn_context_free(ctx);
         return;
     }
-    const struct pn_scene_s *sc = scene;
-    const pn_light *l = &sc->lights->lights[0];
-    pn_contour_source src;
-    pn_contour_source_rectangle(&src, l->p, l->e1, l->e2, l->n, l->two_sided);
-    pn_render_job job;
-    memset(&job, 0, sizeof job);
-    job.accel = sc->accel;
     enum { N = 64 }; /* 3 x 3 first-level samples, 5 dichotomy steps */
     static uint8_t vis[(N + 1) * (N + 1)];
     const pn_dvec3 m = {0.0, 0.0, 0.0};
