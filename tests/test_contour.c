@@ -493,13 +493,24 @@ static void test_thread_determinism_and_bad_settings(void) {
  * the 8-pixel rows of a block share first-level rays over more pixels (fewer rays per viewing
  * ray at a bounded error), the image does not depend on the thread count, and a crop window that
  * is not aligned to spans or blocks renders exactly the full image's pixels. */
-static uint32_t spans_flags; /* contour_flags of render_spans */
+/* The 64 x 32 reference of the span tests: 4096 shadow rays per eye ray. */
+static pn_image render_span_reference(pn_context ctx, pn_scene scene) {
+    pn_render_settings rs = {0};
+    rs.spp = 1;
+    rs.shadow_rays = 4096;
+    rs.width = 64;
+    rs.height = 32;
+    rs.threads = 2;
+    pn_image ref = NULL;
+    CHECK(pn_render(ctx, scene, &rs, &ref, NULL) == PN_OK);
+    return ref;
+}
 
 static pn_image render_spans(pn_context ctx, pn_scene scene, uint32_t span, int threads, const float *crop,
-                             pn_render_stats *stats) {
+                             uint32_t flags, pn_render_stats *stats) {
     pn_render_settings s = {0};
     s.integrator = PN_INTEGRATOR_CONTOUR;
-    s.contour_flags = spans_flags;
+    s.contour_flags = flags;
     s.spp = 1;
     s.shadow_rays = 4;
     s.width = 64;
@@ -524,21 +535,14 @@ static void test_scanline_spans(void) {
         pn_context_free(ctx);
         return;
     }
-    pn_render_settings rs = {0};
-    rs.spp = 1;
-    rs.shadow_rays = 4096;
-    rs.width = 64;
-    rs.height = 32;
-    rs.threads = 2;
-    pn_image ref = NULL;
-    CHECK(pn_render(ctx, scene, &rs, &ref, NULL) == PN_OK);
+    pn_image ref = render_span_reference(ctx, scene);
     pn_render_stats s8, s32, s1;
-    pn_image a8 = render_spans(ctx, scene, 8, 2, NULL, &s8);
-    pn_image a32 = render_spans(ctx, scene, 32, 2, NULL, &s32);
-    pn_image b32 = render_spans(ctx, scene, 32, 1, NULL, &s1);
-    pn_image c32 = render_spans(ctx, scene, 32, 3, NULL, NULL);
+    pn_image a8 = render_spans(ctx, scene, 8, 2, NULL, 0, &s8);
+    pn_image a32 = render_spans(ctx, scene, 32, 2, NULL, 0, &s32);
+    pn_image b32 = render_spans(ctx, scene, 32, 1, NULL, 0, &s1);
+    pn_image c32 = render_spans(ctx, scene, 32, 3, NULL, 0, NULL);
     const float crop[4] = {0.3f, 0.85f, 0.25f, 0.6f};
-    pn_image crop32 = render_spans(ctx, scene, 32, 2, crop, NULL);
+    pn_image crop32 = render_spans(ctx, scene, 32, 2, crop, 0, NULL);
     CHECK(ref && a8 && a32 && b32 && c32 && crop32);
     if (ref && a8 && a32 && b32 && c32 && crop32) {
         double r8 = (double)s8.contour_shadow_rays / (double)s8.contour_viewing_rays;
@@ -784,19 +788,10 @@ static void test_uniform_runs_check_part(void) {
         pn_context_free(ctx);
         return;
     }
-    pn_render_settings rs = {0};
-    rs.spp = 1;
-    rs.shadow_rays = 4096;
-    rs.width = 64;
-    rs.height = 32;
-    rs.threads = 2;
-    pn_image ref = NULL;
-    CHECK(pn_render(ctx, scene, &rs, &ref, NULL) == PN_OK);
+    pn_image ref = render_span_reference(ctx, scene);
     pn_render_stats sp, sa;
-    pn_image part = render_spans(ctx, scene, 32, 2, NULL, &sp);
-    spans_flags = PN_CONTOUR_NO_HALF_CHECK;
-    pn_image all = render_spans(ctx, scene, 32, 2, NULL, &sa);
-    spans_flags = 0;
+    pn_image part = render_spans(ctx, scene, 32, 2, NULL, 0, &sp);
+    pn_image all = render_spans(ctx, scene, 32, 2, NULL, PN_CONTOUR_NO_HALF_CHECK, &sa);
     CHECK(ref && part && all);
     if (ref && part && all) {
         CHECK(sp.contour_viewing_rays == sa.contour_viewing_rays);
@@ -914,7 +909,7 @@ static void test_spans_end_at_creases(void) {
         pn_context_free(ctx);
         return;
     }
-    pn_image spans = render_spans(ctx, scene, 64, 2, NULL, NULL);
+    pn_image spans = render_spans(ctx, scene, 64, 2, NULL, 0, NULL);
     pn_image every = NULL;
     {
         pn_render_settings s = {0};

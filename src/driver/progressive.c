@@ -396,10 +396,15 @@ static int primary_differs(const pn_prog *p, size_t a, size_t b) {
 /* Marks the pixels whose demod and emit the grid or the integrator's eye rays replace: 1 next to
  * an albedo border, 2 where the pixel filter reaches an emitter's border (a few per cent of an
  * emitter's coverage is a lot of light, and the filter spreads it over R pixels). */
+/* Whole pixels on each side that the camera's pixel filter reaches, at most max_r. */
+static int filter_reach(const pn_filter_axis *ax, int max_r) {
+    int R = (int)ceilf(ax->radius - 0.5f);
+    return R < 0 ? 0 : R > max_r ? max_r : R;
+}
+
 static size_t mark_refined(const pn_prog *p, unsigned char *refine) {
-    int R = (int)ceilf(fmaxf(p->job.camera.filter_x.radius, p->job.camera.filter_y.radius) - 0.5f);
-    if (R < 0) R = 0;
-    if (R > 4) R = 4;
+    int rx = filter_reach(&p->job.camera.filter_x, 4), ry = filter_reach(&p->job.camera.filter_y, 4);
+    int R = rx > ry ? rx : ry;
     for (int y = 0; y < p->H; y++)
         for (int x = 0; x < p->W; x++) {
             size_t i = pn_prog_index(p, x, y);
@@ -430,9 +435,7 @@ static size_t mark_refined(const pn_prog *p, unsigned char *refine) {
 /* Weights of the camera's pixel filter per whole-pixel offset -R..R along one axis: the filter's
  * integral over each neighbour's extent, from its table. Returns R. */
 static int filter_pixel_weights(const pn_filter_axis *ax, float *w, int max_r) {
-    int R = (int)ceilf(ax->radius - 0.5f);
-    if (R > max_r) R = max_r;
-    if (R < 0) R = 0;
+    int R = filter_reach(ax, max_r);
     for (int d = -R; d <= R; d++) w[d + R] = 0.0f;
     if (ax->integral_abs <= 0.0f) { /* a box: the pixel itself */
         for (int d = -R; d <= R; d++) w[d + R] = d == 0 ? 1.0f : 0.0f;

@@ -15,7 +15,6 @@
 #include "integrators/reference_direct.h"
 
 #include "core/rng.h"
-#include "core/sobol.h"
 #include "core/threadpool.h"
 #include "shade/bsdf.h"
 
@@ -859,7 +858,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
     uint64_t viewing = 0, contour_rays = 0;
     for (int q = 0; q < batch->count; q++) {
         int px = batch->pixels[q][0], py = batch->pixels[q][1];
-        s->scramble[q] = (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+        s->scramble[q] = pn_pixel_scramble(job, px, py);
         memset(&s->acc[q], 0, sizeof s->acc[q]);
         memset(&out[q], 0, sizeof out[q]);
         out[q].depth = INFINITY;
@@ -872,14 +871,11 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             uint32_t scramble = s->scramble[q];
             shade_point *sp = &s->sp[q];
             memset(sp, 0, sizeof *sp);
-            float rx, ry, fw;
-            pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble),
-                                    pn_sobol_sample(i, 1, scramble), &rx, &ry, &fw);
+            float fw, u_specular;
             vec3 ro, rd;
-            pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro,
-                          &rd);
+            pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
             pn_eye_path path;
-            pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+            pn_trace_eye_path(job, ro, rd, u_specular, &path);
             if (i == 0) {
                 out[q].depth = path.first_depth;
                 out[q].normal = path.first_normal;

@@ -3,7 +3,6 @@
 #include "integrators/illumcut.h"
 
 #include "core/rng.h"
-#include "core/sobol.h"
 #include "io/image.h"
 #include "scene/scene.h"
 #include "shade/bsdf.h"
@@ -67,13 +66,11 @@ void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats) {
 void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t i, pn_shading_point *sp,
                        pn_pixel_estimate *est) {
     uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
-    float rx, ry, fw;
-    pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble), &rx,
-                            &ry, &fw);
+    float fw, u_specular;
     vec3 ro, rd;
-    pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro, &rd);
+    pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
     pn_eye_path path;
-    pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
+    pn_trace_eye_path(job, ro, rd, u_specular, &path);
     if (i == 0) {
         est->depth = path.first_depth;
         est->normal = path.first_normal;
