@@ -245,6 +245,9 @@ typedef struct pn_render_settings {
                                         with a low threshold: the paper's confidence relocation */
     int raw_radiance;                /* 1: interpolate radiance itself; 0 (default): radiance divided
                                         by the first-hit albedo of a primary ray, then multiplied back */
+    int no_light_guide;              /* 1: the demodulation factor is the albedo alone; 0 (default):
+                                        albedo x the unshadowed irradiance of all lights at the
+                                        primary hit (the light guide, progressive.c) */
     int primary_grid;                /* g x g primary rays per work pixel give the albedo and the
                                         emitted radiance of the pixel where they change (1..8; 0:
                                         the default 3; 1: centre rays only). Along emitters,

@@ -146,6 +146,7 @@ static const char render_help[] =
     "  --stop-at P            stop after P% of the work pixels and write the approximate image;\n"
     "                         with a lower --threshold: the paper's confidence relocation\n"
     "  --raw-radiance         interpolate radiance itself, not (radiance - emitted) / albedo\n"
+    "  --no-light-guide       divide by the albedo only, not also by the lights' unshadowed irradiance\n"
     "  --primary-grid G       G x G primary rays per work pixel measure its albedo and the\n"
     "                         emitted radiance it sees where they change, 1..8 (default 3);\n"
     "                         along emitters, reference at a fixed --spp traces its own eye\n"
@@ -1153,6 +1154,10 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             if (!scanner_no_value(&s))
                 return EXIT_USAGE;
             o->settings.raw_radiance = 1;
+        } else if (strcmp(name, "--no-light-guide") == 0) {
+            if (!scanner_no_value(&s))
+                return EXIT_USAGE;
+            o->settings.no_light_guide = 1;
         } else if (strcmp(name, "--snapshot-every") == 0 || strcmp(name, "--stop-at") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)
@@ -1178,9 +1183,9 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             return usage_error(cmd, "the AOVs sampling_pattern, block_map and block_direction need --driver");
         if (!progressive && (o->settings.work_scale || o->settings.snapshot_percent_count ||
                              o->settings.snapshot_every_seconds > 0.0 || o->settings.stop_percent > 0.0 ||
-                             o->settings.raw_radiance || o->settings.primary_grid))
-            return usage_error(cmd, "--work-scale, --snapshots, --snapshot-every, --stop-at, --raw-radiance and "
-                                    "--primary-grid need --driver");
+                             o->settings.raw_radiance || o->settings.no_light_guide || o->settings.primary_grid))
+            return usage_error(cmd, "--work-scale, --snapshots, --snapshot-every, --stop-at, --raw-radiance, "
+                                    "--no-light-guide and --primary-grid need --driver");
     }
     if (o->scene_path == NULL)
         return usage_error(cmd, "missing the scene file");
