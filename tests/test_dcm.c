@@ -686,6 +686,10 @@ static void test_cli_snapshots(void) {
     CHECK(run(bad4, err) == 2);
     const char *bad5[] = {PN_CLI_PATH, "render", scene, "-o", out, "--primary-grid", "2", NULL};
     CHECK(run(bad5, err) == 2);
+    const char *bad6[] = {PN_CLI_PATH, "render", scene, "-o", out, "--no-light-guide", NULL};
+    CHECK(run(bad6, err) == 2);
+    const char *bad7[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--no-light-guide=1", NULL};
+    CHECK(run(bad7, err) == 2);
 }
 
 static void test_setup(void) {
