@@ -334,8 +334,7 @@ typedef struct primary_run {
     float *depth;
     vec3 *normal;
     unsigned char *refine; /* pixels whose demod and emit come from a g x g grid */
-    float *guide;          /* W*H*3: unshadowed irradiance at the centre ray's point (NULL: none) */
-    vec3 *gpos, *gnormal;  /* W*H: the guide's point and normal per work pixel */
+    float *guide;          /* W*H: unshadowed irradiance at the centre ray's point (NULL: none) */
     float *light_w;        /* per worker: lights->count + 1 weights ... */
     int *light_exact;      /* ... and scratch of pn_lights_irradiance_all */
 } primary_run;
@@ -349,15 +348,24 @@ static vec3 demod_factor(const pn_eye_path *path) {
     return v3(fmaxf(a.x, 0.02f), fmaxf(a.y, 0.02f), fmaxf(a.z, 0.02f));
 }
 
-/* The unshadowed irradiance of all lights at work pixel i's point (0 where it sees no surface). */
-static float guide_at(const primary_run *r, int worker, size_t i) {
-    if (r->p->tag[i] < 0) return 0.0f;
+/* The unshadowed irradiance of all lights at the point a primary ray sees (0 where it sees no
+ * surface that reflects light), at the shading normal turned towards the viewer. */
+static float guide_at(const primary_run *r, int worker, const pn_eye_path *path) {
+    if (!path->has_point) return 0.0f;
     const pn_lights *L = r->p->job.lights;
     size_t stride = (size_t)L->count + 1;
     float *w = r->light_w + (size_t)worker * stride, g = 0.0f;
-    pn_lights_irradiance_all(L, r->gpos[i], r->gnormal[i], w, r->light_exact + (size_t)worker * stride);
+    vec3 n = v3_dot(path->hit.ns, path->wo) < 0.0f ? v3_neg(path->hit.ns) : path->hit.ns;
+    pn_lights_irradiance_all(L, path->hit.p, n, w, r->light_exact + (size_t)worker * stride);
     for (int k = 0; k < L->count; k++) g += (w[k] > 0.0f && w[k] < INFINITY) ? w[k] : 0.0f;
     return g;
+}
+
+/* The primary ray of work pixel (x, y): through its centre, the specular choice at 0.5. */
+static void centre_path(const pn_prog *p, int x, int y, pn_eye_path *path) {
+    vec3 o, d;
+    pn_camera_ray(&p->job.camera, (float)(x + p->wx0) + 0.5f, (float)(y + p->wy0) + 0.5f, 0.5f, 0.5f, &o, &d);
+    pn_trace_eye_path(&p->job, o, d, 0.5f, path);
 }
 
 static void primary_row(void *user, size_t row, int worker) {
@@ -365,10 +373,8 @@ static void primary_row(void *user, size_t row, int worker) {
     pn_prog *p = r->p;
     int y = (int)row;
     for (int x = 0; x < p->W; x++) {
-        vec3 o, d;
-        pn_camera_ray(&p->job.camera, (float)(x + p->wx0) + 0.5f, (float)(y + p->wy0) + 0.5f, 0.5f, 0.5f, &o, &d);
         pn_eye_path path;
-        pn_trace_eye_path(&p->job, o, d, 0.5f, &path);
+        centre_path(p, x, y, &path);
         size_t i = pn_prog_index(p, x, y);
         r->depth[i] = path.first_depth;
         if (path.has_point) {
@@ -383,14 +389,7 @@ static void primary_row(void *user, size_t row, int worker) {
             r->normal[i] = v3(0, 0, 0);
         }
         if (!p->demod) continue;
-        if (r->guide) {
-            /* The guide's point: where the light would be gathered, with the shading normal
-             * turned towards the viewer; the guide itself at anchors only (guide_fill_row). */
-            r->gpos[i] = path.hit.p;
-            r->gnormal[i] = !path.has_point ? v3(0, 0, 0)
-                            : v3_dot(path.hit.ns, path.wo) < 0.0f ? v3_neg(path.hit.ns) : path.hit.ns;
-            r->guide[3 * i] = (x % 2 == 0 && y % 2 == 0) ? guide_at(r, worker, i) : 0.0f;
-        }
+        if (r->guide) r->guide[i] = (x % 2 == 0 && y % 2 == 0) ? guide_at(r, worker, &path) : 0.0f; /* anchors */
         vec3 f = demod_factor(&path), e = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
         float *fd = p->demod + 3 * i, *fe = p->emit + 3 * i;
         fd[0] = f.x, fd[1] = f.y, fd[2] = f.z;
@@ -472,49 +471,48 @@ static int filter_pixel_weights(const pn_filter_axis *ax, float *w, int max_r) {
     return R;
 }
 
-/* Replaces demod and emit by their pixel-filter-weighted means over the neighbouring pixel
- * centres (clipped to the window): the integrator's eye rays spread over the filter's support,
- * and one centre ray per pixel is a quadrature of that footprint at no extra cost. */
-static bool filter_primary(pn_prog *p, float *const *src, int count) {
+/* Replaces each of `count` per-pixel arrays (src[a], ch[a] <= 3 channels: demod, emit, the
+ * light guide) by its pixel-filter-weighted mean over the neighbouring pixel centres (clipped
+ * to the window): the integrator's eye rays spread over the filter's support, and one centre
+ * ray per pixel is a quadrature of that footprint at no extra cost. One array at a time, through
+ * one scratch array. */
+static bool filter_primary(pn_prog *p, float *const *src, const int *ch, int count) {
     enum { MAXR = 4 };
     float wx[2 * MAXR + 1], wy[2 * MAXR + 1];
     int rx = filter_pixel_weights(&p->job.camera.filter_x, wx, MAXR);
     int ry = filter_pixel_weights(&p->job.camera.filter_y, wy, MAXR);
     size_t n = (size_t)p->W * (size_t)p->H;
-    float *tmp = malloc(3 * n * (size_t)count * sizeof *tmp);
-    if (!tmp) return false;
+    float *t = malloc(3 * n * sizeof *t);
+    if (!t) return false;
     for (int a = 0; a < count; a++) {
-        float *t = tmp + 3 * n * (size_t)a;
+        const int C = ch[a];
         for (int y = 0; y < p->H; y++) /* horizontal pass into t */
             for (int x = 0; x < p->W; x++) {
                 float acc[3] = {0, 0, 0}, ws = 0.0f;
                 for (int d = -rx; d <= rx; d++) {
                     int xx = x + d;
                     if (xx < 0 || xx >= p->W || wx[d + rx] == 0.0f) continue;
-                    const float *v = src[a] + 3 * pn_prog_index(p, xx, y);
-                    for (int c = 0; c < 3; c++) acc[c] += wx[d + rx] * v[c];
+                    const float *v = src[a] + (size_t)C * pn_prog_index(p, xx, y);
+                    for (int c = 0; c < C; c++) acc[c] += wx[d + rx] * v[c];
                     ws += wx[d + rx];
                 }
-                for (int c = 0; c < 3; c++) t[3 * pn_prog_index(p, x, y) + c] = ws != 0.0f ? acc[c] / ws : 0.0f;
+                for (int c = 0; c < C; c++) t[(size_t)C * pn_prog_index(p, x, y) + c] = ws != 0.0f ? acc[c] / ws : 0.0f;
             }
-    }
-    for (int a = 0; a < count; a++) {
-        const float *t = tmp + 3 * n * (size_t)a;
         for (int y = 0; y < p->H; y++) /* vertical pass back */
             for (int x = 0; x < p->W; x++) {
                 float acc[3] = {0, 0, 0}, ws = 0.0f;
                 for (int d = -ry; d <= ry; d++) {
                     int yy = y + d;
                     if (yy < 0 || yy >= p->H || wy[d + ry] == 0.0f) continue;
-                    const float *v = t + 3 * pn_prog_index(p, x, yy);
-                    for (int c = 0; c < 3; c++) acc[c] += wy[d + ry] * v[c];
+                    const float *v = t + (size_t)C * pn_prog_index(p, x, yy);
+                    for (int c = 0; c < C; c++) acc[c] += wy[d + ry] * v[c];
                     ws += wy[d + ry];
                 }
-                float *o = src[a] + 3 * pn_prog_index(p, x, y);
-                for (int c = 0; c < 3; c++) o[c] = ws != 0.0f ? acc[c] / ws : t[3 * pn_prog_index(p, x, y) + c];
+                float *o = src[a] + (size_t)C * pn_prog_index(p, x, y);
+                for (int c = 0; c < C; c++) o[c] = ws != 0.0f ? acc[c] / ws : t[(size_t)C * pn_prog_index(p, x, y) + c];
             }
     }
-    free(tmp);
+    free(t);
     return true;
 }
 
@@ -573,7 +571,7 @@ static void primary_refine_row(void *user, size_t row, int worker) {
             }
         if (wsum == 0.0) continue; /* keep the filtered centre values */
         f = v3_scale(f, (float)(1.0 / wsum));
-        if (r->guide) f = v3_scale(f, r->guide[3 * i]); /* the centre rays' filtered guide */
+        if (r->guide) f = v3_scale(f, r->guide[i]); /* the centre rays' filtered guide */
         e = v3_scale(e, (float)(1.0 / wsum));
         float *fd = p->demod + 3 * i, *fe = p->emit + 3 * i;
         fd[0] = f.x, fd[1] = f.y, fd[2] = f.z;
@@ -582,13 +580,13 @@ static void primary_refine_row(void *user, size_t row, int worker) {
 }
 
 /* The guide between anchors (work pixels at even x and y): the mean of the two or four nearest
- * anchors where they all see the same object, within 10 degrees of the pixel's normal and 2%
- * of its depth (the guide varies smoothly there, and this saves three quarters of its cost);
- * computed at the pixel itself elsewhere. */
+ * anchors where they all see the same object, with geometric normals within 10 degrees of the
+ * pixel's and depths within 2% (the guide varies smoothly there, and this saves three quarters
+ * of its cost); elsewhere the pixel's primary ray is traced again and the guide computed. */
 static bool guide_close(const primary_run *r, size_t i, size_t a) {
     const pn_prog *p = r->p;
     if (p->tag[a] != p->tag[i]) return false;
-    if (v3_dot(r->gnormal[a], r->gnormal[i]) < 0.985f) return false;
+    if (v3_dot(r->normal[a], r->normal[i]) < 0.985f) return false;
     return fabsf(r->depth[a] - r->depth[i]) <= 0.02f * r->depth[i];
 }
 
@@ -611,12 +609,18 @@ static void guide_fill_row(void *user, size_t row, int worker) {
                     if (xs[k] >= p->W || ys[j] >= p->H) continue;
                     size_t a = pn_prog_index(p, xs[k], ys[j]);
                     ok = guide_close(r, i, a);
-                    sum += r->guide[3 * a];
+                    sum += r->guide[a];
                     count++;
                 }
-            g = ok && count > 0 ? sum / (float)count : guide_at(r, worker, i);
+            if (ok && count > 0) {
+                g = sum / (float)count;
+            } else {
+                pn_eye_path path;
+                centre_path(p, x, y, &path);
+                g = guide_at(r, worker, &path);
+            }
         }
-        r->guide[3 * i] = g;
+        r->guide[i] = g;
     }
 }
 
@@ -644,16 +648,14 @@ static void apply_guide(pn_prog *p, float *guide) {
     size_t lit = 0;
     for (size_t i = 0; i < n; i++)
         if (p->tag[i] >= 0) {
-            sum += (double)guide[3 * i];
+            sum += (double)guide[i];
             lit++;
         }
     float scale = sum > 0.0 ? 1.0f / (float)(sum / (double)lit) : 1.0f;
     for (size_t i = 0; i < n; i++) {
-        float g = p->tag[i] >= 0 ? guide[3 * i] * scale + PN_GUIDE_OFFSET : 1.0f;
-        for (int c = 0; c < 3; c++) {
-            p->demod[3 * i + c] *= g;
-            guide[3 * i + c] = g;
-        }
+        float g = p->tag[i] >= 0 ? guide[i] * scale + PN_GUIDE_OFFSET : 1.0f;
+        for (int c = 0; c < 3; c++) p->demod[3 * i + c] *= g;
+        guide[i] = g;
     }
 }
 
@@ -670,7 +672,7 @@ pn_status pn_prog_build_primary(pn_prog *p) {
     if (p->tag) return PN_OK;
     double t0 = pn_clock_seconds();
     size_t n = (size_t)p->W * (size_t)p->H, ns = (size_t)(p->W + 1) * (size_t)(p->H + 1);
-    primary_run r = {p, malloc(n * sizeof(float)), malloc(n * sizeof(vec3)), NULL, NULL, NULL, NULL, NULL, NULL};
+    primary_run r = {p, malloc(n * sizeof(float)), malloc(n * sizeof(vec3)), NULL, NULL, NULL, NULL};
     p->tag = malloc(n * sizeof *p->tag);
     p->sat_right = calloc(ns, sizeof *p->sat_right);
     p->sat_down = calloc(ns, sizeof *p->sat_down);
@@ -687,17 +689,13 @@ pn_status pn_prog_build_primary(pn_prog *p) {
     bool guided = p->demod && !p->settings->no_light_guide && p->job.lights->count > 0;
     if (guided) {
         size_t stride = (size_t)p->job.lights->count + 1, nw = (size_t)pn_threadpool_size(p->pool);
-        r.guide = malloc(3 * n * sizeof *r.guide);
-        r.gpos = malloc(n * sizeof *r.gpos);
-        r.gnormal = malloc(n * sizeof *r.gnormal);
+        r.guide = malloc(n * sizeof *r.guide);
         r.light_w = malloc(nw * stride * sizeof *r.light_w);
         r.light_exact = malloc(nw * stride * sizeof *r.light_exact);
     }
-    bool ok = !guided || (r.guide && r.gpos && r.gnormal && r.light_w && r.light_exact);
+    bool ok = !guided || (r.guide && r.light_w && r.light_exact);
     if (ok) pn_threadpool_run(p->pool, (size_t)p->H, primary_row, &r);
     if (ok && guided) pn_threadpool_run(p->pool, (size_t)p->H, guide_fill_row, &r);
-    free(r.gpos);
-    free(r.gnormal);
     free(r.light_w);
     free(r.light_exact);
     if (ok && p->demod) {
@@ -708,7 +706,8 @@ pn_status pn_prog_build_primary(pn_prog *p) {
         if (ok && grid) p->primary_refined = mark_refined(p, r.refine);
         if (ok && guided) apply_guide(p, r.guide);
         float *const filtered[3] = {p->demod, p->emit, r.guide};
-        ok = ok && filter_primary(p, filtered, guided ? 3 : 2);
+        const int channels[3] = {3, 3, 1};
+        ok = ok && filter_primary(p, filtered, channels, guided ? 3 : 2);
         if (ok && grid) pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
         free(r.refine);
     }
