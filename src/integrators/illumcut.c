@@ -53,8 +53,10 @@
  *     A mixed sub-array recurses on its sub-arrays, each of which holds one of its samples: that
  *     sample's ray is reused (it is the sub-array's sample in the next level, or its shadow ray
  *     when the sub-array is shaded point by point), so a pair never traces more rays than |R|
- *     (before: a mixed pair of 8-15 points traced 8 samples and then every point again). Same
- *     image otherwise; on the full-density crops (RESULTS.md, ic-s11) 2-4% fewer IC-S rays.
+ *     (before: a mixed pair of 8-15 points traced 8 samples and then every point again). The
+ *     sub-array that holds the reused point takes it as its sample instead of its middle point,
+ *     so the image changes slightly; on the full-density crops (RESULTS.md, ic-s11) 2-4% fewer
+ *     IC-S rays.
  *   - Algorithm 2 on one-VPL pairs: the paper shades a pair with a leaf Q point by point. Here
  *     such a pair is first given the bound test (which Algorithm 1 would have applied to it), and
  *     when it passes (|R| >= 8), Algorithm 2 samples it like any other illumination-aware pair;
@@ -477,9 +479,9 @@ static pn_status phase1(ic_render *ir, pn_threadpool *pool) {
  * when sampling is off, Q is a one-VPL cluster that did not pass the bound test (`leaf_ok` false)
  * or the sub-array is short. `known` is a point of [a, b) whose visibility of rep(Q) the caller's
  * samples already traced (`known_vis` 1 visible, 0 occluded; -1 none, e.g. its contribution is 0):
- * it is taken as the sample of the sub-array that holds it and shaded with that answer, so no
- * point traces the same ray twice and a pair never costs more rays than |R| (the same ray gives
- * the same answer, so reusing it changes nothing else). */
+ * it is taken as the sample of the sub-array that holds it (instead of that sub-array's middle
+ * point) and shaded with that answer, so no point traces the same ray twice and a pair never
+ * costs more rays than |R|. */
 static void adaptive_sampling(const ic_render *ir, int32_t a, int32_t b, const pn_light_node *Q, bool leaf_ok,
                               int32_t known, int known_vis) {
     ic_point *pts = ir->tree.points;
