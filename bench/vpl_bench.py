@@ -34,6 +34,13 @@ accurate level when the target is below all its errors, "<" that of its least ac
 above), and so is the ratio. --reference-dir reuses the vpl crop references of an earlier run
 (same scene, resolution, VPLs and crop; file names as this script writes them); --reuse reuses
 the runs already in --out (an interrupted sweep).
+
+Full pixel density, cheaply (--render-crop x0,x1,y0,y1, with --equal-rmse): the methods render only
+this window of the film at --scale (e.g. 1.0, the paper's pixel density: the point tree of illumcut
+then holds the same points per unit of surface as a full render, over a smaller part of the scene),
+and the RMSE is taken on the --crop-reference window cut out of it; that window must lie inside the
+render window, with a margin so that the point clusters of its pixels are not cut by the border.
+Every method and the reference see the same pixels; all times are of the render window only.
 """
 import argparse
 import json
@@ -163,6 +170,24 @@ def cut_window(img, crop):
     out = []
     for row in range(h - y1, h - y0):  # file rows of image rows y1-1 .. y0
         out.extend(d[3 * (row * w + x0):3 * (row * w + x1)])
+    return x1 - x0, y1 - y0, out
+
+
+def cut_window_of_crop(img, full, render_crop, crop):
+    """The reference window `crop` (fractions of the full film `full` = (w, h)) cut out of an image
+    rendered on the window `render_crop` of the same film: both windows are rounded to pixels as the
+    renderer rounds them, and the reference window must lie inside the render window."""
+    w, h, d = img
+    rx0, rx1 = crop_bounds(full[0], render_crop[0], render_crop[1])
+    ry0, ry1 = crop_bounds(full[1], render_crop[2], render_crop[3])
+    x0, x1 = crop_bounds(full[0], crop[0], crop[1])
+    y0, y1 = crop_bounds(full[1], crop[2], crop[3])
+    if (w, h) != (rx1 - rx0, ry1 - ry0) or not (rx0 <= x0 < x1 <= rx1 and ry0 <= y0 < y1 <= ry1):
+        raise SystemExit("reference window %s is not inside the render window %s" % (crop, render_crop))
+    out = []
+    for yy in range(y1 - 1, y0 - 1, -1):  # PFM rows run bottom to top: file row of image row yy
+        row = (ry1 - 1) - yy
+        out.extend(d[3 * (row * w + (x0 - rx0)):3 * (row * w + (x1 - rx0))])
     return x1 - x0, y1 - y0, out
 
 
@@ -352,9 +377,12 @@ def equal_rmse(a, penumbra, common_for, lines, results):
         sweep.append((name.strip(), [float(x) for x in levels.split(",") if x]))
     vcount = ["--vpls", str(a.vpls)]
     cropargs = ["--crop", ",".join("%g" % c for c in crop)]
-    lines.append("Equal RMSE: full-image renders against the vpl crop (window %s), %d VPLs, one run per "
+    rcrop = [float(x) for x in a.render_crop.split(",")] if a.render_crop else None
+    rcropargs = ["--crop", ",".join("%g" % c for c in rcrop)] if rcrop else []
+    lines.append("Equal RMSE: %s renders against the vpl crop (window %s), %d VPLs, one run per "
                  "level, levels interleaved across methods. render CPU s = the process's user + system time "
-                 "minus that of a 1x1 lightcuts render with the same VPLs." % (a.crop_reference, a.vpls))
+                 "minus that of a 1x1 lightcuts render with the same VPLs." % (
+                     "full-image" if not rcrop else "render-window (%s)" % a.render_crop, a.crop_reference, a.vpls))
     for s in a.scenes.split(","):
         scene = os.path.join(SHARED, "scenes", s, s + ".pbrt")
         res, common = common_for(scene)
@@ -381,8 +409,13 @@ def equal_rmse(a, penumbra, common_for, lines, results):
                     st.update(max_rss_bytes=int(rss) * 1024, cpu_seconds=float(user) + float(sys_),
                               load_before=-1.0, wall_seconds=0.0)
                 else:
-                    st = run(penumbra, scene, out, METHOD_ARGS[name] + ["--error", "%g" % e] + vcount, common)
-                w = cut_window(read_pfm(out + ".pfm"), crop)
+                    st = run(penumbra, scene, out, METHOD_ARGS[name] + ["--error", "%g" % e] + vcount + rcropargs,
+                             common)
+                if rcrop:
+                    full = [int(x) for x in res.split("x")]
+                    w = cut_window_of_crop(read_pfm(out + ".pfm"), full, rcrop, crop)
+                else:
+                    w = cut_window(read_pfm(out + ".pfm"), crop)
                 write_pfm(out + "-window.pfm", *w)
                 st["rmse_crop"] = diff(penumbra, refpath, out + "-window.pfm")["rmse"]
                 st["mean_relative_error_crop"] = mean_relative_error(refimg, w)
@@ -458,6 +491,8 @@ def main():
     ap.add_argument("--equal-rmse", action="store_true", help="error sweeps, CPU time at equal RMSE (--crop-reference)")
     ap.add_argument("--sweep", default="LC=0.005,0.01,0.02;IC=0.015,0.03,0.06;IC-S=0.01,0.02,0.04",
                     help="NAME=e1,e2,...;... for --equal-rmse (NAME: LC, IC, IC-S; LC first)")
+    ap.add_argument("--render-crop", default="",
+                    help="x0,x1,y0,y1: --equal-rmse methods render only this window (containing --crop-reference)")
     ap.add_argument("--reuse", action="store_true", help="--equal-rmse: reuse the runs already in --out")
     ap.add_argument("--reference-dir", default="", help="reuse the vpl crop references in this folder")
     a = ap.parse_args()
