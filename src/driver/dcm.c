@@ -42,7 +42,11 @@
  *  - Order of boundary evaluation: the (block, spacing) steps of all edge blocks of an iteration
  *    are taken in decreasing order of (luminance range of the block's corners) x spacing, so
  *    blocks with large ranges (the largest errors) reach fine spacings before flat blocks get
- *    their coarse ones; the paper does not say how blocks are ordered. Classified blocks replace
+ *    their coarse ones; the paper does not say how blocks are ordered. The range is that of the
+ *    corners' radiance (the interpolated quotient multiplied back by albedo and light guide), so
+ *    that the order follows the image's own error, not the quotient's: at 6% (prog-hr crops)
+ *    bathroom 0.0282 / 0.0141 -> 0.0270 / 0.0130 rel L1 / L2, hall-many 0.0178 / 0.0222 ->
+ *    0.0175 / 0.0217, staircase 0.0287 / 0.0221 -> 0.0288 / 0.0218. Classified blocks replace
  *    their parents in the approximate image at once; an edge block still under boundary
  *    evaluation is drawn with elements over the part of its boundary evaluated so far, oriented
  *    by its current least-discrepancy direction (what Fig. 9's even spreading is for).
@@ -752,6 +756,16 @@ static int cmp_task(const void *a, const void *b) {
 }
 
 /* Queues the boundary pixels of the edge blocks in task order (see process()). */
+/* The luminance of what a work pixel's interpolated value stands for in the image: the quotient
+ * multiplied back by its demodulation factor (albedo and light guide), without the emitted part,
+ * which the primary rays give exactly. */
+static float corner_radiance(const pn_prog *p, int x, int y) {
+    size_t i = pn_prog_index(p, x, y);
+    const float *r = p->rad + 3 * i, *f = p->demod ? p->demod + 3 * i : NULL;
+    if (!f) return pn_prog_lum(p, x, y);
+    return 0.2126f * r[0] * f[0] + 0.7152f * r[1] * f[1] + 0.0722f * r[2] * f[2];
+}
+
 static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k) {
     int rounds = 0;
     for (int sp = k / 2; sp >= 1; sp /= 2) rounds++;
@@ -763,8 +777,9 @@ static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_
         const dcm_block *b = &blocks[pending[j]];
         int x1, y1;
         block_extent(p, b, &x1, &y1);
-        float g[4] = {pn_prog_lum(p, b->x0, b->y0), pn_prog_lum(p, x1, b->y0), pn_prog_lum(p, b->x0, y1),
-                      pn_prog_lum(p, x1, y1)};
+        int cx[4] = {b->x0, x1, b->x0, x1}, cy[4] = {b->y0, b->y0, y1, y1};
+        float g[4];
+        for (int c = 0; c < 4; c++) g[c] = corner_radiance(p, cx[c], cy[c]);
         float range = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3])) - fminf(fminf(g[0], g[1]), fminf(g[2], g[3]));
         if (!(range >= 0.0f)) range = 0.0f;
         for (int sp = k / 2; sp >= 1; sp /= 2) {
