@@ -348,6 +348,8 @@ static vec3 demod_factor(const pn_eye_path *path) {
     return v3(fmaxf(a.x, 0.02f), fmaxf(a.y, 0.02f), fmaxf(a.z, 0.02f));
 }
 
+#define GUIDE_ANCHOR 2 /* spacing of the work pixels where the light guide is computed (guide_fill_row) */
+
 /* The unshadowed irradiance of all lights at the point a primary ray sees (0 where it sees no
  * surface that reflects light), at the shading normal turned towards the viewer. */
 static float guide_at(const primary_run *r, int worker, const pn_eye_path *path) {
@@ -394,7 +396,7 @@ static void primary_row(void *user, size_t row, int worker) {
             r->normal[i] = v3(0, 0, 0);
         }
         if (!p->demod) continue;
-        if (r->guide) r->guide[i] = (x % 2 == 0 && y % 2 == 0) ? guide_at(r, worker, &path) : 0.0f; /* anchors */
+        if (r->guide) r->guide[i] = (x % GUIDE_ANCHOR == 0 && y % GUIDE_ANCHOR == 0) ? guide_at(r, worker, &path) : 0.0f;
         vec3 f = demod_factor(&path), e = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
         float *fd = p->demod + 3 * i, *fe = p->emit + 3 * i;
         fd[0] = f.x, fd[1] = f.y, fd[2] = f.z;
@@ -584,10 +586,10 @@ static void primary_refine_row(void *user, size_t row, int worker) {
     }
 }
 
-/* The guide between anchors (work pixels at even x and y): the mean of the two or four nearest
- * anchors where they all see the same object, with geometric normals within 10 degrees of the
- * pixel's and depths within 2% (the guide varies smoothly there, and this saves three quarters
- * of its cost); elsewhere the pixel's primary ray is traced again and the guide computed. */
+/* The guide between anchors (work pixels whose x and y are multiples of GUIDE_ANCHOR): bilinear
+ * between the nearest anchors where they all see the same object, with geometric normals within
+ * 10 degrees of the pixel's and depths within 2% (the guide varies smoothly there, and this saves
+ * most of its cost); elsewhere the pixel's primary ray is traced again and the guide computed. */
 static bool guide_close(const primary_run *r, size_t i, size_t a) {
     const pn_prog *p = r->p;
     if (p->tag[a] != p->tag[i]) return false;
@@ -598,27 +600,32 @@ static bool guide_close(const primary_run *r, size_t i, size_t a) {
 static void guide_fill_row(void *user, size_t row, int worker) {
     primary_run *r = user;
     const pn_prog *p = r->p;
+    const int S = GUIDE_ANCHOR;
     int y = (int)row;
     for (int x = 0; x < p->W; x++) {
-        if (x % 2 == 0 && y % 2 == 0) continue;
+        if (x % S == 0 && y % S == 0) continue;
         size_t i = pn_prog_index(p, x, y);
         float g = 0.0f;
         if (p->tag[i] >= 0) {
-            int xs[2] = {x % 2 ? x - 1 : x, x % 2 ? x + 1 : x}, ys[2] = {y % 2 ? y - 1 : y, y % 2 ? y + 1 : y};
+            /* The anchor columns and rows around the pixel and their bilinear weights; an anchor
+             * beyond the window's last pixel is left out and its neighbour takes the weight. */
+            int xs[2] = {x - x % S, x - x % S + S}, ys[2] = {y - y % S, y - y % S + S};
+            float wx[2] = {1.0f - (float)(x % S) / (float)S, (float)(x % S) / (float)S};
+            float wy[2] = {1.0f - (float)(y % S) / (float)S, (float)(y % S) / (float)S};
+            if (xs[1] >= p->W) wx[0] = 1.0f, wx[1] = 0.0f;
+            if (ys[1] >= p->H) wy[0] = 1.0f, wy[1] = 0.0f;
             bool ok = true;
             float sum = 0.0f;
-            int count = 0;
             for (int j = 0; j < 2 && ok; j++)
                 for (int k = 0; k < 2 && ok; k++) {
-                    if ((j == 1 && ys[1] == ys[0]) || (k == 1 && xs[1] == xs[0])) continue;
-                    if (xs[k] >= p->W || ys[j] >= p->H) continue;
+                    float w = wx[k] * wy[j];
+                    if (w == 0.0f) continue;
                     size_t a = pn_prog_index(p, xs[k], ys[j]);
                     ok = guide_close(r, i, a);
-                    sum += r->guide[a];
-                    count++;
+                    sum += w * r->guide[a];
                 }
-            if (ok && count > 0) {
-                g = sum / (float)count;
+            if (ok) {
+                g = sum;
             } else {
                 pn_eye_path path;
                 centre_path(p, x, y, &path);
