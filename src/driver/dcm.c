@@ -763,7 +763,7 @@ static float corner_radiance(const pn_prog *p, int x, int y) {
     size_t i = pn_prog_index(p, x, y);
     const float *r = p->rad + 3 * i, *f = p->demod ? p->demod + 3 * i : NULL;
     if (!f) return pn_prog_lum(p, x, y);
-    return 0.2126f * r[0] * f[0] + 0.7152f * r[1] * f[1] + 0.0722f * r[2] * f[2];
+    return v3_luminance(v3(r[0] * f[0], r[1] * f[1], r[2] * f[2]));
 }
 
 static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k) {

@@ -27,7 +27,7 @@ void pn_render_request_snapshot(pn_context ctx) {
 
 float pn_prog_lum(const pn_prog *p, int x, int y) {
     const float *c = p->rad + 3 * pn_prog_index(p, x, y);
-    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+    return v3_luminance(v3(c[0], c[1], c[2]));
 }
 
 float pn_prog_lum_sigma(const pn_prog *p, int x, int y) {
