@@ -24,7 +24,8 @@
  * evaluated, the same Gaussian) and records, from snapshots of the first run, the relative L1 and
  * L2 error ||E||/||F|| against it and the time at 2, 4, 6, 8, 10, 15, 25 and 50% of the work
  * pixels evaluated: OUT/progressive.md, and the 6% image beside the full one as OUT/NAME-6pct.png
- * and OUT/NAME-full.png.
+ * and OUT/NAME-full.png. stop=P ends the progressive run at P% of the work pixels (the curve
+ * ends there; the time is the snapshots', so it does not change).
  */
 #include "penumbra/penumbra.h"
 
@@ -93,6 +94,7 @@ static int parse_settings(const char *text, pn_render_settings *s, char *group, 
             else if (strcmp(v, "bvh") == 0) s->light_sampler = PN_LIGHT_SAMPLER_BVH;
             else return 0;
         }
+        else if (strcmp(tok, "stop") == 0) s->stop_percent = strtod(v, NULL); /* progressive: stop at P% */
         else if (strcmp(tok, "group") == 0) snprintf(group, group_size, "%s", v);
         else if (strcmp(tok, "csa") == 0) s->cluster_solid_angle = strtof(v, NULL); /* ias */
         else if (strcmp(tok, "driver") == 0) { /* progressive drivers (issue 6) */
