@@ -199,6 +199,7 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
     if (s.driver != PN_DRIVER_DEFAULT && s.driver != PN_DRIVER_FULL) { /* progressive drivers */
         pn_render_settings fs = s;
         fs.driver = PN_DRIVER_FULL;
+        fs.stop_percent = 0.0; /* stop=P is for the progressive run only */
         double t0 = now();
         pn_render_stats fstats;
         if (pn_render(ctx, scene, &fs, &cs.full, &fstats) != PN_OK) {
