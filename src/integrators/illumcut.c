@@ -63,6 +63,11 @@
  *     a one-VPL pair that fails the test is still shaded exactly. ic-s11, living-room at full
  *     density, IC-S 5%: 23% fewer shadow rays for a 1% higher RMSE; bathroom and staircase 2-3%
  *     fewer rays, RMSE unchanged to 3 digits.
+ *   - Shadow rays of one pair (Algorithm 2's samples of a sub-array, and the point-by-point
+ *     rays, plain IC's included) are traced together as Embree packets of up to 16
+ *     (pn_accel_occluded_packet): they go from nearby points to one VPL. Same rays, same answers,
+ *     same image; ics12, bathroom window at full density: IC-S 1% -15% and IC 1.5% -29% render
+ *     CPU time.
  *   - Threads: see run_phase2 — the pairs are generated in Algorithm 1's order by one thread and
  *     shaded by all, grouped by disjoint point sub-trees so that every point's sum is added in
  *     the same order whatever the thread count (bit-identical images).
@@ -475,29 +480,96 @@ static pn_status phase1(ic_render *ir, pn_threadpool *pool) {
 
 /* ---- Phase II ----------------------------------------------------------------------------- */
 
+/* ---- shadow rays traced as packets ---------------------------------------------------------- */
+
+/* The rays of one pair all go from nearby points (a Morton-ordered sub-array) to one VPL, so they
+ * are traced together as Embree packets (pn_accel_occluded_packet) instead of one by one. Each
+ * ray is the one pn_vpl_visible would trace (same origin offset, direction and tfar), so the
+ * answers, and the image, are the same. */
+#define IC_PACKET 16
+
+/* The shadow ray of pn_vpl_visible(accel, r, wi, dist): false when it is empty (then the VPL
+ * counts as visible without a ray, as there). */
+static bool visibility_ray(const pn_accel *accel, const pn_vpl_receiver *r, float dist, vec3 *o, float *tmax) {
+    float eps = pn_accel_ray_epsilon(accel, r->p);
+    *o = v3_madd(r->p, r->ng, eps);
+    *tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-3f) - eps;
+    return *tmax > 0.0f;
+}
+
+/* Point-by-point shading rays of one pair, queued: point[i] receives c[i] if its ray is free.
+ * Within one pair a point is shaded at most once, so adding its contribution when the packet is
+ * traced instead of at once leaves every point's sum in the same order. */
+typedef struct ic_rays {
+    int n;
+    int32_t point[IC_PACKET];
+    vec3 c[IC_PACKET], o[IC_PACKET], d[IC_PACKET];
+    float tmin[IC_PACKET], tmax[IC_PACKET];
+} ic_rays;
+
+static void rays_flush(const ic_render *ir, ic_rays *rb) {
+    if (rb->n == 0) return;
+    bool occluded[IC_PACKET];
+    pn_accel_occluded_packet(ir->job->accel, rb->n, rb->o, rb->d, rb->tmin, rb->tmax, occluded);
+    ic_point *pts = ir->tree.points;
+    for (int i = 0; i < rb->n; i++)
+        if (!occluded[i]) pts[rb->point[i]].L = v3_add(pts[rb->point[i]].L, rb->c[i]);
+    rb->n = 0;
+}
+
+/* shade_point for point i of the tree, its shadow ray queued in rb. */
+static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, const pn_light_node *Q) {
+    ic_point *p = &ir->tree.points[i];
+    vec3 wi;
+    float dist;
+    vec3 c = pn_vpl_contribution_with(ir->job->lights, &ir->d->set.vpls[Q->rep], Q->intensity, &p->r,
+                                      ir->d->set.min_dist2, &wi, &dist);
+    if (v3_is_zero(c)) return;
+    p->shadow_rays++;
+    int k = rb->n;
+    if (!visibility_ray(ir->job->accel, &p->r, dist, &rb->o[k], &rb->tmax[k])) {
+        p->L = v3_add(p->L, c);
+        return;
+    }
+    rb->point[k] = i;
+    rb->c[k] = c;
+    rb->d[k] = wi;
+    rb->tmin[k] = 0.0f;
+    if (++rb->n == IC_PACKET) rays_flush(ir, rb);
+}
+
 /* Algorithm 2 on the point sub-array [a, b) with cluster Q; plain shading (a shadow ray per point)
  * when sampling is off, Q is a one-VPL cluster that did not pass the bound test (`leaf_ok` false)
  * or the sub-array is short. `known` is a point of [a, b) whose visibility of rep(Q) the caller's
  * samples already traced (`known_vis` 1 visible, 0 occluded; -1 none, e.g. its contribution is 0):
  * it is taken as the sample of the sub-array that holds it (instead of that sub-array's middle
  * point) and shaded with that answer, so no point traces the same ray twice and a pair never
- * costs more rays than |R|. */
-static void adaptive_sampling(const ic_render *ir, int32_t a, int32_t b, const pn_light_node *Q, bool leaf_ok,
-                              int32_t known, int known_vis) {
+ * costs more rays than |R|. The samples of one sub-array are traced as one packet; the
+ * point-by-point rays go to `rb` (the caller flushes it when the pair is done). */
+static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32_t b, const pn_light_node *Q,
+                              bool leaf_ok, int32_t known, int known_vis) {
     ic_point *pts = ir->tree.points;
     int32_t n = b - a;
     if (known < a || known >= b) known_vis = -1;
     if (!ir->job->visibility_sampling || (Q->left < 0 && !leaf_ok) || n < 8) {
         for (int32_t i = a; i < b; i++) {
-            if (i == known && known_vis == 0) continue; /* occluded: adds nothing */
-            pts[i].L = v3_add(pts[i].L, shade_point(ir, &pts[i], Q, i == known && known_vis == 1));
+            if (i == known && known_vis >= 0) {
+                if (known_vis == 1) pts[i].L = v3_add(pts[i].L, shade_point(ir, &pts[i], Q, 1));
+                continue; /* occluded: adds nothing */
+            }
+            shade_point_queued(ir, rb, i, Q);
         }
         return;
     }
     int32_t vs = n > 32 ? 16 : 8;
     int32_t where[16];
     signed char vis[16];
-    int visible = 0, occluded = 0;
+    /* The samples that need a ray, traced as one packet. */
+    int32_t slot[16];
+    vec3 ro[16], rd[16];
+    float rt0[16], rt1[16];
+    bool occ[16];
+    int nr = 0;
     for (int32_t k = 0; k < vs; k++) {
         int32_t s0 = a + (int32_t)((int64_t)n * k / vs), s1 = a + (int32_t)((int64_t)n * (k + 1) / vs);
         bool reuse = known_vis >= 0 && known >= s0 && known < s1;
@@ -515,10 +587,21 @@ static void adaptive_sampling(const ic_render *ir, int32_t a, int32_t b, const p
                                               ir->d->set.min_dist2, &wi, &dist);
             if (v3_is_zero(c)) continue; /* does not vote */
             q->shadow_rays++;
-            vis[k] = pn_vpl_visible(ir->job->accel, &q->r, wi, dist) ? 1 : 0;
+            if (!visibility_ray(ir->job->accel, &q->r, dist, &ro[nr], &rt1[nr])) {
+                vis[k] = 1;
+                continue;
+            }
+            rd[nr] = wi;
+            rt0[nr] = 0.0f;
+            slot[nr++] = k;
         }
-        if (vis[k]) visible++;
-        else occluded++;
+    }
+    pn_accel_occluded_packet(ir->job->accel, nr, ro, rd, rt0, rt1, occ);
+    for (int i = 0; i < nr; i++) vis[slot[i]] = occ[i] ? 0 : 1;
+    int visible = 0, occluded = 0;
+    for (int32_t k = 0; k < vs; k++) {
+        if (vis[k] == 1) visible++;
+        else if (vis[k] == 0) occluded++;
     }
     if (visible > 0 && occluded == 0) {
         for (int32_t i = a; i < b; i++) pts[i].L = v3_add(pts[i].L, shade_point(ir, &pts[i], Q, 1));
@@ -527,9 +610,17 @@ static void adaptive_sampling(const ic_render *ir, int32_t a, int32_t b, const p
     } else {
         for (int32_t k = 0; k < vs; k++) {
             int32_t s0 = a + (int32_t)((int64_t)n * k / vs), s1 = a + (int32_t)((int64_t)n * (k + 1) / vs);
-            if (s1 > s0) adaptive_sampling(ir, s0, s1, Q, leaf_ok, where[k], vis[k]);
+            if (s1 > s0) adaptive_sampling(ir, rb, s0, s1, Q, leaf_ok, where[k], vis[k]);
         }
     }
+}
+
+/* One pair (or a group's part of it): Algorithm 2, then its queued rays. */
+static void shade_pair(const ic_render *ir, int32_t a, int32_t b, const pn_light_node *Q, bool leaf_ok) {
+    ic_rays rb;
+    rb.n = 0;
+    adaptive_sampling(ir, &rb, a, b, Q, leaf_ok, -1, -1);
+    rays_flush(ir, &rb);
 }
 
 static bool group_add_item(ic_group *g, ic_item it) {
@@ -596,7 +687,7 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, uint64_t *bo
             n_pairs++;
             R->pair_acc += 1.0f;
             if (group >= 0) {
-                adaptive_sampling(ir, R->first, R->first + R->count, Q, leaf_ok, -1, -1);
+                shade_pair(ir, R->first, R->first + R->count, Q, leaf_ok);
             } else {
                 /* R spans several groups: one item per group, each on its part of R's range. */
                 /* Groups are disjoint sub-trees in pre-order: their ranges are sorted. */
@@ -657,7 +748,7 @@ static void phase2_group(void *user, size_t gi, int worker) {
      * descent. */
     for (size_t i = 0; i < g->n; i++) {
         const ic_item *it = &g->items[i];
-        adaptive_sampling(ir, it->a, it->b, &ir->d->tree.nodes[it->q], it->leaf_ok, -1, -1);
+        shade_pair(ir, it->a, it->b, &ir->d->tree.nodes[it->q], it->leaf_ok);
     }
     /* The pending pairs were pushed in Algorithm 1's order; reverse them so that popping the
      * stack visits them in that order. */
