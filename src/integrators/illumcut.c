@@ -63,11 +63,12 @@
  *     a one-VPL pair that fails the test is still shaded exactly. ic-s11, living-room at full
  *     density, IC-S 5%: 23% fewer shadow rays for a 1% higher RMSE; bathroom and staircase 2-3%
  *     fewer rays, RMSE unchanged to 3 digits.
- *   - Shadow rays of one pair (Algorithm 2's samples of a sub-array, and the point-by-point
- *     rays, plain IC's included) are traced together as Embree packets of up to 16
- *     (pn_accel_occluded_packet): they go from nearby points to one VPL. Same rays, same answers,
- *     same image; ics12, bathroom window at full density: IC-S 1% -15% and IC 1.5% -29% render
- *     CPU time.
+ *   - Shadow rays are traced as Embree packets of up to 16 (pn_accel_occluded_packet): the
+ *     samples of one Algorithm 2 sub-array together (they go from nearby points to one VPL), and
+ *     the point-by-point rays (plain IC's included) through a per-group queue of the additions to
+ *     the points' sums, applied in order, so that a packet may span consecutive pairs. Same rays,
+ *     same answers, same image; ics12, bathroom window at full density: IC-S 1% about -20% and
+ *     IC 1.5% about -35% process CPU time.
  *   - Threads: see run_phase2 — the pairs are generated in Algorithm 1's order by one thread and
  *     shaded by all, grouped by disjoint point sub-trees so that every point's sum is added in
  *     the same order whatever the thread count (bit-identical images).
@@ -497,24 +498,37 @@ static bool visibility_ray(const pn_accel *accel, const pn_vpl_receiver *r, floa
     return *tmax > 0.0f;
 }
 
-/* Point-by-point shading rays of one pair, queued: point[i] receives c[i] if its ray is free.
- * Within one pair a point is shaded at most once, so adding its contribution when the packet is
- * traced instead of at once leaves every point's sum in the same order. */
+/* The additions to the points' sums of one group's Phase II, queued in order, with the shadow
+ * rays of the point-by-point shading: an entry adds c to its point unless its ray (if it has
+ * one) is occluded. The rays are traced when 16 are pending (one packet, possibly spanning
+ * consecutive pairs), and the entries applied in the order they were made, so every point's sum
+ * is added in the same order as without the queue. */
+#define IC_QUEUE 256
 typedef struct ic_rays {
-    int n;
-    int32_t point[IC_PACKET];
-    vec3 c[IC_PACKET], o[IC_PACKET], d[IC_PACKET];
+    int n, nr;                  /* entries, rays among them */
+    int32_t point[IC_QUEUE];
+    vec3 c[IC_QUEUE];
+    signed char ray[IC_QUEUE];  /* index into the rays, or -1 */
+    vec3 o[IC_PACKET], d[IC_PACKET];
     float tmin[IC_PACKET], tmax[IC_PACKET];
 } ic_rays;
 
 static void rays_flush(const ic_render *ir, ic_rays *rb) {
-    if (rb->n == 0) return;
     bool occluded[IC_PACKET];
-    pn_accel_occluded_packet(ir->job->accel, rb->n, rb->o, rb->d, rb->tmin, rb->tmax, occluded);
+    pn_accel_occluded_packet(ir->job->accel, rb->nr, rb->o, rb->d, rb->tmin, rb->tmax, occluded);
     ic_point *pts = ir->tree.points;
     for (int i = 0; i < rb->n; i++)
-        if (!occluded[i]) pts[rb->point[i]].L = v3_add(pts[rb->point[i]].L, rb->c[i]);
-    rb->n = 0;
+        if (rb->ray[i] < 0 || !occluded[rb->ray[i]]) pts[rb->point[i]].L = v3_add(pts[rb->point[i]].L, rb->c[i]);
+    rb->n = rb->nr = 0;
+}
+
+/* Queues c for point i (no ray). Adding zero changes no sum, so it is not queued. */
+static void add_queued(const ic_render *ir, ic_rays *rb, int32_t i, vec3 c) {
+    if (v3_is_zero(c)) return;
+    rb->point[rb->n] = i;
+    rb->c[rb->n] = c;
+    rb->ray[rb->n] = -1;
+    if (++rb->n == IC_QUEUE) rays_flush(ir, rb);
 }
 
 /* shade_point for point i of the tree, its shadow ray queued in rb. */
@@ -526,16 +540,18 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
                                       ir->d->set.min_dist2, &wi, &dist);
     if (v3_is_zero(c)) return;
     p->shadow_rays++;
-    int k = rb->n;
+    int k = rb->nr;
     if (!visibility_ray(ir->job->accel, &p->r, dist, &rb->o[k], &rb->tmax[k])) {
-        p->L = v3_add(p->L, c);
+        add_queued(ir, rb, i, c);
         return;
     }
-    rb->point[k] = i;
-    rb->c[k] = c;
     rb->d[k] = wi;
     rb->tmin[k] = 0.0f;
-    if (++rb->n == IC_PACKET) rays_flush(ir, rb);
+    rb->point[rb->n] = i;
+    rb->c[rb->n] = c;
+    rb->ray[rb->n] = (signed char)k;
+    rb->nr++;
+    if (++rb->n == IC_QUEUE || rb->nr == IC_PACKET) rays_flush(ir, rb);
 }
 
 /* Algorithm 2 on the point sub-array [a, b) with cluster Q; plain shading (a shadow ray per point)
@@ -554,7 +570,7 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
     if (!ir->job->visibility_sampling || (Q->left < 0 && !leaf_ok) || n < 8) {
         for (int32_t i = a; i < b; i++) {
             if (i == known && known_vis >= 0) {
-                if (known_vis == 1) pts[i].L = v3_add(pts[i].L, shade_point(ir, &pts[i], Q, 1));
+                if (known_vis == 1) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1));
                 continue; /* occluded: adds nothing */
             }
             shade_point_queued(ir, rb, i, Q);
@@ -604,7 +620,7 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
         else if (vis[k] == 0) occluded++;
     }
     if (visible > 0 && occluded == 0) {
-        for (int32_t i = a; i < b; i++) pts[i].L = v3_add(pts[i].L, shade_point(ir, &pts[i], Q, 1));
+        for (int32_t i = a; i < b; i++) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1));
     } else if (occluded > 0 && visible == 0) {
         return;
     } else {
@@ -615,12 +631,9 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
     }
 }
 
-/* One pair (or a group's part of it): Algorithm 2, then its queued rays. */
-static void shade_pair(const ic_render *ir, int32_t a, int32_t b, const pn_light_node *Q, bool leaf_ok) {
-    ic_rays rb;
-    rb.n = 0;
-    adaptive_sampling(ir, &rb, a, b, Q, leaf_ok, -1, -1);
-    rays_flush(ir, &rb);
+/* One pair (or a group's part of it): Algorithm 2; its additions go to the group's queue. */
+static void shade_pair(const ic_render *ir, ic_rays *rb, int32_t a, int32_t b, const pn_light_node *Q, bool leaf_ok) {
+    adaptive_sampling(ir, rb, a, b, Q, leaf_ok, -1, -1);
 }
 
 static bool group_add_item(ic_group *g, ic_item it) {
@@ -639,7 +652,7 @@ static bool group_add_item(ic_group *g, ic_item it) {
  * group >= 0 the pair is shaded at once (the worker owns the group's points), else it is split
  * into the groups it covers and queued. Pairs whose R lies inside a group are handed to that
  * group when group < 0. Returns false when out of memory. */
-static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, uint64_t *bound_evals, uint64_t *pairs) {
+static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, ic_rays *queue, uint64_t *bound_evals, uint64_t *pairs) {
     const pn_light_tree *lt = &ir->d->tree;
     ic_tree *t = &ir->tree;
     const float delta = ir->job->error_bound;
@@ -687,7 +700,7 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, uint64_t *bo
             n_pairs++;
             R->pair_acc += 1.0f;
             if (group >= 0) {
-                shade_pair(ir, R->first, R->first + R->count, Q, leaf_ok);
+                shade_pair(ir, queue, R->first, R->first + R->count, Q, leaf_ok);
             } else {
                 /* R spans several groups: one item per group, each on its part of R's range. */
                 /* Groups are disjoint sub-trees in pre-order: their ranges are sorted. */
@@ -744,17 +757,25 @@ static void phase2_group(void *user, size_t gi, int worker) {
     ic_render *ir = pj->ir;
     ic_group *g = &ir->groups[gi];
     if (atomic_load(ir->job->cancel)) return;
+    ic_rays *rb = malloc(sizeof *rb);
+    if (!rb) {
+        atomic_store(&ir->failed, PN_ERROR_OUT_OF_MEMORY);
+        return;
+    }
+    rb->n = rb->nr = 0;
     /* First the pairs shaded above the group (in Algorithm 1's order), then the group's own
      * descent. */
     for (size_t i = 0; i < g->n; i++) {
         const ic_item *it = &g->items[i];
-        shade_pair(ir, it->a, it->b, &ir->d->tree.nodes[it->q], it->leaf_ok);
+        shade_pair(ir, rb, it->a, it->b, &ir->d->tree.nodes[it->q], it->leaf_ok);
     }
     /* The pending pairs were pushed in Algorithm 1's order; reverse them so that popping the
      * stack visits them in that order. */
     reverse_pairs(&g->pending);
-    if (!algorithm1(ir, &g->pending, (int32_t)gi, &pj->per_group[gi].bound_evals, &pj->per_group[gi].pairs))
+    if (!algorithm1(ir, &g->pending, (int32_t)gi, rb, &pj->per_group[gi].bound_evals, &pj->per_group[gi].pairs))
         atomic_store(&ir->failed, PN_ERROR_OUT_OF_MEMORY);
+    rays_flush(ir, rb);
+    free(rb);
 }
 
 /* Marks the groups: the highest point-tree nodes with at most `limit` points. */
@@ -800,7 +821,7 @@ static pn_status phase2(ic_render *ir, pn_threadpool *pool, uint64_t *bound_eval
     pair_stack W = {0};
     for (int k = PN_VPL_KIND_COUNT - 1; k >= 0; k--)
         if (lt->roots[k] >= 0 && !stack_push(&W, (ic_pair){0, lt->roots[k], k})) return PN_ERROR_OUT_OF_MEMORY;
-    bool ok = algorithm1(ir, &W, -1, bound_evals, pairs);
+    bool ok = algorithm1(ir, &W, -1, NULL, bound_evals, pairs);
     free(W.v);
     if (!ok) return PN_ERROR_OUT_OF_MEMORY;
     ic_worker_totals *tot = calloc((size_t)ir->group_count + 1, sizeof *tot);
