@@ -69,9 +69,9 @@
  *     the points' sums, applied in order, so that a packet may span consecutive pairs. Same rays,
  *     same answers, same image; ics12, bathroom window at full density: IC-S 1% about -20% and
  *     IC 1.5% about -35% process CPU time.
- *   - The VPL contribution of the loops over a pair's points is an inlined copy of
- *     pn_vpl_contribution_with (vpl_contribution: same operations, same floats, no libm fmaxf
- *     calls); images unchanged.
+ *   - The VPL contributions are evaluated by pn_vpl_contribution_inline (illumcut.h: an inlined
+ *     copy of pn_vpl_contribution_with, same floats, no libm fmaxf calls; lightcuts uses it
+ *     too); images unchanged.
  *   - Threads: see run_phase2 — the pairs are generated in Algorithm 1's order by one thread and
  *     shaded by all, grouped by disjoint point sub-trees so that every point's sum is added in
  *     the same order whatever the thread count (bit-identical images).
@@ -318,60 +318,13 @@ static float light_radius(const ic_render *ir, const pn_light_node *q, int kind)
     return kind == PN_VPL_DIRECTIONAL ? r * ir->scene_diameter : r;
 }
 
-/* pn_vpl_contribution_with for Phase II's loops (one VPL, many points of a pair), inlined here:
- * the same operations in the same order, so the same floats, with fmaxf's two uses written as
- * comparisons (equal results for these operands: no NaN reaches the first, and the second only
- * feeds powf, where +0 and -0 give the same lobe) so that no libm call is made; VPLs of scene
- * lights (spot falloff, goniometric factor) go to the library function. */
-static inline vec3 vpl_contribution(const ic_render *ir, const pn_vpl *v, vec3 intensity, const pn_vpl_receiver *r,
-                                    vec3 *wi, float *dist) {
-    vec3 w;
-    float g, len;
-    if (v->kind == PN_VPL_DIRECTIONAL) {
-        w = v->p;
-        g = 1.0f;
-        len = INFINITY;
-    } else {
-        if (v->kind != PN_VPL_ORIENTED && v->light >= 0)
-            return pn_vpl_contribution_with(ir->job->lights, v, intensity, r, ir->d->set.min_dist2, wi, dist);
-        vec3 d = v3_sub(v->p, r->p);
-        float len2 = v3_length2(d);
-        if (!(len2 > 0.0f)) return v3(0, 0, 0);
-        len = sqrtf(len2);
-        w = v3_scale(d, 1.0f / len);
-        float min_dist2 = ir->d->set.min_dist2;
-        g = 1.0f / (len2 > min_dist2 ? len2 : min_dist2);
-        if (v->kind == PN_VPL_ORIENTED) {
-            float c = -v3_dot(v->n, w);
-            if (c <= 0.0f) return v3(0, 0, 0);
-            g *= c;
-        }
-    }
-    *wi = w;
-    *dist = len;
-    if (g <= 0.0f) return v3(0, 0, 0);
-    /* pn_vpl_receiver_brdf_cos */
-    float cos_i = v3_dot(r->ns, w);
-    if (cos_i <= 0.0f || v3_dot(r->ng, w) <= 0.0f) return v3(0, 0, 0);
-    vec3 f = v3_scale(r->kd, PN_INV_PI);
-    if (!v3_is_zero(r->ks)) {
-        vec3 refl = pn_reflect(r->wo, r->ns);
-        float cb = v3_dot(refl, w);
-        if (!(cb > 0.0f)) cb = 0.0f;
-        float lobe = (r->exponent + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, r->exponent);
-        f = v3_madd(f, r->ks, lobe);
-    }
-    vec3 m = v3_scale(f, cos_i);
-    return v3_scale(v3_mul(m, intensity), g);
-}
-
 /* Shades point p with light cluster q (eq. 3); returns the contribution (shadowed) and counts
  * the shadow ray. With `assume_visible`, no ray is traced. */
 static vec3 shade_point(const ic_render *ir, ic_point *p, const pn_light_node *q, int mode_visible) {
     const pn_vpl_data *d = ir->d;
     vec3 wi;
     float dist;
-    vec3 c = vpl_contribution(ir, &d->set.vpls[q->rep], q->intensity, &p->r, &wi, &dist);
+    vec3 c = pn_vpl_contribution_inline(ir->job->lights, &d->set.vpls[q->rep], q->intensity, &p->r, d->set.min_dist2, &wi, &dist);
     if (v3_is_zero(c)) return c;
     if (mode_visible) return c;
     p->shadow_rays++;
@@ -585,7 +538,8 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
     ic_point *p = &ir->tree.points[i];
     vec3 wi;
     float dist;
-    vec3 c = vpl_contribution(ir, &ir->d->set.vpls[Q->rep], Q->intensity, &p->r, &wi, &dist);
+    vec3 c = pn_vpl_contribution_inline(ir->job->lights, &ir->d->set.vpls[Q->rep], Q->intensity, &p->r,
+                                            ir->d->set.min_dist2, &wi, &dist);
     if (v3_is_zero(c)) return;
     p->shadow_rays++;
     int k = rb->nr;
@@ -647,7 +601,8 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
             ic_point *q = &pts[qi];
             vec3 wi;
             float dist;
-            vec3 c = vpl_contribution(ir, &ir->d->set.vpls[Q->rep], Q->intensity, &q->r, &wi, &dist);
+            vec3 c = pn_vpl_contribution_inline(ir->job->lights, &ir->d->set.vpls[Q->rep], Q->intensity, &q->r,
+                                                    ir->d->set.min_dist2, &wi, &dist);
             if (v3_is_zero(c)) continue; /* does not vote */
             q->shadow_rays++;
             if (!visibility_ray(ir->job->accel, &q->r, dist, &ro[nr], &rt1[nr])) {
