@@ -396,8 +396,11 @@ bool pn_accel_occluded(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tm
 }
 
 /* Up to 16 occlusion rays traced as one Embree packet of the smallest native width that holds
- * them (one ray: rtcOccluded1). The ray records are the same as pn_accel_occluded's, so each
- * answer is that function's answer for the same ray (checked by test_illumcut on random rays). */
+ * them (one ray: rtcOccluded1). The ray records are the same as pn_accel_occluded's, and the
+ * answers are its answers (test_illumcut compares them on random rays) except for rays that
+ * pass exactly through a triangle edge: Embree's packet and single-ray triangle tests differ
+ * there (ics12: 1 ray in ~10^8 of illumcut's shadow rays, a directional VPL's ray through a
+ * shared edge at u + v = 1, found free by the packet and occluded by rtcOccluded1). */
 void pn_accel_occluded_packet(const pn_accel *acc, int count, const vec3 *o, const vec3 *d, const float *tmin,
                               const float *tmax, bool *occluded) {
     if (count <= 0) return;
