@@ -321,6 +321,11 @@ static void test_batch_interface(void) {
  * differ there, ~1 in 10^8 rays in the bench scenes); random rays do not hit one. With
  * RTC_INTERSECT_CONTEXT_FLAG_COHERENT the packets differed more often (~3 in 10^7, see accel.c),
  * still too rarely for this test to see. */
+static vec3 room_point(pn_rng *rng) {
+    float x = 3.6f * pn_rng_float(rng) - 1.8f, y = 3.6f * pn_rng_float(rng) - 1.8f;
+    return v3(x, y, 2.8f * pn_rng_float(rng) + 0.1f);
+}
+
 static void test_packet_occlusion_matches_single_rays(void) {
     static const char *text =
         "LookAt 0 -1.9 1.6  0 1 1.0  0 0 1\n"
@@ -360,8 +365,7 @@ static void test_packet_occlusion_matches_single_rays(void) {
     for (int bundle = 0; bundle < 6000; bundle++) {
         int n = 1 + bundle % MAXN;
         bool coherent = bundle % 3 != 0;
-        vec3 c = v3(3.6f * pn_rng_float(&rng) - 1.8f, 3.6f * pn_rng_float(&rng) - 1.8f, 2.8f * pn_rng_float(&rng) + 0.1f);
-        vec3 target = v3(3.6f * pn_rng_float(&rng) - 1.8f, 3.6f * pn_rng_float(&rng) - 1.8f, 2.8f * pn_rng_float(&rng) + 0.1f);
+        vec3 c = room_point(&rng), target = room_point(&rng);
         float spread = bundle % 2 ? 0.02f : 0.2f;
         for (int i = 0; i < n; i++) {
             if (coherent) {
@@ -370,7 +374,7 @@ static void test_packet_occlusion_matches_single_rays(void) {
                 t1[i] = i % 7 == 3 ? INFINITY : 1.0f - 1e-3f;
                 if (i % 5 == 0) d[i] = v3_normalize(d[i]), t1[i] = v3_length(v3_sub(target, o[i]));
             } else {
-                o[i] = v3(3.6f * pn_rng_float(&rng) - 1.8f, 3.6f * pn_rng_float(&rng) - 1.8f, 2.8f * pn_rng_float(&rng) + 0.1f);
+                o[i] = room_point(&rng);
                 d[i] = rand_dir(&rng);
                 t1[i] = 4.0f * pn_rng_float(&rng);
             }
@@ -396,4 +400,6 @@ static void setup(void) { vpl_test_setup("illumcut"); }
 
 static void teardown(void) { vpl_test_teardown(); }
 
-PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_phase1_refinement_choice), TEST(test_illumcut_against_vpl), TEST(test_sampling_never_traces_more), TEST(test_batch_interface), TEST(test_packet_occlusion_matches_single_rays), TEST(teardown))
+PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_phase1_refinement_choice), TEST(test_illumcut_against_vpl),
+         TEST(test_sampling_never_traces_more), TEST(test_batch_interface), TEST(test_packet_occlusion_matches_single_rays),
+         TEST(teardown))

@@ -327,7 +327,8 @@ static vec3 shade_point(const ic_render *ir, ic_point *p, const pn_light_node *q
     const pn_vpl_data *d = ir->d;
     vec3 wi;
     float dist;
-    vec3 c = pn_vpl_contribution_inline(ir->job->lights, &d->set.vpls[q->rep], q->intensity, &p->r, d->set.min_dist2, &wi, &dist);
+    vec3 c = pn_vpl_contribution_inline(ir->job->lights, &d->set.vpls[q->rep], q->intensity, &p->r, d->set.min_dist2,
+                                        &wi, &dist);
     if (v3_is_zero(c)) return c;
     if (mode_visible) return c;
     p->shadow_rays++;
@@ -543,7 +544,7 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
     vec3 wi;
     float dist;
     vec3 c = pn_vpl_contribution_inline(ir->job->lights, &ir->d->set.vpls[Q->rep], Q->intensity, &p->r,
-                                            ir->d->set.min_dist2, &wi, &dist);
+                                        ir->d->set.min_dist2, &wi, &dist);
     if (v3_is_zero(c)) return;
     p->shadow_rays++;
     int k = rb->nr;
@@ -567,7 +568,8 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
  * it is taken as the sample of the sub-array that holds it (instead of that sub-array's middle
  * point) and shaded with that answer, so no point traces the same ray twice and a pair never
  * costs more rays than |R|. The samples of one sub-array are traced as one packet; the
- * point-by-point rays go to `rb` (the caller flushes it when the pair is done). */
+ * point-by-point rays and every addition to a point's sum go to the group's queue `rb` (flushed
+ * when 16 rays are pending and at the end of the group, by phase2_group). */
 static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32_t b, const pn_light_node *Q,
                               bool leaf_ok, int32_t known, int known_vis) {
     ic_point *pts = ir->tree.points;
@@ -606,7 +608,7 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
             vec3 wi;
             float dist;
             vec3 c = pn_vpl_contribution_inline(ir->job->lights, &ir->d->set.vpls[Q->rep], Q->intensity, &q->r,
-                                                    ir->d->set.min_dist2, &wi, &dist);
+                                                ir->d->set.min_dist2, &wi, &dist);
             if (v3_is_zero(c)) continue; /* does not vote */
             q->shadow_rays++;
             if (!visibility_ray(ir->job->accel, &q->r, dist, &ro[nr], &rt1[nr])) {
@@ -657,8 +659,10 @@ static bool group_add_item(ic_group *g, ic_item it) {
 /* Algorithm 1's loop over a stack; `emit` decides what happens to a pair to shade: with
  * group >= 0 the pair is shaded at once (the worker owns the group's points), else it is split
  * into the groups it covers and queued. Pairs whose R lies inside a group are handed to that
- * group when group < 0. Returns false when out of memory. */
-static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, ic_rays *queue, uint64_t *bound_evals, uint64_t *pairs) {
+ * group when group < 0. `queue` is the group's queue of additions (group >= 0; NULL above the groups,
+ * which shade nothing). Returns false when out of memory. */
+static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, ic_rays *queue, uint64_t *bound_evals,
+                       uint64_t *pairs) {
     const pn_light_tree *lt = &ir->d->tree;
     ic_tree *t = &ir->tree;
     const float delta = ir->job->error_bound;
