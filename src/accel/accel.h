@@ -36,6 +36,13 @@ bool pn_accel_intersect(const pn_accel *accel, vec3 o, vec3 d, float tmin, float
 /* True if anything blocks o + t d for t in (tmin, tmax). */
 bool pn_accel_occluded(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax);
 
+/* occluded[i] = pn_accel_occluded(accel, o[i], d[i], tmin[i], tmax[i]) for i < count, the rays
+ * traced together as Embree packets of up to 16 (for coherent rays: e.g. from nearby points to
+ * one light). Rays through a triangle edge may be answered differently (Embree's packet and
+ * single-ray triangle tests differ there; see accel.c). */
+void pn_accel_occluded_packet(const pn_accel *accel, int count, const vec3 *o, const vec3 *d, const float *tmin,
+                              const float *tmax, bool *occluded);
+
 /* A distance scale for ray-origin offsets: 1e-4 of the scene's bounding-box diagonal at most, and
  * relative to the coordinates' magnitude. */
 float pn_accel_ray_epsilon(const pn_accel *accel, vec3 p);

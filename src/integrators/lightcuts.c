@@ -87,7 +87,7 @@ static cut_entry heap_pop(lc_scratch *s, size_t *n) {
 static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_receiver *r, uint32_t *shadow_rays) {
     vec3 wi;
     float dist;
-    vec3 v = pn_vpl_contribution_with(c->lights, &c->set->vpls[rep], v3(1, 1, 1), r, c->set->min_dist2, &wi, &dist);
+    vec3 v = pn_vpl_contribution_inline(c->lights, &c->set->vpls[rep], v3(1, 1, 1), r, c->set->min_dist2, &wi, &dist);
     if (v3_is_zero(v)) return v;
     (*shadow_rays)++;
     return pn_vpl_visible(c->accel, r, wi, dist) ? v : v3(0, 0, 0);
