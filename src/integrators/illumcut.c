@@ -72,9 +72,9 @@
  *     <0.4%, in 3 of the 15 full-density bench images). Images stay bit-identical for any
  *     thread count (a group's packets do not depend on it). ics12, full-density render
  *     windows: render CPU time of IC about halved, of IC-S -35..45%.
- *   - The VPL contributions are evaluated by pn_vpl_contribution_inline (illumcut.h: an inlined
- *     copy of pn_vpl_contribution_with, same floats, no libm fmaxf calls; lightcuts uses it
- *     too); images unchanged.
+ *   - The VPL contributions are evaluated by pn_vpl_contribution_inline (lights/vpl.h: the
+ *     library's pn_vpl_contribution_with as an inline function, no libm fmaxf calls; lightcuts
+ *     uses it too); images unchanged.
  *   - Threads: see run_phase2 — the pairs are generated in Algorithm 1's order by one thread and
  *     shaded by all, grouped by disjoint point sub-trees so that every point's sum is added in
  *     the same order whatever the thread count (bit-identical images).

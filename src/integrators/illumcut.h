@@ -27,52 +27,6 @@ pn_status pn_vpl_prepare(pn_render_job *job, bool with_tree, pn_err *err);
 void pn_vpl_release(pn_render_job *job);
 void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats);
 
-/* pn_vpl_contribution_with (lights/vpl.c) inlined for the integrators' inner loops: the same
- * operations in the same order, so the same floats, with its two fmaxf written as comparisons
- * (equal results for these operands: no NaN reaches the first, and the second only feeds powf,
- * where +0 and -0 give the same lobe), so that no libm call is made. VPLs of scene lights (spot
- * falloff, goniometric factor) go to the library function. */
-static inline vec3 pn_vpl_contribution_inline(const pn_lights *lights, const pn_vpl *v, vec3 intensity,
-                                              const pn_vpl_receiver *r, float min_dist2, vec3 *wi, float *dist) {
-    vec3 w;
-    float g, len;
-    if (v->kind == PN_VPL_DIRECTIONAL) {
-        w = v->p;
-        g = 1.0f;
-        len = INFINITY;
-    } else {
-        if (v->kind != PN_VPL_ORIENTED && v->light >= 0)
-            return pn_vpl_contribution_with(lights, v, intensity, r, min_dist2, wi, dist);
-        vec3 d = v3_sub(v->p, r->p);
-        float len2 = v3_length2(d);
-        if (!(len2 > 0.0f)) return v3(0, 0, 0);
-        len = sqrtf(len2);
-        w = v3_scale(d, 1.0f / len);
-        g = 1.0f / (len2 > min_dist2 ? len2 : min_dist2);
-        if (v->kind == PN_VPL_ORIENTED) {
-            float c = -v3_dot(v->n, w);
-            if (c <= 0.0f) return v3(0, 0, 0);
-            g *= c;
-        }
-    }
-    *wi = w;
-    *dist = len;
-    if (g <= 0.0f) return v3(0, 0, 0);
-    /* pn_vpl_receiver_brdf_cos */
-    float cos_i = v3_dot(r->ns, w);
-    if (cos_i <= 0.0f || v3_dot(r->ng, w) <= 0.0f) return v3(0, 0, 0);
-    vec3 f = v3_scale(r->kd, PN_INV_PI);
-    if (!v3_is_zero(r->ks)) {
-        vec3 refl = pn_reflect(r->wo, r->ns);
-        float cb = v3_dot(refl, w);
-        if (!(cb > 0.0f)) cb = 0.0f;
-        float lobe = (r->exponent + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, r->exponent);
-        f = v3_madd(f, r->ks, lobe);
-    }
-    vec3 m = v3_scale(f, cos_i);
-    return v3_scale(v3_mul(m, intensity), g);
-}
-
 /* Eye samples per pixel of the VPL integrators: spp, or 1 when spp is 0 (adaptive). */
 static inline uint32_t pn_vpl_spp(const pn_render_job *job) { return job->spp > 0 ? job->spp : 1u; }
 

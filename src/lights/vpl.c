@@ -317,50 +317,26 @@ void pn_vpl_set_free(pn_vpl_set *set) {
     memset(set, 0, sizeof *set);
 }
 
-vec3 pn_vpl_receiver_brdf_cos(const pn_vpl_receiver *r, vec3 wi) {
-    float cos_i = v3_dot(r->ns, wi);
-    if (cos_i <= 0.0f || v3_dot(r->ng, wi) <= 0.0f) return v3(0, 0, 0);
-    vec3 f = v3_scale(r->kd, PN_INV_PI);
-    if (!v3_is_zero(r->ks)) {
-        /* eq. 1: beta is the angle between the reflected view direction and the light. */
-        vec3 refl = pn_reflect(r->wo, r->ns);
-        float cb = fmaxf(0.0f, v3_dot(refl, wi));
-        float lobe = (r->exponent + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, r->exponent);
-        f = v3_madd(f, r->ks, lobe);
-    }
-    return v3_scale(f, cos_i);
-}
+vec3 pn_vpl_receiver_brdf_cos(const pn_vpl_receiver *r, vec3 wi) { return pn_vpl_brdf_cos_inline(r, wi); }
 
 vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 intensity, const pn_vpl_receiver *r,
                               float min_dist2, vec3 *wi, float *dist) {
-    vec3 w;
-    float g, len;
-    if (v->kind == PN_VPL_DIRECTIONAL) {
-        w = v->p;
-        g = 1.0f;
-        len = INFINITY;
-    } else {
-        vec3 d = v3_sub(v->p, r->p);
-        float len2 = v3_length2(d);
-        if (!(len2 > 0.0f)) return v3(0, 0, 0);
-        len = sqrtf(len2);
-        w = v3_scale(d, 1.0f / len);
-        g = 1.0f / fmaxf(len2, min_dist2);
-        if (v->kind == PN_VPL_ORIENTED) {
-            float c = -v3_dot(v->n, w);
-            if (c <= 0.0f) return v3(0, 0, 0);
-            g *= c;
-        } else if (v->light >= 0) {
-            const pn_light *l = &lights->lights[v->light];
-            if (l->kind == PN_LIGHT_SPOT) g *= spot_falloff(l, -v3_dot(w, l->n));
-            else if (l->kind == PN_LIGHT_GONIOMETRIC) g *= pn_gonio_factor(lights, l, v3_neg(w));
-        }
-    }
+    if (v->kind == PN_VPL_DIRECTIONAL || v->kind == PN_VPL_ORIENTED || v->light < 0)
+        return pn_vpl_contribution_inline(lights, v, intensity, r, min_dist2, wi, dist);
+    /* A VPL at a scene light: its spot falloff or goniometric factor. */
+    vec3 d = v3_sub(v->p, r->p);
+    float len2 = v3_length2(d);
+    if (!(len2 > 0.0f)) return v3(0, 0, 0);
+    float len = sqrtf(len2);
+    vec3 w = v3_scale(d, 1.0f / len);
+    float g = 1.0f / (len2 > min_dist2 ? len2 : min_dist2);
+    const pn_light *l = &lights->lights[v->light];
+    if (l->kind == PN_LIGHT_SPOT) g *= spot_falloff(l, -v3_dot(w, l->n));
+    else if (l->kind == PN_LIGHT_GONIOMETRIC) g *= pn_gonio_factor(lights, l, v3_neg(w));
     *wi = w;
     *dist = len;
     if (g <= 0.0f) return v3(0, 0, 0);
-    vec3 m = pn_vpl_receiver_brdf_cos(r, w);
-    return v3_scale(v3_mul(m, intensity), g);
+    return v3_scale(v3_mul(pn_vpl_brdf_cos_inline(r, w), intensity), g);
 }
 
 vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_receiver *r, float min_dist2, vec3 *wi,

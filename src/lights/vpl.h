@@ -29,7 +29,9 @@
 #include "core/error.h"
 #include "core/vecmath.h"
 #include "lights/lights.h"
+#include "shade/bsdf.h"
 
+#include <math.h>
 #include <stdint.h>
 
 struct pn_scene_s;
@@ -89,6 +91,55 @@ vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 int
 
 /* The BRDF M of eq. 1 times cos theta at r towards unit wi (0 below the horizon). */
 vec3 pn_vpl_receiver_brdf_cos(const pn_vpl_receiver *r, vec3 wi);
+
+/* pn_vpl_receiver_brdf_cos and pn_vpl_contribution_with as inline functions, for the cut
+ * integrators' inner loops; the library functions are these (vpl.c). Clamps are comparisons, not
+ * fmaxf, which this build calls in libm; the results are the same (no NaN reaches them, and +0
+ * and -0 give the same powf). */
+static inline vec3 pn_vpl_brdf_cos_inline(const pn_vpl_receiver *r, vec3 wi) {
+    float cos_i = v3_dot(r->ns, wi);
+    if (cos_i <= 0.0f || v3_dot(r->ng, wi) <= 0.0f) return v3(0, 0, 0);
+    vec3 f = v3_scale(r->kd, PN_INV_PI);
+    if (!v3_is_zero(r->ks)) {
+        /* eq. 1: beta is the angle between the reflected view direction and the light. */
+        vec3 refl = pn_reflect(r->wo, r->ns);
+        float cb = v3_dot(refl, wi);
+        if (!(cb > 0.0f)) cb = 0.0f;
+        float lobe = (r->exponent + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, r->exponent);
+        f = v3_madd(f, r->ks, lobe);
+    }
+    return v3_scale(f, cos_i);
+}
+
+/* VPLs at scene lights (spot falloff, goniometric factor) go through the library function. */
+static inline vec3 pn_vpl_contribution_inline(const pn_lights *lights, const pn_vpl *v, vec3 intensity,
+                                              const pn_vpl_receiver *r, float min_dist2, vec3 *wi, float *dist) {
+    vec3 w;
+    float g, len;
+    if (v->kind == PN_VPL_DIRECTIONAL) {
+        w = v->p;
+        g = 1.0f;
+        len = INFINITY;
+    } else {
+        if (v->kind != PN_VPL_ORIENTED && v->light >= 0)
+            return pn_vpl_contribution_with(lights, v, intensity, r, min_dist2, wi, dist);
+        vec3 d = v3_sub(v->p, r->p);
+        float len2 = v3_length2(d);
+        if (!(len2 > 0.0f)) return v3(0, 0, 0);
+        len = sqrtf(len2);
+        w = v3_scale(d, 1.0f / len);
+        g = 1.0f / (len2 > min_dist2 ? len2 : min_dist2);
+        if (v->kind == PN_VPL_ORIENTED) {
+            float c = -v3_dot(v->n, w);
+            if (c <= 0.0f) return v3(0, 0, 0);
+            g *= c;
+        }
+    }
+    *wi = w;
+    *dist = len;
+    if (g <= 0.0f) return v3(0, 0, 0);
+    return v3_scale(v3_mul(pn_vpl_brdf_cos_inline(r, w), intensity), g);
+}
 
 /* True when nothing blocks the segment from r towards the VPL (a shadow ray). */
 bool pn_vpl_visible(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist);
