@@ -157,9 +157,7 @@ static void test_illumcut_against_vpl(void) {
         CHECK(s_ic.illumcut_pairs > 0 && s_ic.phase1_seconds > 0.0);
         CHECK(same_beauty(ic, ic1) && same_beauty(ics, ics1));
         /* The Phase I image (layer "phase1") approximates the final one. */
-        int l1 = -1;
-        for (int l = 0; l < pn_image_layer_count(ic); l++)
-            if (strcmp(pn_image_layer_name(ic, l), "phase1") == 0) l1 = l;
+        int l1 = vpl_test_layer(ic, "phase1");
         CHECK(l1 > 0);
         if (l1 > 0) {
             double e_p1 = mean_rel_error(ic, ref, l1, &mx_p1);
@@ -216,11 +214,7 @@ static void test_sampling_never_traces_more(void) {
         CHECK(pn_render(ctx, scene, &rs, &img[k], &st[k]) == PN_OK);
     }
     if (img[0] && img[1]) {
-        int la = -1, lb = -1;
-        for (int l = 0; l < pn_image_layer_count(img[0]); l++)
-            if (strcmp(pn_image_layer_name(img[0], l), "shadow_rays") == 0) la = l;
-        for (int l = 0; l < pn_image_layer_count(img[1]); l++)
-            if (strcmp(pn_image_layer_name(img[1], l), "shadow_rays") == 0) lb = l;
+        int la = vpl_test_layer(img[0], "shadow_rays"), lb = vpl_test_layer(img[1], "shadow_rays");
         CHECK(la > 0 && lb > 0);
         if (la > 0 && lb > 0) {
             const float *ra = pn_image_layer_data(img[0], la), *rb = pn_image_layer_data(img[1], lb);

@@ -7,6 +7,7 @@
 
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* The test's scratch folder: made by vpl_test_setup, removed with its files by
  * vpl_test_teardown. */
@@ -29,6 +30,13 @@ static inline pn_scene vpl_test_load(pn_context ctx, const char *name, const cha
     pn_scene scene = NULL;
     CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
     return scene;
+}
+
+/* The index of img's layer called `name`, or -1. */
+static inline int vpl_test_layer(pn_image img, const char *name) {
+    for (int l = 0; l < pn_image_layer_count(img); l++)
+        if (strcmp(pn_image_layer_name(img, l), name) == 0) return l;
+    return -1;
 }
 
 /* A closed room (4 x 4 x 3) with a box standing on the floor, a point light and a rectangle

@@ -755,7 +755,6 @@ static int cmp_task(const void *a, const void *b) {
     return x->block < y->block ? -1 : x->block > y->block;
 }
 
-/* Queues the boundary pixels of the edge blocks in task order (see process()). */
 /* The luminance of what a work pixel's interpolated value stands for in the image: the quotient
  * multiplied back by its demodulation factor (albedo and light guide), without the emitted part,
  * which the primary rays give exactly. */
@@ -766,6 +765,7 @@ static float corner_radiance(const pn_prog *p, int x, int y) {
     return v3_luminance(v3(r[0] * f[0], r[1] * f[1], r[2] * f[2]));
 }
 
+/* Queues the boundary pixels of the edge blocks in task order (see process()). */
 static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k) {
     int rounds = 0;
     for (int sp = k / 2; sp >= 1; sp /= 2) rounds++;

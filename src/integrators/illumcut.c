@@ -323,14 +323,14 @@ static float light_radius(const ic_render *ir, const pn_light_node *q, int kind)
 
 /* Shades point p with light cluster q (eq. 3); returns the contribution (shadowed) and counts
  * the shadow ray. With `assume_visible`, no ray is traced. */
-static vec3 shade_point(const ic_render *ir, ic_point *p, const pn_light_node *q, int mode_visible) {
+static vec3 shade_point(const ic_render *ir, ic_point *p, const pn_light_node *q, int assume_visible) {
     const pn_vpl_data *d = ir->d;
     vec3 wi;
     float dist;
     vec3 c = pn_vpl_contribution_inline(ir->job->lights, &d->set.vpls[q->rep], q->intensity, &p->r, d->set.min_dist2,
                                         &wi, &dist);
     if (v3_is_zero(c)) return c;
-    if (mode_visible) return c;
+    if (assume_visible) return c;
     p->shadow_rays++;
     return pn_vpl_visible(ir->job->accel, &p->r, wi, dist) ? c : v3(0, 0, 0);
 }
@@ -496,15 +496,6 @@ static pn_status phase1(ic_render *ir, pn_threadpool *pool) {
  * and the header). */
 #define IC_PACKET 16
 
-/* The shadow ray of pn_vpl_visible(accel, r, wi, dist): false when it is empty (then the VPL
- * counts as visible without a ray, as there). */
-static bool visibility_ray(const pn_accel *accel, const pn_vpl_receiver *r, float dist, vec3 *o, float *tmax) {
-    float eps = pn_accel_ray_epsilon(accel, r->p);
-    *o = v3_madd(r->p, r->ng, eps);
-    *tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-3f) - eps;
-    return *tmax > 0.0f;
-}
-
 /* The additions to the points' sums of one group's Phase II, queued in order, with the shadow
  * rays of the point-by-point shading: an entry adds c to its point unless its ray (if it has
  * one) is occluded. The rays are traced when 16 are pending (one packet, possibly spanning
@@ -548,7 +539,7 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
     if (v3_is_zero(c)) return;
     p->shadow_rays++;
     int k = rb->nr;
-    if (!visibility_ray(ir->job->accel, &p->r, dist, &rb->o[k], &rb->tmax[k])) {
+    if (!pn_vpl_shadow_ray(ir->job->accel, &p->r, dist, &rb->o[k], &rb->tmax[k])) {
         add_queued(ir, rb, i, c);
         return;
     }
@@ -611,7 +602,7 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
                                                 ir->d->set.min_dist2, &wi, &dist);
             if (v3_is_zero(c)) continue; /* does not vote */
             q->shadow_rays++;
-            if (!visibility_ray(ir->job->accel, &q->r, dist, &ro[nr], &rt1[nr])) {
+            if (!pn_vpl_shadow_ray(ir->job->accel, &q->r, dist, &ro[nr], &rt1[nr])) {
                 vis[k] = 1;
                 continue;
             }
@@ -686,25 +677,18 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, ic_rays *que
         bool q_leaf = Q->left < 0, r_leaf = R->left < 0;
         bool shade = q_leaf; /* one VPL: exact */
         bool leaf_ok = false;
-        if (q_leaf && ir->job->visibility_sampling && R->count >= 8) {
-            /* A one-VPL pair that passes the bound test may be sampled like any other passing
-             * pair (see the header); the test is only needed for that. */
-            pn_receiver_bounds rb = node_bounds(R);
-            pn_light_bounds lb = pn_light_node_bounds(Q, pr.kind);
-            float ub = pn_bound_error(&rb, &lb, Q->intensity, min_dist2);
-            n_bounds++;
-            R->bound_acc += 1.0f / (float)R->count;
-            if (ub <= 0.0f) continue; /* the VPL cannot light any point of R */
-            leaf_ok = delta * R->color > ub;
-        }
-        if (!shade) {
+        /* The bound test, for every pair with a cluster Q; a one-VPL pair takes it only when
+         * Algorithm 2 may sample it if it passes (see the header). */
+        if (!q_leaf || (ir->job->visibility_sampling && R->count >= 8)) {
             pn_receiver_bounds rb = node_bounds(R);
             pn_light_bounds lb = pn_light_node_bounds(Q, pr.kind);
             float ub = pn_bound_error(&rb, &lb, Q->intensity, min_dist2);
             n_bounds++;
             R->bound_acc += 1.0f / (float)R->count;
             if (ub <= 0.0f) continue; /* nothing of Q reaches R */
-            shade = delta * R->color > ub; /* IsIllumAwarePair, eq. 4-5 */
+            bool passes = delta * R->color > ub; /* IsIllumAwarePair, eq. 4-5 */
+            if (q_leaf) leaf_ok = passes;
+            else shade = passes;
         }
         if (shade) {
             n_pairs++;

@@ -344,10 +344,16 @@ vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_
     return pn_vpl_contribution_with(lights, v, v->intensity, r, min_dist2, wi, dist);
 }
 
-bool pn_vpl_visible(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist) {
+bool pn_vpl_shadow_ray(const pn_accel *accel, const pn_vpl_receiver *r, float dist, vec3 *o, float *tmax) {
     float eps = pn_accel_ray_epsilon(accel, r->p);
-    vec3 o = v3_madd(r->p, r->ng, eps);
-    float tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-3f) - eps;
-    if (!(tmax > 0.0f)) return true;
+    *o = v3_madd(r->p, r->ng, eps);
+    *tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-3f) - eps;
+    return *tmax > 0.0f;
+}
+
+bool pn_vpl_visible(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist) {
+    vec3 o;
+    float tmax;
+    if (!pn_vpl_shadow_ray(accel, r, dist, &o, &tmax)) return true;
     return !pn_accel_occluded(accel, o, wi, 0.0f, tmax);
 }

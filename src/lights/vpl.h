@@ -144,4 +144,9 @@ static inline vec3 pn_vpl_contribution_inline(const pn_lights *lights, const pn_
 /* True when nothing blocks the segment from r towards the VPL (a shadow ray). */
 bool pn_vpl_visible(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist);
 
+/* The shadow ray pn_vpl_visible traces (origin *o, direction wi, t in (0, *tmax)), for callers
+ * that trace several together; false when the segment is empty (the VPL then counts as visible
+ * without a ray). */
+bool pn_vpl_shadow_ray(const pn_accel *accel, const pn_vpl_receiver *r, float dist, vec3 *o, float *tmax);
+
 #endif
