@@ -99,6 +99,11 @@ typedef struct pn_material {
 typedef struct pn_emission {
     vec3 radiance;  /* L * scale (* power normalisation) */
     bool two_sided;
+    /* "power" normalised per pbrt-v4 shape inside a mesh: 0 = radiance is final; 1 = each
+     * triangle is a shape, 2 = each pair of triangles (2i, 2i + 1) is one (a bilinear patch).
+     * The radiance of a triangle is then radiance / (area of its shape); pn_emission_area_scale
+     * (lights/lights.h) computes the factor. */
+    int per_shape;
 } pn_emission;
 
 /* A triangle mesh. Positions/normals are in world space, or in the object's space for meshes of
