@@ -12,8 +12,8 @@
 typedef enum pn_spectrum_use {
     PN_SPECTRUM_ALBEDO = 0,     /* reflectances: clamped to [0, 1] */
     PN_SPECTRUM_UNBOUNDED = 1,  /* eta, k, sigma: taken as they are */
-    PN_SPECTRUM_ILLUMINANT = 2  /* emission: blackbody normalised to luminance 1, named
-                                   illuminants (stdillum-*) to their white point */
+    PN_SPECTRUM_ILLUMINANT = 2  /* emission: blackbody and named illuminants (stdillum-*)
+                                   normalised to luminance 1, keeping their colour */
 } pn_spectrum_use;
 
 /* Reads parameter `name` of type rgb, blackbody or spectrum (numeric lambda/value pairs, a named
