@@ -255,7 +255,8 @@ static void test_conductor(void) {
         CHECK(s->materials[i].kind == PN_MATERIAL_MIRROR);
         CHECK_NEAR(s->materials[i].specular.y, 0.8, 1e-6);
     }
-    /* coatedconductor: Blinn from the conductor's F0 and the interface roughness. */
+    /* coatedconductor: Blinn from the conductor's F0 and both roughnesses: alpha^2 = 0.02 +
+     * 0.002 (remapped alpha = sqrt(roughness)). */
     ps = make_params();
     add_str(&ps, PN_PT_SPECTRUM, "conductor.eta", "metal-Cu-eta");
     add_str(&ps, PN_PT_SPECTRUM, "conductor.k", "metal-Cu-k");
@@ -266,7 +267,7 @@ static void test_conductor(void) {
         const pn_material *m = &s->materials[i];
         CHECK(m->kind == PN_MATERIAL_LAMBERT_BLINN);
         CHECK_NEAR(m->ks.value.x, f0_conductor(eta.x, k.x), 1e-5);
-        CHECK_NEAR(m->exponent, 2.0 / 0.02 - 2.0, 1e-2);
+        CHECK_NEAR(m->exponent, 2.0 / 0.022 - 2.0, 1e-2);
     }
     free_scene(s);
 }

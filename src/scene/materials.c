@@ -18,7 +18,10 @@
  *                        ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2) from eta, k (default
  *                        metal-Cu), or "reflectance" when given
  *   coatedconductor      BLINN ks = F0 of the conductor (conductor.eta / conductor.k or
- *                        reflectance), kd = 0, n from the interface roughness
+ *                        reflectance), kd = 0, n from alpha = sqrt(alpha_i^2 + alpha_c^2) of the
+ *                        interface and conductor roughnesses (the metal's lobe blurred by the
+ *                        coating; pbrt-v4 honours both "interface.roughness" and
+ *                        "conductor.roughness")
  *   dielectric,          DIELECTRIC with eta (a float, or a spectrum's value at 550 nm; default
  *   thindielectric       1.5), white; a rough dielectric is rendered smooth, with a warning
  *   diffusetransmission  LAMBERT kd = reflectance (default 0.25) * scale (a textured reflectance
@@ -26,7 +29,8 @@
  *   mix                  the input material with the larger weight ("amount" > 0.5 picks the
  *                        second one), with a warning
  *   measured, hair,      LAMBERT substitutes with a warning: kd = 0.5 (measured), the hair
- *   subsurface           "color" or 0.3 (hair), "reflectance" or 0.5 (subsurface)
+ *   subsurface           "reflectance" (pbrt-v4's name; pbrt-v3's "color" is read too) or 0.3
+ *                        (hair), "reflectance" or 0.5 (subsurface)
  *   interface            INTERFACE
  *
  * Older scenes written for pbrt-v3 use its material names, which are mapped with the same models
@@ -422,7 +426,7 @@ static pn_status map_conductor(builder *b, pn_err *err) {
 static pn_status map_coatedconductor(builder *b, pn_err *err) {
     double roughness = 0, alpha = 0, cr = 0, ca = 0, ieta = 1.5;
     pn_status st = read_roughness(b, "interface.", &roughness, &alpha, err);
-    if (st == PN_OK) st = read_roughness(b, "conductor.", &cr, &ca, err); /* reported only */
+    if (st == PN_OK) st = read_roughness(b, "conductor.", &cr, &ca, err);
     if (st == PN_OK) st = pn_params_spectrum_value(b->ps, "interface.eta", 550.0, 1.5, &ieta, NULL, err);
     pn_texref f0;
     char what[160];
@@ -430,6 +434,11 @@ static pn_status map_coatedconductor(builder *b, pn_err *err) {
     if (st != PN_OK) return st;
     static const char *const ignored[] = {"thickness", "albedo", "g", "maxdepth", "nsamples"};
     accept_silently(b->ps, ignored, sizeof ignored / sizeof ignored[0]);
+    /* The metal's lobe is seen through the coating: its microfacet spread and the interface's
+     * add (as variances of the slope distributions), so either roughness widens the lobe. */
+    double alpha_i = alpha;
+    alpha = sqrt(alpha_i * alpha_i + ca * ca);
+    roughness = 0.5 * (roughness + cr);
     bool clamped = false;
     double n = blinn_exponent(alpha, &clamped);
     b->m.kind = PN_MATERIAL_LAMBERT_BLINN;
@@ -441,7 +450,8 @@ static pn_status map_coatedconductor(builder *b, pn_err *err) {
     snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.5g, kd=0", s, n);
     char r[128];
     describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
-    snprintf(b->note, sizeof b->note, "(F0 of the conductor, %s; interface %s)", what, r);
+    snprintf(b->note, sizeof b->note, "(F0 of the conductor, %s; interface alpha %.3g + conductor alpha %.3g: %s)",
+             what, alpha_i, ca, r);
     warn_bump(b);
     return PN_OK;
 }
@@ -523,8 +533,10 @@ static pn_status map_substitute(builder *b, pn_err *err) {
     pn_texref kd = constant_ref(v3(0.5f, 0.5f, 0.5f));
     pn_status st = PN_OK;
     if (strcmp(type, "hair") == 0) {
-        const pn_param *p = find_param(b->ps, "color");
-        if (p) st = pn_params_texref(b->scene, b->ps, "color", false, v3(0.3f, 0.3f, 0.3f), &kd, err);
+        /* pbrt-v4's hair colour input is "reflectance" (pbrt-v3's was "color"). */
+        const char *colour = find_param(b->ps, "reflectance") ? "reflectance" : "color";
+        if (find_param(b->ps, colour))
+            st = pn_params_texref(b->scene, b->ps, colour, false, v3(0.3f, 0.3f, 0.3f), &kd, err);
         else kd = constant_ref(v3(0.3f, 0.3f, 0.3f));
     } else if (strcmp(type, "subsurface") == 0) {
         if (find_param(b->ps, "reflectance"))
