@@ -45,6 +45,8 @@ typedef struct pn_texture {
     float su, sv, du, dv; /* uv mapping: s = su*u + du, t = sv*v + dv */
     float scale;      /* IMAGE: multiplies the looked-up value (pbrt "scale") */
     bool invert;      /* IMAGE: 1 - value */
+    bool float_first_channel; /* IMAGE, float: the first channel of an RGB image instead of the
+                                 channel average (pbrt-v4's point / EWA filters; texture.c) */
     pn_wrap_mode wrap;
     pn_texref a, b, amount; /* SCALE: a*b; MIX: a, b, amount; CHECKERBOARD: a=tex1, b=tex2 */
     char *name;
