@@ -303,9 +303,12 @@ static void test_dielectric_mix_interface(void) {
     add_float(&ps, "amount", 0.7);
     i = build_material(s, "mix", "Mix", &ps);
     if (i >= 0 && diffuse >= 0) {
-        CHECK(s->materials[i].kind == PN_MATERIAL_DIELECTRIC);
-        CHECK(has_warning(s, "mix material"));
-        CHECK_STR_CONTAINS(s->materials[i].description, "Mix: pbrt mix -> dielectric");
+        /* pbrt-v4 chooses per hit: a MIX record with the second input at probability 0.7. */
+        CHECK(s->materials[i].kind == PN_MATERIAL_MIX);
+        CHECK(s->materials[i].mix[0] == diffuse);
+        CHECK(s->materials[i].kind != PN_MATERIAL_MIX || s->materials[s->materials[i].mix[1]].kind == PN_MATERIAL_DIELECTRIC);
+        CHECK_NEAR(s->materials[i].mix_amount.value.x, 0.7, 1e-6);
+        CHECK_STR_CONTAINS(s->materials[i].description, "Mix: pbrt mix -> per-hit choice of 'D' and 'Water'");
     }
     ps = make_params();
     i = build_material(s, "interface", "I", &ps);
@@ -766,22 +769,33 @@ static void test_v3_mix(void) {
     build_material(s, "matte", "A", &ps);
     ps = make_params();
     build_material(s, "mirror", "B", &ps);
-    /* pbrt-v3's amount weights the first material: 0.7 keeps A, 0.3 keeps B. */
+    /* pbrt-v3's amount weights the first material: a per-hit choice of A with probability 0.7
+     * (set as the second input of the MIX record, whose amount is its probability). */
     ps = make_params();
     add_str(&ps, PN_PT_STRING, "namedmaterial1", "A");
     add_str(&ps, PN_PT_STRING, "namedmaterial2", "B");
     add_float(&ps, "amount", 0.7);
     int i = build_material(s, "mix", "MixA", &ps);
+    int ia = pn_scene_find_material(s, "A"), ib = pn_scene_find_material(s, "B");
     if (i >= 0) {
-        CHECK(s->materials[i].kind == PN_MATERIAL_LAMBERT_BLINN);
-        CHECK_STR_CONTAINS(s->materials[i].description, "MixA: pbrt-v3 mix -> Lambert kd=0.5");
+        CHECK(s->materials[i].kind == PN_MATERIAL_MIX);
+        CHECK(s->materials[i].mix[1] == ia && s->materials[i].mix[0] == ib);
+        CHECK_NEAR(s->materials[i].mix_amount.value.y, 0.7, 1e-6);
+        CHECK_STR_CONTAINS(s->materials[i].description, "MixA: pbrt-v3 mix -> per-hit choice of 'B' and 'A'");
     }
     ps = make_params();
     add_str(&ps, PN_PT_STRING, "namedmaterial1", "A");
     add_str(&ps, PN_PT_STRING, "namedmaterial2", "B");
     add_rgb(&ps, "amount", 0.3, 0.3, 0.3);
     i = build_material(s, "mix", "MixB", &ps);
-    if (i >= 0) CHECK(s->materials[i].kind == PN_MATERIAL_MIRROR);
+    if (i >= 0) CHECK(s->materials[i].kind == PN_MATERIAL_MIX && s->materials[i].mix[1] == ia);
+    /* amount 1 is A alone (a constant amount at 0 or 1 is one material, as in pbrt). */
+    ps = make_params();
+    add_str(&ps, PN_PT_STRING, "namedmaterial1", "A");
+    add_str(&ps, PN_PT_STRING, "namedmaterial2", "B");
+    add_float(&ps, "amount", 1.0);
+    i = build_material(s, "mix", "MixC", &ps);
+    if (i >= 0) CHECK(s->materials[i].kind == PN_MATERIAL_LAMBERT_BLINN);
     ps = make_params();
     add_str(&ps, PN_PT_STRING, "namedmaterial1", "A");
     add_str(&ps, PN_PT_STRING, "namedmaterial2", "Nope");

@@ -68,12 +68,16 @@ typedef struct pn_texture_image {
  *  MIRROR: perfect specular reflection with RGB reflectance `specular` (eye rays follow it).
  *  DIELECTRIC: perfect specular reflection + refraction with index `eta` for eye rays; opaque to
  *              shadow rays. `specular` tints both.
- *  INTERFACE: invisible (pbrt's "interface"); eye and shadow rays pass through. */
+ *  INTERFACE: invisible (pbrt's "interface"); eye and shadow rays pass through.
+ *  MIX: pbrt-v4's mix, resolved per hit (shade/bsdf.c): materials mix[1] with probability
+ *       `mix_amount` at the hit's (u, v), else mix[0], chosen by a hash of the hit. Never seen
+ *       by the shading code, which gets the chosen material's model. */
 typedef enum pn_material_kind {
     PN_MATERIAL_LAMBERT_BLINN = 0,
     PN_MATERIAL_MIRROR = 1,
     PN_MATERIAL_DIELECTRIC = 2,
-    PN_MATERIAL_INTERFACE = 3
+    PN_MATERIAL_INTERFACE = 3,
+    PN_MATERIAL_MIX = 4
 } pn_material_kind;
 
 typedef struct pn_material {
@@ -91,6 +95,8 @@ typedef struct pn_material {
      * hemispherical Fresnel reflectance. */
     bool coated;
     float coat_transmission, coat_internal;
+    int mix[2];            /* MIX: the two materials (indices, defined before this one) */
+    pn_texref mix_amount;  /* MIX: probability of mix[1] (channel average of the value) */
     char *name;          /* pbrt name ("" for anonymous Material directives) */
     char *description;   /* one line: "NAME: pbrt TYPE -> penumbra model (parameters)" */
 } pn_material;
