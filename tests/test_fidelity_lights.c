@@ -291,6 +291,27 @@ static void test_interface_shapes_do_not_emit(void) {
     pn_context_free(ctx);
 }
 
+/* hair: pbrt-v4's colour input is "reflectance" (the Lambert substitute takes it as kd). */
+static void test_hair_reflectance(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene s = load(ctx, "hair.pbrt",
+                      "MakeNamedMaterial \"H\" \"string type\" \"hair\" \"rgb reflectance\" [ 0.6 0.3 0.1 ]\n"
+                      "MakeNamedMaterial \"D\" \"string type\" \"hair\"\n"
+                      "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
+    if (s) {
+        int h = pn_scene_find_material(s, "H"), d = pn_scene_find_material(s, "D");
+        CHECK(h >= 0 && d >= 0);
+        if (h >= 0) {
+            CHECK_NEAR(s->materials[h].kd.value.x, 0.6, 1e-6);
+            CHECK_NEAR(s->materials[h].kd.value.z, 0.1, 1e-6);
+        }
+        if (d >= 0) CHECK_NEAR(s->materials[d].kd.value.y, 0.3, 1e-6);
+        CHECK(!has_warning(s, "unused parameter \"rgb reflectance\""));
+    }
+    pn_scene_free(s);
+    pn_context_free(ctx);
+}
+
 /* Linear sRGB at luminance 1 of CIE chromaticity (x, y). */
 static vec3 chromaticity(double x, double y) {
     double X = x / y, Z = (1.0 - x - y) / y;
@@ -426,5 +447,6 @@ static void setup(void) {
 static void test_setup(void) { setup(); }
 
 PN_TESTS(TEST(test_setup), TEST(test_spot_falloff_and_power), TEST(test_area_power_per_shape),
-         TEST(test_mix_proportions), TEST(test_interface_shapes_do_not_emit), TEST(test_named_illuminants_keep_colour),
+         TEST(test_mix_proportions), TEST(test_interface_shapes_do_not_emit), TEST(test_hair_reflectance),
+         TEST(test_named_illuminants_keep_colour),
          TEST(test_encoding_and_float_lookups))
