@@ -8,6 +8,7 @@
 
 #include "accel/accel.h"
 #include "io/image.h"
+#include "lights/light_bvh.h"
 #include "lights/lights.h"
 #include "penumbra/penumbra.h"
 #include "scene/build.h"
@@ -114,7 +115,14 @@ static void test_spot_falloff_and_power(void) {
         }
         phi *= 2.0 * M_PI;
         CHECK_NEAR(phi, 2.0 * 10.0, 2e-3 * 20.0);
-        /* The light BVH bounds use the same cone (pbrt-v4 SpotLight::Bounds). */
+        /* The light BVH bounds of pbrt-v4's SpotLight::Bounds: phi = 4 pi I, cos theta_o =
+         * cos start, cos theta_e = cos(theta_end - theta_start). */
+        pn_light_bounds b;
+        CHECK(pn_light_bounds_of(L, &L->lights[0], &b));
+        CHECK_NEAR(b.phi, 4.0 * M_PI * 2.0, 1e-4);
+        CHECK_NEAR(b.cos_o, cs, 1e-6);
+        CHECK_NEAR(b.cos_e, cos(10.0 * M_PI / 180.0), 1e-5);
+        CHECK_NEAR(b.w.z, 1.0, 1e-6);
     }
     pn_scene_free(s);
     pn_context_free(ctx);
@@ -251,6 +259,8 @@ static void test_mix_proportions(void) {
                 var[c] += d * d / (double)(n - 1);
             }
         const double expected[3] = {0.65, 0.35, 0.5};
+        fprintf(stderr, "  mix image mean (%.4f, %.4f, %.4f), expected (0.65, 0.35, 0.5); pixel sd (%.4f, %.4f, %.4f)\n",
+                mean[0], mean[1], mean[2], sqrt(var[0]), sqrt(var[1]), sqrt(var[2]));
         for (int c = 0; c < 3; c++) {
             /* 5 standard errors of the mean of 256 independent pixels (their measured spread
              * includes both the material choice and the light sampling). */

@@ -93,8 +93,9 @@ typedef struct pn_lights {
 
 /* Builds the light records: LightSource definitions, and emissive shapes (a mesh's triangle pairs
  * that form planar rectangles become RECTANGLE lights, other triangles TRIANGLE lights, disks
- * DISK lights, spheres SPHERE lights). Zero-area and zero-power emitters are dropped with a
- * warning. */
+ * DISK lights, spheres SPHERE lights). Zero-area and zero-power emitters, and emitters whose
+ * material is "interface" (pbrt-v4 creates no area light for them), are dropped with a warning.
+ * With "power" per pbrt-v4 shape (pn_emission.per_shape) each triangle gets its own radiance. */
 pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err);
 void pn_lights_free(pn_lights *lights);
 
