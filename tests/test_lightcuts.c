@@ -496,7 +496,7 @@ static void test_all_light_kinds(void) {
                           "LightSource \"infinite\" \"rgb L\" [ 0.2 0.25 0.3 ]\n"
                           "LightSource \"distant\" \"point3 from\" [ 1 -1 3 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 0.8 0.7 0.6 ]\n"
                           "LightSource \"spot\" \"point3 from\" [ -1 -1 3 ] \"point3 to\" [ -1 0 0 ] \"float coneangle\" [ 30 ]\n"
-                          "    \"float conedelta\" [ 10 ] \"rgb I\" [ 4 4 3 ]\n"
+                          "    \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 4 4 3 ]\n"
                           "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [ 5 4 3 ]\n  Translate 1.5 0 1.2\n"
                           "  Shape \"sphere\" \"float radius\" [ 0.15 ]\nAttributeEnd\n"
                           "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"

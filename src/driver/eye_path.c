@@ -26,7 +26,7 @@ void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specula
         }
         vec3 wo = v3_neg(d);
         if (hit.emission >= 0)
-            path->emitted = v3_add(path->emitted, v3_mul(path->throughput, pn_emission_radiance(scene, hit.emission, hit.ng, wo)));
+            path->emitted = v3_add(path->emitted, v3_mul(path->throughput, pn_hit_emission(scene, &hit, wo)));
         pn_bsdf b;
         pn_bsdf_at(scene, &hit, wo, &b);
         if (depth == 0) {

@@ -2,6 +2,7 @@
  * and the unoccluded-irradiance estimate used for the reference light PDF (IAS paper §5.1). */
 #include "lights/lights.h"
 
+#include "accel/accel.h"
 #include "core/sampling.h"
 #include "scene/scene.h"
 
@@ -275,6 +276,28 @@ static bool pair_is_rectangle(const pn_mesh *m, uint32_t a, uint32_t b, vec3 na,
     return true;
 }
 
+static float triangle_area(const pn_mesh *m, uint32_t t) {
+    const uint32_t *idx = m->indices + 3 * (size_t)t;
+    vec3 p0 = mesh_vertex(m, idx[0]);
+    return 0.5f * v3_length(v3_cross(v3_sub(mesh_vertex(m, idx[1]), p0), v3_sub(mesh_vertex(m, idx[2]), p0)));
+}
+
+float pn_emission_area_scale(const pn_mesh *m, const pn_emission *e, uint32_t t) {
+    if (!e || e->per_shape == 0 || !m || t >= m->triangle_count) return 1.0f;
+    float a = triangle_area(m, t);
+    if (e->per_shape == 2) {
+        uint32_t other = t ^ 1u; /* the patch's other triangle */
+        if (other < m->triangle_count) a += triangle_area(m, other);
+    }
+    return a > 0.0f ? 1.0f / a : 0.0f;
+}
+
+/* pbrt-v4 creates no area light for a shape whose material is "interface" (scene.cpp). */
+static bool is_interface(const struct pn_scene_s *scene, int material) {
+    return material >= 0 && material < scene->material_count &&
+           scene->materials[material].kind == PN_MATERIAL_INTERFACE;
+}
+
 static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *ll, pn_err *err) {
     const pn_mesh *m = &scene->meshes[mi];
     const pn_emission *em = &scene->emissions[m->emission];
@@ -308,12 +331,20 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         vec3 n = triangle_emit_normal(m, t);
         pn_light *l = push_light(ll, err);
         if (!l) return err->status;
-        l->emit = em->radiance;
+        /* With "power" per pbrt-v4 shape, each triangle (or patch) has its own radiance; two
+         * triangles merge into a rectangle only when their radiance is the same. */
+        float k = pn_emission_area_scale(m, em, t);
+        l->emit = v3_scale(em->radiance, k);
         l->two_sided = em->two_sided;
         l->mesh = mi;
         l->prim = (int)t;
         vec3 rp0, re1, re2;
-        if (t + 1 < m->triangle_count &&
+        bool same_emit = true;
+        if (em->per_shape != 0 && t + 1 < m->triangle_count) {
+            float k2 = pn_emission_area_scale(m, em, t + 1);
+            same_emit = fabsf(k2 - k) <= 1e-5f * fmaxf(k, k2);
+        }
+        if (t + 1 < m->triangle_count && same_emit &&
             pair_is_rectangle(m, t, t + 1, n, triangle_emit_normal(m, t + 1), &rp0, &re1, &re2)) {
             l->kind = PN_LIGHT_RECTANGLE;
             l->p = rp0;
@@ -478,12 +509,22 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         const pn_mesh *m = &scene->meshes[mi];
         if (m->emission < 0 || m->object >= 0) continue;
         if (v3_max_component(scene->emissions[m->emission].radiance) <= 0.0f) continue;
+        if (is_interface(scene, m->material)) {
+            pn_scene_warn(scene, "%s: area light on a shape with the \"interface\" material ignored (as pbrt-v4 does)",
+                          m->source ? m->source : "mesh");
+            continue;
+        }
         st = add_mesh_lights(scene, mi, &ll, err);
     }
     for (int si = 0; st == PN_OK && si < scene->sphere_count; si++) {
         const pn_sphere *s = &scene->spheres[si];
         if (s->emission < 0 || s->object >= 0) continue;
         if (v3_max_component(scene->emissions[s->emission].radiance) <= 0.0f) continue;
+        if (is_interface(scene, s->material)) {
+            pn_scene_warn(scene, "sphere light %d: area light on a shape with the \"interface\" material ignored "
+                          "(as pbrt-v4 does)", si);
+            continue;
+        }
         if (s->flip_normals) {
             pn_scene_warn(scene, "sphere light %d emits inwards; it is not sampled", si);
             continue;
@@ -524,6 +565,15 @@ vec3 pn_emission_radiance(const struct pn_scene_s *scene, int emission, vec3 ng,
     const pn_emission *e = &scene->emissions[emission];
     if (!e->two_sided && v3_dot(ng, w) <= 0.0f) return v3(0, 0, 0);
     return e->radiance;
+}
+
+vec3 pn_hit_emission(const struct pn_scene_s *scene, const pn_hit *hit, vec3 w) {
+    if (hit->emission < 0 || hit->emission >= scene->emission_count) return v3(0, 0, 0);
+    vec3 le = pn_emission_radiance(scene, hit->emission, hit->ng, w);
+    const pn_emission *e = &scene->emissions[hit->emission];
+    if (e->per_shape != 0 && hit->mesh >= 0 && hit->mesh < scene->mesh_count)
+        le = v3_scale(le, pn_emission_area_scale(&scene->meshes[hit->mesh], e, hit->prim));
+    return le;
 }
 
 /* ---- unoccluded irradiance ---------------------------------------------------------------- */

@@ -93,8 +93,9 @@ typedef struct pn_lights {
 
 /* Builds the light records: LightSource definitions, and emissive shapes (a mesh's triangle pairs
  * that form planar rectangles become RECTANGLE lights, other triangles TRIANGLE lights, disks
- * DISK lights, spheres SPHERE lights). Zero-area and zero-power emitters are dropped with a
- * warning. */
+ * DISK lights, spheres SPHERE lights). Zero-area and zero-power emitters, and emitters whose
+ * material is "interface" (pbrt-v4 creates no area light for them), are dropped with a warning.
+ * With "power" per pbrt-v4 shape (pn_emission.per_shape) each triangle gets its own radiance. */
 pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err);
 void pn_lights_free(pn_lights *lights);
 
@@ -128,6 +129,17 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
 /* Emitted radiance of an area light toward direction w (unit, from the light's surface point to
  * the viewer), for eye rays that hit an emitter. */
 vec3 pn_emission_radiance(const struct pn_scene_s *scene, int emission, vec3 ng, vec3 w);
+
+/* Emitted radiance at an eye-ray hit towards w (unit, from the surface to the viewer): as
+ * pn_emission_radiance, with "power" normalised per pbrt-v4 shape when the emission says so. */
+struct pn_hit;
+vec3 pn_hit_emission(const struct pn_scene_s *scene, const struct pn_hit *hit, vec3 w);
+
+/* The factor applied to a mesh emission's radiance for triangle t: 1 / (area of its pbrt-v4
+ * shape) when "power" is normalised per shape (pn_emission.per_shape), else 1. */
+struct pn_mesh;
+struct pn_emission;
+float pn_emission_area_scale(const struct pn_mesh *m, const struct pn_emission *e, uint32_t t);
 
 /* The goniometric factor of light l towards world direction w (unit, from the light outwards). */
 float pn_gonio_factor(const pn_lights *lights, const pn_light *l, vec3 w);

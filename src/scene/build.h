@@ -12,8 +12,8 @@
 typedef enum pn_spectrum_use {
     PN_SPECTRUM_ALBEDO = 0,     /* reflectances: clamped to [0, 1] */
     PN_SPECTRUM_UNBOUNDED = 1,  /* eta, k, sigma: taken as they are */
-    PN_SPECTRUM_ILLUMINANT = 2  /* emission: blackbody normalised to luminance 1, named
-                                   illuminants (stdillum-*) to their white point */
+    PN_SPECTRUM_ILLUMINANT = 2  /* emission: blackbody and named illuminants (stdillum-*)
+                                   normalised to luminance 1, keeping their colour */
 } pn_spectrum_use;
 
 /* Reads parameter `name` of type rgb, blackbody or spectrum (numeric lambda/value pairs, a named
@@ -84,17 +84,21 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
                              const mat4 *world_from_light, pn_err *err);
 
 /* AreaLightSource "diffuse" params. radiance = L * scale; when "power" is given, power > 0 and
- * pn_area_light_apply_power must be called with the total area of the shape it is attached to. */
+ * pn_area_light_apply_power must be called for the shape it is attached to. */
 typedef struct pn_area_light_desc {
     pn_emission emission;
     double power;        /* 0 = not given */
-    float luminance_of_L; /* luminance of L before scale, for the power normalisation */
+    float photometric;   /* pbrt-v4 SpectrumToPhotometric(L): 1 for rgb, else luminance(L) */
 } pn_area_light_desc;
 
 pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
                                   pn_area_light_desc *out, pn_err *err);
 
-/* pbrt-v4: radiance *= power / (pi * (two_sided ? 2 : 1) * area * luminance_of_L). */
-void pn_area_light_apply_power(pn_area_light_desc *desc, double area);
+/* pbrt-v4: radiance *= power / (pi * (two_sided ? 2 : 1) * A * photometric), A the area of one
+ * pbrt shape. `shape_type` is the Shape directive's type: for "trianglemesh", "plymesh" and
+ * "loopsubdiv" every triangle is a shape, for "bilinearmesh" every patch (two triangles), and
+ * the factor per triangle is left to the light builder (emission.per_shape); for the other types
+ * the whole shape is one and `area` (its world-space area) is used. */
+void pn_area_light_apply_power(pn_area_light_desc *desc, double area, const char *shape_type);
 
 #endif

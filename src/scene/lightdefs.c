@@ -2,31 +2,46 @@
  *
  * Light spectra are read with PN_SPECTRUM_ILLUMINANT (rgb as given; blackbody and other spectra
  * normalised to luminance 1, as pbrt-v4 divides every light spectrum by its photometric value).
+ * "power" and "illuminance" divide by that photometric value too, which pbrt-v4's
+ * SpectrumToPhotometric takes from the illuminant alone for an rgb spectrum (util/spectrum.cpp):
+ * the magnitude of an "rgb" value is kept as a multiplier, so "rgb I [2 2 2]" with "power" P
+ * emits 2 P. Below, photometric(S) is 1 for an rgb value and luminance(S) (1 after the
+ * normalisation above) for the other spectrum forms.
  *
  *  point        I (default 1) * scale at world_from_light * from (default origin). "power" P
- *               (when > 0) rescales the intensity to I * scale * P / (4 pi luminance(I)).
+ *               (when > 0) rescales the intensity to I * scale * P / (4 pi photometric(I)).
  *  spot         as point, aimed from "from" (0,0,0) to "to" (0,0,1); cone of "coneangle" (30
- *               degrees) with a smooth falloff over the last "conedelta" (5) degrees:
- *               cos_total_width = cos(coneangle), cos_falloff_start = cos(coneangle - conedelta).
- *               "power" P: I * scale * P / (2 pi ((1 - cosStart) + (cosStart - cosEnd) / 2) lum(I)).
+ *               degrees) with a smooth falloff over the last "conedeltaangle" (5) degrees
+ *               (pbrt-v4's name; "conedelta" is not a pbrt-v4 parameter and is reported
+ *               unused): cos_total_width = cos(coneangle), cos_falloff_start = cos(coneangle -
+ *               conedeltaangle); the intensity is I * smoothstep(cos theta, cos_total_width,
+ *               cos_falloff_start) (lights/light_sample.c). "power" P: I * scale * P /
+ *               (2 pi ((1 - cosStart) + (cosStart - cosEnd) / 2) photometric(I)).
  *  distant      L * scale arriving from world_from_light * (from - to) (defaults (0,0,0) and
- *               (0,0,1)). "illuminance" E rescales to L * scale * E / luminance(L); "power" is
+ *               (0,0,1)). "illuminance" E rescales to L * scale * E / photometric(L); "power" is
  *               not meaningful for it and is ignored with a warning.
  *  infinite     constant "L" * scale, or the image "filename" scaled by "scale". pbrt-v4 expects
  *               an equal-area octahedral (square) image; a non-square image is read as a
- *               latitude-longitude map with a warning. "illuminance" E rescales the light so that
- *               a surface facing +z (in light space) receives illuminance E: L * scale * E /
- *               (pi luminance(L)) for a constant L, scale * E / (the image's upper-hemisphere
- *               illuminance) for an image. "portal" is ignored with a warning.
+ *               latitude-longitude map with a warning. "illuminance" E: for a constant L,
+ *               L * scale * E / (pi photometric(L)); for an image, scale * E / k where k is
+ *               pbrt-v4's own estimate of the map's upper-hemisphere illuminance: the sum over
+ *               texels with z > 0 of luminance * cos(theta), times 2 pi / (w h). (A texel of
+ *               the equal-area map covers 4 pi / (w h), so k is half the true illuminance and
+ *               the map delivers 2 E; penumbra reproduces pbrt-v4's result. A latitude-longitude
+ *               map uses half its true texel solid angles, (pi / w) (pi / h) sin(theta), to
+ *               match.) "portal" is ignored with a warning.
  *  goniometric  I * scale at world_from_light * origin, modulated by its image: a square map in
  *               pbrt-v4's equal-area octahedral mapping, of the light's frame with y and z
  *               swapped (lights/lights.h, pn_gonio); "power" P gives I * scale * P / (4 pi
- *               luminance(I) mean(image)).
+ *               photometric(I) mean(image)).
  *  projection   rejected as unsupported.
  *
- * AreaLightSource "diffuse": radiance = L * scale (default L = 1), "twosided", and "power" left
- * for pn_area_light_apply_power once the shape's area is known. An emission image ("filename")
- * is not supported: L is used instead, with a warning.
+ * AreaLightSource "diffuse": radiance = L * scale (default L = 1), "twosided", and "power" P
+ * normalised per pbrt-v4 shape (scene.cpp creates one DiffuseAreaLight per shape, and each
+ * triangle of a mesh, each patch of a bilinear mesh, is its own shape): radiance = L * scale *
+ * P / (pi (twosided ? 2 : 1) A photometric(L)) with A the area of that triangle / patch / disk /
+ * sphere / cylinder (pn_area_light_apply_power). An emission image ("filename") is not supported:
+ * L is used instead, with a warning.
  */
 #include "scene/build.h"
 
@@ -69,10 +84,11 @@ static pn_status read_positive(const pn_params *ps, const char *name, double *ou
     return PN_OK;
 }
 
-/* Illuminance (luminance-weighted irradiance) that an environment image delivers to a surface
- * facing +z in light space: the sum over texels above the horizon of luminance * cos(theta) *
- * solid angle. Equal-area texels all cover 4 pi / (w h); latitude-longitude texels cover
- * (2 pi / w) (pi / h) sin(theta). */
+/* pbrt-v4's estimate of the illuminance an environment image delivers to a surface facing +z in
+ * light space (lights.cpp, Light::Create "illuminance"): the sum over texels above the horizon of
+ * luminance * cos(theta) * 2 pi / (w h), half the texel's true solid angle 4 pi / (w h). The
+ * latitude-longitude layout (not pbrt-v4's) uses half its true texel solid angle likewise,
+ * (pi / w) (pi / h) sin(theta), so both layouts of one map are scaled alike. */
 static double image_illuminance(const pn_texture_image *img, bool equal_area) {
     double sum = 0.0;
     for (int y = 0; y < img->height; y++) {
@@ -81,11 +97,11 @@ static double image_illuminance(const pn_texture_image *img, bool equal_area) {
             double cos_theta, solid_angle;
             if (equal_area) {
                 cos_theta = pn_equal_area_square_to_sphere(u, v).z;
-                solid_angle = 4.0 * PN_PI_D / ((double)img->width * (double)img->height);
+                solid_angle = 2.0 * PN_PI_D / ((double)img->width * (double)img->height);
             } else {
                 double theta = (double)v * PN_PI_D;
                 cos_theta = cos(theta);
-                solid_angle = (2.0 * PN_PI_D / img->width) * (PN_PI_D / img->height) * sin(theta);
+                solid_angle = (PN_PI_D / img->width) * (PN_PI_D / img->height) * sin(theta);
             }
             if (cos_theta <= 0.0) continue;
             const float *px = img->rgb + 3 * ((size_t)y * (size_t)img->width + (size_t)x);
@@ -95,11 +111,18 @@ static double image_illuminance(const pn_texture_image *img, bool equal_area) {
     return sum;
 }
 
-/* Intensity rescaled to emit `power` over the solid-angle factor k_e. */
-static vec3 apply_power(vec3 intensity, vec3 spectrum, double power, double k_e) {
-    float lum = v3_luminance(spectrum);
-    if (!(power > 0.0) || !(lum > 0.0f) || !(k_e > 0.0)) return intensity;
-    return v3_scale(intensity, (float)(power / (k_e * (double)lum)));
+/* pbrt-v4's SpectrumToPhotometric for a light spectrum read into `rgb` from parameter `name`: an
+ * rgb value counts by its illuminant only (1 here), the other forms by their luminance. */
+static double photometric(const pn_params *ps, const char *name, vec3 rgb) {
+    const pn_param *p = pn_params_find(ps, name);
+    if (!p || p->type == PN_PT_RGB) return 1.0;
+    return (double)v3_luminance(rgb);
+}
+
+/* Intensity rescaled to emit `power` over the solid-angle factor k_e; phot is photometric(). */
+static vec3 apply_power(vec3 intensity, double phot, double power, double k_e) {
+    if (!(power > 0.0) || !(phot > 0.0) || !(k_e > 0.0)) return intensity;
+    return v3_scale(intensity, (float)(power / (k_e * phot)));
 }
 
 static pn_status load_image_param(struct pn_scene_s *scene, const pn_params *ps, const char *file, int *index,
@@ -142,12 +165,12 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
         d.position = mat4_apply_point(world_from_light, from);
         if (strcmp(type, "point") == 0) {
             d.kind = PN_LIGHTDEF_POINT;
-            d.intensity = apply_power(d.intensity, I, power, 4.0 * PN_PI_D);
+            d.intensity = apply_power(d.intensity, photometric(ps, "I", I), power, 4.0 * PN_PI_D);
         } else if (strcmp(type, "spot") == 0) {
             double cone = 30.0, delta = 5.0;
             st = pn_params_vec3(ps, "to", to, &to, err);
             if (st == PN_OK) st = pn_params_float(ps, "coneangle", 30.0, &cone, err);
-            if (st == PN_OK) st = pn_params_float(ps, "conedelta", 5.0, &delta, err);
+            if (st == PN_OK) st = pn_params_float(ps, "conedeltaangle", 5.0, &delta, err);
             if (st != PN_OK) return st;
             vec3 axis = mat4_apply_vector(world_from_light, v3_sub(to, from));
             if (!(v3_length(axis) > 0.0f) || !v3_is_finite(axis))
@@ -159,7 +182,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             d.cos_total_width = (float)cos_end;
             d.cos_falloff_start = (float)cos_start;
             double k_e = 2.0 * PN_PI_D * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0);
-            d.intensity = apply_power(d.intensity, I, power, k_e);
+            d.intensity = apply_power(d.intensity, photometric(ps, "I", I), power, k_e);
         } else {
             d.kind = PN_LIGHTDEF_GONIOMETRIC;
             const char *file = NULL;
@@ -186,7 +209,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
                 for (size_t i = 0; i < 3 * texels; i++) sum += (double)img->rgb[i];
                 mean = texels ? sum / (3.0 * (double)texels) : 0.0;
             }
-            d.intensity = apply_power(d.intensity, I, power, 4.0 * PN_PI_D * mean);
+            d.intensity = apply_power(d.intensity, photometric(ps, "I", I), power, 4.0 * PN_PI_D * mean);
         }
     } else if (strcmp(type, "distant") == 0) {
         vec3 L, from = v3(0, 0, 0), to = v3(0, 0, 1);
@@ -202,7 +225,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "distant light with \"from\" equal to \"to\"");
         d.kind = PN_LIGHTDEF_DISTANT;
         d.direction = v3_normalize(w);
-        d.intensity = apply_power(v3_scale(L, (float)scale), L, illuminance, 1.0);
+        d.intensity = apply_power(v3_scale(L, (float)scale), photometric(ps, "L", L), illuminance, 1.0);
         warn_ignored(scene, ps, "power", "is not supported for distant lights (use \"illuminance\"); ignored");
     } else if (strcmp(type, "infinite") == 0) {
         vec3 L;
@@ -240,7 +263,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             }
             d.intensity = v3((float)scale, (float)scale, (float)scale);
         } else {
-            d.intensity = apply_power(v3_scale(L, (float)scale), L, illuminance, PN_PI_D);
+            d.intensity = apply_power(v3_scale(L, (float)scale), photometric(ps, "L", L), illuminance, PN_PI_D);
         }
     } else {
         return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "unknown light type \"%s\"", type);
@@ -282,14 +305,25 @@ pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, co
     out->emission.radiance = v3_scale(L, (float)scale);
     out->emission.two_sided = two_sided;
     out->power = power;
-    out->luminance_of_L = v3_luminance(L);
+    out->photometric = (float)photometric(ps, "L", L);
     if (!v3_is_finite(out->emission.radiance))
         return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "AreaLightSource has non-finite radiance");
     return PN_OK;
 }
 
-void pn_area_light_apply_power(pn_area_light_desc *desc, double area) {
-    if (!(desc->power > 0.0) || !(area > 0.0) || !(desc->luminance_of_L > 0.0f)) return;
-    double k = PN_PI_D * (desc->emission.two_sided ? 2.0 : 1.0) * area * (double)desc->luminance_of_L;
+void pn_area_light_apply_power(pn_area_light_desc *desc, double area, const char *shape_type) {
+    desc->emission.per_shape = 0;
+    if (!(desc->power > 0.0) || !(desc->photometric > 0.0f)) return;
+    double k = PN_PI_D * (desc->emission.two_sided ? 2.0 : 1.0) * (double)desc->photometric;
+    const char *t = shape_type ? shape_type : "";
+    if (strcmp(t, "trianglemesh") == 0 || strcmp(t, "plymesh") == 0 || strcmp(t, "loopsubdiv") == 0) {
+        desc->emission.per_shape = 1;
+    } else if (strcmp(t, "bilinearmesh") == 0) {
+        desc->emission.per_shape = 2;
+    } else {
+        if (!(area > 0.0)) return;
+        k *= area;
+    }
+    /* per_shape: radiance per unit of 1 / area; the light builder divides by each shape's area. */
     desc->emission.radiance = v3_scale(desc->emission.radiance, (float)(desc->power / k));
 }

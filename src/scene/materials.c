@@ -18,15 +18,23 @@
  *                        ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2) from eta, k (default
  *                        metal-Cu), or "reflectance" when given
  *   coatedconductor      BLINN ks = F0 of the conductor (conductor.eta / conductor.k or
- *                        reflectance), kd = 0, n from the interface roughness
+ *                        reflectance), kd = 0, n from alpha = sqrt(alpha_i^2 + alpha_c^2) of the
+ *                        interface and conductor roughnesses (the metal's lobe blurred by the
+ *                        coating; pbrt-v4 honours both "interface.roughness" and
+ *                        "conductor.roughness")
  *   dielectric,          DIELECTRIC with eta (a float, or a spectrum's value at 550 nm; default
  *   thindielectric       1.5), white; a rough dielectric is rendered smooth, with a warning
  *   diffusetransmission  LAMBERT kd = reflectance (default 0.25) * scale (a textured reflectance
  *                        gets a scale texture "TEX x scale"); transmission dropped with a warning
- *   mix                  the input material with the larger weight ("amount" > 0.5 picks the
- *                        second one), with a warning
+ *   mix                  MIX: per hit, the second of "materials" with probability "amount"
+ *                        (a float or float texture, default 0.5), else the first, chosen by a
+ *                        hash of the hit point and direction as pbrt-v4's MixMaterial does
+ *                        (shade/bsdf.c); a constant amount <= 0 or >= 1 is one of the two; a
+ *                        mix with an "interface" input takes the input of larger weight, with
+ *                        a warning
  *   measured, hair,      LAMBERT substitutes with a warning: kd = 0.5 (measured), the hair
- *   subsurface           "color" or 0.3 (hair), "reflectance" or 0.5 (subsurface)
+ *   subsurface           "reflectance" (pbrt-v4's name; pbrt-v3's "color" is read too) or 0.3
+ *                        (hair), "reflectance" or 0.5 (subsurface)
  *   interface            INTERFACE
  *
  * Older scenes written for pbrt-v3 use its material names, which are mapped with the same models
@@ -54,7 +62,8 @@
  *                        MIRROR when alpha < 1e-3, else BLINN ks = F0, kd = 0
  *   mirror               MIRROR, specular = Kr (0.9)
  *   mix                  with "namedmaterial1" / "namedmaterial2" instead of "materials": as
- *                        mix, but "amount" weights the first material (pbrt-v3's convention)
+ *                        mix, but "amount" (channel average) is the probability of the first
+ *                        material (pbrt-v3's blend weights it by amount)
  *   translucent,         LAMBERT substitutes with a warning: kd = "Kd", "color" or
  *   kdsubsurface,        "reflectance" (the first one given), else 0.5
  *   fourier, disney
@@ -422,7 +431,7 @@ static pn_status map_conductor(builder *b, pn_err *err) {
 static pn_status map_coatedconductor(builder *b, pn_err *err) {
     double roughness = 0, alpha = 0, cr = 0, ca = 0, ieta = 1.5;
     pn_status st = read_roughness(b, "interface.", &roughness, &alpha, err);
-    if (st == PN_OK) st = read_roughness(b, "conductor.", &cr, &ca, err); /* reported only */
+    if (st == PN_OK) st = read_roughness(b, "conductor.", &cr, &ca, err);
     if (st == PN_OK) st = pn_params_spectrum_value(b->ps, "interface.eta", 550.0, 1.5, &ieta, NULL, err);
     pn_texref f0;
     char what[160];
@@ -430,6 +439,11 @@ static pn_status map_coatedconductor(builder *b, pn_err *err) {
     if (st != PN_OK) return st;
     static const char *const ignored[] = {"thickness", "albedo", "g", "maxdepth", "nsamples"};
     accept_silently(b->ps, ignored, sizeof ignored / sizeof ignored[0]);
+    /* The metal's lobe is seen through the coating: its microfacet spread and the interface's
+     * add (as variances of the slope distributions), so either roughness widens the lobe. */
+    double alpha_i = alpha;
+    alpha = sqrt(alpha_i * alpha_i + ca * ca);
+    roughness = 0.5 * (roughness + cr);
     bool clamped = false;
     double n = blinn_exponent(alpha, &clamped);
     b->m.kind = PN_MATERIAL_LAMBERT_BLINN;
@@ -441,7 +455,8 @@ static pn_status map_coatedconductor(builder *b, pn_err *err) {
     snprintf(b->model, sizeof b->model, "Blinn ks=%s n=%.5g, kd=0", s, n);
     char r[128];
     describe_roughness(r, sizeof r, roughness, alpha, n, clamped);
-    snprintf(b->note, sizeof b->note, "(F0 of the conductor, %s; interface %s)", what, r);
+    snprintf(b->note, sizeof b->note, "(F0 of the conductor, %s; interface alpha %.3g + conductor alpha %.3g: %s)",
+             what, alpha_i, ca, r);
     warn_bump(b);
     return PN_OK;
 }
@@ -523,8 +538,10 @@ static pn_status map_substitute(builder *b, pn_err *err) {
     pn_texref kd = constant_ref(v3(0.5f, 0.5f, 0.5f));
     pn_status st = PN_OK;
     if (strcmp(type, "hair") == 0) {
-        const pn_param *p = find_param(b->ps, "color");
-        if (p) st = pn_params_texref(b->scene, b->ps, "color", false, v3(0.3f, 0.3f, 0.3f), &kd, err);
+        /* pbrt-v4's hair colour input is "reflectance" (pbrt-v3's was "color"). */
+        const char *colour = find_param(b->ps, "reflectance") ? "reflectance" : "color";
+        if (find_param(b->ps, colour))
+            st = pn_params_texref(b->scene, b->ps, colour, false, v3(0.3f, 0.3f, 0.3f), &kd, err);
         else kd = constant_ref(v3(0.3f, 0.3f, 0.3f));
     } else if (strcmp(type, "subsurface") == 0) {
         if (find_param(b->ps, "reflectance"))
@@ -552,22 +569,8 @@ static pn_status map_substitute(builder *b, pn_err *err) {
 
 static pn_status map_mix_v3(builder *b, pn_err *err);
 
-static pn_status map_mix(builder *b, pn_err *err) {
-    const pn_param *mp = find_param(b->ps, "materials");
-    if (!mp && (find_param(b->ps, "namedmaterial1") || find_param(b->ps, "namedmaterial2"))) return map_mix_v3(b, err);
-    if (!mp) return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: mix material needs \"materials\"",
-                               b->ps->loc.file ? b->ps->loc.file : "?", b->ps->loc.line, b->ps->loc.column);
-    if (mp->type != PN_PT_STRING || mp->str_count != 2)
-        return pn_param_error(mp, err, "\"materials\" of a mix needs two material names");
-    double amount = 0.5;
-    pn_status st = float_input(b, "amount", 0.5, &amount, NULL, err);
-    if (st != PN_OK) return st;
-    int pick = amount > 0.5 ? 1 : 0;
-    const char *chosen = mp->strs[pick];
-    int idx = pn_scene_find_material(b->scene, chosen);
-    if (idx < 0) return pn_param_error(mp, err, "mix: undefined material \"%s\"", chosen);
-    if (pn_scene_find_material(b->scene, mp->strs[1 - pick]) < 0)
-        return pn_param_error(mp, err, "mix: undefined material \"%s\"", mp->strs[1 - pick]);
+/* Makes b a copy of material `idx`, described as "material 'NAME' of the mix". */
+static void copy_mix_input(builder *b, int idx, const char *name, const char *why) {
     const pn_material *src = &b->scene->materials[idx];
     char *keep_name = b->m.name;
     b->m = *src;
@@ -576,9 +579,68 @@ static pn_status map_mix(builder *b, pn_err *err) {
     /* The chosen material's description without its "NAME: pbrt TYPE -> " head. */
     const char *arrow = src->description ? strstr(src->description, "-> ") : NULL;
     snprintf(b->model, sizeof b->model, "%s", arrow ? arrow + 3 : "?");
-    snprintf(b->note, sizeof b->note, "(material '%s' of the mix, amount %g)", chosen, amount);
-    pn_warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
-            pick ? "second" : "first", chosen, amount);
+    snprintf(b->note, sizeof b->note, "(material '%s' of the mix, %s)", name, why);
+}
+
+/* pbrt-v4's MixMaterial: at each hit one of the two materials, the second with probability
+ * `amount` (materials.h, ChooseMaterial). names[0] / names[1] are the materials, amount their
+ * mixing input (a float texture, or for pbrt-v3 a spectrum whose channel average counts).
+ * A constant amount <= 0 or >= 1 is one material, as in pbrt-v4; a mix with an "interface"
+ * input cannot be resolved per hit (interface shapes are removed from ray tracing as a whole) and
+ * takes the input of larger weight, with a warning. */
+static pn_status set_mix(builder *b, const pn_param *where, const char *const names[2], pn_texref amount,
+                         pn_err *err) {
+    int idx[2];
+    for (int i = 0; i < 2; i++) {
+        idx[i] = pn_scene_find_material(b->scene, names[i]);
+        if (idx[i] < 0) return pn_param_error(where, err, "mix: undefined material \"%s\"", names[i]);
+    }
+    bool varies = false;
+    vec3 c = texref_constant(b->scene, amount, v3(0.5f, 0.5f, 0.5f), &varies);
+    double a = ((double)c.x + (double)c.y + (double)c.z) / 3.0;
+    char why[96];
+    if (!varies && (a <= 0.0 || a >= 1.0)) {
+        int pick = a >= 1.0 ? 1 : 0;
+        snprintf(why, sizeof why, "amount %g", a);
+        copy_mix_input(b, idx[pick], names[pick], why);
+        return PN_OK;
+    }
+    bool interface = b->scene->materials[idx[0]].kind == PN_MATERIAL_INTERFACE ||
+                     b->scene->materials[idx[1]].kind == PN_MATERIAL_INTERFACE;
+    if (interface) {
+        if (varies) a = 0.5;
+        int pick = a > 0.5 ? 1 : 0;
+        snprintf(why, sizeof why, "probability %g", pick ? a : 1.0 - a);
+        copy_mix_input(b, idx[pick], names[pick], why);
+        pn_warn_at(b->scene, b->ps->loc,
+                   "%s: a mix with an \"interface\" input cannot be chosen per hit; approximated by its input \"%s\"",
+                   b->label, names[pick]);
+        return PN_OK;
+    }
+    b->m.kind = PN_MATERIAL_MIX;
+    b->m.mix[0] = idx[0];
+    b->m.mix[1] = idx[1];
+    b->m.mix_amount = amount;
+    char s[128];
+    fmt_ref(b->scene, s, sizeof s, amount);
+    snprintf(b->model, sizeof b->model, "per-hit choice of '%s' and '%s'", names[0], names[1]);
+    snprintf(b->note, sizeof b->note, "('%s' with probability %s)", names[1], s);
+    return PN_OK;
+}
+
+static pn_status map_mix(builder *b, pn_err *err) {
+    const pn_param *mp = find_param(b->ps, "materials");
+    if (!mp && (find_param(b->ps, "namedmaterial1") || find_param(b->ps, "namedmaterial2"))) return map_mix_v3(b, err);
+    if (!mp) return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: mix material needs \"materials\"",
+                               b->ps->loc.file ? b->ps->loc.file : "?", b->ps->loc.line, b->ps->loc.column);
+    if (mp->type != PN_PT_STRING || mp->str_count != 2)
+        return pn_param_error(mp, err, "\"materials\" of a mix needs two material names");
+    pn_texref amount;
+    pn_status st = pn_params_texref(b->scene, b->ps, "amount", true, v3(0.5f, 0.5f, 0.5f), &amount, err);
+    if (st != PN_OK) return st;
+    const char *names[2] = {mp->strs[0], mp->strs[1]};
+    st = set_mix(b, mp, names, amount, err);
+    if (st != PN_OK) return st;
     warn_bump(b);
     return PN_OK;
 }
@@ -829,7 +891,7 @@ static pn_status map_v3_mirror(builder *b, pn_err *err) {
 }
 
 /* pbrt-v3's mix: "namedmaterial1" / "namedmaterial2", with "amount" (a spectrum, default 0.5)
- * weighting the first one; the input with the larger weight is used. */
+ * weighting the first one; resolved per hit like pbrt-v4's mix (set_mix). */
 static pn_status map_mix_v3(builder *b, pn_err *err) {
     b->v3 = true;
     const char *names[2] = {NULL, NULL};
@@ -844,31 +906,17 @@ static pn_status map_mix_v3(builder *b, pn_err *err) {
     pn_texref amount_ref;
     st = pn_params_texref(b->scene, b->ps, "amount", false, v3(0.5f, 0.5f, 0.5f), &amount_ref, err);
     if (st != PN_OK) return st;
-    bool varies = false;
-    vec3 a = texref_constant(b->scene, amount_ref, v3(0.5f, 0.5f, 0.5f), &varies);
-    double amount = ((double)a.x + (double)a.y + (double)a.z) / 3.0;
-    if (varies)
-        pn_warn_at(b->scene, find_param(b->ps, "amount")->loc,
-                "%s: \"amount\" is a varying texture; the constant 0.5 is used instead", b->label);
     for (int i = 0; i < 2; i++) {
         if (pn_scene_find_material(b->scene, names[i]) >= 0) continue;
         char pname[32];
         snprintf(pname, sizeof pname, "namedmaterial%d", i + 1);
         return pn_param_error(find_param(b->ps, pname), err, "mix: undefined material \"%s\"", names[i]);
     }
-    int pick = amount >= 0.5 ? 0 : 1; /* amount is the weight of the first material */
-    const char *chosen = names[pick];
-    const pn_material *src = &b->scene->materials[pn_scene_find_material(b->scene, chosen)];
-    char *keep_name = b->m.name;
-    b->m = *src;
-    b->m.name = keep_name;
-    b->m.description = NULL;
-    const char *arrow = src->description ? strstr(src->description, "-> ") : NULL;
-    snprintf(b->model, sizeof b->model, "%s", arrow ? arrow + 3 : "?");
-    snprintf(b->note, sizeof b->note, "(material '%s' of the mix, weight %g)", chosen, pick ? 1.0 - amount : amount);
-    pn_warn_at(b->scene, b->ps->loc, "%s: mix material approximated by its %s input \"%s\" (amount %g)", b->label,
-            pick ? "second" : "first", chosen, amount);
-    return PN_OK;
+    /* pbrt-v3 weights the first material by amount: the per-hit choice takes it with
+     * probability amount, i.e. the second of set_mix's pair is namedmaterial1. The expected
+     * BSDF is pbrt-v3's blend amount * f1 + (1 - amount) * f2. */
+    const char *swapped[2] = {names[1], names[0]};
+    return set_mix(b, find_param(b->ps, "namedmaterial1"), swapped, amount_ref, err);
 }
 
 /* ---- entry points ----------------------------------------------------------------------- */

@@ -1020,7 +1020,7 @@ static pn_status shape_emission(pn_parser *p, const pn_shape_ctx *sc, double are
                           "does not emit", loc->file, loc->line, loc->column, sc->type);
             return PN_OK;
         }
-        pn_area_light_apply_power(&desc, area);
+        pn_area_light_apply_power(&desc, area, sc->type);
     }
     struct pn_scene_s *s = p->scene;
     if (!pn_grow_for_append((void **)&s->emissions, s->emission_count, sizeof *s->emissions)) return out_of_memory(p);

@@ -45,6 +45,8 @@ typedef struct pn_texture {
     float su, sv, du, dv; /* uv mapping: s = su*u + du, t = sv*v + dv */
     float scale;      /* IMAGE: multiplies the looked-up value (pbrt "scale") */
     bool invert;      /* IMAGE: 1 - value */
+    bool float_first_channel; /* IMAGE, float: the first channel of an RGB image instead of the
+                                 channel average (pbrt-v4's point / EWA filters; texture.c) */
     pn_wrap_mode wrap;
     pn_texref a, b, amount; /* SCALE: a*b; MIX: a, b, amount; CHECKERBOARD: a=tex1, b=tex2 */
     char *name;
@@ -66,12 +68,16 @@ typedef struct pn_texture_image {
  *  MIRROR: perfect specular reflection with RGB reflectance `specular` (eye rays follow it).
  *  DIELECTRIC: perfect specular reflection + refraction with index `eta` for eye rays; opaque to
  *              shadow rays. `specular` tints both.
- *  INTERFACE: invisible (pbrt's "interface"); eye and shadow rays pass through. */
+ *  INTERFACE: invisible (pbrt's "interface"); eye and shadow rays pass through.
+ *  MIX: pbrt-v4's mix, resolved per hit (shade/bsdf.c): materials mix[1] with probability
+ *       `mix_amount` at the hit's (u, v), else mix[0], chosen by a hash of the hit. Never seen
+ *       by the shading code, which gets the chosen material's model. */
 typedef enum pn_material_kind {
     PN_MATERIAL_LAMBERT_BLINN = 0,
     PN_MATERIAL_MIRROR = 1,
     PN_MATERIAL_DIELECTRIC = 2,
-    PN_MATERIAL_INTERFACE = 3
+    PN_MATERIAL_INTERFACE = 3,
+    PN_MATERIAL_MIX = 4
 } pn_material_kind;
 
 typedef struct pn_material {
@@ -89,6 +95,8 @@ typedef struct pn_material {
      * hemispherical Fresnel reflectance. */
     bool coated;
     float coat_transmission, coat_internal;
+    int mix[2];            /* MIX: the two materials (indices, defined before this one) */
+    pn_texref mix_amount;  /* MIX: probability of mix[1] (channel average of the value) */
     char *name;          /* pbrt name ("" for anonymous Material directives) */
     char *description;   /* one line: "NAME: pbrt TYPE -> penumbra model (parameters)" */
 } pn_material;
@@ -99,6 +107,11 @@ typedef struct pn_material {
 typedef struct pn_emission {
     vec3 radiance;  /* L * scale (* power normalisation) */
     bool two_sided;
+    /* "power" normalised per pbrt-v4 shape inside a mesh: 0 = radiance is final; 1 = each
+     * triangle is a shape, 2 = each pair of triangles (2i, 2i + 1) is one (a bilinear patch).
+     * The radiance of a triangle is then radiance / (area of its shape); pn_emission_area_scale
+     * (lights/lights.h) computes the factor. */
+    int per_shape;
 } pn_emission;
 
 /* A triangle mesh. Positions/normals are in world space, or in the object's space for meshes of

@@ -20,8 +20,10 @@
  *    reduced to the values of pbrt-v4's tabulated data at 630 nm (red), 532 nm (green) and 465 nm
  *    (blue), interpolated linearly between the tabulated wavelengths (CuZn, brass, is an
  *    approximation at the same wavelengths). Glasses (glass-BK7, ...) are a single index at
- *    550 nm in all three channels. Standard illuminants (stdillum-*, illum-*) become (1, 1, 1),
- *    the white of an RGB renderer at luminance 1.
+ *    550 nm in all three channels. Standard illuminants (stdillum-A, -D50, -D65, -F1 ... -F12,
+ *    illum-acesD60) keep their colour: the linear sRGB of their CIE chromaticity at luminance 1
+ *    (so D65 is white and A orange, as pbrt-v4 renders them); other stdillum-/illum- names are
+ *    an error, as in pbrt-v4.
  *  - "spectrum" "file.spd": whitespace-separated lambda/value pairs ('#' starts a comment),
  *    relative to the directive's folder, then as numeric pairs.
  * Spectra outside the sRGB gamut (very red or very blue emitters, saturated reflectances) would
@@ -177,8 +179,36 @@ static const named_spectrum named_spectra[] = {
     {"glass-F11", 1.7911f, 1.7911f, 1.7911f},
 };
 
+/* pbrt-v4's named illuminants, by their CIE 1931 (2 degree) chromaticity (x, y) as tabulated by
+ * the CIE (publication 15; ACES D60 from SMPTE ST 2065-1). pbrt-v4 normalises each to luminance
+ * 1 and, with the default sensor, shows its colour without white balancing; penumbra does the
+ * same with the exact chromaticity: XYZ = (x / y, 1, (1 - x - y) / y) in linear sRGB. D65 (listed
+ * with x = y = 0) is exactly (1, 1, 1): pbrt-v4 derives its sRGB white point from the D65
+ * spectrum itself, so stdillum-D65 is the colour space's white. */
+typedef struct named_illuminant {
+    const char *name;
+    double x, y;
+} named_illuminant;
+
+static const named_illuminant named_illuminants[] = {
+    {"stdillum-A", 0.44757, 0.40745},   {"stdillum-D50", 0.34567, 0.35850}, {"stdillum-D65", 0.0, 0.0},
+    {"stdillum-F1", 0.31310, 0.33727},  {"stdillum-F2", 0.37208, 0.37529},  {"stdillum-F3", 0.40910, 0.39430},
+    {"stdillum-F4", 0.44018, 0.40329},  {"stdillum-F5", 0.31379, 0.34531},  {"stdillum-F6", 0.37790, 0.38835},
+    {"stdillum-F7", 0.31292, 0.32933},  {"stdillum-F8", 0.34588, 0.35875},  {"stdillum-F9", 0.37417, 0.37281},
+    {"stdillum-F10", 0.34609, 0.35986}, {"stdillum-F11", 0.38052, 0.37713}, {"stdillum-F12", 0.43695, 0.40441},
+    {"illum-acesD60", 0.32168, 0.33767},
+};
+
 static bool is_illuminant_name(const char *s) {
     return strncmp(s, "stdillum-", 9) == 0 || strncmp(s, "illum-", 6) == 0;
+}
+
+/* Linear sRGB of chromaticity (x, y) at luminance 1; out-of-gamut negatives set to 0. */
+static vec3 chromaticity_rgb(double x, double y) {
+    if (!(y > 0.0)) return v3(1, 1, 1); /* the white point */
+    double xyz[3] = {x / y, 1.0, (1.0 - x - y) / y}, rgb[3];
+    xyz_to_rgb(xyz, rgb);
+    return v3((float)fmax(0.0, rgb[0]), (float)fmax(0.0, rgb[1]), (float)fmax(0.0, rgb[2]));
 }
 
 bool pn_named_spectrum_rgb(const char *name, vec3 *out) {
@@ -188,9 +218,11 @@ bool pn_named_spectrum_rgb(const char *name, vec3 *out) {
             return true;
         }
     }
-    if (is_illuminant_name(name)) {
-        *out = v3(1, 1, 1);
-        return true;
+    for (size_t i = 0; i < sizeof named_illuminants / sizeof named_illuminants[0]; i++) {
+        if (strcmp(named_illuminants[i].name, name) == 0) {
+            *out = chromaticity_rgb(named_illuminants[i].x, named_illuminants[i].y);
+            return true;
+        }
     }
     return false;
 }
@@ -347,7 +379,7 @@ pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spec
             const char *s = p->strs[0];
             if (pn_named_spectrum_rgb(s, &c)) break;
             size_t len = strlen(s);
-            bool looks_named = strncmp(s, "metal-", 6) == 0 || strncmp(s, "glass-", 6) == 0 ||
+            bool looks_named = strncmp(s, "metal-", 6) == 0 || strncmp(s, "glass-", 6) == 0 || is_illuminant_name(s) ||
                                strncmp(s, "canon_", 6) == 0 || strncmp(s, "nikon_", 6) == 0 ||
                                strncmp(s, "sony_", 5) == 0;
             if (looks_named && !(len > 4 && strcmp(s + len - 4, ".spd") == 0))

@@ -3,10 +3,12 @@
  *
  * Supported classes and how they are stored (pn_texture):
  *  - imagemap: "filename" (relative to the directive's folder), "encoding" ("sRGB" default,
- *    "linear", "gamma g"; only 8-bit files are affected), "scale", "invert", "wrap" (repeat,
- *    clamp, black), the uv mapping "uscale" "vscale" "udelta" "vdelta". "filter" and
- *    "maxanisotropy" are accepted and ignored: lookups are bilinear. Files are decoded once per
- *    (path, encoding) into scene->images.
+ *    "linear", "gamma g"), "scale", "invert", "wrap" (repeat, clamp, black), the uv mapping
+ *    "uscale" "vscale" "udelta" "vdelta". As in pbrt-v4 the encoding applies to PNG files (8 and
+ *    16 bit) only: other 8-bit formats (TGA, JPEG, BMP, ...) are always decoded with the sRGB
+ *    curve (a different "encoding" is reported as ignored), EXR / PFM / HDR are linear.
+ *    "filter" only chooses the float lookup below and "maxanisotropy" is ignored: lookups are
+ *    bilinear. Files are decoded once per (path, encoding) into scene->images.
  *  - constant ("value"), scale ("tex" * "scale"), mix ((1 - "amount") "tex1" + "amount" "tex2"),
  *    checkerboard (2D; "tex1" on cells where floor(s) + floor(t) is even, else "tex2").
  *  - directionmix and dots become a mix with amount 0.5 of their two inputs; bilerp the
@@ -17,8 +19,9 @@
  * Evaluation follows pbrt-v4: s = su * u + du, t = sv * v + dv; an image is looked up at
  * (s, 1 - t) because its row 0 is the top; the value is bilinearly interpolated between the four
  * nearest texel centres, multiplied by "scale", inverted (1 - x) if asked, and clamped at 0.
- * Float textures read from RGB images use the average of the three channels (pbrt-v4 reads the
- * first channel; for the greyscale images float textures normally use, both agree). Float
+ * Float textures read from RGB images as pbrt-v4's MIPMap does: the average of the three
+ * channels for the "bilinear" (default) and "trilinear" filters, the first channel for "point"
+ * and "ewa" (its Texel lookup); the value is then scaled, inverted (1 - x, clamped at 0). Float
  * results are returned in all three channels, and float constants are stored the same way.
  *
  * Texture inputs refer to textures by index; a texture can only refer to textures defined before
@@ -29,6 +32,7 @@
 #include "io/image.h"
 #include "scene/parser_internal.h"
 
+#include <ctype.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -192,6 +196,15 @@ static pn_status error_at(pn_srcloc loc, pn_status status, pn_err *err, const ch
     return pn_err_set(err, status, "%s:%d:%d: %s", loc.file ? loc.file : "?", loc.line, loc.column, what);
 }
 
+/* Whether `file` ends in `ext` (".png"), ignoring case. */
+static bool has_extension(const char *file, const char *ext) {
+    size_t n = strlen(file), e = strlen(ext);
+    if (n < e) return false;
+    for (size_t i = 0; i < e; i++)
+        if (tolower((unsigned char)file[n - e + i]) != tolower((unsigned char)ext[i])) return false;
+    return true;
+}
+
 /* Reads "encoding" into the gamma that pn_image_read_file takes. */
 static pn_status read_encoding(const pn_params *ps, float *gamma, pn_err *err) {
     const char *enc = NULL;
@@ -273,6 +286,19 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     if (!file[0]) return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "imagemap texture needs a \"filename\"");
     float gamma = 0.0f;
     if ((st = read_encoding(ps, &gamma, err)) != PN_OK) return st;
+    /* pbrt-v4 (util/image.cpp Image::Read) applies the encoding to PNG files only (8 and 16
+     * bit); its other 8-bit formats (TGA, JPEG, BMP, ...) are always decoded with the sRGB curve
+     * and float formats (EXR, PFM, HDR) are linear. */
+    bool is_png = has_extension(file, ".png"), is_float_format = has_extension(file, ".exr") ||
+                                                                   has_extension(file, ".pfm") ||
+                                                                   has_extension(file, ".hdr");
+    if (!is_png) {
+        const pn_param *ep = pn_params_find(ps, "encoding");
+        if (ep && gamma != 0.0f && !is_float_format)
+            pn_warn_at(scene, ep->loc,
+                       "\"encoding\" applies to PNG files only (pbrt-v4); \"%s\" is decoded with the sRGB curve", file);
+        gamma = 0.0f;
+    }
     double scale = 1.0;
     bool invert = false;
     if ((st = pn_params_float(ps, "scale", 1.0, &scale, err)) != PN_OK) return st;
@@ -280,6 +306,8 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     if ((st = read_wrap(ps, &t->wrap, err)) != PN_OK) return st;
     const char *filter = NULL;
     if ((st = pn_params_string(ps, "filter", "bilinear", &filter, err)) != PN_OK) return st;
+    t->float_first_channel = strcmp(filter, "point") == 0 || strcmp(filter, "ewa") == 0 ||
+                             strcmp(filter, "EWA") == 0;
     double aniso = 8.0;
     if ((st = pn_params_float(ps, "maxanisotropy", 8.0, &aniso, err)) != PN_OK) return st;
 
@@ -465,13 +493,16 @@ vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, flo
         break;
     case PN_TEXTURE_IMAGE: {
         if (t->image < 0 || t->image >= scene->image_count) return v3(0, 0, 0);
-        r = v3_scale(image_bilerp(&scene->images[t->image], s, 1.0f - tt, t->wrap), t->scale);
+        r = image_bilerp(&scene->images[t->image], s, 1.0f - tt, t->wrap);
+        if (t->is_float) {
+            /* pbrt-v4 MIPMap: the channel average for bilinear / trilinear lookups, the first
+             * channel for point and EWA lookups; the one value is then scaled and inverted. */
+            float f = t->float_first_channel ? r.x : (r.x + r.y + r.z) * (1.0f / 3.0f);
+            r = v3(f, f, f);
+        }
+        r = v3_scale(r, t->scale);
         if (t->invert) r = v3_sub(v3(1, 1, 1), r);
         r = v3_max(r, v3(0, 0, 0));
-        if (t->is_float) {
-            float avg = (r.x + r.y + r.z) * (1.0f / 3.0f);
-            r = v3(avg, avg, avg);
-        }
         break;
     }
     case PN_TEXTURE_SCALE:

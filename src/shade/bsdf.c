@@ -1,9 +1,58 @@
-/* bsdf.c — material evaluation: textures looked up, normals oriented, Lambert + Blinn–Phong. */
+/* bsdf.c — material evaluation: mix materials resolved per hit, textures looked up, normals
+ * oriented, Lambert + Blinn–Phong. */
 #include "shade/bsdf.h"
 
+#include <string.h>
+
+/* SplitMix64's finaliser (Steele, Lea and Flood 2014): a 64-bit mixing function. */
+static uint64_t mix64(uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+static uint64_t hash_float(uint64_t h, float f) {
+    uint32_t bits;
+    if (f == 0.0f) f = 0.0f; /* -0 and +0 hash alike */
+    memcpy(&bits, &f, sizeof bits);
+    return mix64(h ^ (uint64_t)bits);
+}
+
+float pn_mix_hash(vec3 p, vec3 wo, int a, int b) {
+    uint64_t h = 0x9e3779b97f4a7c15ull;
+    h = hash_float(h, p.x);
+    h = hash_float(h, p.y);
+    h = hash_float(h, p.z);
+    h = hash_float(h, wo.x);
+    h = hash_float(h, wo.y);
+    h = hash_float(h, wo.z);
+    h = mix64(h ^ ((uint64_t)(uint32_t)a << 32 | (uint32_t)b));
+    return (float)(h >> 40) * (1.0f / 16777216.0f); /* 24 bits: [0, 1) exactly in float */
+}
+
+int pn_material_resolve(const struct pn_scene_s *scene, int material, vec3 p, vec3 wo, float u, float v) {
+    /* Mixes refer to materials defined before them, so the chain ends; the bound guards it. */
+    for (int depth = 0; depth < 64; depth++) {
+        if (material < 0 || material >= scene->material_count) return material;
+        const pn_material *m = &scene->materials[material];
+        if (m->kind != PN_MATERIAL_MIX) return material;
+        vec3 c = pn_texture_eval(scene, m->mix_amount, u, v);
+        float amount = (c.x + c.y + c.z) * (1.0f / 3.0f);
+        /* pbrt-v4 MixMaterial::ChooseMaterial: amount <= 0 the first, >= 1 the second, else the
+         * second when amount >= a hash of the hit in [0, 1). */
+        if (amount <= 0.0f)
+            material = m->mix[0];
+        else if (amount >= 1.0f)
+            material = m->mix[1];
+        else
+            material = amount < pn_mix_hash(p, wo, m->mix[0], m->mix[1]) ? m->mix[0] : m->mix[1];
+    }
+    return -1;
+}
+
 void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_bsdf *out) {
-    const pn_material *m = (hit->material >= 0 && hit->material < scene->material_count)
-                               ? &scene->materials[hit->material] : NULL;
+    int mi = pn_material_resolve(scene, hit->material, hit->p, wo, hit->u, hit->v);
+    const pn_material *m = (mi >= 0 && mi < scene->material_count) ? &scene->materials[mi] : NULL;
     out->ng = hit->ng;
     out->ns = hit->ns;
     out->entering = v3_dot(hit->ng, wo) >= 0.0f;

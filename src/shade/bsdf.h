@@ -23,6 +23,14 @@ typedef struct pn_bsdf {
  * surface towards the viewer). */
 void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_bsdf *out);
 
+/* The material seen at a hit: `material` itself, or for a MIX material (pbrt-v4's mix) the
+ * input chosen at point p seen from wo with the mix's amount at (u, v), repeated through nested
+ * mixes. Deterministic: a hash of p, wo and the two inputs, as pbrt-v4's ChooseMaterial. */
+int pn_material_resolve(const struct pn_scene_s *scene, int material, vec3 p, vec3 wo, float u, float v);
+
+/* The hash in [0, 1) behind pn_material_resolve's choice between materials a and b. */
+float pn_mix_hash(vec3 p, vec3 wo, int a, int b);
+
 /* f(wo, wi) for the non-specular part (Lambert + Blinn); zero below either normal's horizon. */
 vec3 pn_bsdf_eval(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
 
