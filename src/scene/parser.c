@@ -742,8 +742,8 @@ static pn_status d_film(pn_parser *p, const pn_token *d) {
         st = pn_param_error(ip, p->err, "\"iso\" must be positive, not %g", iso);
         goto done;
     }
-    if (wp && wb != 0.0 && !(wb >= 1000.0 && wb <= 25000.0)) {
-        st = pn_param_error(wp, p->err, "\"whitebalance\" must be a colour temperature in 1000..25000 K (or 0 for "
+    if (wp && wb != 0.0 && !(wb >= 1667.0 && wb <= 25000.0)) {
+        st = pn_param_error(wp, p->err, "\"whitebalance\" must be a colour temperature in 1667..25000 K (or 0 for "
                             "none), not %g", wb);
         goto done;
     }
