@@ -550,6 +550,36 @@ static void test_orthographic_camera_rays(void) {
         check_vec(d, -0.5 / n, 0, 4 / n, 1e-5);
     }
     pn_scene_parse_free(s);
+    /* End to end: a diffuse wall (kd 0.5) at x >= 1 lit head-on by a distant light of
+     * irradiance 1. Through the orthographic camera its edge is the screen's x = 1, raster
+     * column 30 of 40, whatever its depth; its radiance is kd / pi. */
+    for (int depth = 3; depth <= 30; depth *= 10) {
+        char text[1024];
+        snprintf(text, sizeof text,
+                 "Camera \"orthographic\" \"float screenwindow\" [-2 2 -1 1]\n"
+                 "Film \"rgb\" \"integer xresolution\" 40 \"integer yresolution\" 20\n"
+                 "PixelFilter \"box\"\nWorldBegin\n"
+                 "LightSource \"distant\" \"point3 from\" [0 0 0] \"point3 to\" [0 0 1] \"rgb L\" [1 1 1]\n"
+                 "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+                 "Shape \"trianglemesh\" \"point3 P\" [1 -5 %d 9 -5 %d 9 5 %d 1 5 %d] \"integer indices\" [0 1 2 0 2 3]\n",
+                 depth, depth, depth, depth);
+        char rel[64];
+        snprintf(rel, sizeof rel, "ortho_wall_%d.pbrt", depth);
+        pn_scene sc = load_text(rel, text);
+        if (!sc) continue;
+        pn_image img = render(sc, 4);
+        if (img) {
+            int wrong = 0;
+            for (int y = 0; y < 20; y++)
+                for (int x = 0; x < 40; x++) {
+                    double v = (double)pixel(img, x, y)[1], want = x < 30 ? 0.0 : 0.5 / M_PI;
+                    wrong += fabs(v - want) > 1e-4;
+                }
+            CHECK_MSG(wrong == 0, "depth %d: %d pixels differ from the orthographic closed form", depth, wrong);
+        }
+        pn_image_free(img);
+        pn_scene_free(sc);
+    }
     /* a sky render through the orthographic camera sees the sky everywhere */
     float sky[3];
     sky_render("ortho_sky.pbrt", "Camera \"orthographic\"", "", "0.5 0.5 0.5", sky);
