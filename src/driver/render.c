@@ -147,7 +147,7 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     if (!(s->vpl_clamp_fraction >= 0.0f && s->vpl_clamp_fraction < 1.0f) || !(s->error_bound >= 0.0f && s->error_bound < 1.0f))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "VPL clamp fraction and error bound must lie in [0, 1)");
     job->vpls = s->vpls > 0 ? s->vpls : 600000;
-    job->vpl_max_depth = s->vpl_max_depth > 0 ? s->vpl_max_depth : 10;
+    job->vpl_max_depth = s->vpl_max_depth > 0 ? s->vpl_max_depth : pn_scene_vpl_depth(scene, 10);
     job->vpl_clamp_fraction = s->vpl_clamp_fraction > 0.0f ? s->vpl_clamp_fraction : 0.05f;
     job->error_bound = s->error_bound > 0.0f ? s->error_bound : 0.01f;
     job->max_cut = s->max_cut;
@@ -253,6 +253,7 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
         st = pn_progressive_render(ctx, settings, integ, &job, out_image, stats);
     else
         st = run_job(ctx, settings, integ, &job, out_image, stats);
+    if (st == PN_OK) pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
     if (integ->release) integ->release(&job);
     return st;
 }

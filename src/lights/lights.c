@@ -526,7 +526,8 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             continue;
         }
         if (s->flip_normals) {
-            pn_scene_warn(scene, "sphere light %d emits inwards; it is not sampled", si);
+            pn_scene_warn(scene, "%s: sphere light %d emits inwards; it is not sampled",
+                          s->source ? s->source : "?:0:0", si);
             continue;
         }
         pn_light *l = push_light(&ll, err);

@@ -272,7 +272,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
         return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "LightSource \"%s\" has non-finite values", type);
 
     char source[512];
-    snprintf(source, sizeof source, "%s:%d", ps->loc.file ? ps->loc.file : "?", ps->loc.line);
+    snprintf(source, sizeof source, "%s:%d:%d", ps->loc.file ? ps->loc.file : "?", ps->loc.line, ps->loc.column);
     size_t n = strlen(source) + 1;
     d.source = malloc(n);
     if (!d.source ||

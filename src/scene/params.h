@@ -51,7 +51,8 @@ typedef struct pn_param {
 typedef struct pn_params {
     pn_param *items;
     int count;
-    const char *base_dir; /* folder of the file the directive is in (for relative paths) */
+    const char *base_dir; /* pbrt-v4's search directory: the top-level scene file's folder, against which
+                             every relative path resolves (also in included files) */
     pn_srcloc loc;        /* of the directive itself */
 } pn_params;
 
@@ -92,7 +93,8 @@ void pn_warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
 /* A malloc'ed copy of s (NULL when out of memory). */
 char *pn_strdup(const char *s);
 
-/* Joins a relative path to base_dir (absolute paths are returned as they are). Caller frees. */
+/* The one resolver of relative paths (pbrt-v4 ResolveFilename): joins path to base_dir, the
+ * search directory; absolute paths and an empty base_dir return path as it is. Caller frees. */
 char *pn_path_resolve(const char *base_dir, const char *path);
 
 #endif

@@ -78,7 +78,6 @@ typedef struct pn_pending_material {
 
 typedef struct pn_open_file {
     pn_tokenizer tz;
-    const char *dir;
 } pn_open_file;
 
 typedef struct pn_parser {
@@ -89,6 +88,10 @@ typedef struct pn_parser {
     int depth;
     char **strings; /* file paths and folders; they outlive the tokens that point at them */
     int string_count;
+    /* pbrt-v4's search directory: the folder of the top-level scene file. Every relative path
+     * (Include, Import, PLY meshes, textures, spectra, light images) resolves against it, in
+     * included files too (parser.cpp sets it for the files on the command line only). */
+    const char *search_dir;
 
     pn_gstate gs;
     pn_pushed_state *stack;
@@ -108,6 +111,9 @@ typedef struct pn_parser {
 
     bool screen_window_given;
     double frame_aspect; /* 0 = from the film resolution */
+    bool camera_given;
+    pn_srcloc camera_loc, film_loc; /* of the Camera / Film directives (valid while parsing) */
+    bool crop_given;                /* Film "cropwindow" (wins over "pixelbounds", as in pbrt) */
 
     vec3 bounds_lo, bounds_hi;
 
@@ -149,7 +155,7 @@ static char *dir_of(const char *path) {
 }
 
 static pn_tokenizer *cur(pn_parser *p) { return &p->files[p->depth - 1].tz; }
-static const char *cur_dir(pn_parser *p) { return p->files[p->depth - 1].dir; }
+static const char *search_dir(const pn_parser *p) { return p->search_dir; }
 
 static bool mat4_equal(const mat4 *a, const mat4 *b) { return memcmp(a, b, sizeof *a) == 0; }
 
@@ -235,7 +241,7 @@ static pn_status read_string(pn_parser *p, const pn_token *d, const char *what, 
 
 static void params_init(pn_parser *p, const pn_token *d, pn_params *ps) {
     memset(ps, 0, sizeof *ps);
-    ps->base_dir = cur_dir(p);
+    ps->base_dir = search_dir(p);
     ps->loc = d->loc;
 }
 
@@ -537,6 +543,9 @@ static pn_status replace_string(pn_parser *p, char **dst, const char *value) {
     return PN_OK;
 }
 
+/* Camera "perspective" | "orthographic" | "spherical" (cameras.cpp). "realistic" simulates a
+ * lens system from a lens file, which penumbra does not: it stops with an error that names the
+ * thin-lens substitute instead of rendering a different image. */
 static pn_status d_camera(pn_parser *p, const pn_token *d) {
     pn_token type;
     pn_status st = read_string(p, d, "the camera type", &type);
@@ -544,13 +553,36 @@ static pn_status d_camera(pn_parser *p, const pn_token *d) {
     pn_params ps;
     st = read_params(p, d, &ps);
     if (st != PN_OK) goto done;
-    if (strcmp(type.text, "perspective") != 0) {
+    pn_camera_def *cam = &p->scene->camera;
+    pn_projection projection;
+    if (strcmp(type.text, "perspective") == 0) {
+        projection = PN_PROJECTION_PERSPECTIVE;
+    } else if (strcmp(type.text, "orthographic") == 0) {
+        projection = PN_PROJECTION_ORTHOGRAPHIC;
+    } else if (strcmp(type.text, "spherical") == 0) {
+        const char *mapping;
+        if ((st = pn_params_string(&ps, "mapping", "equalarea", &mapping, p->err)) != PN_OK) goto done;
+        if (strcmp(mapping, "equalarea") == 0) {
+            projection = PN_PROJECTION_EQUAL_AREA;
+        } else if (strcmp(mapping, "equirectangular") == 0) {
+            projection = PN_PROJECTION_EQUIRECTANGULAR;
+        } else {
+            st = pn_param_error(pn_params_find(&ps, "mapping"), p->err,
+                                "unknown \"mapping\" \"%s\" for the spherical camera (pbrt-v4 knows \"equalarea\" "
+                                "and \"equirectangular\")", mapping);
+            goto done;
+        }
+    } else if (strcmp(type.text, "realistic") == 0) {
         st = pn_loc_error(&type.loc, PN_ERROR_UNSUPPORTED, p->err,
-                          "Camera \"%s\" is not supported (penumbra renders with \"perspective\" cameras only)",
-                          type.text);
+                          "Camera \"realistic\" (a lens system read from \"lensfile\") is not supported; use "
+                          "Camera \"perspective\" with \"lensradius\" and \"focaldistance\" (a thin lens) instead");
+        goto done;
+    } else {
+        st = pn_loc_error(&type.loc, PN_ERROR_UNSUPPORTED, p->err,
+                          "Camera \"%s\" is not supported (penumbra renders \"perspective\", \"orthographic\" and "
+                          "\"spherical\" cameras)", type.text);
         goto done;
     }
-    pn_camera_def *cam = &p->scene->camera;
     mat4 inv;
     if (!mat4_inverse(p->gs.ctm[0], &inv)) {
         st = pn_loc_error(&d->loc, PN_ERROR_BAD_INPUT, p->err, "the camera transform is singular");
@@ -559,17 +591,23 @@ static pn_status d_camera(pn_parser *p, const pn_token *d) {
     warn_motion_once(p, &d->loc);
     cam->camera_from_world = p->gs.ctm[0];
     cam->world_from_camera = inv;
+    cam->projection = projection;
     mat4 both[2] = {inv, inv};
     if (!mat4_inverse(p->gs.ctm[1], &both[1])) both[1] = inv;
     st = set_named(p, "camera", both);
     if (st != PN_OK) goto done;
 
-    double fov, lens, focal, aspect;
-    if ((st = pn_params_float(&ps, "fov", 90.0, &fov, p->err)) != PN_OK) goto done;
+    double fov = 90.0, lens, focal, aspect, open, close;
+    if (projection == PN_PROJECTION_PERSPECTIVE && (st = pn_params_float(&ps, "fov", 90.0, &fov, p->err)) != PN_OK)
+        goto done;
+    /* pbrt's spherical camera reads these four and ignores them; so does penumbra, silently. */
     if ((st = pn_params_float(&ps, "lensradius", 0.0, &lens, p->err)) != PN_OK) goto done;
     if ((st = pn_params_float(&ps, "focaldistance", 1e6, &focal, p->err)) != PN_OK) goto done;
     if ((st = pn_params_float(&ps, "frameaspectratio", 0.0, &aspect, p->err)) != PN_OK) goto done;
-    const pn_param *fp = pn_params_find(&ps, "fov");
+    if ((st = pn_params_float(&ps, "shutteropen", 0.0, &open, p->err)) != PN_OK) goto done;
+    if ((st = pn_params_float(&ps, "shutterclose", 1.0, &close, p->err)) != PN_OK) goto done;
+    /* an orthographic or spherical camera has no fov: a given one is reported as unused */
+    const pn_param *fp = projection == PN_PROJECTION_PERSPECTIVE ? pn_params_find(&ps, "fov") : NULL;
     if (fp && !(fov > 0.0 && fov < 180.0)) {
         st = pn_param_error(fp, p->err, "\"fov\" must be between 0 and 180 degrees, not %g", fov);
         goto done;
@@ -587,15 +625,24 @@ static pn_status d_camera(pn_parser *p, const pn_token *d) {
         p->screen_window_given = true;
     }
     cam->fov_deg = (float)fov;
-    cam->lens_radius = (float)lens;
+    cam->lens_radius = projection == PN_PROJECTION_EQUAL_AREA || projection == PN_PROJECTION_EQUIRECTANGULAR
+                           ? 0.0f
+                           : (float)lens;
     cam->focal_distance = (float)focal;
+    cam->shutter_open = (float)open;
+    cam->shutter_close = (float)close;
     p->frame_aspect = aspect > 0.0 ? aspect : 0.0;
+    p->camera_given = true;
+    p->camera_loc = d->loc;
     warn_unused(p, &ps, ps.count, d, type.text);
 done:
     pn_params_free(&ps);
     return st;
 }
 
+/* Film "rgb" (also "gbuffer" and "spectral", read as rgb): resolution, crop window or pixel
+ * bounds, and the parameters of pbrt-v4's PixelSensor and RGBFilm that scale the image (iso,
+ * whitebalance, sensor, maxcomponentvalue; film.cpp). */
 static pn_status d_film(pn_parser *p, const pn_token *d) {
     pn_token type;
     pn_status st = read_string(p, d, "the film type", &type);
@@ -621,27 +668,101 @@ static pn_status d_film(pn_parser *p, const pn_token *d) {
     const double *cw;
     int cwn;
     if ((st = pn_params_array(&ps, "cropwindow", PN_PT_FLOAT, 0, &cw, &cwn, p->err)) != PN_OK) goto done;
+    const double *pbv;
+    int pbn;
+    if ((st = pn_params_array(&ps, "pixelbounds", PN_PT_INTEGER, 0, &pbv, &pbn, p->err)) != PN_OK) goto done;
+    const pn_param *cp = pn_params_find(&ps, "cropwindow"), *pb = pn_params_find(&ps, "pixelbounds");
+    cam->pixel_bounds_given = false;
+    p->crop_given = false;
     if (cw) {
-        const pn_param *cp = pn_params_find(&ps, "cropwindow");
         if (cwn != 4) {
             st = pn_param_error(cp, p->err, "\"cropwindow\" needs 4 values (x0 x1 y0 y1), found %d", cwn);
             goto done;
         }
+        /* pbrt sorts each pair, then clamps to [0, 1]; the window's pixels are ceil(res * crop). */
         float c[4];
-        for (int i = 0; i < 4; i++) c[i] = (float)fmin(1.0, fmax(0.0, cw[i]));
-        if (!(c[0] < c[1]) || !(c[2] < c[3])) {
-            st = pn_param_error(cp, p->err, "\"cropwindow\" [%g %g %g %g] is empty", cw[0], cw[1], cw[2], cw[3]);
+        for (int k = 0; k < 2; k++) {
+            c[2 * k] = (float)fmin(1.0, fmax(0.0, fmin(cw[2 * k], cw[2 * k + 1])));
+            c[2 * k + 1] = (float)fmin(1.0, fmax(0.0, fmax(cw[2 * k], cw[2 * k + 1])));
+        }
+        if (!(ceilf((float)w * c[0]) < ceilf((float)w * c[1])) || !(ceilf((float)h * c[2]) < ceilf((float)h * c[3]))) {
+            st = pn_param_error(cp, p->err, "\"cropwindow\" [%g %g %g %g] covers no pixel of the %dx%d film", cw[0],
+                                cw[1], cw[2], cw[3], w, h);
             goto done;
         }
         memcpy(cam->crop, c, sizeof c);
+        p->crop_given = true;
+        if (pb)
+            pn_warn_at(p->scene, pb->loc, "both \"pixelbounds\" and \"cropwindow\" are given; the crop window is used "
+                       "(as pbrt-v4 does)");
+    } else if (pb) {
+        if (pbn != 4) {
+            st = pn_param_error(pb, p->err, "\"pixelbounds\" needs 4 integers (x0 x1 y0 y1), found %d", pbn);
+            goto done;
+        }
+        /* pbrt: the bounds of the points (x0, y0) and (x1, y1), intersected with the film. */
+        double lo[2] = {fmin(pbv[0], pbv[1]), fmin(pbv[2], pbv[3])};
+        double hi[2] = {fmax(pbv[0], pbv[1]), fmax(pbv[2], pbv[3])};
+        double res[2] = {w, h};
+        bool clamped = false;
+        int b[4];
+        for (int k = 0; k < 2; k++) {
+            double l = fmax(lo[k], 0.0), u = fmin(hi[k], res[k]);
+            clamped = clamped || l != lo[k] || u != hi[k];
+            b[2 * k] = (int)l;
+            b[2 * k + 1] = (int)u;
+        }
+        if (!(b[0] < b[1]) || !(b[2] < b[3])) {
+            st = pn_param_error(pb, p->err, "\"pixelbounds\" [%g %g %g %g] covers no pixel of the %dx%d film", pbv[0],
+                                pbv[1], pbv[2], pbv[3], w, h);
+            goto done;
+        }
+        if (clamped)
+            pn_warn_at(p->scene, pb->loc, "\"pixelbounds\" extends beyond the %dx%d film; clamped to [%d %d %d %d]",
+                       w, h, b[0], b[1], b[2], b[3]);
+        memcpy(cam->pixel_bounds, b, sizeof b);
+        cam->pixel_bounds_given = true;
+        cam->crop[0] = (float)b[0] / (float)w;
+        cam->crop[1] = (float)b[1] / (float)w;
+        cam->crop[2] = (float)b[2] / (float)h;
+        cam->crop[3] = (float)b[3] / (float)h;
     }
     const char *filename;
     if ((st = pn_params_string(&ps, "filename", NULL, &filename, p->err)) != PN_OK) goto done;
     if (filename && (st = replace_string(p, &cam->film_filename, filename)) != PN_OK) goto done;
-    const pn_param *pb = pn_params_find(&ps, "pixelbounds");
-    if (pb)
-        pn_scene_warn(p->scene, "%s:%d:%d: Film \"pixelbounds\" ignored (use cropwindow)", pb->loc.file, pb->loc.line,
-                      pb->loc.column);
+    double iso, wb, maxc;
+    const char *sensor;
+    if ((st = pn_params_float(&ps, "iso", 100.0, &iso, p->err)) != PN_OK) goto done;
+    if ((st = pn_params_float(&ps, "whitebalance", 0.0, &wb, p->err)) != PN_OK) goto done;
+    if ((st = pn_params_float(&ps, "maxcomponentvalue", INFINITY, &maxc, p->err)) != PN_OK) goto done;
+    if ((st = pn_params_string(&ps, "sensor", "cie1931", &sensor, p->err)) != PN_OK) goto done;
+    const pn_param *ip = pn_params_find(&ps, "iso"), *wp = pn_params_find(&ps, "whitebalance");
+    const pn_param *mp = pn_params_find(&ps, "maxcomponentvalue");
+    if (ip && !(iso > 0.0)) {
+        st = pn_param_error(ip, p->err, "\"iso\" must be positive, not %g", iso);
+        goto done;
+    }
+    if (wp && wb != 0.0 && !(wb >= 1667.0 && wb <= 25000.0)) {
+        st = pn_param_error(wp, p->err, "\"whitebalance\" must be a colour temperature in 1667..25000 K (or 0 for "
+                            "none), not %g", wb);
+        goto done;
+    }
+    if (mp && !(maxc > 0.0)) {
+        st = pn_param_error(mp, p->err, "\"maxcomponentvalue\" must be positive, not %g", maxc);
+        goto done;
+    }
+    if (strcmp(sensor, "cie1931") != 0) {
+        /* pbrt's named sensors integrate measured camera responses and default to a 6500 K white
+         * balance; penumbra has no spectra to integrate, so it keeps the XYZ response. */
+        const pn_param *sp = pn_params_find(&ps, "sensor");
+        if (wb == 0.0) wb = 6500.0;
+        pn_warn_at(p->scene, sp->loc, "\"sensor\" \"%s\" is not supported: the \"cie1931\" (XYZ) response is used, "
+                   "white-balanced for %g K", sensor, wb);
+    }
+    cam->iso = (float)iso;
+    cam->white_balance_k = (float)wb;
+    cam->max_component_value = isfinite(maxc) ? (float)maxc : 0.0f;
+    p->film_loc = d->loc;
     warn_unused(p, &ps, ps.count, d, type.text);
 done:
     pn_params_free(&ps);
@@ -705,6 +826,8 @@ done:
     return st;
 }
 
+/* Sampler: penumbra draws its own (Owen-scrambled Sobol) samples; "pixelsamples" is kept for
+ * reports and every other parameter is reported as unused (pbrt-v4 would stop on unused ones). */
 static pn_status d_sampler(pn_parser *p, const pn_token *d) {
     pn_token type;
     pn_status st = read_string(p, d, "the sampler type", &type);
@@ -713,12 +836,18 @@ static pn_status d_sampler(pn_parser *p, const pn_token *d) {
     st = read_params(p, d, &ps);
     int n = 16;
     if (st == PN_OK) st = pn_params_int(&ps, "pixelsamples", 16, &n, p->err);
-    if (st == PN_OK) p->scene->camera.pixel_samples = n;
-    /* penumbra chooses its own sampling; the other Sampler parameters are not reported */
+    if (st == PN_OK) {
+        p->scene->camera.pixel_samples = n;
+        warn_unused(p, &ps, ps.count, d, type.text);
+    }
     pn_params_free(&ps);
     return st;
 }
 
+/* Integrator: penumbra's method is chosen on its command line; "maxdepth" sets the VPL
+ * integrators' default light-path depth (pn_scene_vpl_depth). The direct-light integrators
+ * (reference, ias, contour, contour-mc) compute direct light only, which is pbrt's maxdepth 1;
+ * a larger maxdepth is reported so that a comparison with pbrt's image is not made blindly. */
 static pn_status d_integrator(pn_parser *p, const pn_token *d) {
     pn_token type;
     pn_status st = read_string(p, d, "the integrator type", &type);
@@ -727,20 +856,32 @@ static pn_status d_integrator(pn_parser *p, const pn_token *d) {
     st = read_params(p, d, &ps);
     int depth = 5;
     if (st == PN_OK) st = pn_params_int(&ps, "maxdepth", 5, &depth, p->err);
+    const pn_param *dp = st == PN_OK ? pn_params_find(&ps, "maxdepth") : NULL;
+    if (dp && depth < 0) st = pn_param_error(dp, p->err, "\"maxdepth\" must not be negative, not %d", depth);
     if (st == PN_OK) {
         p->scene->camera.max_depth = depth;
+        p->scene->camera.max_depth_given = dp != NULL;
         st = replace_string(p, &p->scene->camera.integrator_name, type.text);
     }
+    if (st == PN_OK && dp && depth != 1)
+        pn_warn_at(p->scene, dp->loc,
+                   "Integrator \"%s\" \"maxdepth\" %d: the VPL integrators (vpl, lightcuts, illumcut) default to "
+                   "light paths of %d bounce%s; the direct-light integrators (reference, ias, contour, contour-mc) "
+                   "render direct light only, as pbrt does with maxdepth 1", type.text, depth,
+                   depth > 0 ? depth - 1 : 0, depth == 2 ? "" : "s");
+    if (st == PN_OK) warn_unused(p, &ps, ps.count, d, type.text);
     pn_params_free(&ps);
     return st;
 }
 
+/* Accelerator: penumbra always builds Embree's BVH; the parameters are reported as unused. */
 static pn_status d_accelerator(pn_parser *p, const pn_token *d) {
     pn_token type;
     pn_status st = read_string(p, d, "the accelerator type", &type);
     if (st != PN_OK) return st;
     pn_params ps;
     st = read_params(p, d, &ps);
+    if (st == PN_OK) warn_unused(p, &ps, ps.count, d, type.text);
     pn_params_free(&ps);
     return st;
 }
@@ -1034,7 +1175,8 @@ static char *take_source(pn_shape_ctx *sc) {
     sc->source = NULL;
     if (s) return s;
     char buf[600];
-    snprintf(buf, sizeof buf, "%s:%d", sc->directive->loc.file, sc->directive->loc.line);
+    snprintf(buf, sizeof buf, "%s:%d:%d", sc->directive->loc.file, sc->directive->loc.line,
+             sc->directive->loc.column);
     return strdup(buf);
 }
 
@@ -1352,7 +1494,11 @@ static pn_status shape_sphere(pn_parser *p, pn_shape_ctx *sc, pn_params *ps) {
     st = shape_emission(p, sc, 4.0 * PN_PI_D * r * r, &sp.emission);
     if (st != PN_OK) return st;
     struct pn_scene_s *s = p->scene;
-    if (!pn_grow_for_append((void **)&s->spheres, s->sphere_count, sizeof *s->spheres)) return out_of_memory(p);
+    sp.source = take_source(sc);
+    if (!sp.source || !pn_grow_for_append((void **)&s->spheres, s->sphere_count, sizeof *s->spheres)) {
+        free(sp.source);
+        return out_of_memory(p);
+    }
     s->spheres[s->sphere_count++] = sp;
     if (sc->object < 0) {
         vec3 e = v3(sp.radius, sp.radius, sp.radius);
@@ -1499,12 +1645,14 @@ static pn_status d_shape(pn_parser *p, const pn_token *d) {
 
 static pn_status open_file(pn_parser *p, const char *path, const pn_srcloc *at) {
     const char *kept = keep_string(p, strdup(path));
-    const char *dir = keep_string(p, dir_of(path));
-    if (!kept || !dir) return out_of_memory(p);
+    if (!kept) return out_of_memory(p);
+    if (p->depth == 0) {
+        p->search_dir = keep_string(p, dir_of(path));
+        if (!p->search_dir) return out_of_memory(p);
+    }
     pn_open_file *f = &p->files[p->depth];
     pn_status st = pn_tokenizer_open(&f->tz, kept, at, p->err);
     if (st != PN_OK) return st;
-    f->dir = dir;
     p->depth++;
     return PN_OK;
 }
@@ -1517,7 +1665,7 @@ static pn_status d_include(pn_parser *p, const pn_token *d) {
         return pn_loc_error(&name.loc, PN_ERROR_BAD_INPUT, p->err,
                             "Include nesting is deeper than %d files (does a file include itself?)",
                             PN_MAX_INCLUDE_DEPTH);
-    char *path = pn_path_resolve(cur_dir(p), name.text);
+    char *path = pn_path_resolve(search_dir(p), name.text);
     if (!path) return out_of_memory(p);
     st = open_file(p, path, &name.loc);
     free(path);
@@ -1693,8 +1841,19 @@ static void instance_bounds(pn_parser *p) {
     free(ohi);
 }
 
-static void finish_camera(pn_parser *p) {
+static pn_status finish_camera(pn_parser *p) {
     pn_camera_def *cam = &p->scene->camera;
+    /* pbrt-v4 (scene.cpp, film.cpp): the exposure time is shutterclose - shutteropen of the
+     * camera's parameters as written (a reversed pair is not swapped for this), and a shutter that
+     * does not open stops the render; the imaging ratio is exposure time * ISO / 100. */
+    double exposure = (double)cam->shutter_close - (double)cam->shutter_open;
+    if (!(exposure > 0.0)) {
+        pn_srcloc loc = p->camera_loc;
+        return pn_loc_error(&loc, PN_ERROR_BAD_INPUT, p->err,
+                            "the camera's shutter does not open: shutterclose %g - shutteropen %g is not positive",
+                            (double)cam->shutter_close, (double)cam->shutter_open);
+    }
+    cam->imaging_ratio = (float)(exposure * (double)cam->iso / 100.0);
     if (!p->screen_window_given) {
         double aspect = p->frame_aspect > 0.0 ? p->frame_aspect : (double)cam->width / (double)cam->height;
         if (aspect > 1.0) {
@@ -1709,6 +1868,7 @@ static void finish_camera(pn_parser *p) {
             cam->screen_window[3] = (float)(1.0 / aspect);
         }
     }
+    return PN_OK;
 }
 
 static pn_status camera_defaults(pn_parser *p) {
@@ -1729,6 +1889,10 @@ static pn_status camera_defaults(pn_parser *p) {
     cam->mitchell_b = cam->mitchell_c = 1.0f / 3.0f;
     cam->pixel_samples = 16;
     cam->max_depth = 5;
+    cam->shutter_open = 0.0f;
+    cam->shutter_close = 1.0f;
+    cam->iso = 100.0f;
+    cam->imaging_ratio = 1.0f;
     cam->film_filename = strdup("");
     cam->integrator_name = strdup("volpath");
     if (!cam->film_filename || !cam->integrator_name) return out_of_memory(p);
@@ -1772,8 +1936,7 @@ static pn_status parse_all(pn_parser *p, const char *path) {
                       p->degenerate_shapes == 1 ? "" : "s");
     }
     instance_bounds(p);
-    finish_camera(p);
-    return PN_OK;
+    return finish_camera(p);
 }
 
 static void parser_cleanup(pn_parser *p) {
@@ -1847,6 +2010,7 @@ void pn_scene_parse_free(struct pn_scene_s *scene) {
         free(m->source);
     }
     free(scene->meshes);
+    for (int i = 0; i < scene->sphere_count; i++) free(scene->spheres[i].source);
     free(scene->spheres);
     free(scene->disks);
     for (int i = 0; i < scene->object_count; i++) free(scene->objects[i].name);

@@ -132,7 +132,7 @@ typedef struct pn_mesh {
     bool flip_normals;
     int object;         /* -1: world geometry; >= 0: belongs to objects[object] */
     int disk;           /* >= 0: this mesh tessellates disks[disk] (for analytic disk lights) */
-    char *source;       /* "file:line" of the Shape directive, for messages */
+    char *source;       /* "file:line:column" of the Shape directive, for messages */
 } pn_mesh;
 
 /* An analytic sphere (pbrt "sphere" with full zmin/zmax/phimax). A non-uniform scale in its
@@ -144,6 +144,7 @@ typedef struct pn_sphere {
     int emission;       /* -1 or index into emissions */
     bool flip_normals;  /* normals point inward */
     int object;
+    char *source;       /* "file:line:column" of the Shape directive, for messages */
 } pn_sphere;
 
 /* An analytic disk as a light source; its geometry is also tessellated into a pn_mesh. */
@@ -201,8 +202,17 @@ typedef enum pn_filter_kind {
     PN_FILTER_MITCHELL = 3
 } pn_filter_kind;
 
+/* pbrt-v4's camera models (cameras.cpp). Zero is the perspective camera. */
+typedef enum pn_projection {
+    PN_PROJECTION_PERSPECTIVE = 0,
+    PN_PROJECTION_ORTHOGRAPHIC = 1,   /* rays along +z from the screen window at z = 0 */
+    PN_PROJECTION_EQUAL_AREA = 2,     /* "spherical", mapping "equalarea" (Clarberg octahedral) */
+    PN_PROJECTION_EQUIRECTANGULAR = 3 /* "spherical", mapping "equirectangular" */
+} pn_projection;
+
 typedef struct pn_camera_def {
     mat4 camera_from_world, world_from_camera;
+    pn_projection projection;
     float fov_deg;          /* of the shorter image axis, pbrt's "fov" (default 90) */
     float screen_window[4]; /* xmin, xmax, ymin, ymax (default from the aspect ratio) */
     float lens_radius, focal_distance;
@@ -212,10 +222,27 @@ typedef struct pn_camera_def {
     float filter_radius[2];
     float gaussian_sigma;
     float mitchell_b, mitchell_c;
+    /* Film pixelbounds (pbrt: an integer window [x0,x1) x [y0,y1) of the full resolution):
+     * when given, crop[] holds the same window as fractions and the renderer uses these
+     * integers whenever it renders the scene's own crop at the scene's own resolution. */
+    bool pixel_bounds_given;
+    int pixel_bounds[4];    /* x0, x1, y0, y1 */
+    /* The film's response, applied to the finished image in one place (pn_camera_film_apply):
+     * RGB -> XYZ, times imaging_ratio, clamped so that no XYZ component exceeds
+     * max_component_value (0 = no clamp), white-balanced from the CIE daylight (or, below 4000 K,
+     * blackbody) white of white_balance_k to D65 with the Bradford (von Kries) transform
+     * (0 = none), -> RGB. pbrt-v4: the "cie1931" PixelSensor and RGBFilm. */
+    float imaging_ratio;    /* (shutterclose - shutteropen) * iso / 100; 0 reads as 1 */
+    float max_component_value;
+    float white_balance_k;
+    float shutter_open, shutter_close; /* Camera parameters, kept for the imaging ratio */
+    float iso;                         /* Film parameter */
     int pixel_samples;      /* Sampler "pixelsamples", reported only */
     char *film_filename;
     char *integrator_name;  /* Integrator, reported only */
-    int max_depth;
+    int max_depth;          /* Integrator "maxdepth" (pbrt's default 5 when absent) */
+    bool max_depth_given;   /* the scene gave "maxdepth": the VPL integrators' default light-path
+                               depth becomes max_depth - 1 bounces (pn_scene_vpl_depth) */
 } pn_camera_def;
 
 /* ---- the scene --------------------------------------------------------------------------- */
@@ -271,6 +298,12 @@ void pn_scene_parse_free(struct pn_scene_s *scene);
 
 /* Adds a warning to the scene (copies the text) and logs it. */
 void pn_scene_warn(struct pn_scene_s *scene, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* The VPL integrators' default light-path depth (bounces that may leave a VPL) for this scene:
+ * pbrt's maxdepth counts scattering events of a whole path, and a VPL left after k bounces
+ * lights the receiving point over a path of k + 1 of them, so maxdepth D means D - 1 bounces.
+ * Without an Integrator "maxdepth" in the scene this is `fallback` (penumbra's own default). */
+uint32_t pn_scene_vpl_depth(const struct pn_scene_s *scene, uint32_t fallback);
 
 /* Texture evaluation at surface coordinates (u, v); returns RGB (float textures: all three
  * channels equal). Implemented in scene/texture.c. */

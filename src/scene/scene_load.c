@@ -92,6 +92,11 @@ pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info) {
     return PN_OK;
 }
 
+uint32_t pn_scene_vpl_depth(const struct pn_scene_s *scene, uint32_t fallback) {
+    if (!scene || !scene->camera.max_depth_given) return fallback;
+    return scene->camera.max_depth > 1 ? (uint32_t)(scene->camera.max_depth - 1) : 0u;
+}
+
 uint32_t pn_scene_material_count(pn_scene scene) { return scene ? (uint32_t)scene->material_count : 0; }
 
 const char *pn_scene_material_description(pn_scene scene, uint32_t index) {
