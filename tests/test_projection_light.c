@@ -12,6 +12,7 @@
 #include "lights/vpl.h"
 #include "penumbra/penumbra.h"
 #include "scene/scene.h"
+#include "shade/bounds.h"
 
 #include <stdint.h>
 #include <sys/wait.h>
@@ -506,14 +507,87 @@ static void test_vpl_first_bounce(void) {
     pn_context_free(ctx);
 }
 
+/* The cuts' bound for one VPL at one point (shade/bounds.c: M_max G_max I, the degenerate
+ * clusters of Lightcuts) is at least the VPL's contribution, for the projection light's VPL whose
+ * image exceeds 1 (peak 4 here), at receivers all over its frustum and normals towards it. */
+static void test_vpl_bound_holds(void) {
+    float rgb[3 * EW * EH];
+    emission_image(rgb);
+    CHECK(write_pfm("emit.pfm", rgb, EW, EH));
+    pn_context ctx = pn_context_new();
+    pn_context_set_log(ctx, quiet_log, NULL);
+    pn_scene scene = load(ctx, "bound.pbrt",
+                          scene_text(8, 8, 40,
+                                     "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+                                     "Shape \"trianglemesh\" \"point3 P\" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "
+                                     "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                                     "AttributeBegin\nTranslate 0 0 2\nRotate 180 1 0 0\n"
+                                     "LightSource \"projection\" \"string filename\" \"emit.pfm\" \"float fov\" [ 70 ]\n"
+                                     "AttributeEnd\n"));
+    CHECK_MSG(scene != NULL, "%s", pn_context_error_message(ctx));
+    if (scene) {
+        pn_vpl_settings s = {1, 1, 0.05f, 5};
+        pn_vpl_set set;
+        pn_err err;
+        pn_err_init(&err);
+        CHECK(pn_vpl_trace(scene, scene->lights, scene->accel, &s, &set, &err) == PN_OK);
+        const pn_vpl *v = NULL;
+        for (uint32_t i = 0; i < set.count; i++)
+            if (set.vpls[i].kind == PN_VPL_OMNI) v = &set.vpls[i];
+        CHECK(v != NULL);
+        pn_rng rng;
+        pn_rng_seed(&rng, 31, 3);
+        int lit = 0, violated = 0;
+        double worst = 0.0;
+        for (int k = 0; v && k < 5000; k++) {
+            pn_vpl_receiver r;
+            memset(&r, 0, sizeof r);
+            r.p = v3((float)(4.0 * (double)pn_rng_float(&rng) - 2.0), (float)(4.0 * (double)pn_rng_float(&rng) - 2.0),
+                     (float)(1.5 * (double)pn_rng_float(&rng)));
+            vec3 to = v3_normalize(v3_sub(v->p, r.p));
+            r.ng = r.ns = v3_normalize(v3_add(to, v3(0.3f, 0.0f, 0.0f)));
+            r.wo = v3(0, 0, 1);
+            r.kd = v3(0.7f, 0.5f, 0.3f);
+            vec3 wi;
+            float dist;
+            vec3 c = pn_vpl_contribution(scene->lights, v, &r, set.min_dist2, &wi, &dist);
+            double actual = (double)v3_luminance(c);
+            if (actual <= 0.0) continue;
+            lit++;
+            pn_receiver_bounds rb;
+            memset(&rb, 0, sizeof rb);
+            rb.lo = rb.hi = r.p;
+            rb.n_axis = r.ns;
+            rb.r_axis = r.ns;
+            rb.kd_max = r.kd;
+            pn_receiver_bounds_set_cones(&rb);
+            pn_light_bounds lb;
+            memset(&lb, 0, sizeof lb);
+            lb.kind = PN_VPL_OMNI;
+            lb.lo = lb.hi = v->p;
+            lb.axis = v3(0, 0, 1);
+            pn_light_bounds_set_cone(&lb);
+            double bound = (double)pn_bound_error(&rb, &lb, v->intensity, set.min_dist2);
+            if (bound < actual * (1.0 - 1e-5)) violated++;
+            worst = fmax(worst, actual / bound);
+        }
+        CHECK(lit > 1000);
+        CHECK_MSG(violated == 0, "%d of %d contributions above their bound (worst ratio %.3f)", violated, lit, worst);
+        pn_vpl_set_free(&set);
+    }
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 /* ---- integrators agree ------------------------------------------------------------------------- */
 
 /* A floor lit from above by a projection light (the two-colour image, tilted) and a point light,
  * seen obliquely. The vpl integrator with one bounce is direct light here (a plane does not light
  * itself) and exact per eye ray, as is the reference; both are unbiased estimators of each pixel,
  * with independent pixels, so the mean over pixels of their difference is zero within its
- * standard error (z <= 4). ias and the reference with the light BVH likewise; lightcuts is
- * within its relative error bound (1%) of vpl. */
+ * standard error (z <= 4). ias, contour (here: the reference's estimator, no polygon lights) and
+ * the reference with the light BVH likewise; lightcuts and illumcut are within their relative
+ * error bound (1%) of vpl. */
 static void test_integrators_agree(void) {
     float rgb[3 * 15];
     two_colour_image(rgb);
@@ -536,10 +610,11 @@ static void test_integrators_agree(void) {
         return;
     }
     enum { NP = 24 * 16 };
-    static float imgs[5][3 * NP];
-    const char *names[5] = {"reference", "reference-bvh", "ias", "vpl", "lightcuts"};
-    bool have[5] = {false};
-    for (int m = 0; m < 5; m++) {
+    enum { NM = 7 };
+    static float imgs[NM][3 * NP];
+    const char *names[NM] = {"reference", "reference-bvh", "ias", "vpl", "lightcuts", "illumcut", "contour"};
+    bool have[NM] = {false};
+    for (int m = 0; m < NM; m++) {
         pn_render_settings rs;
         memset(&rs, 0, sizeof rs);
         rs.threads = 2;
@@ -553,8 +628,9 @@ static void test_integrators_agree(void) {
         if (m == 2) {
             rs.integrator = PN_INTEGRATOR_IAS;
         }
-        if (m >= 3) {
-            rs.integrator = m == 3 ? PN_INTEGRATOR_VPL : PN_INTEGRATOR_LIGHTCUTS;
+        if (m == 6) rs.integrator = PN_INTEGRATOR_CONTOUR;
+        if (m >= 3 && m <= 5) {
+            rs.integrator = m == 3 ? PN_INTEGRATOR_VPL : (m == 4 ? PN_INTEGRATOR_LIGHTCUTS : PN_INTEGRATOR_ILLUMCUT);
             rs.vpls = 200;
             rs.vpl_max_depth = 1;
             rs.vpl_clamp_fraction = 1e-4f;
@@ -579,7 +655,7 @@ static void test_integrators_agree(void) {
         }
         CHECK_MSG(red > 0.1 * green && blue > 0.1 * green, "red %g blue %g green %g", red, blue, green);
     }
-    for (int m = 0; m < 5; m++) {
+    for (int m = 0; m < NM; m++) {
         if (m == 3 || !have[m] || !have[3]) continue;
         for (int c = 0; c < 3; c++) {
             double sd = 0.0, sd2 = 0.0, base = 0.0;
@@ -591,7 +667,7 @@ static void test_integrators_agree(void) {
             }
             double mean = sd / NP, se = sqrt(fmax(0.0, sd2 / NP - mean * mean) / NP);
             base /= NP;
-            if (m == 4) {
+            if (m == 4 || m == 5) {
                 CHECK_MSG(fabs(mean) <= 0.01 * base + 4.0 * se, "%s channel %d: mean difference %.3g of %.3g (se %.2g)",
                           names[m], c, mean, base, se);
             } else {
@@ -676,4 +752,4 @@ static void teardown(void) {
 }
 
 PN_TESTS(TEST(setup), TEST(test_irradiance_closed_form), TEST(test_two_colour_pixels), TEST(test_emission_sampling),
-         TEST(test_vpl_first_bounce), TEST(test_integrators_agree), TEST(test_bad_input), TEST(teardown))
+         TEST(test_vpl_first_bounce), TEST(test_vpl_bound_holds), TEST(test_integrators_agree), TEST(test_bad_input), TEST(teardown))
