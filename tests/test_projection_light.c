@@ -626,7 +626,8 @@ static void test_integrators_agree(void) {
             rs.light_sampler = PN_LIGHT_SAMPLER_BVH;
         }
         if (m == 2) {
-            rs.integrator = PN_INTEGRATOR_IAS;
+            rs.integrator = PN_INTEGRATOR_IAS; /* adaptive, its default threshold: no spp */
+            rs.spp = 0;
         }
         if (m == 6) rs.integrator = PN_INTEGRATOR_CONTOUR;
         if (m >= 3 && m <= 5) {
