@@ -940,8 +940,10 @@ static void test_light_power(void) {
     }
 
     ps = make_params();
-    CHECK(pn_light_from_pbrt(s, "projection", &ps, &m, &err) == PN_ERROR_UNSUPPORTED);
+    /* Supported now; without its required "filename" it is bad input at the directive. */
+    CHECK(pn_light_from_pbrt(s, "projection", &ps, &m, &err) == PN_ERROR_BAD_INPUT);
     CHECK_STR_CONTAINS(err.message, "scene.pbrt:12:3:");
+    CHECK_STR_CONTAINS(err.message, "\"filename\"");
     pn_params_free(&ps);
 
     /* Area light: radiance = L * scale, then power / (pi * sides * area) (an rgb L counts by its

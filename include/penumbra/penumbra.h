@@ -98,6 +98,7 @@ typedef struct pn_scene_info {
     int resolution[2];   /* film resolution from the scene file */
     double parse_seconds; /* time spent parsing (PLY included) */
     double bvh_seconds;   /* time spent building the Embree BVH */
+    uint32_t lights_projection; /* pbrt-v4 "projection" lights */
 } pn_scene_info;
 
 PN_API pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info);

@@ -1800,7 +1800,7 @@ static int command_info(int argc, char **argv) {
     uint64_t area = (uint64_t)info.lights_area_triangle + info.lights_area_rectangle +
                     info.lights_area_disk + info.lights_area_sphere;
     uint64_t lights = area + info.lights_point + info.lights_spot + info.lights_distant +
-                      info.lights_infinite + info.lights_goniometric;
+                      info.lights_infinite + info.lights_goniometric + info.lights_projection;
     printf("scene          %s\n", scene_path);
     printf("film           %dx%d\n", info.resolution[0], info.resolution[1]);
     printf("triangles      %llu (%llu unique)\n", (unsigned long long)info.triangles,
@@ -1814,6 +1814,7 @@ static int command_info(int argc, char **argv) {
     printf("  distant      %u\n", info.lights_distant);
     printf("  infinite     %u\n", info.lights_infinite);
     printf("  goniometric  %u\n", info.lights_goniometric);
+    printf("  projection   %u\n", info.lights_projection);
     printf("  area         %llu (triangle %u, rectangle %u, disk %u, sphere %u)\n",
            (unsigned long long)area, info.lights_area_triangle, info.lights_area_rectangle,
            info.lights_area_disk, info.lights_area_sphere);

@@ -58,6 +58,8 @@ float pn_cluster_light_power(const pn_light *l) {
         return PN_PI * lum * 4.0f * PN_PI * l->radius * l->radius;
     case PN_LIGHT_DISTANT:
         return lum;
+    case PN_LIGHT_PROJECTION:
+        return fmaxf(l->power, 0.0f); /* luminance(emit * phi), exact (lights/projection.c) */
     default:
         return 0.0f;
     }
@@ -77,6 +79,7 @@ int pn_cluster_light_tree(const pn_light *l) {
     case PN_LIGHT_GONIOMETRIC:
         return PN_TREE_OMNI;
     case PN_LIGHT_SPOT:
+    case PN_LIGHT_PROJECTION:
         return dominant_tree(l->n);
     case PN_LIGHT_TRIANGLE:
     case PN_LIGHT_RECTANGLE:
@@ -263,6 +266,15 @@ bool pn_cluster_light_culled(const pn_light *l, vec3 p, vec3 n) {
         return horizon && v3_dot(v3_sub(l->p, p), n) + l->radius <= 0.0f;
     case PN_LIGHT_DISTANT:
         return horizon && v3_dot(l->n, n) <= 0.0f;
+    case PN_LIGHT_PROJECTION: {
+        /* The cone around the axis that holds the frustum (lights/projection.c): conservative,
+         * a point inside the cone but outside the frustum is not culled. */
+        vec3 d = v3_sub(p, l->p);
+        float d2 = v3_length2(d);
+        if (!(d2 > 0.0f)) return true;
+        if (horizon && v3_dot(d, n) >= 0.0f) return true;
+        return v3_dot(d, l->n) <= l->cos_total_width * sqrtf(d2);
+    }
     default:
         return false;
     }
@@ -647,6 +659,7 @@ static void init_leaf(pn_cluster_node *nd, const pn_light *l, int light, int tre
         nd->axis = tree < 0 ? l->n : v3_normalize(l->n);
         nd->cos_spread = 1.0f;
         nd->cos_emit = l->kind == PN_LIGHT_SPOT ? clamp_unit(l->cos_total_width) : 0.0f;
+        if (l->kind == PN_LIGHT_PROJECTION) nd->cos_emit = clamp_unit(l->cos_total_width);
     }
 }
 

@@ -112,7 +112,7 @@ float pn_cluster_pick_pdf(const pn_cluster_forest *f, const pn_lights *lights, i
 /* Luminous power used for picking and node sums: point 4 pi I, spot 2 pi I (1 - (cos_start +
  * cos_width) / 2), goniometric 4 pi I, one-sided planar pi L A (two-sided twice), sphere
  * pi L 4 pi r^2; distant: the luminance of its irradiance (only ever alone in its node);
- * environment 0. Luminances clamped at 0. */
+ * environment 0; projection: its exact power, pn_light.power. Luminances clamped at 0. */
 float pn_cluster_light_power(const pn_light *l);
 
 /* The tree a light belongs to (pn_tree_kind), PN_CLUSTER_SINGLE or PN_CLUSTER_EXCLUDED. */

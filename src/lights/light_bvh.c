@@ -69,6 +69,20 @@ bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bou
         pn_cluster_light_box(l, &b->bmin, &b->bmax);
         b->phi = lum * l->area * PN_PI;
         break;
+    case PN_LIGHT_PROJECTION: {
+        /* pbrt-v4's ProjectionLight::Bounds: the cone around the axis through the window's
+         * corner (cos_theta_o = 1, cos_theta_e = that corner), phi from the mean over pixels of
+         * the largest channel; times 4 pi here, as penumbra's point and spot bounds carry it
+         * (pbrt-v4 leaves it out for this light only). */
+        float mean_max = 1.0f;
+        if (l->env >= 0 && l->env < lights->projection_count) mean_max = lights->projections[l->env].mean_max;
+        b->bmin = b->bmax = l->p;
+        b->w = l->n;
+        b->cos_o = 1.0f;
+        b->cos_e = l->cos_total_width;
+        b->phi = 4.0f * PN_PI * lum * mean_max;
+        break;
+    }
     case PN_LIGHT_DISTANT:
     case PN_LIGHT_ENVIRONMENT:
     case PN_LIGHT_KIND_COUNT:

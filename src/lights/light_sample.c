@@ -170,6 +170,8 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
         s->delta = false;
         return pdf > 0.0f && isfinite(pdf);
     }
+    case PN_LIGHT_PROJECTION:
+        return pn_projection_sample_li(lights, l, p, s);
     case PN_LIGHT_KIND_COUNT:
         break;
     }

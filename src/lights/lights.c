@@ -404,6 +404,8 @@ void pn_lights_free(pn_lights *lights) {
     if (!lights) return;
     for (int i = 0; i < lights->gonio_count; i++) free(lights->gonios[i].mono);
     free(lights->gonios);
+    for (int i = 0; i < lights->projection_count; i++) pn_distribution2d_free(lights->projections[i].dist);
+    free(lights->projections);
     for (int i = 0; i < lights->env_count; i++) pn_distribution2d_free(lights->envs[i].dist);
     free(lights->envs);
     free(lights->lights);
@@ -436,6 +438,13 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         L->gonios = calloc((size_t)gonio_defs, sizeof *L->gonios);
         if (!L->gonios) st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
     }
+    int projection_defs = 0;
+    for (int i = 0; i < scene->light_def_count; i++)
+        if (scene->light_defs[i].kind == PN_LIGHTDEF_PROJECTION) projection_defs++;
+    if (projection_defs && st == PN_OK) {
+        L->projections = calloc((size_t)projection_defs, sizeof *L->projections);
+        if (!L->projections) st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    }
     for (int i = 0; st == PN_OK && i < scene->light_def_count; i++) {
         const pn_light_def *d = &scene->light_defs[i];
         if (d->kind != PN_LIGHTDEF_INFINITE && v3_max_component(d->intensity) <= 0.0f) {
@@ -460,6 +469,17 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             l->env = L->gonio_count;
             st = gonio_prepare(scene, d, &L->gonios[L->gonio_count++], err);
             break;
+        case PN_LIGHTDEF_PROJECTION: {
+            pn_projection *pr = &L->projections[L->projection_count];
+            l->env = L->projection_count++;
+            st = pn_projection_prepare(scene, d, pr, l, err);
+            if (st == PN_OK && !(l->power > 0.0f)) {
+                pn_scene_warn(scene, "%s: projection light with a black image dropped",
+                              d->source ? d->source : "LightSource");
+                ll.count--;
+            }
+            break;
+        }
         case PN_LIGHTDEF_SPOT:
             l->kind = PN_LIGHT_SPOT;
             l->p = d->position;
@@ -680,6 +700,8 @@ float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, v
     }
     case PN_LIGHT_ENVIRONMENT:
         return env_irradiance(&lights->envs[l->env], n);
+    case PN_LIGHT_PROJECTION:
+        return pn_projection_irradiance(lights, l, p, n);
     case PN_LIGHT_KIND_COUNT:
         break;
     }

@@ -24,7 +24,8 @@ typedef enum pn_light_kind {
     PN_LIGHT_SPHERE = 6,
     PN_LIGHT_ENVIRONMENT = 7,
     PN_LIGHT_GONIOMETRIC = 8,
-    PN_LIGHT_KIND_COUNT = 9
+    PN_LIGHT_PROJECTION = 9,
+    PN_LIGHT_KIND_COUNT = 10
 } pn_light_kind;
 
 typedef struct pn_light {
@@ -38,8 +39,11 @@ typedef struct pn_light {
     vec3 emit;       /* radiance (area, distant: irradiance, env: scale), intensity (point/spot) */
     float cos_falloff_start, cos_total_width; /* SPOT */
     bool two_sided;
-    int env;         /* ENVIRONMENT: index into pn_lights.envs; GONIOMETRIC: into .gonios */
+    int env;         /* ENVIRONMENT: index into pn_lights.envs; GONIOMETRIC: into .gonios;
+                        PROJECTION: into .projections (whose axis is n and whose frustum lies
+                        within cos_total_width of it) */
     int mesh, prim;  /* area lights from meshes: source triangle(s), for `info` and tests */
+    float power;     /* PROJECTION: luminous power, luminance(emit * phi) (pn_projection) */
 } pn_light;
 
 /* An environment map prepared for lookup and importance sampling by luminance. */
@@ -78,6 +82,25 @@ typedef struct pn_gonio {
     mat4 light_from_world;
 } pn_gonio;
 
+/* A projection light (pbrt-v4 "projection", lights/projection.c): a point that shines an image
+ * through a perspective frustum, as a slide projector. A world direction w leaving the light is
+ * taken to light space (w_l = light_from_world w, with pbrt's y flip included), projected to the
+ * screen point (w_l.x, w_l.y) / (w_l.z tan(fov / 2)), and inside the screen window
+ * [-sx, sx] x [-sy, sy] (the shorter image side spans [-1, 1]) reads the nearest pixel; the
+ * intensity is emit * rgb there, zero outside the frustum. */
+typedef struct pn_projection {
+    int width, height;
+    const float *rgb;         /* width * height RGB, top row first; owned by the scene's image table */
+    mat4 world_from_light, light_from_world; /* y already flipped as pbrt-v4 does */
+    float abs_det;            /* |det| of world_from_light's 3x3 (solid-angle Jacobian) */
+    float tan_half_fov, sx, sy;
+    float plane_area;         /* A = (2 sx tan)(2 sy tan): the window's area on the plane z = 1 */
+    vec3 phi;                 /* power per unit emit: A * mean(rgb cos^3), per channel */
+    float peak;               /* largest channel of any pixel (>= every rgb value) */
+    float mean_max;           /* mean over pixels of the largest channel (pbrt-v4's Bounds) */
+    struct pn_distribution2d *dist; /* pixels weighted by mean(rgb) cos^3: directions by intensity */
+} pn_projection;
+
 typedef struct pn_lights {
     pn_light *lights;
     int count;
@@ -89,6 +112,8 @@ typedef struct pn_lights {
     float scene_radius;
     vec3 scene_center;
     pn_light_soa soa;
+    pn_projection *projections;
+    int projection_count;
 } pn_lights;
 
 /* Builds the light records: LightSource definitions, and emissive shapes (a mesh's triangle pairs
@@ -143,6 +168,32 @@ float pn_emission_area_scale(const struct pn_mesh *m, const struct pn_emission *
 
 /* The goniometric factor of light l towards world direction w (unit, from the light outwards). */
 float pn_gonio_factor(const pn_lights *lights, const pn_light *l, vec3 w);
+
+/* Projection lights (lights/projection.c). The rgb factor of light l (PROJECTION) towards world
+ * unit direction w from the light outwards: the nearest pixel, clamped at 0; zero outside the
+ * frustum. The intensity is l->emit times it. */
+vec3 pn_projection_factor(const pn_lights *lights, const pn_light *l, vec3 w);
+/* A direction leaving the light, importance-sampled by the image's intensity (pixels weighted by
+ * mean(rgb) times the cos^3 of the plane-to-sphere Jacobian, uniform within a pixel on the
+ * plane); *pdf is the world solid-angle density. False when nothing can be sampled. */
+bool pn_projection_sample_direction(const pn_lights *lights, const pn_light *l, float u1, float u2, vec3 *w,
+                                    float *pdf);
+/* The solid-angle density of pn_projection_sample_direction at world unit direction w. */
+float pn_projection_pdf(const pn_lights *lights, const pn_light *l, vec3 w);
+/* Light arriving at p (delta: intensity / d^2), and the exact unoccluded irradiance (luminance)
+ * at p with normal n; the PROJECTION cases of pn_light_sample_point and
+ * pn_light_irradiance_estimate. */
+bool pn_projection_sample_li(const pn_lights *lights, const pn_light *l, vec3 p, pn_light_sample *s);
+float pn_projection_irradiance(const pn_lights *lights, const pn_light *l, vec3 p, vec3 n);
+/* The luminous power per unit scale of a projection light with image rgb (w x h, top row first)
+ * and field of view fov_deg: A * mean over pixels of luminance(rgb) cos^3 (pbrt-v4's "power"
+ * normalisation; negative values count as 0). */
+double pn_projection_unit_power(const float *rgb, int width, int height, double fov_deg);
+/* Fills table entry pr and light record l from the scene's projection light definition (position,
+ * intensity = emit, image, orientation with the y flip, fov in degrees). */
+struct pn_light_def;
+pn_status pn_projection_prepare(const struct pn_scene_s *scene, const struct pn_light_def *d, pn_projection *pr,
+                                pn_light *l, pn_err *err);
 
 /* Radiance of all environment lights for an escaping ray with unit direction d. */
 vec3 pn_lights_environment_radiance(const pn_lights *lights, vec3 d);

@@ -75,6 +75,7 @@ static vec3 light_power(const pn_lights *L, const pn_light *l) {
     case PN_LIGHT_SPHERE: return v3_scale(l->emit, PN_PI * 4.0f * PN_PI * l->radius * l->radius);
     case PN_LIGHT_DISTANT: return v3_scale(l->emit, PN_PI * R * R);
     case PN_LIGHT_ENVIRONMENT: return v3_scale(env_integral(L, l), PN_PI * R * R);
+    case PN_LIGHT_PROJECTION: return v3_mul(l->emit, L->projections[l->env].phi);
     default: return v3(0, 0, 0);
     }
 }
@@ -182,7 +183,7 @@ pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const
     double *cdf = calloc((size_t)n + 1, sizeof *cdf);
     vec3 *power = calloc((size_t)n + 1, sizeof *power);
     if (!cdf || !power) goto oom;
-    /* The exact lights: point, spot, goniometric (omni) and distant (directional). */
+    /* The exact lights: point, spot, goniometric, projection (omni) and distant (directional). */
     for (int i = 0; i < n; i++) {
         const pn_light *l = &L->lights[i];
         if (l->kind == PN_LIGHT_POINT || l->kind == PN_LIGHT_SPOT || l->kind == PN_LIGHT_GONIOMETRIC) {
@@ -190,6 +191,12 @@ pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const
             if (!buf_push(&buf, v, false)) goto oom;
         } else if (l->kind == PN_LIGHT_DISTANT) {
             pn_vpl v = {v3_normalize(l->n), v3(0, 0, 0), l->emit, PN_VPL_DIRECTIONAL, -1};
+            if (!buf_push(&buf, v, false)) goto oom;
+        } else if (l->kind == PN_LIGHT_PROJECTION) {
+            /* The VPL's intensity is emit times the image's largest channel, and its factor
+             * towards a receiver the pixel divided by it (<= 1 per channel): the cuts' bound
+             * M_max G_max I (shade/bounds.c) then bounds it as it bounds a point light. */
+            pn_vpl v = {l->p, l->n, v3_scale(l->emit, L->projections[l->env].peak), PN_VPL_OMNI, i};
             if (!buf_push(&buf, v, false)) goto oom;
         }
         power[i] = light_power(L, l);
@@ -236,6 +243,15 @@ pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const
                 d = v3_normalize(frame_dir(l->n, v3(sn * cosf(phi), sn * sinf(phi), c)));
                 o = l->p;
                 beta = v3_scale(beta, spot_falloff(l, c));
+                break;
+            }
+            case PN_LIGHT_PROJECTION: {
+                /* A direction by the image's intensity (lights/projection.c); the path carries
+                 * I(d) / (pdf(d) prob), whose mean over d is the light's power / prob. */
+                float pdf;
+                if (!pn_projection_sample_direction(L, l, u1, u2, &d, &pdf)) continue;
+                o = l->p;
+                beta = v3_scale(v3_mul(l->emit, pn_projection_factor(L, l, d)), 1.0f / (pdf * prob));
                 break;
             }
             case PN_LIGHT_TRIANGLE:
@@ -336,6 +352,13 @@ vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 int
     *wi = w;
     *dist = len;
     if (g <= 0.0f) return v3(0, 0, 0);
+    if (l->kind == PN_LIGHT_PROJECTION) {
+        /* The pixel relative to the VPL's intensity, emit * peak (pn_vpl_trace). */
+        float peak = lights->projections[l->env].peak;
+        vec3 f = pn_projection_factor(lights, l, v3_neg(w));
+        if (v3_is_zero(f) || !(peak > 0.0f)) return v3(0, 0, 0);
+        return v3_mul(v3_mul(pn_vpl_brdf_cos_inline(r, w), intensity), v3_scale(f, g / peak));
+    }
     return v3_scale(v3_mul(pn_vpl_brdf_cos_inline(r, w), intensity), g);
 }
 

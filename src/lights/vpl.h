@@ -5,7 +5,8 @@
  * receiving point (eq. 1: M · G · V · I) and its clamping.
  *
  * Three kinds, as Lightcuts keeps them in separate trees:
- *   OMNI        point, spot and goniometric lights, as themselves (exact direct light);
+ *   OMNI        point, spot, goniometric and projection lights, as themselves (exact direct
+ *               light; a projection light's VPL carries emit times its image's largest channel);
  *   ORIENTED    Lambertian emitters: points sampled on area lights (their direct light) and the
  *               vertices of light paths at diffuse / glossy hits (indirect light);
  *   DIRECTIONAL distant lights as themselves, and directions sampled from environment maps.

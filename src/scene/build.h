@@ -79,7 +79,7 @@ pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, cons
 int pn_scene_find_material(const struct pn_scene_s *scene, const char *name);
 
 /* LightSource "type" params under the current transform: appends to scene->light_defs
- * (point, spot, distant, infinite, goniometric; projection is rejected as unsupported). */
+ * (point, spot, distant, infinite, goniometric, projection). */
 pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
                              const mat4 *world_from_light, pn_err *err);
 

@@ -34,7 +34,9 @@
  *               pbrt-v4's equal-area octahedral mapping, of the light's frame with y and z
  *               swapped (lights/lights.h, pn_gonio); "power" P gives I * scale * P / (4 pi
  *               photometric(I) mean(image)).
- *  projection   rejected as unsupported.
+ *  projection   scale * the image "filename" shone through a perspective frustum of "fov" (90)
+ *               degrees from world_from_light * origin (projection_from_pbrt, lights/projection.c);
+ *               "power" P gives scale * P / (A mean(luminance(rgb) cos^3)), as pbrt-v4.
  *
  * AreaLightSource "diffuse": radiance = L * scale (default L = 1), "twosided", and "power" P
  * normalised per pbrt-v4 shape (scene.cpp creates one DiffuseAreaLight per shape, and each
@@ -139,6 +141,48 @@ static pn_status load_image_param(struct pn_scene_s *scene, const pn_params *ps,
     return PN_OK;
 }
 
+/* LightSource "projection" (pbrt-v4's ProjectionLight::Create): "filename" (required), "fov"
+ * (90 degrees, across the image's shorter side; must lie in (0, 180)), "scale" (1), "power"
+ * (when > 0: scale * power / pn_projection_unit_power). The image's RGB is the illuminant's
+ * colour as given, so scale * rgb is the intensity (W/sr). pbrt-v4 flips y of the light's frame
+ * (renderFromLight * Scale(1, -1, 1)); the flip is part of the stored transform. */
+static pn_status projection_from_pbrt(struct pn_scene_s *scene, const pn_params *ps, pn_light_def *d, pn_err *err) {
+    double scale = 1.0, power = 0.0, fov = 90.0;
+    const char *file = NULL;
+    pn_status st = pn_params_float(ps, "scale", 1.0, &scale, err);
+    if (st == PN_OK) st = read_positive(ps, "power", &power, err);
+    if (st == PN_OK) st = pn_params_float(ps, "fov", 90.0, &fov, err);
+    if (st == PN_OK) st = pn_params_string(ps, "filename", "", &file, err);
+    if (st != PN_OK) return st;
+    if (!(fov > 0.0 && fov < 180.0))
+        return pn_param_error(pn_params_find(ps, "fov"), err,
+                              "projection light: \"fov\" %g is outside (0, 180) degrees", fov);
+    if (!file[0])
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "projection light: \"filename\" (the projected image) is required");
+    st = load_image_param(scene, ps, file, &d->image, err);
+    if (st != PN_OK) return st;
+    const pn_texture_image *img = &scene->images[d->image];
+    for (size_t i = 0; i < 3 * (size_t)img->width * (size_t)img->height; i++)
+        if (!isfinite(img->rgb[i]))
+            return pn_param_error(pn_params_find(ps, "filename"), err,
+                                  "projection light image \"%s\" has infinite or not-a-number pixels", file);
+    if (power > 0.0) {
+        double k = pn_projection_unit_power(img->rgb, img->width, img->height, fov);
+        if (k > 0.0)
+            scale *= power / k;
+        else
+            warn_ignored(scene, ps, "power", "cannot be met by a black image; ignored");
+    }
+    d->kind = PN_LIGHTDEF_PROJECTION;
+    d->fov_deg = (float)fov;
+    d->intensity = v3((float)scale, (float)scale, (float)scale);
+    d->position = mat4_apply_point(&d->world_from_light, v3(0, 0, 0));
+    d->world_from_light = mat4_mul(d->world_from_light, mat4_scale(1.0, -1.0, 1.0));
+    if (!mat4_inverse(d->world_from_light, &d->light_from_world))
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "LightSource \"projection\" under a singular transform");
+    return PN_OK;
+}
+
 pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
                              const mat4 *world_from_light, pn_err *err) {
     pn_light_def d;
@@ -151,9 +195,10 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
     pn_status st = PN_OK;
     const vec3 one = v3(1, 1, 1);
     double scale = 1.0, power = 0.0;
-    if (strcmp(type, "projection") == 0)
-        return error_at(ps->loc, PN_ERROR_UNSUPPORTED, err, "projection lights are not supported");
-    if (strcmp(type, "point") == 0 || strcmp(type, "spot") == 0 || strcmp(type, "goniometric") == 0) {
+    if (strcmp(type, "projection") == 0) {
+        st = projection_from_pbrt(scene, ps, &d, err);
+        if (st != PN_OK) return st;
+    } else if (strcmp(type, "point") == 0 || strcmp(type, "spot") == 0 || strcmp(type, "goniometric") == 0) {
         vec3 I;
         vec3 from = v3(0, 0, 0), to = v3(0, 0, 1);
         st = pn_params_rgb(ps, "I", one, PN_SPECTRUM_ILLUMINANT, &I, NULL, err);

@@ -173,7 +173,8 @@ typedef enum pn_light_def_kind {
     PN_LIGHTDEF_SPOT = 1,
     PN_LIGHTDEF_DISTANT = 2,
     PN_LIGHTDEF_INFINITE = 3,
-    PN_LIGHTDEF_GONIOMETRIC = 4
+    PN_LIGHTDEF_GONIOMETRIC = 4,
+    PN_LIGHTDEF_PROJECTION = 5
 } pn_light_def_kind;
 
 typedef struct pn_light_def {
@@ -191,6 +192,7 @@ typedef struct pn_light_def {
     mat4 world_from_light; /* INFINITE / GONIOMETRIC orientation */
     mat4 light_from_world;
     char *source;       /* "file:line" */
+    float fov_deg;      /* PROJECTION: the frustum's angle across the image's shorter side */
 } pn_light_def;
 
 /* ---- camera and film --------------------------------------------------------------------- */

@@ -75,6 +75,7 @@ pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info) {
         info->lights_area_disk = (uint32_t)L->count_by_kind[PN_LIGHT_DISK];
         info->lights_area_sphere = (uint32_t)L->count_by_kind[PN_LIGHT_SPHERE];
         info->lights_goniometric = (uint32_t)L->count_by_kind[PN_LIGHT_GONIOMETRIC];
+        info->lights_projection = (uint32_t)L->count_by_kind[PN_LIGHT_PROJECTION];
     }
     info->materials = (uint32_t)scene->material_count;
     info->textures = (uint32_t)scene->texture_count;
