@@ -137,6 +137,15 @@ typedef enum pn_light_sampler {
     PN_LIGHT_SAMPLER_BVH = 2         /* pbrt-v4's light BVH (Conty Estevez & Kulla 2018) */
 } pn_light_sampler;
 
+/* reference only: when an adaptive (threshold) render stops adding eye rays to a pixel
+ * (docs/adaptive-sampling.md). */
+typedef enum pn_adaptive_rule {
+    PN_ADAPTIVE_DEFAULT = 0, /* cross */
+    PN_ADAPTIVE_PAPER = 1,   /* Donikian et al. 2006 §5.1/§5.9: s^2/L^2 of the kept samples, biased */
+    PN_ADAPTIVE_CROSS = 2    /* two independent eye-ray streams, each one's count decided by the
+                                other's pilot: unbiased */
+} pn_adaptive_rule;
+
 /* AOV layers written beside the beauty image. */
 enum {
     PN_AOV_SHADOW_RAYS = 1u << 0,       /* shadow rays per pixel */
@@ -253,6 +262,7 @@ typedef struct pn_render_settings {
                                         the default 3; 1: centre rays only). Along emitters,
                                         `reference` at a fixed spp traces its own eye rays
                                         instead, so emitters match its estimate exactly */
+    pn_adaptive_rule adaptive_rule;  /* reference with a threshold: the stopping rule */
 } pn_render_settings;
 
 /* contour_flags bits. */

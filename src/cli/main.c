@@ -90,6 +90,9 @@ static const char render_help[] =
     "  --seed S               seed of the random sequences (unsigned 64-bit, default 0)\n"
     "  --light-sampler NAME   reference only: 'irradiance' (the default: a PDF over all lights by\n"
     "                         unoccluded irradiance, section 5.1) or 'bvh' (pbrt-v4's light BVH)\n"
+    "  --adaptive-rule NAME   reference with --threshold: 'cross' (the default: two independent\n"
+    "                         eye-ray streams, each sized by the other's pilot; unbiased) or\n"
+    "                         'paper' (s^2/L^2 of the kept samples, section 5.1; biased)\n"
     "\n"
     "ias only (the paper's values by default):\n"
     "  --cluster-solid-angle A  largest solid angle of a light cluster seen from a point\n"
@@ -915,6 +918,15 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
                 o->settings.light_sampler = PN_LIGHT_SAMPLER_BVH;
             else
                 return bad_value(cmd, name, value, "'irradiance' or 'bvh'");
+        } else if (strcmp(name, "--adaptive-rule") == 0) {
+            if ((value = scanner_value(&s)) == NULL)
+                return EXIT_USAGE;
+            if (strcmp(value, "cross") == 0)
+                o->settings.adaptive_rule = PN_ADAPTIVE_CROSS;
+            else if (strcmp(value, "paper") == 0)
+                o->settings.adaptive_rule = PN_ADAPTIVE_PAPER;
+            else
+                return bad_value(cmd, name, value, "'cross' or 'paper'");
         } else if (strcmp(name, "--cluster-solid-angle") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)
@@ -1283,6 +1295,7 @@ static int write_stats_json(const render_options *o, const char *image_path, pn_
     } else {
         json_null(&w, "spp");
         json_double(&w, "threshold", st->threshold);
+        json_string(&w, "adaptive_rule", st->adaptive_rule == PN_ADAPTIVE_PAPER ? "paper" : "cross");
     }
     json_u64(&w, "shadow_rays", st->shadow_rays);
     json_u64(&w, "max_shadow_rays", st->max_shadow_rays);

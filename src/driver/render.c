@@ -143,6 +143,10 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
         s->light_sampler != PN_LIGHT_SAMPLER_BVH)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown light sampler %d", (int)s->light_sampler);
     job->light_sampler = s->light_sampler == PN_LIGHT_SAMPLER_BVH ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
+    if (s->adaptive_rule != PN_ADAPTIVE_DEFAULT && s->adaptive_rule != PN_ADAPTIVE_PAPER &&
+        s->adaptive_rule != PN_ADAPTIVE_CROSS)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown adaptive rule %d", (int)s->adaptive_rule);
+    job->adaptive_rule = s->adaptive_rule == PN_ADAPTIVE_PAPER ? PN_ADAPTIVE_PAPER : PN_ADAPTIVE_CROSS;
     /* VPL integrators (issue 5) */
     if (!(s->vpl_clamp_fraction >= 0.0f && s->vpl_clamp_fraction < 1.0f) || !(s->error_bound >= 0.0f && s->error_bound < 1.0f))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "VPL clamp fraction and error bound must lie in [0, 1)");

@@ -37,6 +37,8 @@
 #include "lights/light_bvh.h"
 #include "shade/bsdf.h"
 
+#include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -66,9 +68,11 @@ typedef struct pixel_state {
     double weight_sum;
     double lum_mean, lum_m2; /* Welford on the luminance of eye-ray values */
     uint32_t n, shadow_rays, specular_rays;
+    uint32_t light_samples; /* light samples drawn (S per eye ray that had a light to sample) */
     bool any_nonzero;
 } pixel_state;
 
+/* The paper's rule (adaptive_rule = paper) and the fixed-spp count. */
 static bool pixel_done(const pn_render_job *job, const pixel_state *ps) {
     if (job->spp > 0) return ps->n >= job->spp;
     if (ps->shadow_rays >= job->max_shadow_rays) return true;
@@ -87,62 +91,168 @@ static bool pixel_done(const pn_render_job *job, const pixel_state *ps) {
     return var_of_mean <= job->threshold * mean * mean;
 }
 
+/* Per-pixel outputs of the first eye ray and the timing, shared by both rules. */
+typedef struct pixel_context {
+    const pn_render_job *job;
+    pn_reference_direct_scratch *s;
+    int px, py;
+    pn_pixel_estimate *o;
+    double embree_seconds;
+    bool first_done;
+} pixel_context;
+
+/* Traces eye ray i of the stream with the given scramble and adds it to ps. */
+static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_state *ps) {
+    const pn_render_job *job = c->job;
+    const uint32_t S = job->shadow_rays;
+    float fw, u_specular;
+    vec3 ro, rd;
+    pn_pixel_eye_sample(job, c->px, c->py, scramble, i, &ro, &rd, &fw, &u_specular);
+    const bool timed = i % PN_TIMING_STRIDE == 0u;
+    double t_start = timed ? pn_clock_seconds() : 0.0;
+    pn_eye_path path;
+    pn_trace_eye_path(job, ro, rd, u_specular, &path);
+    if (timed) c->embree_seconds += pn_clock_seconds() - t_start;
+    if (!c->first_done) {
+        c->first_done = true;
+        c->o->depth = path.first_depth;
+        c->o->normal = path.first_normal;
+        c->o->albedo = path.first_albedo;
+    }
+    ps->specular_rays += path.rays - 1;
+    vec3 value = path.emitted;
+    if (path.has_point) {
+        pn_bsdf b;
+        pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+        const pn_light_bvh *bvh = job->integrator_data; /* set only with the BVH sampler */
+        vec3 direct = v3(0, 0, 0);
+        if (pn_reference_direct(job, c->s, bvh, &b, path.hit.p, path.wo, i, scramble, NULL, timed, &direct,
+                                &ps->shadow_rays, &c->embree_seconds)) {
+            value = v3_add(value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
+            ps->light_samples += S;
+        }
+    }
+    if (!v3_is_finite(value)) value = path.emitted = v3(0, 0, 0);
+    ps->n++;
+    ps->weighted_sum = v3_madd(ps->weighted_sum, value, fw);
+    ps->weighted_emitted = v3_madd(ps->weighted_emitted, path.emitted, fw);
+    ps->weight_sum += (double)fw;
+    double y = (double)v3_luminance(value);
+    if (y != 0.0 || !v3_is_zero(value)) ps->any_nonzero = true;
+    double delta = y - ps->lum_mean;
+    ps->lum_mean += delta / (double)ps->n;
+    ps->lum_m2 += delta * (y - ps->lum_mean);
+}
+
+/* ---- the cross rule (adaptive_rule = cross; the header names each departure) -------------- */
+
+/* Eye rays per stream before its statistics size the other stream. The relative standard error
+ * of a sample variance from n normal values is sqrt(2 / (n - 1)); n = 9 makes it 0.5, so the
+ * count it sets is within a factor 1.5 of the right one about two times in three. Heavier tails
+ * make the estimate worse, which costs time (a count set too high or too low), never bias. */
+#define PN_CROSS_PILOT 9u
+/* The black-pixel rule's miss probability: a stream whose pilot saw only zeros gives the other
+ * stream enough light samples that a pixel lit at the smallest rate its budget could bring under
+ * the threshold is missed with probability at most PN_CROSS_BLACK_DELTA. */
+#define PN_CROSS_BLACK_DELTA 0.01
+
+static uint32_t cross_pilot(const pn_render_job *job) {
+    uint32_t half = (job->min_eye_rays + 1u) / 2u;
+    return half > PN_CROSS_PILOT ? half : PN_CROSS_PILOT;
+}
+
+/* Eye rays per stream that the whole pixel may use: half the paper's budget each. */
+static uint32_t cross_budget(const pn_render_job *job) {
+    uint64_t n = job->max_shadow_rays / (2u * (uint64_t)job->shadow_rays);
+    if (n > (1u << 19)) n = 1u << 19;
+    uint32_t pilot = cross_pilot(job);
+    return n > pilot ? (uint32_t)n : pilot;
+}
+
+/* Eye rays for a stream, from the pilot statistics of the *other* stream only. */
+static uint32_t cross_count(const pn_render_job *job, const pixel_state *pilot) {
+    const uint32_t n0 = cross_pilot(job), budget = cross_budget(job);
+    double n;
+    if (pilot->any_nonzero && pilot->lum_mean > 0.0 && pilot->n > 1) {
+        /* The output is the mean of two streams' means, each of variance v / N; both at N it is
+         * v / (2N), so N = v / (2 t L^2) per stream meets s^2 / L^2 = t. */
+        double v = pilot->lum_m2 / (double)(pilot->n - 1);
+        n = v / (2.0 * job->threshold * pilot->lum_mean * pilot->lum_mean);
+    } else if (pilot->any_nonzero) {
+        n = (double)budget; /* light of zero luminance (a colour that cancels): no relative scale */
+    } else if (pilot->light_samples > 0) {
+        /* Black so far with light samples drawn. A pixel lit by a fraction p of its light
+         * samples (each lit one of similar value) has a relative variance of about (1 - p) / p
+         * per light sample, so it meets the threshold t within its budget of M light samples
+         * only if p >= p_min = 1 / (1 + t M). m zero samples miss such a pixel with probability
+         * (1 - p_min)^m <= exp(-m p_min); m = ln(1 / delta) / p_min makes that delta. */
+        double p_min = 1.0 / (1.0 + job->threshold * (double)job->max_shadow_rays);
+        double m = log(1.0 / PN_CROSS_BLACK_DELTA) / p_min;
+        n = ceil(m / (double)job->shadow_rays);
+    } else {
+        n = (double)n0; /* no light could be sampled: only emitters and the void were seen */
+    }
+    if (!(n < (double)budget)) return budget;
+    uint32_t k = (uint32_t)ceil(n);
+    return k > n0 ? k : n0;
+}
+
+static void render_pixel_cross(pixel_context *c, uint32_t scramble_a) {
+    const pn_render_job *job = c->job;
+    /* Stream A is the fixed-spp sequence of the pixel; stream B has its own scramble. */
+    const uint32_t scramble_b = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x9e3779b97f4a7c15), (uint64_t)scramble_a, 1u);
+    pixel_state a, b;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    const uint32_t n0 = cross_pilot(job);
+    for (uint32_t i = 0; i < n0; i++) add_eye_ray(c, scramble_a, i, &a);
+    for (uint32_t i = 0; i < n0; i++) add_eye_ray(c, scramble_b, i, &b);
+    /* Each stream's count depends only on the other's pilot, which is independent of it: given
+     * its count, a stream's mean is a plain average of independent eye rays, hence unbiased. */
+    const uint32_t na = cross_count(job, &b), nb = cross_count(job, &a);
+    for (uint32_t i = n0; i < na && !atomic_load(job->cancel); i++) add_eye_ray(c, scramble_a, i, &a);
+    for (uint32_t i = n0; i < nb && !atomic_load(job->cancel); i++) add_eye_ray(c, scramble_b, i, &b);
+    pn_pixel_estimate *o = c->o;
+    o->eye_rays = a.n + b.n;
+    o->shadow_rays = a.shadow_rays + b.shadow_rays;
+    o->specular_rays = a.specular_rays + b.specular_rays;
+    /* Equal weights, fixed in advance: weights by count would depend on both pilots. */
+    vec3 ra = a.weight_sum != 0.0 ? v3_scale(a.weighted_sum, (float)(1.0 / a.weight_sum)) : v3(0, 0, 0);
+    vec3 rb = b.weight_sum != 0.0 ? v3_scale(b.weighted_sum, (float)(1.0 / b.weight_sum)) : v3(0, 0, 0);
+    vec3 ea = a.weight_sum != 0.0 ? v3_scale(a.weighted_emitted, (float)(1.0 / a.weight_sum)) : v3(0, 0, 0);
+    vec3 eb = b.weight_sum != 0.0 ? v3_scale(b.weighted_emitted, (float)(1.0 / b.weight_sum)) : v3(0, 0, 0);
+    o->radiance = v3_scale(v3_add(ra, rb), 0.5f);
+    o->emitted = v3_scale(v3_add(ea, eb), 0.5f);
+    double va = a.n > 1 ? a.lum_m2 / ((double)(a.n - 1) * (double)a.n) : 0.0;
+    double vb = b.n > 1 ? b.lum_m2 / ((double)(b.n - 1) * (double)b.n) : 0.0;
+    double mean = 0.5 * (a.lum_mean + b.lum_mean);
+    o->relative_variance = mean > 0.0 ? (float)(0.25 * (va + vb) / (mean * mean)) : 0.0f;
+}
+
 static pn_status reference_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                         void *scratch) {
     pn_reference_direct_scratch *s = scratch;
-    const uint32_t S = job->shadow_rays;
     for (int pi = 0; pi < batch->count; pi++) {
         int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
         /* One scrambled Sobol sequence per pixel: the value is independent of the batch. */
         uint32_t scramble = pn_pixel_scramble(job, px, py);
-        uint32_t index = 0;
-        pixel_state ps;
-        memset(&ps, 0, sizeof ps);
         pn_pixel_estimate *o = &out[pi];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
-        double embree_seconds = 0.0;
-        while (!pixel_done(job, &ps)) {
-            uint32_t i = index++;
-            float fw, u_specular;
-            vec3 ro, rd;
-            pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
-            const bool timed = i % PN_TIMING_STRIDE == 0u;
-            double t_start = timed ? pn_clock_seconds() : 0.0;
-            pn_eye_path path;
-            pn_trace_eye_path(job, ro, rd, u_specular, &path);
-            if (timed) embree_seconds += pn_clock_seconds() - t_start;
-            if (ps.n == 0) {
-                o->depth = path.first_depth;
-                o->normal = path.first_normal;
-                o->albedo = path.first_albedo;
-            }
-            ps.specular_rays += path.rays - 1;
-            vec3 value = path.emitted;
-            if (path.has_point) {
-                pn_bsdf b;
-                pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
-                const pn_light_bvh *bvh = job->integrator_data; /* set only with the BVH sampler */
-                vec3 direct = v3(0, 0, 0);
-                if (pn_reference_direct(job, s, bvh, &b, path.hit.p, path.wo, i, scramble, NULL, timed, &direct,
-                                        &ps.shadow_rays, &embree_seconds))
-                    value = v3_add(value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
-            }
-            if (!v3_is_finite(value)) value = path.emitted = v3(0, 0, 0);
-            ps.n++;
-            ps.weighted_sum = v3_madd(ps.weighted_sum, value, fw);
-            ps.weighted_emitted = v3_madd(ps.weighted_emitted, path.emitted, fw);
-            ps.weight_sum += (double)fw;
-            double y = (double)v3_luminance(value);
-            if (y != 0.0 || !v3_is_zero(value)) ps.any_nonzero = true;
-            double delta = y - ps.lum_mean;
-            ps.lum_mean += delta / (double)ps.n;
-            ps.lum_m2 += delta * (y - ps.lum_mean);
+        pixel_context c = {job, s, px, py, o, 0.0, false};
+        if (job->spp == 0 && job->adaptive_rule == PN_ADAPTIVE_CROSS) {
+            render_pixel_cross(&c, scramble);
+            o->embree_seconds = (float)(c.embree_seconds * PN_TIMING_STRIDE);
+            continue;
         }
+        pixel_state ps;
+        memset(&ps, 0, sizeof ps);
+        uint32_t index = 0;
+        while (!pixel_done(job, &ps)) add_eye_ray(&c, scramble, index++, &ps);
         o->eye_rays = ps.n;
         o->shadow_rays = ps.shadow_rays;
         o->specular_rays = ps.specular_rays;
-        o->embree_seconds = (float)(embree_seconds * PN_TIMING_STRIDE);
+        o->embree_seconds = (float)(c.embree_seconds * PN_TIMING_STRIDE);
         if (ps.weight_sum != 0.0) {
             o->radiance = v3_scale(ps.weighted_sum, (float)(1.0 / ps.weight_sum));
             o->emitted = v3_scale(ps.weighted_emitted, (float)(1.0 / ps.weight_sum));
