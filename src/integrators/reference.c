@@ -151,9 +151,9 @@ static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_s
  * count it sets is within a factor 1.5 of the right one about two times in three. Heavier tails
  * make the estimate worse, which costs time (a count set too high or too low), never bias. */
 #define PN_CROSS_PILOT 9u
-/* The black-pixel rule's miss probability: a stream whose pilot saw only zeros gives the other
- * stream enough light samples that a pixel lit at the smallest rate its budget could bring under
- * the threshold is missed with probability at most PN_CROSS_BLACK_DELTA. */
+/* The black-pixel rule's confidence: a stream whose pilot saw only zeros gives the other stream
+ * the light samples a pixel needs if lit at the largest rate that its pilot misses with
+ * probability PN_CROSS_BLACK_DELTA (cross_count). */
 #define PN_CROSS_BLACK_DELTA 0.01
 
 static uint32_t cross_pilot(const pn_render_job *job) {
@@ -169,29 +169,39 @@ static uint32_t cross_budget(const pn_render_job *job) {
     return n > pilot ? (uint32_t)n : pilot;
 }
 
+/* The floor of every count, as a relative variance per eye ray: the count never falls below
+ * what a pixel of this relative variance needs (PN_CROSS_FLOOR / (2 t) per stream). A pilot of
+ * a few rays cannot see a contribution that arrives on one eye ray in fifty; without a floor such
+ * a pixel keeps the pilot's count at every threshold and its error does not fall with t. With
+ * it, every count grows as 1 / t. 0.25 is the relative variance of a pixel whose light is
+ * visible from 80% of it (Bernoulli: 0.2 / 0.8). */
+#define PN_CROSS_FLOOR 0.25
+
 /* Eye rays for a stream, from the pilot statistics of the *other* stream only. */
 static uint32_t cross_count(const pn_render_job *job, const pixel_state *pilot) {
     const uint32_t n0 = cross_pilot(job), budget = cross_budget(job);
+    const double t2 = 2.0 * job->threshold;
     double n;
     if (pilot->any_nonzero && pilot->lum_mean > 0.0 && pilot->n > 1) {
         /* The output is the mean of two streams' means, each of variance v / N; both at N it is
          * v / (2N), so N = v / (2 t L^2) per stream meets s^2 / L^2 = t. */
         double v = pilot->lum_m2 / (double)(pilot->n - 1);
-        n = v / (2.0 * job->threshold * pilot->lum_mean * pilot->lum_mean);
+        n = v / (t2 * pilot->lum_mean * pilot->lum_mean);
     } else if (pilot->any_nonzero) {
         n = (double)budget; /* light of zero luminance (a colour that cancels): no relative scale */
-    } else if (pilot->light_samples > 0) {
-        /* Black so far with light samples drawn. A pixel lit by a fraction p of its light
-         * samples (each lit one of similar value) has a relative variance of about (1 - p) / p
-         * per light sample, so it meets the threshold t within its budget of M light samples
-         * only if p >= p_min = 1 / (1 + t M). m zero samples miss such a pixel with probability
-         * (1 - p_min)^m <= exp(-m p_min); m = ln(1 / delta) / p_min makes that delta. */
-        double p_min = 1.0 / (1.0 + job->threshold * (double)job->max_shadow_rays);
-        double m = log(1.0 / PN_CROSS_BLACK_DELTA) / p_min;
-        n = ceil(m / (double)job->shadow_rays);
     } else {
-        n = (double)n0; /* no light could be sampled: only emitters and the void were seen */
+        /* Black so far. k trials without a hit (light samples drawn, or, when none was drawn,
+         * eye rays that might have found a lit surface) bound the hit rate by
+         * p_up = ln(1 / delta) / k with confidence 1 - delta, as (1 - p)^k <= exp(-p k). A pixel
+         * hit on a fraction p of its trials (each hit of similar value) has a relative variance
+         * of (1 - p) / p per trial and needs (1 - p) / (p t) trials to meet the threshold t:
+         * the other stream gets the count a pixel hit at p_up needs, which grows as 1 / t. */
+        double trials = pilot->light_samples > 0 ? (double)pilot->light_samples : (double)pilot->n;
+        double per_ray = pilot->light_samples > 0 ? (double)job->shadow_rays : 1.0;
+        double p_up = fmin(1.0, log(1.0 / PN_CROSS_BLACK_DELTA) / trials);
+        n = (1.0 - p_up) / (p_up * t2) / per_ray;
     }
+    n = fmax(n, PN_CROSS_FLOOR / t2);
     if (!(n < (double)budget)) return budget;
     uint32_t k = (uint32_t)ceil(n);
     return k > n0 ? k : n0;
