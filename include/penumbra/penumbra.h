@@ -140,7 +140,7 @@ typedef enum pn_light_sampler {
 /* reference only: when an adaptive (threshold) render stops adding eye rays to a pixel
  * (docs/adaptive-sampling.md). */
 typedef enum pn_adaptive_rule {
-    PN_ADAPTIVE_DEFAULT = 0, /* cross */
+    PN_ADAPTIVE_DEFAULT = 0, /* reference: cross; ias: paper */
     PN_ADAPTIVE_PAPER = 1,   /* Donikian et al. 2006 §5.1/§5.9: s^2/L^2 of the kept samples, biased */
     PN_ADAPTIVE_CROSS = 2    /* two independent eye-ray streams, each one's count decided by the
                                 other's pilot: unbiased */
@@ -192,8 +192,10 @@ typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requ
 
 typedef struct pn_render_settings {
     pn_integrator_kind integrator;
-    uint32_t spp;              /* fixed eye rays per pixel; 0 = adaptive with threshold */
-    double threshold;          /* relative variance target s^2/L^2; default 0.01 when spp = 0 */
+    uint32_t spp;              /* fixed eye rays per pixel; 0 with threshold > 0: adaptive;
+                                  0 with threshold 0: reference 64 (fixed spp is faster on the
+                                  bench scenes, docs/adaptive-sampling.md), ias adaptive */
+    double threshold;          /* relative variance target s^2/L^2; ias: default 0.01 */
     uint32_t shadow_rays;      /* shadow rays per eye ray; default 4 */
     uint32_t max_shadow_rays;  /* per pixel (IAS paper §5.9); default 20000 */
     uint32_t min_shadow_rays_black; /* before a pixel may be declared black; default 2500 */
