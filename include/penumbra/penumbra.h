@@ -138,6 +138,15 @@ typedef enum pn_light_sampler {
     PN_LIGHT_SAMPLER_BVH = 2         /* pbrt-v4's light BVH (Conty Estevez & Kulla 2018) */
 } pn_light_sampler;
 
+/* reference only: when an adaptive (threshold) render stops adding eye rays to a pixel
+ * (docs/adaptive-sampling.md). */
+typedef enum pn_adaptive_rule {
+    PN_ADAPTIVE_DEFAULT = 0, /* reference: cross; ias: paper */
+    PN_ADAPTIVE_PAPER = 1,   /* Donikian et al. 2006 §5.1/§5.9: s^2/L^2 of the kept samples, biased */
+    PN_ADAPTIVE_CROSS = 2    /* two independent eye-ray streams, each one's count decided by the
+                                other's pilot: unbiased */
+} pn_adaptive_rule;
+
 /* AOV layers written beside the beauty image. */
 enum {
     PN_AOV_SHADOW_RAYS = 1u << 0,       /* shadow rays per pixel */
@@ -184,8 +193,10 @@ typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requ
 
 typedef struct pn_render_settings {
     pn_integrator_kind integrator;
-    uint32_t spp;              /* fixed eye rays per pixel; 0 = adaptive with threshold */
-    double threshold;          /* relative variance target s^2/L^2; default 0.01 when spp = 0 */
+    uint32_t spp;              /* fixed eye rays per pixel; 0 with threshold > 0: adaptive;
+                                  0 with threshold 0: reference 64 (fixed spp is faster on the
+                                  bench scenes, docs/adaptive-sampling.md), ias adaptive */
+    double threshold;          /* relative variance target s^2/L^2; ias: default 0.01 */
     uint32_t shadow_rays;      /* shadow rays per eye ray; default 4 */
     uint32_t max_shadow_rays;  /* per pixel (IAS paper §5.9); default 20000 */
     uint32_t min_shadow_rays_black; /* before a pixel may be declared black; default 2500 */
@@ -254,6 +265,7 @@ typedef struct pn_render_settings {
                                         the default 3; 1: centre rays only). Along emitters,
                                         `reference` at a fixed spp traces its own eye rays
                                         instead, so emitters match its estimate exactly */
+    pn_adaptive_rule adaptive_rule;  /* reference with a threshold: the stopping rule */
 } pn_render_settings;
 
 /* contour_flags bits. */

@@ -30,6 +30,7 @@ typedef struct pn_render_job {
     uint32_t block_size; /* pixels per side of the tiled driver's blocks (ias: its blocks) */
     /* reference */
     pn_light_sampler light_sampler; /* IRRADIANCE or BVH, never DEFAULT */
+    pn_adaptive_rule adaptive_rule; /* PAPER or CROSS, never DEFAULT */
     /* VPL integrators (issue 5) */
     uint32_t vpls, vpl_max_depth, max_cut;
     float vpl_clamp_fraction, error_bound;

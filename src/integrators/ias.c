@@ -599,6 +599,87 @@ static void pixel_estimate(const ias_scratch *s, const ias_pixel *px, double *L,
     *s2 = fmax(*s2, block_relvar * *L * *L);
 }
 
+/* ---- adaptive_rule = cross: the convergence test on what the pixel's own samples do not set --
+ *
+ * The rule above decides from the pixel's own pass estimates, so a pixel stops when its samples
+ * happen to look converged (termination bias), and the black rule stops a pixel exactly when its
+ * samples happened to see no light. Here the decision comes from the other pixels of the block:
+ * rho_j, the block's pooled relative variance of pass j per shadow ray, leaving this pixel out,
+ * predicts the relative variance of this pixel's pass j as rho_j / n_j (n_j its own shadow-ray
+ * count, itself set by the rule, not by its values). Passes are weighted by n_j / rho_j, the
+ * inverse of that prediction, and the pixel is done when 1 / sum_j (n_j / rho_j) < threshold. The
+ * pixel's values then enter its estimate linearly with weights and a stopping time that do not
+ * depend on them (only on its neighbours' values and on the PDFs, which are fixed before each
+ * pass), so each pass being unbiased given its PDF, so is the combination. */
+static double block_rho_loo(const ias_scratch *sc, int pass, const ias_pixel *self) {
+    double num = 0.0, den = 0.0;
+    for (int q = 0; q < sc->pixel_count; q++) {
+        const ias_pixel *o = &sc->pixels[q];
+        if (o == self || o->pass_count <= pass) continue;
+        num += o->passes[pass].s2 * (double)o->passes[pass].n;
+        den += o->passes[pass].lum * o->passes[pass].lum;
+    }
+    return den > 0.0 ? num / den : -1.0; /* -1: no other pixel measured this pass */
+}
+
+/* rho_j for the pixel's passes: a pass no other pixel measured (they had all finished or were
+ * black) takes the last measured one, the PDFs only improving; false when none was measured. */
+static bool pixel_rho(const ias_scratch *sc, const ias_pixel *px, double *rho) {
+    double last = -1.0;
+    for (int j = 0; j < px->pass_count; j++) {
+        rho[j] = block_rho_loo(sc, j, px);
+        if (rho[j] >= 0.0) last = rho[j];
+        else rho[j] = last;
+    }
+    int first = 0;
+    while (first < px->pass_count && rho[first] < 0.0) first++;
+    if (first == px->pass_count) return false;
+    for (int j = 0; j < first; j++) rho[j] = rho[first];
+    return true;
+}
+
+/* The cross rule's estimate and predicted relative variance; *rho_last is rho of the last pass
+ * (0 when the block saw no variance). A block whose other pixels measured nothing (all black,
+ * or the pixel alone) leaves only the pixel's own variance, as the rule above uses. */
+static void pixel_estimate_cross(const ias_scratch *sc, const ias_pixel *px, double *L, double *relvar, vec3 *rgb,
+                                 double *rho_last) {
+    double rho[IAS_MAX_PASSES_STORED];
+    *rho_last = 0.0;
+    if (!pixel_rho(sc, px, rho)) {
+        double s2;
+        pixel_estimate(sc, px, L, &s2, rgb);
+        *relvar = *L > 0.0 ? s2 / (*L * *L) : (double)INFINITY;
+        return;
+    }
+    double wsum = 0.0, lum = 0.0, n = 0.0, nlum = 0.0;
+    vec3 c = v3(0, 0, 0), nc = v3(0, 0, 0);
+    bool zero = false; /* a pass the block saw without variance: exact as far as it can tell */
+    for (int j = 0; j < px->pass_count; j++) {
+        const ias_pass *p = &px->passes[j];
+        n += p->n;
+        nlum += p->n * p->lum;
+        nc = v3_madd(nc, p->rgb, (float)p->n);
+        if (!(rho[j] > 0.0)) {
+            zero = true;
+            continue;
+        }
+        double w = (double)p->n / rho[j];
+        wsum += w;
+        lum += w * p->lum;
+        c = v3_madd(c, p->rgb, (float)w);
+    }
+    if (zero || !(wsum > 0.0)) { /* equal weights per shadow ray */
+        *L = n > 0.0 ? nlum / n : 0.0;
+        *rgb = n > 0.0 ? v3_scale(nc, (float)(1.0 / n)) : v3(0, 0, 0);
+        *relvar = 0.0;
+        return;
+    }
+    *rho_last = rho[px->pass_count - 1];
+    *L = lum / wsum;
+    *rgb = v3_scale(c, (float)(1.0 / wsum));
+    *relvar = 1.0 / wsum;
+}
+
 /* Takes `count` shadow rays for pixel px with its regions' current PDFs (pass `pass`), adding
  * the samples to the regions' sums and the light evaluations to the statistics. Every region that
  * has clusters gets at least two per pass (for a variance) when count > 0. */
@@ -766,6 +847,46 @@ static void reset_regions(ias_scratch *s, ias_pixel *px) {
 
 /* ---- a block --------------------------------------------------------------------------------- */
 
+/* The smallest number of shadow rays at which a pixel whose samples saw no light may stop as
+ * black under the cross rule: a pixel lit by a fraction p of its samples reaches the threshold t
+ * within the budget M of a pixel only if p >= p_min = 1 / (1 + t M), and m unlit samples miss
+ * such a pixel with probability (1 - p_min)^m <= exp(-m p_min), 1% at m = ln(100) / p_min. */
+static uint32_t cross_black_rays(const pn_render_job *job) {
+    double p_min = 1.0 / (1.0 + job->threshold * (double)job->max_shadow_rays);
+    double m = ceil(log(100.0) / p_min);
+    return m > (double)IAS_BLACK_RAYS ? (uint32_t)fmin(m, 4e9) : IAS_BLACK_RAYS;
+}
+
+/* The end of a pass under the cross rule: the §5.8 extension and the §5.9 tests, decided from
+ * the block's other pixels (pixel_estimate_cross). */
+static void ias_pass_end_cross(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px,
+                               int pass, uint32_t scramble, uint32_t *counter) {
+    double L, relvar, rho_last;
+    vec3 rgb;
+    pixel_estimate_cross(s, px, &L, &relvar, &rgb, &rho_last);
+    const double t = job->threshold;
+    /* Within 2x of the target: the shadow rays that bring the prediction to the target, in
+     * steps of 25 with the same PDFs (§5.8); the count follows from rho, not from the values. */
+    if (rho_last > 0.0 && relvar >= t && relvar < 2.0 * t && px->pass_count > 0) {
+        double needed = rho_last * (1.0 / t - 1.0 / relvar); /* extra shadow rays in this pass */
+        unsigned steps = (unsigned)ceil(needed / IAS_STEP_SAMPLES);
+        if (steps > IAS_MAX_STEPS) steps = IAS_MAX_STEPS;
+        if (steps > 0) {
+            px->pass_count--; /* extend this pass */
+            sample_pixel(job, sh, s, px, pass, steps * IAS_STEP_SAMPLES, scramble, counter);
+            store_pass(s, px);
+            pixel_estimate_cross(s, px, &L, &relvar, &rgb, &rho_last);
+        }
+    }
+    bool converged = relvar < t;
+    /* Black: no visible sample after the paper's 3 passes and the binomial bound's rays. A pixel
+     * that saw no light has all its values 0 already; the bound only keeps it from stopping while
+     * a light its budget could measure may still be missed. */
+    bool black = px->visible == 0 && pass + 1 >= IAS_BLACK_PASSES && px->shadow_rays >= cross_black_rays(job);
+    px->result = v3_add(px->emitted, black ? v3(0, 0, 0) : rgb);
+    px->done = converged || black || pass + 1 >= (int)job->max_passes || atomic_load(job->cancel);
+}
+
 static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                   void *scratch) {
     const ias_shared *sh = job->integrator_data;
@@ -898,6 +1019,10 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
             sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
+            if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {
+                ias_pass_end_cross(job, sh, s, px, pass, scramble, &counter);
+                continue;
+            }
             double L, s2;
             vec3 rgb;
             pixel_estimate(s, px, &L, &s2, &rgb);
@@ -942,7 +1067,13 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         out[pi].pdf_seconds = (float)px->pdf_seconds;
         double L, s2;
         vec3 rgb;
-        pixel_estimate(s, px, &L, &s2, &rgb);
+        if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {
+            double relvar, rho_last;
+            pixel_estimate_cross(s, px, &L, &relvar, &rgb, &rho_last);
+            s2 = relvar * L * L;
+        } else {
+            pixel_estimate(s, px, &L, &s2, &rgb);
+        }
         double Lt = L + (double)v3_luminance(px->emitted);
         out[pi].relative_variance = Lt > 0.0 && isfinite(s2) ? (float)(s2 / (Lt * Lt)) : 0.0f;
     }
