@@ -20,7 +20,7 @@ typedef struct pn_filter_axis {
 
 typedef struct pn_camera {
     mat4 world_from_camera;
-    pn_projection projection;
+    pn_camera_projection projection;
     float tan_half_fov;         /* perspective; for the others the value that makes 2 tan / min(w, h)
                                    the angle of a pixel (ias's heuristics read it) */
     float screen[4];            /* xmin xmax ymin ymax */

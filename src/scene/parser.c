@@ -554,7 +554,7 @@ static pn_status d_camera(pn_parser *p, const pn_token *d) {
     st = read_params(p, d, &ps);
     if (st != PN_OK) goto done;
     pn_camera_def *cam = &p->scene->camera;
-    pn_projection projection;
+    pn_camera_projection projection;
     if (strcmp(type.text, "perspective") == 0) {
         projection = PN_PROJECTION_PERSPECTIVE;
     } else if (strcmp(type.text, "orthographic") == 0) {

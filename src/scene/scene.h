@@ -205,16 +205,16 @@ typedef enum pn_filter_kind {
 } pn_filter_kind;
 
 /* pbrt-v4's camera models (cameras.cpp). Zero is the perspective camera. */
-typedef enum pn_projection {
+typedef enum pn_camera_projection {
     PN_PROJECTION_PERSPECTIVE = 0,
     PN_PROJECTION_ORTHOGRAPHIC = 1,   /* rays along +z from the screen window at z = 0 */
     PN_PROJECTION_EQUAL_AREA = 2,     /* "spherical", mapping "equalarea" (Clarberg octahedral) */
     PN_PROJECTION_EQUIRECTANGULAR = 3 /* "spherical", mapping "equirectangular" */
-} pn_projection;
+} pn_camera_projection;
 
 typedef struct pn_camera_def {
     mat4 camera_from_world, world_from_camera;
-    pn_projection projection;
+    pn_camera_projection projection;
     float fov_deg;          /* of the shorter image axis, pbrt's "fov" (default 90) */
     float screen_window[4]; /* xmin, xmax, ymin, ymax (default from the aspect ratio) */
     float lens_radius, focal_distance;
