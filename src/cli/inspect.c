@@ -82,7 +82,7 @@ int command_diff(int argc, char **argv) {
     }
     if (json) {
         cJSON *root = cJSON_CreateObject();
-        cJSON_AddStringToObject(root, "reference", paths[0]);
+        cJSON_AddStringToObject(root, "reference", paths[0]); /* not-a-method-name: the image */
         cJSON_AddStringToObject(root, "image", paths[1]);
         cJSON_AddNumberToObject(root, "width", rw);
         cJSON_AddNumberToObject(root, "height", rh);

@@ -115,12 +115,9 @@ static int not_applicable(const render_options *o, const char *flag, uint64_t wh
             appendf(list, sizeof list, "%s%s", seen == 1 ? "" : seen == count ? " and " : ", ", pn_method_get(m)->name);
         }
     const pn_method_info *mi = pn_method_get(o->integrator), *md = pn_method_get(o->driver);
-    if (roles == 2)
-        appendf(msg, sizeof msg, "%s does not apply to the %s driver: it applies to the %s driver%s", flag, md->name,
-                list, count == 1 ? " only" : "s");
-    else
-        appendf(msg, sizeof msg, "%s does not apply to %s: it applies to the %s integrator%s", flag, mi->name, list,
-                count == 1 ? " only" : "s");
+    /* "--spp does not apply to ias under the tiles driver: it applies to the reference ... integrators" */
+    appendf(msg, sizeof msg, "%s does not apply to %s under the %s driver: it applies to the %s %s%s", flag, mi->name,
+            md->name, list, roles == 2 ? "driver" : roles == 1 ? "integrator" : "method", count == 1 ? " only" : "s");
     appendf(msg, sizeof msg, "; %s accepts ", mi->name);
     if (mi->capabilities & PN_CAP_SPP) appendf(msg, sizeof msg, "--spp, ");
     if (mi->capabilities & PN_CAP_THRESHOLD) appendf(msg, sizeof msg, "--threshold, ");

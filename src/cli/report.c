@@ -34,21 +34,21 @@ static const stat_field stat_fields[] = {
     S("progressive", ST_U32, dcm_lazy_blocks), S("progressive", ST_DOUBLE, primary_buffer_seconds),
     S("progressive", ST_U64, primary_grid_pixels), S("progressive", ST_DOUBLE, reconstruct_seconds_max),
     /* ias: the paper's Tables 4-6 */
-    S("ias", ST_DOUBLE, passes_per_pixel_mean), S("ias", ST_DOUBLE, aa_regions_per_pixel_mean),
-    S("ias", ST_DOUBLE, clusters_per_point_mean), S("ias", ST_DOUBLE, visible_fraction_mean),
-    S("ias", ST_U32, lights_visible_viewpoint), S("ias", ST_U32, env_regions_visible_viewpoint),
-    S("ias", ST_DOUBLE, visible_lights_per_pixel_mean), S("ias", ST_DOUBLE, cut_seconds_estimate),
-    S("ias", ST_DOUBLE, pdf_seconds_estimate),
+    S("ias_tables", ST_DOUBLE, passes_per_pixel_mean), S("ias_tables", ST_DOUBLE, aa_regions_per_pixel_mean),
+    S("ias_tables", ST_DOUBLE, clusters_per_point_mean), S("ias_tables", ST_DOUBLE, visible_fraction_mean),
+    S("ias_tables", ST_U32, lights_visible_viewpoint), S("ias_tables", ST_U32, env_regions_visible_viewpoint),
+    S("ias_tables", ST_DOUBLE, visible_lights_per_pixel_mean), S("ias_tables", ST_DOUBLE, cut_seconds_estimate),
+    S("ias_tables", ST_DOUBLE, pdf_seconds_estimate),
     /* VPL integrators: IlluminationCut Table 1's rows */
-    S("vpl", ST_DOUBLE, preprocess_seconds), S("vpl", ST_DOUBLE, vpl_seconds), S("vpl", ST_DOUBLE, light_tree_seconds),
-    S("vpl", ST_U64, vpl_count), S("vpl", ST_U64, vpl_paths), S("vpl", ST_DOUBLE, bound_evaluations_per_pixel_mean),
-    S("vpl", ST_DOUBLE, cut_size_mean), S("vpl", ST_DOUBLE, point_tree_seconds), S("vpl", ST_DOUBLE, phase1_seconds),
-    S("vpl", ST_DOUBLE, phase2_seconds), S("vpl", ST_U64, illumcut_pairs),
+    S("vpl_cuts", ST_DOUBLE, preprocess_seconds), S("vpl_cuts", ST_DOUBLE, vpl_seconds), S("vpl_cuts", ST_DOUBLE, light_tree_seconds),
+    S("vpl_cuts", ST_U64, vpl_count), S("vpl_cuts", ST_U64, vpl_paths), S("vpl_cuts", ST_DOUBLE, bound_evaluations_per_pixel_mean),
+    S("vpl_cuts", ST_DOUBLE, cut_size_mean), S("vpl_cuts", ST_DOUBLE, point_tree_seconds), S("vpl_cuts", ST_DOUBLE, phase1_seconds),
+    S("vpl_cuts", ST_DOUBLE, phase2_seconds), S("vpl_cuts", ST_U64, illumcut_pairs),
     /* contour, contour-mc: Vedel 1993, Table 1 */
-    S("contour", ST_U64, contour_viewing_rays), S("contour", ST_U64, contour_shadow_rays),
-    S("contour", ST_U64, contour_integrations), S("contour", ST_U64, contour_interpolated),
-    S("contour", ST_U64, contour_restarts), S("contour", ST_U64, contour_subdivisions),
-    S("contour", ST_U64, contour_culled_spans),
+    S("contour_rays", ST_U64, contour_viewing_rays), S("contour_rays", ST_U64, contour_shadow_rays),
+    S("contour_rays", ST_U64, contour_integrations), S("contour_rays", ST_U64, contour_interpolated),
+    S("contour_rays", ST_U64, contour_restarts), S("contour_rays", ST_U64, contour_subdivisions),
+    S("contour_rays", ST_U64, contour_culled_spans),
 };
 #undef S
 
@@ -237,7 +237,7 @@ int write_stats_json(const render_options *o, const char *image_path, pn_scene s
     for (size_t i = 0; i < sizeof stat_fields / sizeof stat_fields[0]; i++)
         if (stat_group_shown(o, stat_fields[i].group))
             cJSON_AddNumberToObject(sj, stat_fields[i].name, stat_value(stats, &stat_fields[i]));
-    if (stat_group_shown(o, "contour"))
+    if (stat_group_shown(o, "contour_rays"))
         cJSON_AddNumberToObject(sj, "contour_shadow_rays_per_viewing_ray",
                                 stats->contour_viewing_rays
                                     ? (double)stats->contour_shadow_rays / (double)stats->contour_viewing_rays
@@ -268,7 +268,7 @@ static void print_count(const char *label, uint64_t value) { printf("%-14s %llu\
 /* "name value, name value, ..." of the resolved options of method m. */
 static void print_options_line(const render_options *o, int m) {
     const pn_method_info *info = pn_method_get(m);
-    printf("%-14s %s (%s)", info->role == PN_METHOD_DRIVER ? "driver" : "integrator", info->name, info->computes);
+    printf("%-14s %s: %s", info->role == PN_METHOD_DRIVER ? "driver" : "integrator", info->name, info->computes);
     int n = 0;
     for (int i = 0; i < pn_option_count(); i++) {
         if (!pn_option_applies(i, m)) continue;
