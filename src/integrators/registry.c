@@ -40,7 +40,7 @@ enum {
 #define CONTOUR_FAMILY (BIT(M_CONTOUR) | BIT(M_CONTOUR_MC))
 #define PROGRESSIVE_DRIVERS (BIT(M_FULL) | BIT(M_DCM) | BIT(M_PAINTER) | BIT(M_UNIFORM))
 
-#define DIRECT "direct light (emitters seen directly and through specular chains, one bounce of lights)"
+#define DIRECT "direct light only: the emitters' light reflected once, and emitters seen directly or through specular chains"
 #define GLOBAL "global illumination through VPLs (light paths of --vpl-depth bounces), direct light included"
 #define PROG_AOVS (PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION)
 #define PROG_CAPS (PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_OWN_AOVS)
@@ -96,7 +96,7 @@ static const pn_method_entry methods[M_COUNT] = {
     [M_FULL] = {{"full", PN_METHOD_DRIVER, PN_DRIVER_FULL,
                  "every pixel of the work image (work-scale x the resolution), then the Gaussian filter: the "
                  "baseline of the progressive drivers",
-                 "Guo 1998 (its full-evaluation baseline)", "every work pixel", PROG_CAPS, PN_AOV_SAMPLING_PATTERN,
+                 "Guo 1998 (its full-evaluation baseline)", "every work pixel", PROG_CAPS, PROG_AOVS,
                  "progressive", 0},
                 NULL},
     [M_DCM] = {{"dcm", PN_METHOD_DRIVER, PN_DRIVER_DCM,
