@@ -46,6 +46,10 @@ typedef struct bench_case {
     char group[64]; /* "" when the case is not part of an equal-quality comparison */
     float crop[4];
     pn_render_settings settings;
+    /* method options by name (the library's table) */
+    char option_names[16][48], option_values[16][64];
+    int option_count;
+    int bvh; /* light-sampler=bvh */
 } bench_case;
 
 typedef struct bench_result {
@@ -67,7 +71,7 @@ typedef struct bench_result {
     double full_seconds;
 } bench_result;
 
-static const double curve_percents[8] = {2, 4, 6, 8, 10, 15, 25, 50};
+static const char curve_list[] = "2,4,6,8,10,15,25,50"; /* snapshot percentages */
 
 static const char *shared_dir = "../shared";
 
@@ -76,7 +80,24 @@ static void resolve(const char *in, char *out, size_t n) {
     else snprintf(out, n, "%s", in);
 }
 
-static int parse_settings(const char *text, pn_render_settings *s, char *group, size_t group_size) {
+/* The case's short names for options of the method table (any table name works as well). */
+static const char *const option_aliases[][2] = {
+    {"shadow", "shadow-rays"}, {"max", "max-samples"},         {"sampler", "light-sampler"}, {"stop", "stop-at"},
+    {"csa", "cluster-solid-angle"}, {"grid", "contour-grid"}, {"steps", "contour-steps"},
+    {"mcthreshold", "mc-threshold"},
+};
+
+/* Sets the case's method options on o; with_stop 0 leaves stop-at out (the full run). */
+static int case_options(const bench_case *bc, pn_options o, int with_stop) {
+    for (int i = 0; i < bc->option_count; i++) {
+        if (!with_stop && strcmp(bc->option_names[i], "stop-at") == 0) continue;
+        if (pn_options_set(NULL, o, bc->option_names[i], bc->option_values[i]) != PN_OK) return 0;
+    }
+    return 1;
+}
+
+static int parse_settings(const char *text, bench_case *bc) {
+    pn_render_settings *s = &bc->settings;
     char buf[256];
     snprintf(buf, sizeof buf, "%s", text);
     for (char *tok = strtok(buf, ","); tok; tok = strtok(NULL, ",")) {
@@ -86,40 +107,33 @@ static int parse_settings(const char *text, pn_render_settings *s, char *group, 
         const char *v = eq + 1;
         if (strcmp(tok, "spp") == 0) s->spp = (uint32_t)strtoul(v, NULL, 10);
         else if (strcmp(tok, "threshold") == 0) s->threshold = strtod(v, NULL);
-        else if (strcmp(tok, "shadow") == 0) s->shadow_rays = (uint32_t)strtoul(v, NULL, 10);
         else if (strcmp(tok, "seed") == 0) s->seed = strtoull(v, NULL, 10);
-        else if (strcmp(tok, "max") == 0) s->max_shadow_rays = (uint32_t)strtoul(v, NULL, 10);
-        else if (strcmp(tok, "sampler") == 0) {
-            if (strcmp(v, "irradiance") == 0) s->light_sampler = PN_LIGHT_SAMPLER_IRRADIANCE;
-            else if (strcmp(v, "bvh") == 0) s->light_sampler = PN_LIGHT_SAMPLER_BVH;
-            else return 0;
-        }
-        else if (strcmp(tok, "stop") == 0) s->stop_percent = strtod(v, NULL); /* progressive: stop at P% */
-        else if (strcmp(tok, "group") == 0) snprintf(group, group_size, "%s", v);
-        else if (strcmp(tok, "csa") == 0) s->cluster_solid_angle = strtof(v, NULL); /* ias */
-        else if (strcmp(tok, "driver") == 0) { /* progressive drivers (issue 6) */
-            if (strcmp(v, "full") == 0) s->driver = PN_DRIVER_FULL;
-            else if (strcmp(v, "dcm") == 0) s->driver = PN_DRIVER_DCM;
-            else if (strcmp(v, "painter") == 0) s->driver = PN_DRIVER_PAINTER;
-            else if (strcmp(v, "uniform") == 0) s->driver = PN_DRIVER_UNIFORM;
-            else return 0;
-        } else if (strcmp(tok, "res") == 0) {
+        else if (strcmp(tok, "group") == 0) snprintf(bc->group, sizeof bc->group, "%s", v);
+        else if (strcmp(tok, "res") == 0) {
             if (sscanf(v, "%dx%d", &s->width, &s->height) != 2) return 0;
+        } else if (strcmp(tok, "integrator") == 0 || strcmp(tok, "driver") == 0) {
+            /* Methods by their name in the library's table. */
+            pn_method_role role = tok[0] == 'i' ? PN_METHOD_INTEGRATOR : PN_METHOD_DRIVER;
+            int m = pn_method_find(role, v);
+            if (m < 0) return 0;
+            if (role == PN_METHOD_INTEGRATOR) s->integrator = (pn_integrator_kind)pn_method_get(m)->kind;
+            else s->driver = (pn_driver_kind)pn_method_get(m)->kind;
+        } else {
+            const char *name = tok;
+            for (size_t i = 0; i < sizeof option_aliases / sizeof option_aliases[0]; i++)
+                if (strcmp(tok, option_aliases[i][0]) == 0) name = option_aliases[i][1];
+            if (pn_option_find(name) < 0 || bc->option_count == 16) return 0;
+            snprintf(bc->option_names[bc->option_count], sizeof bc->option_names[0], "%s", name);
+            snprintf(bc->option_values[bc->option_count], sizeof bc->option_values[0], "%s", v);
+            bc->option_count++;
+            if (strcmp(name, "light-sampler") == 0) bc->bvh = strcmp(v, "bvh") == 0;
         }
-        else if (strcmp(tok, "integrator") == 0) {
-            if (strcmp(v, "reference") == 0) s->integrator = PN_INTEGRATOR_REFERENCE;
-            else if (strcmp(v, "ias") == 0) s->integrator = PN_INTEGRATOR_IAS;
-            else if (strcmp(v, "contour") == 0) s->integrator = PN_INTEGRATOR_CONTOUR;
-            else if (strcmp(v, "contour-mc") == 0) s->integrator = PN_INTEGRATOR_CONTOUR_MC;
-            else return 0;
-        }
-        /* contour / contour-mc (Vedel 1993): first-level grid, dichotomy steps, MC threshold */
-        else if (strcmp(tok, "grid") == 0) s->contour_grid = (uint32_t)strtoul(v, NULL, 10);
-        else if (strcmp(tok, "steps") == 0) s->contour_steps = (uint32_t)strtoul(v, NULL, 10);
-        else if (strcmp(tok, "mcthreshold") == 0) s->contour_mc_threshold = strtod(v, NULL);
-        else return 0;
     }
-    return 1;
+    /* The values must parse against the table. */
+    pn_options o = pn_options_new();
+    int ok = o && case_options(bc, o, 1);
+    pn_options_free(o);
+    return ok;
 }
 
 static int cmp_double(const void *a, const void *b) {
@@ -189,6 +203,14 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
                 info.lights_goniometric + info.lights_area_triangle + info.lights_area_rectangle +
                 info.lights_area_disk + info.lights_area_sphere;
     pn_render_settings s = bc->settings;
+    pn_options opts = pn_options_new(), full_opts = pn_options_new();
+    if (!opts || !full_opts || !case_options(bc, opts, 1) || !case_options(bc, full_opts, 0)) {
+        snprintf(r->error, sizeof r->error, "bad options");
+        pn_options_free(opts);
+        pn_options_free(full_opts);
+        return;
+    }
+    s.options = opts;
     s.threads = threads;
     s.has_crop = 1;
     memcpy(s.crop, bc->crop, sizeof s.crop);
@@ -199,7 +221,7 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
     if (s.driver != PN_DRIVER_DEFAULT && s.driver != PN_DRIVER_FULL) { /* progressive drivers */
         pn_render_settings fs = s;
         fs.driver = PN_DRIVER_FULL;
-        fs.stop_percent = 0.0; /* stop=P is for the progressive run only */
+        fs.options = full_opts; /* stop=P is for the progressive run only */
         double t0 = now();
         pn_render_stats fstats;
         if (pn_render(ctx, scene, &fs, &cs.full, &fstats) != PN_OK) {
@@ -216,8 +238,7 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
         cs.png_6pct = png_6pct;
         s.snapshot = on_curve_snapshot;
         s.snapshot_user = &cs;
-        s.snapshot_percents = curve_percents;
-        s.snapshot_percent_count = 8;
+        pn_options_set(NULL, opts, "snapshots", curve_list);
     }
     for (int i = 0; i < runs; i++) {
         pn_image img = NULL;
@@ -268,6 +289,8 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
     pn_image_free(cs.full);
     pn_scene_free(scene);
     pn_context_free(ctx);
+    pn_options_free(opts);
+    pn_options_free(full_opts);
     r->ok = 1;
 }
 
@@ -290,7 +313,7 @@ static int read_config(const char *path, bench_case **out, int *count) {
         int k = sscanf(line, "%127s %1023s %1023s %63s %255s", bc.name, scene, ref, bc.crop_text, bc.settings_text);
         if (k <= 0) continue;
         if (k != 5 || sscanf(bc.crop_text, "%f,%f,%f,%f", &bc.crop[0], &bc.crop[1], &bc.crop[2], &bc.crop[3]) != 4 ||
-            !parse_settings(bc.settings_text, &bc.settings, bc.group, sizeof bc.group)) {
+            !parse_settings(bc.settings_text, &bc)) {
             fprintf(stderr, "penumbra_bench: %s:%d: expected NAME SCENE REFERENCE x0,x1,y0,y1 SETTINGS\n", path,
                     lineno);
             fclose(f);
@@ -349,12 +372,8 @@ static double loglog(double x, double xa, double ya, double xb, double yb) {
 }
 
 static int is_reference(const pn_render_settings *s) {
-    return s->integrator == PN_INTEGRATOR_REFERENCE || s->integrator == PN_INTEGRATOR_DEFAULT;
-}
-
-/* The reference's light sampler, defaults resolved. */
-static pn_light_sampler sampler_of(const pn_render_settings *s) {
-    return s->light_sampler == PN_LIGHT_SAMPLER_BVH ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
+    return pn_method_find_kind(PN_METHOD_INTEGRATOR, (int)s->integrator) ==
+           pn_method_find_kind(PN_METHOD_INTEGRATOR, PN_INTEGRATOR_DEFAULT);
 }
 
 /* The reference's cost at relMSE e from its points sorted by decreasing relMSE. Returns 0 when e
@@ -420,13 +439,13 @@ static void equal_quality(FILE *md, FILE *js, const bench_case *cases, const int
         const bench_result *ri = &res[i];
         if (!ci->group[0] || is_reference(&ci->settings) || !ri->has_metrics) continue;
         for (int kind = 0; kind < 2; kind++) {
-            const pn_light_sampler sampler = kind ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
+            const int bvh = kind;
             const char *baseline = kind ? "reference, light BVH" : "reference";
             int m = 0;
             for (int j = 0; j < n; j++) {
                 const bench_case *cj = &cases[which[j]];
                 if (j == i || strcmp(cj->group, ci->group) != 0 || !is_reference(&cj->settings) || !res[j].has_metrics ||
-                    sampler_of(&cj->settings) != sampler)
+                    cj->bvh != bvh)
                     continue;
                 pts[m].relmse = res[j].metrics.relmse;
                 pts[m].seconds = res[j].median;

@@ -1,7 +1,7 @@
 #!/bin/sh
 # install-deps.sh — installs the Debian 12 packages penumbra needs, only those that are missing.
 set -eu
-packages="build-essential cmake pkg-config libembree-dev libopenexr-dev libstb-dev"
+packages="build-essential cmake pkg-config libembree-dev libopenexr-dev libstb-dev libcjson-dev"
 missing=""
 for p in $packages; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

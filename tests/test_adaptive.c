@@ -25,17 +25,20 @@ static pn_scene load_scene(pn_context ctx, const char *name, const char *text) {
 
 static pn_integrator_kind integrator = PN_INTEGRATOR_REFERENCE; /* of render() */
 
-static pn_image render(pn_context ctx, pn_scene scene, uint32_t spp, double threshold, pn_adaptive_rule rule,
+static pn_image render(pn_context ctx, pn_scene scene, uint32_t spp, double threshold, const char *rule,
                        uint64_t seed, int threads) {
     pn_render_settings s = {0};
     s.integrator = integrator;
     s.spp = spp;
     s.threshold = threshold;
-    s.adaptive_rule = rule;
+    s.options = pn_options_new();
+    if (rule) CHECK(pn_options_set(ctx, s.options, "adaptive-rule", rule) == PN_OK);
     s.seed = seed;
     s.threads = threads;
     pn_image img = NULL;
-    if (pn_render(ctx, scene, &s, &img, NULL) != PN_OK) {
+    pn_status st = pn_render(ctx, scene, &s, &img, NULL);
+    pn_options_free(s.options);
+    if (st != PN_OK) {
         fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
         return NULL;
     }
@@ -104,16 +107,16 @@ static void test_error_proportional_to_threshold(void) {
         pn_context_free(ctx);
         return;
     }
-    pn_image ref = render(ctx, scene, 1024, 0.0, PN_ADAPTIVE_DEFAULT, 1000, 0);
-    pn_image ref2 = render(ctx, scene, 1024, 0.0, PN_ADAPTIVE_DEFAULT, 1001, 0);
+    pn_image ref = render(ctx, scene, 1024, 0.0, NULL, 1000, 0);
+    pn_image ref2 = render(ctx, scene, 1024, 0.0, NULL, 1001, 0);
     CHECK(ref && ref2);
     if (ref && ref2) {
         const double t[3] = {0.02, 0.005, 0.00125};
         double e[3], paper[3];
         double ref_noise = relmse(ref, ref2); /* twice the reference's own relMSE */
         for (int k = 0; k < 3; k++) {
-            pn_image img = render(ctx, scene, 0, t[k], PN_ADAPTIVE_DEFAULT, 0, 0);
-            pn_image imp = render(ctx, scene, 0, t[k], PN_ADAPTIVE_PAPER, 0, 0);
+            pn_image img = render(ctx, scene, 0, t[k], NULL, 0, 0);
+            pn_image imp = render(ctx, scene, 0, t[k], "paper", 0, 0);
             CHECK(img && imp);
             e[k] = img ? relmse(ref, img) : (double)NAN;
             paper[k] = imp ? relmse(ref, imp) : (double)NAN;
@@ -182,9 +185,9 @@ static void test_rarely_lit_pixels_not_black(void) {
         pn_context_free(ctx);
         return;
     }
-    pn_image ref = render(ctx, scene, 256, 0.0, PN_ADAPTIVE_DEFAULT, 1000, 0);
-    pn_image cross = render(ctx, scene, 0, 0.01, PN_ADAPTIVE_CROSS, 0, 0);
-    pn_image paper = render(ctx, scene, 0, 0.01, PN_ADAPTIVE_PAPER, 0, 0);
+    pn_image ref = render(ctx, scene, 256, 0.0, NULL, 1000, 0);
+    pn_image cross = render(ctx, scene, 0, 0.01, "cross", 0, 0);
+    pn_image paper = render(ctx, scene, 0, 0.01, "paper", 0, 0);
     CHECK(ref && cross && paper);
     if (ref && cross && paper) {
         int n = pn_image_width(ref) * pn_image_height(ref);
@@ -235,8 +238,8 @@ static void test_cross_thread_determinism(void) {
     }
     for (int ias = 0; ias < 2; ias++) {
         integrator = ias ? PN_INTEGRATOR_IAS : PN_INTEGRATOR_REFERENCE;
-        pn_image a = render(ctx, scene, 0, 0.01, PN_ADAPTIVE_CROSS, 5, 1);
-        pn_image b = render(ctx, scene, 0, 0.01, PN_ADAPTIVE_CROSS, 5, 2);
+        pn_image a = render(ctx, scene, 0, 0.01, "cross", 5, 1);
+        pn_image b = render(ctx, scene, 0, 0.01, "cross", 5, 2);
         CHECK(a && b);
         if (a && b) {
             size_t bytes = (size_t)pn_image_width(a) * (size_t)pn_image_height(a) * 3 * sizeof(float);
@@ -259,13 +262,11 @@ static void test_unknown_rule_rejected(void) {
         pn_context_free(ctx);
         return;
     }
-    pn_render_settings s = {0};
-    s.threshold = 0.01;
-    s.adaptive_rule = (pn_adaptive_rule)7;
-    pn_image img = NULL;
-    CHECK(pn_render(ctx, scene, &s, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
-    CHECK(img == NULL);
-    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "adaptive rule");
+    pn_options o = pn_options_new();
+    CHECK(pn_options_set(ctx, o, "adaptive-rule", "sometimes") == PN_ERROR_INVALID_ARGUMENT);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "adaptive-rule");
+    CHECK(!pn_options_is_set(o, pn_option_find("adaptive-rule")));
+    pn_options_free(o);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }

@@ -339,7 +339,7 @@ static void test_usage_errors(void) {
         {{"render", "x.pbrt", "--block-size", "4"}, "invalid value '4' for --block-size"},
         {{"render", "x.pbrt", "--env-regions", "x"}, "invalid value 'x' for --env-regions"},
         {{"render", "x.pbrt", "--light-sampler", "tree"}, "expected 'irradiance' or 'bvh'"},
-        {{"render", "x.pbrt", "--adaptive-rule", "fast"}, "expected 'cross' or 'paper'"},
+        {{"render", "x.pbrt", "--adaptive-rule", "fast"}, "expected 'auto', 'paper' or 'cross'"},
         {{"render", "x.pbrt", "--integrator", "ias", "--light-sampler", "bvh"}, "applies to the reference integrator"},
         {{"render", "x.pbrt", "--aov-png=yes"}, "--aov-png"},
         {{"render", "x.pbrt", "--spp", "0"}, "invalid value '0' for --spp"},

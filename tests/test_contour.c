@@ -333,19 +333,36 @@ static pn_scene load_sphere_scene(pn_context ctx, const char *name, int shape) {
     return scene;
 }
 
+/* Sets contour-off from PN_CONTOUR_* bits (bit k is the option's k-th choice). */
+static void set_contour_flags(pn_context ctx, pn_options o, uint32_t flags) {
+    const char *choices = pn_option_get(pn_option_find("contour-off"))->choices;
+    char text[256] = "";
+    int k = 0;
+    for (const char *p = choices; *p; k++) {
+        size_t n = strcspn(p, ",");
+        if (flags & (1u << k)) snprintf(text + strlen(text), sizeof text - strlen(text), "%s%.*s", text[0] ? "," : "", (int)n, p);
+        p += n;
+        if (*p == ',') p++;
+    }
+    CHECK(pn_options_set(ctx, o, "contour-off", text) == PN_OK);
+}
+
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t shadow_rays, uint32_t steps,
                        uint32_t flags, int threads, pn_render_stats *stats) {
     pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
     s.integrator = kind;
     s.spp = 1;
-    s.shadow_rays = shadow_rays;
-    s.contour_steps = steps;
-    s.contour_flags = flags;
+    pn_options_set_int(ctx, o, "shadow-rays", shadow_rays);
+    if (steps) pn_options_set_int(ctx, o, "contour-steps", steps);
+    if (flags) set_contour_flags(ctx, o, flags);
     s.threads = threads;
     s.aovs = PN_AOV_SHADOW_RAYS | PN_AOV_GRADIENT;
     pn_image img = NULL;
     pn_status st = pn_render(ctx, scene, &s, &img, stats);
     CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    pn_options_free(o);
     return img;
 }
 
@@ -371,11 +388,14 @@ static void test_contour_matches_reference(void) {
         pn_image ref2 = NULL;
         {
             pn_render_settings s = {0};
+            pn_options o = pn_options_new();
+            s.options = o;
             s.spp = 1;
-            s.shadow_rays = 4096;
+            pn_options_set_int(ctx, o, "shadow-rays", 4096);
             s.seed = 0;
             s.threads = 2;
             pn_render(ctx, scene, &s, &ref2, NULL);
+            pn_options_free(o);
         }
         pn_render_stats st;
         /* Fine contours, every pixel integrated: the reference up to its own noise. */
@@ -475,16 +495,19 @@ static void test_thread_determinism_and_bad_settings(void) {
     }
     /* Bad settings: a clear error, no image. */
     pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
     s.integrator = PN_INTEGRATOR_CONTOUR;
-    s.contour_grid = 1;
+    /* A grid of 1 is refused where it is set, against the option's declared range. */
+    CHECK(pn_options_set_int(ctx, o, "contour-grid", 1) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "contour-grid");
     pn_image img = NULL;
-    CHECK(pn_render(ctx, scene, &s, &img, NULL) == PN_ERROR_INVALID_ARGUMENT && img == NULL);
-    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "contour grid");
     pn_context_clear_error(ctx);
-    s.contour_grid = 65;
-    s.contour_steps = 12;
+    CHECK(pn_options_set_int(ctx, o, "contour-grid", 65) == PN_OK);
+    CHECK(pn_options_set_int(ctx, o, "contour-steps", 12) == PN_OK);
     CHECK(pn_render(ctx, scene, &s, &img, NULL) == PN_ERROR_INVALID_ARGUMENT && img == NULL);
     CHECK_STR_CONTAINS(pn_context_error_message(ctx), "sample array");
+    pn_options_free(o);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }
@@ -496,26 +519,31 @@ static void test_thread_determinism_and_bad_settings(void) {
 /* The 64 x 32 reference of the span tests: 4096 shadow rays per eye ray. */
 static pn_image render_span_reference(pn_context ctx, pn_scene scene) {
     pn_render_settings rs = {0};
+    pn_options o = pn_options_new();
+    rs.options = o;
     rs.spp = 1;
-    rs.shadow_rays = 4096;
+    pn_options_set_int(ctx, o, "shadow-rays", 4096);
     rs.width = 64;
     rs.height = 32;
     rs.threads = 2;
     pn_image ref = NULL;
     CHECK(pn_render(ctx, scene, &rs, &ref, NULL) == PN_OK);
+    pn_options_free(o);
     return ref;
 }
 
 static pn_image render_spans(pn_context ctx, pn_scene scene, uint32_t span, int threads, const float *crop,
                              uint32_t flags, pn_render_stats *stats) {
     pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
     s.integrator = PN_INTEGRATOR_CONTOUR;
-    s.contour_flags = flags;
+    if (flags) set_contour_flags(ctx, o, flags);
     s.spp = 1;
-    s.shadow_rays = 4;
+    pn_options_set_int(ctx, o, "shadow-rays", 4);
     s.width = 64;
     s.height = 32;
-    s.contour_span = span;
+    if (span) pn_options_set_int(ctx, o, "contour-span", span);
     s.threads = threads;
     s.aovs = PN_AOV_SHADOW_RAYS | PN_AOV_GRADIENT;
     if (crop) {
@@ -525,6 +553,7 @@ static pn_image render_spans(pn_context ctx, pn_scene scene, uint32_t span, int 
     pn_image img = NULL;
     pn_status st = pn_render(ctx, scene, &s, &img, stats);
     CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    pn_options_free(o);
     return img;
 }
 
@@ -913,14 +942,17 @@ static void test_spans_end_at_creases(void) {
     pn_image every = NULL;
     {
         pn_render_settings s = {0};
+        pn_options o = pn_options_new();
+        s.options = o;
         s.integrator = PN_INTEGRATOR_CONTOUR;
         s.spp = 1;
-        s.shadow_rays = 4;
+        pn_options_set_int(ctx, o, "shadow-rays", 4);
         s.width = 64;
         s.height = 32;
-        s.contour_flags = PN_CONTOUR_NO_SPANS;
+        set_contour_flags(ctx, o, PN_CONTOUR_NO_SPANS);
         s.threads = 2;
         CHECK(pn_render(ctx, scene, &s, &every, NULL) == PN_OK);
+        pn_options_free(o);
     }
     CHECK(spans && every);
     if (spans && every) {

@@ -228,8 +228,10 @@ static void on_snap(void *user, pn_image image, double requested, double evaluat
 static pn_image render_driver(pn_context ctx, pn_scene scene, pn_driver_kind driver, int threads, const float *crop,
                               snap_log *log, const double *percents, int npercents) {
     pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
     s.spp = 2;
-    s.shadow_rays = 1;
+    pn_options_set_int(ctx, o, "shadow-rays", 1);
     s.seed = 3;
     s.threads = threads;
     s.driver = driver;
@@ -240,12 +242,15 @@ static pn_image render_driver(pn_context ctx, pn_scene scene, pn_driver_kind dri
     if (log) {
         s.snapshot = on_snap;
         s.snapshot_user = log;
-        s.snapshot_percents = percents;
-        s.snapshot_percent_count = npercents;
+        char list[512] = "";
+        for (int i = 0; i < npercents; i++)
+            snprintf(list + strlen(list), sizeof list - strlen(list), "%s%.17g", i ? "," : "", percents[i]);
+        if (npercents) CHECK(pn_options_set(ctx, o, "snapshots", list) == PN_OK);
     }
     pn_image img = NULL;
     pn_render_stats stats;
     pn_status st = pn_render(ctx, scene, &s, &img, &stats);
+    pn_options_free(o);
     CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
     if (st == PN_OK) CHECK_NEAR(stats.evaluated_percent, 100.0, 1e-9);
     return img;
@@ -354,16 +359,19 @@ static const char *strips_scene =
 static pn_image render_strips(pn_context ctx, pn_scene scene, pn_driver_kind driver, uint32_t spp, int raw,
                               pn_render_stats *stats) {
     pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
     s.spp = spp; /* 0: adaptive, with a threshold the strips' pixels reach after a few rays */
     s.threshold = 1e-4;
-    s.min_eye_rays = 8;
-    s.shadow_rays = 1;
+    pn_options_set_int(ctx, o, "min-eye-rays", 8);
+    pn_options_set_int(ctx, o, "shadow-rays", 1);
     s.threads = 2;
     s.driver = driver;
-    s.stop_percent = driver == PN_DRIVER_FULL ? 0.0 : 2.0;
-    s.raw_radiance = raw;
+    if (driver != PN_DRIVER_FULL) pn_options_set_double(ctx, o, "stop-at", 2.0);
+    pn_options_set_int(ctx, o, "raw-radiance", raw);
     pn_image img = NULL;
     CHECK(pn_render(ctx, scene, &s, &img, stats) == PN_OK);
+    pn_options_free(o);
     return img;
 }
 
@@ -436,13 +444,16 @@ static void test_segments_across_visible_lines(void) {
     pn_image img[2] = {NULL, NULL};
     for (int k = 0; k < 2; k++) {
         pn_render_settings s = {0};
+        pn_options o = pn_options_new();
+        s.options = o;
         s.spp = 16;
-        s.shadow_rays = 1;
+        pn_options_set_int(ctx, o, "shadow-rays", 1);
         s.threads = 2;
         s.driver = k == 0 ? PN_DRIVER_FULL : PN_DRIVER_DCM;
-        s.stop_percent = k == 0 ? 0.0 : 3.0;
+        if (k != 0) pn_options_set_double(ctx, o, "stop-at", 3.0);
         pn_render_stats stats;
         CHECK(pn_render(ctx, scene, &s, &img[k], &stats) == PN_OK);
+        pn_options_free(o);
     }
     /* Measured 0.0139; drawing the edge blocks with elements across the crease gave 0.0193. What
      * is left is the pixels next to the crease, which mix both faces under the pixel filter. */
@@ -481,11 +492,13 @@ static bool render_three(pn_context ctx, const char *name, const char *text, voi
     if (!scene) return false;
     for (int k = 0; k < 3; k++) {
         pn_render_settings s = {0};
+        s.options = pn_options_new();
         s.threads = 2;
         set(k, &s);
         pn_render_stats stats;
         img[k] = NULL;
         CHECK(pn_render(ctx, scene, &s, &img[k], &stats) == PN_OK);
+        pn_options_free(s.options);
     }
     pn_scene_free(scene);
     return true;
@@ -494,10 +507,10 @@ static bool render_three(pn_context ctx, const char *name, const char *text, voi
 /* k = 0: the converged image; 1: the full render; 2: DCM at 3%. */
 static void noisy_wall_settings(int k, pn_render_settings *s) {
     s->spp = k == 0 ? 64 : 4;
-    s->shadow_rays = k == 0 ? 4 : 1;
+    pn_options_set_int(NULL, s->options, "shadow-rays", k == 0 ? 4 : 1);
     s->seed = k == 0 ? 9 : 0;
     s->driver = k == 2 ? PN_DRIVER_DCM : PN_DRIVER_FULL;
-    s->stop_percent = k == 2 ? 3.0 : 0.0;
+    if (k == 2) pn_options_set_double(NULL, s->options, "stop-at", 3.0);
 }
 
 static void test_smooth_blocks_filter_noise(void) {
@@ -530,10 +543,10 @@ static const char *glow_scene =
 /* k = 0: the full render; 1: DCM at 3%; 2: DCM at 3% with the albedo alone. */
 static void glow_settings(int k, pn_render_settings *s) {
     s->spp = 16;
-    s->shadow_rays = 1;
+    pn_options_set_int(NULL, s->options, "shadow-rays", 1);
     s->driver = k == 0 ? PN_DRIVER_FULL : PN_DRIVER_DCM;
-    s->stop_percent = k == 0 ? 0.0 : 3.0;
-    s->no_light_guide = k == 2;
+    if (k != 0) pn_options_set_double(NULL, s->options, "stop-at", 3.0);
+    pn_options_set_int(NULL, s->options, "no-light-guide", k == 2);
 }
 
 /* The light guide (progressive.c): dividing out the unshadowed irradiance leaves the visible
@@ -560,9 +573,11 @@ static void test_stop_and_aovs(void) {
         return;
     }
     pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
     s.spp = 2;
     s.driver = PN_DRIVER_DCM;
-    s.stop_percent = 8.0;
+    pn_options_set_double(ctx, o, "stop-at", 8.0);
     s.aovs = PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION;
     pn_image img = NULL;
     pn_render_stats stats;
@@ -586,17 +601,15 @@ static void test_stop_and_aovs(void) {
     }
     pn_image_free(img);
     /* bad settings */
+    /* Out-of-range driver options are refused where they are set (the declared ranges). */
     pn_render_settings bad = s;
-    bad.work_scale = 17;
     img = NULL;
-    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
-    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "work scale");
+    CHECK(pn_options_set_int(ctx, o, "work-scale", 17) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "work-scale");
     pn_context_clear_error(ctx);
-    bad = s;
-    bad.primary_grid = 9;
-    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK(pn_options_set_int(ctx, o, "primary-grid", 9) == PN_ERROR_INVALID_ARGUMENT);
     CHECK(img == NULL);
-    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "primary grid");
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "primary-grid");
     pn_context_clear_error(ctx);
     bad = s;
     bad.aovs = PN_AOV_DEPTH;
@@ -606,12 +619,19 @@ static void test_stop_and_aovs(void) {
     bad.driver = (pn_driver_kind)9;
     CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
     pn_context_clear_error(ctx);
-    double zero = 0.0;
-    bad = s;
-    bad.snapshot_percents = &zero;
-    bad.snapshot_percent_count = 1;
-    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK(pn_options_set(ctx, o, "snapshots", "0") == PN_ERROR_INVALID_ARGUMENT);
     CHECK(img == NULL);
+    pn_context_clear_error(ctx);
+    /* An option of another method is refused by pn_render, naming it. */
+    bad = s;
+    pn_options other = pn_options_new();
+    bad.options = other;
+    pn_options_set_int(ctx, other, "vpls", 100);
+    CHECK(pn_render(ctx, scene, &bad, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "vpls");
+    CHECK(img == NULL);
+    pn_options_free(other);
+    pn_options_free(o);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }

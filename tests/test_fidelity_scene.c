@@ -231,9 +231,12 @@ static void test_maxdepth_sets_vpl_depth(void) {
         rs.integrator = PN_INTEGRATOR_VPL;
         rs.spp = 1;
         rs.threads = 2;
-        rs.vpls = 3000;
-        rs.vpl_max_depth = k == 0 ? 0u : k == 1 ? 3u : 10u; /* 0: the scene's default */
+        rs.options = pn_options_new();
+        CHECK(pn_options_set_int(test_context(), rs.options, "vpls", 3000) == PN_OK);
+        if (k > 0) /* k = 0: vpl-depth not set, the scene's maxdepth decides */
+            CHECK(pn_options_set_int(test_context(), rs.options, "vpl-depth", k == 1 ? 3 : 10) == PN_OK);
         CHECK(pn_render(test_context(), sc, &rs, &img[k], NULL) == PN_OK);
+        pn_options_free(rs.options);
     }
     if (img[0] && img[1] && img[2]) {
         size_t n = 3 * (size_t)pn_image_width(img[0]) * (size_t)pn_image_height(img[0]);

@@ -159,14 +159,20 @@ static uint32_t block_size; /* 0: the default (8) */
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, double threshold,
                        pn_render_stats *stats) {
     pn_render_settings s = {0};
-    s.block_size = block_size;
+    pn_options o = pn_options_new();
+    s.options = o;
+    if (block_size) pn_options_set_int(ctx, o, "block-size", block_size);
     s.integrator = kind;
     s.spp = spp;
     s.threshold = threshold;
-    s.shadow_rays = 8;
+    /* 8 shadow rays per eye ray where the integrator takes that option (ias does not). */
+    if (pn_option_applies(pn_option_find("shadow-rays"), pn_method_find_kind(PN_METHOD_INTEGRATOR, kind)))
+        pn_options_set_int(ctx, o, "shadow-rays", 8);
     s.seed = 3;
     pn_image img = NULL;
-    if (pn_render(ctx, scene, &s, &img, stats) != PN_OK) {
+    pn_status st = pn_render(ctx, scene, &s, &img, stats);
+    pn_options_free(o);
+    if (st != PN_OK) {
         fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
         return NULL;
     }

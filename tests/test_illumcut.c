@@ -85,15 +85,21 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
                        uint32_t spp, pn_render_stats *stats) {
     pn_render_settings rs;
     memset(&rs, 0, sizeof rs);
+    pn_options o = pn_options_new();
+    rs.options = o;
     rs.integrator = kind;
-    rs.vpls = 2000;
-    rs.error_bound = error;
-    rs.visibility_sampling = sampling;
+    pn_options_set_int(ctx, o, "vpls", 2000);
+    /* The error bound and visibility mode where the integrator has them (lightcuts, illumcut). */
+    const int m = pn_method_find_kind(PN_METHOD_INTEGRATOR, kind);
+    if (error > 0.0f && pn_option_applies(pn_option_find("error"), m)) pn_options_set_double(ctx, o, "error", (double)error);
+    if (pn_option_applies(pn_option_find("visibility"), m))
+        pn_options_set(ctx, o, "visibility", sampling ? "sampling" : "exact");
     rs.threads = threads;
     rs.spp = spp;
     rs.aovs = PN_AOV_BOUND_EVALUATIONS | PN_AOV_PHASE1;
     pn_image img = NULL;
     CHECK(pn_render(ctx, scene, &rs, &img, stats) == PN_OK);
+    pn_options_free(o);
     return img;
 }
 
@@ -204,14 +210,17 @@ static void test_sampling_never_traces_more(void) {
     for (int k = 0; k < 2; k++) {
         pn_render_settings rs;
         memset(&rs, 0, sizeof rs);
+        pn_options o = pn_options_new();
+        rs.options = o;
         rs.integrator = PN_INTEGRATOR_ILLUMCUT;
-        rs.vpls = 3000;
-        rs.error_bound = 0.01f;
-        rs.visibility_sampling = k;
+        pn_options_set_int(ctx, o, "vpls", 3000);
+        pn_options_set_double(ctx, o, "error", (double)0.01f);
+        pn_options_set(ctx, o, "visibility", k ? "sampling" : "exact");
         rs.threads = 2;
         rs.spp = 1;
         rs.aovs = PN_AOV_SHADOW_RAYS;
         CHECK(pn_render(ctx, scene, &rs, &img[k], &st[k]) == PN_OK);
+        pn_options_free(o);
     }
     if (img[0] && img[1]) {
         int la = vpl_test_layer(img[0], "shadow_rays"), lb = vpl_test_layer(img[1], "shadow_rays");

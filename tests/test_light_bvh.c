@@ -246,10 +246,13 @@ static void test_render_agrees(void) {
         pn_render_settings s;
         memset(&s, 0, sizeof s);
         s.spp = 64;
-        s.shadow_rays = 4;
-        s.light_sampler = k ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
+        pn_options o = pn_options_new();
+        s.options = o;
+        CHECK(pn_options_set_int(ctx, o, "shadow-rays", 4) == PN_OK);
+        CHECK(pn_options_set(ctx, o, "light-sampler", k ? "bvh" : "irradiance") == PN_OK);
         pn_image img = NULL;
         CHECK(pn_render(ctx, scene, &s, &img, NULL) == PN_OK);
+        pn_options_free(o);
         mean[k] = img ? mean_luminance(img) : 0.0;
         pn_image_free(img);
     }

@@ -410,13 +410,18 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
                        pn_render_stats *stats) {
     pn_render_settings rs;
     memset(&rs, 0, sizeof rs);
+    pn_options o = pn_options_new();
+    rs.options = o;
     rs.integrator = kind;
-    rs.vpls = 2000;
-    rs.error_bound = error;
+    pn_options_set_int(ctx, o, "vpls", 2000);
+    /* The error bound where the integrator has one (not vpl). */
+    if (error > 0.0f && pn_option_applies(pn_option_find("error"), pn_method_find_kind(PN_METHOD_INTEGRATOR, kind)))
+        pn_options_set_double(ctx, o, "error", (double)error);
     rs.threads = threads;
     rs.aovs = PN_AOV_BOUND_EVALUATIONS | PN_AOV_CUT_SIZE;
     pn_image img = NULL;
     CHECK(pn_render(ctx, scene, &rs, &img, stats) == PN_OK);
+    pn_options_free(o);
     return img;
 }
 

@@ -620,10 +620,11 @@ static void test_integrators_agree(void) {
         rs.threads = 2;
         rs.seed = 11;
         rs.spp = 32;
+        rs.options = pn_options_new();
         if (m == 0) rs.integrator = PN_INTEGRATOR_REFERENCE;
         if (m == 1) {
             rs.integrator = PN_INTEGRATOR_REFERENCE;
-            rs.light_sampler = PN_LIGHT_SAMPLER_BVH;
+            CHECK(pn_options_set(ctx, rs.options, "light-sampler", "bvh") == PN_OK);
         }
         if (m == 2) {
             rs.integrator = PN_INTEGRATOR_IAS; /* adaptive, its default threshold: no spp */
@@ -632,12 +633,13 @@ static void test_integrators_agree(void) {
         if (m == 6) rs.integrator = PN_INTEGRATOR_CONTOUR;
         if (m >= 3 && m <= 5) {
             rs.integrator = m == 3 ? PN_INTEGRATOR_VPL : (m == 4 ? PN_INTEGRATOR_LIGHTCUTS : PN_INTEGRATOR_ILLUMCUT);
-            rs.vpls = 200;
-            rs.vpl_max_depth = 1;
-            rs.vpl_clamp_fraction = 1e-4f;
+            CHECK(pn_options_set_int(ctx, rs.options, "vpls", 200) == PN_OK);
+            CHECK(pn_options_set_int(ctx, rs.options, "vpl-depth", 1) == PN_OK);
+            CHECK(pn_options_set_double(ctx, rs.options, "vpl-clamp", (double)1e-4f) == PN_OK);
         }
         pn_image img = NULL;
         pn_status st = pn_render(ctx, scene, &rs, &img, NULL);
+        pn_options_free(rs.options);
         CHECK_MSG(st == PN_OK, "%s: %s", names[m], pn_context_error_message(ctx));
         if (img) {
             memcpy(imgs[m], pn_image_layer_data(img, 0), sizeof imgs[m]);

@@ -80,13 +80,16 @@ static pn_image render_with_threads(pn_scene scene, pn_context ctx, int threads,
     else s.spp = 4;
     s.seed = 42;
     s.threads = threads;
-    s.shadow_rays = 2;
+    pn_options o = pn_options_new();
+    s.options = o;
+    pn_options_set_int(ctx, o, "shadow-rays", 2);
     if (crop) {
         s.has_crop = 1;
         memcpy(s.crop, crop, sizeof s.crop);
     }
     pn_image img = NULL;
     pn_render(ctx, scene, &s, &img, NULL);
+    pn_options_free(o);
     return img;
 }
 

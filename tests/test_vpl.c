@@ -186,13 +186,16 @@ static void test_vpl_image_closed_form(void) {
     }
     pn_render_settings rs;
     memset(&rs, 0, sizeof rs);
+    pn_options o = pn_options_new();
+    rs.options = o;
     rs.integrator = PN_INTEGRATOR_VPL;
-    rs.vpls = 300;
-    rs.vpl_clamp_fraction = 1e-4f;
+    pn_options_set_int(ctx, o, "vpls", 300);
+    pn_options_set_double(ctx, o, "vpl-clamp", (double)1e-4f);
     rs.spp = 16;
     rs.threads = 2;
     pn_image img = NULL;
     CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_OK);
+    pn_options_free(o);
     if (img) {
         const float *px = pn_image_layer_data(img, 0);
         double t = tan(fov * M_PI / 360.0), worst = 0.0;
@@ -233,10 +236,13 @@ static void test_no_lights(void) {
     for (int k = 0; k < 3; k++) {
         pn_render_settings rs;
         memset(&rs, 0, sizeof rs);
+        pn_options o = pn_options_new();
+        rs.options = o;
         rs.integrator = kinds[k];
-        rs.vpls = 100;
+        pn_options_set_int(ctx, o, "vpls", 100);
         pn_image img = NULL;
         CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_OK);
+        pn_options_free(o);
         if (img) {
             const float *px = pn_image_layer_data(img, 0);
             double sum = 0.0;
@@ -249,10 +255,12 @@ static void test_no_lights(void) {
     pn_render_settings rs;
     memset(&rs, 0, sizeof rs);
     rs.integrator = PN_INTEGRATOR_LIGHTCUTS;
-    rs.error_bound = 1.5f;
-    pn_image img = NULL;
-    CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_ERROR_INVALID_ARGUMENT);
+    pn_options o = pn_options_new();
+    rs.options = o;
+    /* Refused where it is set, against the declared range of the option. */
+    CHECK(pn_options_set_double(ctx, o, "error", (double)1.5f) == PN_ERROR_INVALID_ARGUMENT);
     CHECK_STR_CONTAINS(pn_context_error_message(ctx), "error bound");
+    pn_options_free(o);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }

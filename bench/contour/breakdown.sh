@@ -1,6 +1,6 @@
 #!/bin/sh
 # breakdown.sh — where the contour integrator's shadow rays go on the cornell-contour bench crop
-# (the crop of table1.sh and spans.sh): renders with PN_CONTOUR_TRACE set (contour_render.c writes
+# (the crop of table1.sh and spans.sh): renders with --contour-trace FILE (contour_render.c writes
 # one line per counted pixel) and tabulates rays per pixel by phase (pattern check, first level,
 # side dichotomy, validity diagonals, case-4 centre, subdivision, restart pass) and the average
 # and signed 8-bit difference for each pixel class (every traced ray visible / every one hidden /
@@ -31,7 +31,7 @@ if [ ! -f "$OUT/ref.pfm" ]; then
     "$P" render "$SCENE" $COMMON --shadow-rays 1024 -o "$OUT/ref.pfm" 2>/dev/null
 fi
 # shellcheck disable=SC2086
-PN_CONTOUR_TRACE="$OUT/trace.txt" "$P" render "$SCENE" $COMMON --shadow-rays 4 --integrator contour "$@" \
+"$P" render "$SCENE" $COMMON --shadow-rays 4 --integrator contour --contour-trace "$OUT/trace.txt" "$@" \
     -o "$OUT/image.pfm" --stats "$OUT/image.json" 2>/dev/null
 rays=$(sed -n 's/.*"contour_shadow_rays_per_viewing_ray": *\([0-9.e+-]*\).*/\1/p' "$OUT/image.json")
 echo "options: $*; shadow rays / viewing ray: $rays; $("$OUT/contour_metrics" "$OUT/ref.pfm" "$OUT/image.pfm")"

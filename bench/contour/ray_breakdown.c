@@ -1,5 +1,5 @@
 /* ray_breakdown — where the contour integrator's shadow rays go, per pixel class, from the trace
- * that `penumbra render --integrator contour` writes when PN_CONTOUR_TRACE=FILE is set
+ * that `penumbra render --integrator contour` writes with --contour-trace FILE
  * (contour_render.c: one line per counted pixel of eye ray 0: x y class why rays-by-phase...),
  * with the average 8-bit difference of each class against a reference image.
  *

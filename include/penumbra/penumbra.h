@@ -1,7 +1,8 @@
 /* penumbra.h — the one public header of libpenumbra, a many-light renderer for pbrt-v4 scenes.
  *
  * Life cycle, as in Embree's rtcore.h: create a context, load a scene into it, fill a plain
- * settings struct (zero means "default"), render into an image, write the image, free everything
+ * settings struct (zero means "default") and set the chosen methods' options by name on a
+ * pn_options handle, render into an image, write the image, free everything
  * in reverse order. Every fallible call returns a pn_status; the context keeps the message of the
  * first error since pn_context_clear_error(), readable with pn_context_error_message().
  * Destructors accept NULL. Nothing in the library exits, aborts or prints to stdout; warnings go
@@ -113,41 +114,135 @@ PN_API uint32_t pn_scene_warning_count(pn_scene scene);
 PN_API const char *pn_scene_warning(pn_scene scene, uint32_t index);
 
 /* ---------------------------------------------------------------------------------------- */
-/* Render settings: zero-initialise, then set what you need. Zero means the default. */
+/* Methods: integrators and drivers, and the options they declare.
+ *
+ * Every integrator (how the light at a pixel is estimated) and every driver (which pixels are
+ * evaluated, in which order) is one entry of the library's method table, with its options
+ * declared once there (name, type, default, range, unit, help). A render chooses one integrator
+ * and one driver in pn_render_settings; options are set by name on a pn_options handle, as
+ * OSPRay's ospSetParam does, so that a new method or option changes no public struct. Everything
+ * below points to static storage of the library and is valid for the life of the program. */
 
 typedef enum pn_integrator_kind {
     PN_INTEGRATOR_DEFAULT = 0,   /* reference */
     PN_INTEGRATOR_REFERENCE = 1, /* Monte Carlo reference, Donikian et al. 2006 §5.1 */
     PN_INTEGRATOR_IAS = 2,       /* Iterative Adaptive Sampling, Donikian et al. 2006 */
-    /* VPL integrators (issue 5): every shading point against every VPL (the reference of the
-     * IlluminationCut paper), Lightcuts (Walter et al. 2005), IlluminationCut (Bus et al. 2015) */
-    PN_INTEGRATOR_VPL = 4,
-    PN_INTEGRATOR_LIGHTCUTS = 5,
-    PN_INTEGRATOR_ILLUMCUT = 6,
-    /* contour: Approximate Contour Integration for planar convex area lights, Vedel 1993; and
-     * contour-mc, its comparison: adaptive Monte Carlo sampling of those lights (Kok & Jansen
-     * 1992). Every other light is estimated as by the reference integrator. */
-    PN_INTEGRATOR_CONTOUR = 3,
-    PN_INTEGRATOR_CONTOUR_MC = 7
+    PN_INTEGRATOR_CONTOUR = 3,   /* Approximate Contour Integration, Vedel 1993 */
+    PN_INTEGRATOR_VPL = 4,       /* every shading point against every VPL */
+    PN_INTEGRATOR_LIGHTCUTS = 5, /* Walter et al. 2005 */
+    PN_INTEGRATOR_ILLUMCUT = 6,  /* IlluminationCut, Bus et al. 2015 */
+    PN_INTEGRATOR_CONTOUR_MC = 7 /* adaptive Monte Carlo sampling of area lights, Kok & Jansen 1992 */
 } pn_integrator_kind;
 
-/* How the reference integrator chooses a light for a shadow ray. */
-typedef enum pn_light_sampler {
-    PN_LIGHT_SAMPLER_DEFAULT = 0,    /* irradiance */
-    PN_LIGHT_SAMPLER_IRRADIANCE = 1, /* PDF over all lights by unoccluded irradiance (IAS §5.1) */
-    PN_LIGHT_SAMPLER_BVH = 2         /* pbrt-v4's light BVH (Conty Estevez & Kulla 2018) */
-} pn_light_sampler;
+typedef enum pn_driver_kind {
+    PN_DRIVER_DEFAULT = 0, /* "tiles": the full image in blocks at the output resolution */
+    PN_DRIVER_FULL = 1,    /* every work pixel evaluated, then the Gaussian filter: the baseline */
+    PN_DRIVER_DCM = 2,     /* Directional Coherence Maps, Guo 1998 */
+    PN_DRIVER_PAINTER = 3, /* adaptive progressive refinement, Painter & Sloan 1989 */
+    PN_DRIVER_UNIFORM = 4  /* regular subdivision only: uniform subsampling, bilinear interpolation */
+} pn_driver_kind;
 
-/* reference only: when an adaptive (threshold) render stops adding eye rays to a pixel
- * (docs/adaptive-sampling.md). */
-typedef enum pn_adaptive_rule {
-    PN_ADAPTIVE_DEFAULT = 0, /* reference: cross; ias: paper */
-    PN_ADAPTIVE_PAPER = 1,   /* Donikian et al. 2006 §5.1/§5.9: s^2/L^2 of the kept samples, biased */
-    PN_ADAPTIVE_CROSS = 2    /* two independent eye-ray streams, each one's count decided by the
-                                other's pilot: unbiased */
-} pn_adaptive_rule;
+typedef enum pn_method_role { PN_METHOD_INTEGRATOR = 0, PN_METHOD_DRIVER = 1 } pn_method_role;
 
-/* AOV layers written beside the beauty image. */
+/* Capability bits of a method (pn_method_info.capabilities). */
+enum {
+    PN_CAP_PER_PIXEL = 1u << 0,    /* integrator: each pixel on its own (any batch gives the same pixel) */
+    PN_CAP_PER_BLOCK = 1u << 1,    /* integrator: statistics pooled over the batch's block */
+    PN_CAP_WHOLE_IMAGE = 1u << 2,  /* integrator: under the tiled driver, renders the window in one call */
+    PN_CAP_PROGRESSIVE = 1u << 3,  /* integrator: works under the progressive drivers; driver: is one */
+    PN_CAP_CROP = 1u << 4,         /* a crop renders exactly the pixels of the full image */
+    PN_CAP_SPP = 1u << 5,          /* integrator: takes a fixed eye-ray count (settings.spp) */
+    PN_CAP_THRESHOLD = 1u << 6,    /* integrator: takes a relative-variance target (settings.threshold) */
+    PN_CAP_EMITTED = 1u << 7,      /* integrator: reports the emitted part of each estimate */
+    PN_CAP_EYE_SAMPLES = 1u << 8,  /* integrator: at a fixed spp, traces pixel eye samples 0..spp-1 */
+    PN_CAP_OWN_AOVS = 1u << 9      /* driver: writes only its own AOVs, none of the integrator's */
+};
+
+typedef struct pn_method_info {
+    const char *name;        /* "reference", "ias", ..., "tiles", "dcm", ... */
+    pn_method_role role;
+    int kind;                /* the pn_integrator_kind or pn_driver_kind value */
+    const char *description; /* one line */
+    const char *paper;       /* the paper it implements, or "" */
+    const char *computes;    /* "direct light", "global illumination (VPLs)", or for drivers which pixels */
+    uint32_t capabilities;   /* PN_CAP_* bits */
+    uint32_t aovs;           /* PN_AOV_* bits of the layers it can write besides the common ones */
+    const char *stats;       /* comma-separated groups of pn_render_stats fields it fills, e.g. "ias" */
+    uint32_t default_spp;    /* integrators with PN_CAP_SPP: eye rays per pixel when spp is 0 (0: adaptive) */
+} pn_method_info;
+
+/* Number of methods, and method i (0 <= i < count; NULL otherwise). */
+PN_API int pn_method_count(void);
+PN_API const pn_method_info *pn_method_get(int index);
+/* The index of the method of that role and name, or -1. */
+PN_API int pn_method_find(pn_method_role role, const char *name);
+/* The index of the method of that role and kind, or -1 (PN_*_DEFAULT gives the default's). */
+PN_API int pn_method_find_kind(pn_method_role role, int kind);
+
+typedef enum pn_option_type {
+    PN_OPTION_INT = 0,    /* an integer in [min, max] */
+    PN_OPTION_DOUBLE = 1, /* a finite number in the range (bounds exclusive where flagged) */
+    PN_OPTION_FLAG = 2,   /* on or off ("1"/"0", "true"/"false", "on"/"off") */
+    PN_OPTION_CHOICE = 3, /* one name of `choices` */
+    PN_OPTION_SET = 4,    /* a comma-separated subset of `choices` ("" for none) */
+    PN_OPTION_LIST = 5,   /* a comma-separated list of numbers, each in the range */
+    PN_OPTION_STRING = 6  /* any text (e.g. a file name) */
+} pn_option_type;
+
+typedef struct pn_option_info {
+    const char *name;          /* "vpls"; the CLI flag is "--" name */
+    pn_option_type type;
+    const char *default_value; /* as text, parsed like a set value; "" for none */
+    double min, max;           /* range of INT, DOUBLE and LIST values */
+    int min_exclusive, max_exclusive;
+    const char *unit;          /* "sr", "pixels", "" ... */
+    const char *choices;       /* CHOICE and SET: comma-separated names */
+    const char *help;          /* one sentence */
+} pn_option_info;
+
+/* Number of declared options, and option i (NULL when out of range). */
+PN_API int pn_option_count(void);
+PN_API const pn_option_info *pn_option_get(int index);
+/* The index of the option of that name, or -1. */
+PN_API int pn_option_find(const char *name);
+/* Whether option `option` belongs to method `method` (indices as above). */
+PN_API int pn_option_applies(int option, int method);
+/* Writes what a value of the option must be ("an integer from 1 to 4096", "'exact' or
+ * 'sampling'", ...) into buf (NUL-terminated, truncated to size). */
+PN_API void pn_option_describe(int option, char *buf, size_t size);
+
+/* A set of option values by name. Create, set, pass in pn_render_settings.options, free. */
+typedef struct pn_options_s *pn_options;
+
+/* Returns NULL only when memory is exhausted. Free with pn_options_free (NULL is accepted). */
+PN_API pn_options pn_options_new(void);
+PN_API void pn_options_free(pn_options options);
+/* Sets an option from text, parsed strictly against its declared type and range (the whole
+ * text must be a value). An unknown name or a bad value is PN_ERROR_INVALID_ARGUMENT with a
+ * message on the context naming the option and what it accepts; the options are then unchanged. */
+PN_API pn_status pn_options_set(pn_context ctx, pn_options options, const char *name, const char *value);
+/* Typed setters, checked as pn_options_set (INT and FLAG options take set_int, DOUBLE set_double). */
+PN_API pn_status pn_options_set_int(pn_context ctx, pn_options options, const char *name, int64_t value);
+PN_API pn_status pn_options_set_double(pn_context ctx, pn_options options, const char *name, double value);
+/* Removes a value set before (the default applies again). */
+PN_API void pn_options_unset(pn_options options, const char *name);
+/* Whether option `option` (an index) was set. */
+PN_API int pn_options_is_set(pn_options options, int option);
+/* The value in force for option `option`: the set one, else the declared default. For INT, FLAG,
+ * DOUBLE and CHOICE options *number receives the value (a CHOICE its numeric code; may be NULL);
+ * text receives the canonical text form, which pn_options_set accepts back (may be NULL). */
+PN_API pn_status pn_options_get(pn_options options, int option, double *number, char *text, size_t text_size);
+/* Checks that every option set applies to the chosen integrator or driver. Otherwise
+ * PN_ERROR_INVALID_ARGUMENT, with a message naming the option, the method and what it accepts.
+ * pn_render does the same check. */
+PN_API pn_status pn_options_check(pn_context ctx, pn_options options, pn_integrator_kind integrator,
+                                  pn_driver_kind driver);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Render settings: zero-initialise, then set what you need. Zero means the default. */
+
+/* AOV layers written beside the beauty image. The first six every integrator writes under the
+ * tiled driver; pn_method_info.aovs tells which of the others a method writes. */
 enum {
     PN_AOV_SHADOW_RAYS = 1u << 0,       /* shadow rays per pixel */
     PN_AOV_EYE_RAYS = 1u << 1,          /* eye rays per pixel */
@@ -159,48 +254,36 @@ enum {
     PN_AOV_AA_REGIONS = 1u << 7,        /* ias: antialiasing regions per pixel */
     PN_AOV_CLUSTERS = 1u << 8,          /* ias: clusters per shading point (pixel mean) */
     PN_AOV_VISIBLE_FRACTION = 1u << 9,  /* ias: fraction of shadow rays unoccluded (Fig. 9) */
-    /* VPL integrators (issue 5) */
+    PN_AOV_GRADIENT = 1u << 10,         /* contour: world-space gradient of the irradiance
+                                           luminance from contour lights (W/m^2 per unit length) */
     PN_AOV_BOUND_EVALUATIONS = 1u << 11, /* lightcuts / illumcut: L_UB evaluations per pixel
                                             (IlluminationCut Fig. 4; illumcut: amortised) */
     PN_AOV_CUT_SIZE = 1u << 12,          /* lightcuts: cut size per shading point (pixel mean);
                                             illumcut: pairs touching the pixel's points */
-    PN_AOV_PHASE1 = 1u << 13,             /* illumcut: the Phase I approximate image (RGB) */
-    PN_AOV_GRADIENT = 1u << 10          /* contour: world-space gradient of the irradiance
-                                           luminance from contour lights (W/m^2 per unit length) */
+    PN_AOV_PHASE1 = 1u << 13,            /* illumcut: the Phase I approximate image (RGB) */
+    PN_AOV_SAMPLING_PATTERN = 1u << 14,  /* progressive: fraction of the work pixels evaluated */
+    PN_AOV_BLOCK_MAP = 1u << 15,         /* dcm: 0 smooth, 1 simple, 2 complex, 3 evaluating edge block */
+    PN_AOV_BLOCK_DIRECTION = 1u << 16    /* dcm: least-discrepancy direction (degrees), -1 if none */
 };
+#define PN_AOV_COMMON 0x3fu /* the six layers every integrator writes under the tiled driver */
 
-/* Progressive drivers (issue 6: dcm, painter, uniform; Guo 1998). A driver decides which pixels
- * of the work image (work_scale x work_scale the output resolution) the integrator evaluates and
- * reconstructs the image from them; the work image is filtered down with a Gaussian. */
-typedef enum pn_driver_kind {
-    PN_DRIVER_DEFAULT = 0, /* full image in tiles at the output resolution */
-    PN_DRIVER_FULL = 1,    /* every work pixel evaluated, then the Gaussian filter: the baseline */
-    PN_DRIVER_DCM = 2,     /* Directional Coherence Maps, Guo 1998 */
-    PN_DRIVER_PAINTER = 3, /* adaptive progressive refinement, Painter & Sloan 1989 */
-    PN_DRIVER_UNIFORM = 4  /* regular subdivision only: uniform subsampling, bilinear interpolation */
-} pn_driver_kind;
-enum {
-    PN_AOV_SAMPLING_PATTERN = 1u << 14, /* progressive: fraction of the work pixels evaluated */
-    PN_AOV_BLOCK_MAP = 1u << 15,        /* dcm: 0 smooth, 1 simple, 2 complex, 3 evaluating edge block */
-    PN_AOV_BLOCK_DIRECTION = 1u << 16   /* dcm: least-discrepancy direction (degrees), -1 if none */
-};
+/* Number of AOV layers, and the name and PN_AOV_* bit of layer i (NULL when out of range). */
+PN_API int pn_aov_count(void);
+PN_API const char *pn_aov_name(int index, uint32_t *bit);
+
 /* Receives an approximate image (owned by the library, valid during the call), the snapshot
  * percentage it was asked for (-1 for a timed or requested snapshot), the percentage of work
- * pixels evaluated so far and the seconds since the render started. */
+ * pixels evaluated so far and the seconds since the render started (progressive drivers). */
 struct pn_image_s;
 typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requested_percent,
                                double evaluated_percent, double seconds);
 
 typedef struct pn_render_settings {
     pn_integrator_kind integrator;
-    uint32_t spp;              /* fixed eye rays per pixel; 0 with threshold > 0: adaptive;
-                                  0 with threshold 0: reference 64 (fixed spp is faster on the
-                                  bench scenes, docs/adaptive-sampling.md), ias adaptive */
-    double threshold;          /* relative variance target s^2/L^2; ias: default 0.01 */
-    uint32_t shadow_rays;      /* shadow rays per eye ray; default 4 */
-    uint32_t max_shadow_rays;  /* per pixel (IAS paper §5.9); default 20000 */
-    uint32_t min_shadow_rays_black; /* before a pixel may be declared black; default 2500 */
-    uint32_t min_eye_rays;     /* eye rays before the threshold test; default 4 */
+    pn_driver_kind driver;
+    uint32_t spp;              /* fixed eye rays per pixel (integrators with PN_CAP_SPP); 0 = the
+                                  method's default_spp, adaptive with threshold when that is 0 */
+    double threshold;          /* relative variance target s^2/L^2 (PN_CAP_THRESHOLD); default 0.01 */
     int width, height;         /* 0 = the scene's film resolution */
     int has_crop;              /* when non-zero, crop[] is used instead of the scene's */
     float crop[4];             /* x0, x1, y0, y1 in fractions of the image, as pbrt's cropwindow */
@@ -208,79 +291,16 @@ typedef struct pn_render_settings {
     uint64_t seed;
     uint32_t max_specular_depth; /* perfect specular bounces of eye rays; default 8 */
     uint32_t aovs;             /* PN_AOV_* bits */
-    /* ias only (zero = the paper's values): maximum solid angle of a light cluster seen from a
-     * point (0.02 sr), eye rays per pixel grouped into antialiasing regions (32), regions of an
-     * environment map (300), passes per block (15). */
-    float cluster_solid_angle;
-    uint32_t aa_rays;
-    uint32_t env_regions;
-    uint32_t max_passes;
-    /* Pixels per side of the square blocks the tiled driver hands to the integrator: ias's block
-     * of §3.2 (its statistics and PDFs are per block). 8..32; default 8, the paper's. */
-    uint32_t block_size;
-    /* reference only: how a light is chosen for each shadow ray. */
-    pn_light_sampler light_sampler;
+    /* Options of the integrator and driver by name (NULL: all defaults). Not owned. */
+    pn_options options;
     /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
     void (*progress)(void *user, double fraction);
     void *progress_user;
-    /* VPL integrators (issue 5; zero = default): VPL count (600,000), light path depth (10),
-     * clamping distance as a fraction of the scene radius (0.05), the relative error bound of
-     * lightcuts / illumcut (0.01), lightcuts' maximum cut size (0 = none), and illumcut's
-     * adaptive visibility sampling (Algorithm 2) when non-zero. Eye rays per pixel: spp (1). */
-    uint32_t vpls;
-    uint32_t vpl_max_depth;
-    float vpl_clamp_fraction;
-    float error_bound;
-    uint32_t max_cut;
-    int visibility_sampling;
-    /* contour (Vedel 1993) only; zero = the paper's values: first-level samples per side of a
-     * source (3, i.e. a 3x3 grid of 9 samples), dichotomy steps (5), longest span of pixels
-     * (8); contour_flags: PN_CONTOUR_* bits that switch parts of the algorithm off (for
-     * comparisons). contour-mc (Kok & Jansen 1992) only: the variance threshold of a cell's
-     * refinement (default 0.002) and the largest number of shadow rays per light and point
-     * (default 256). */
-    uint32_t contour_grid;
-    uint32_t contour_steps;
-    uint32_t contour_span;
-    uint32_t contour_flags;
-    double contour_mc_threshold;
-    uint32_t contour_mc_max_rays;
-    /* Progressive drivers (issue 6). */
-    pn_driver_kind driver;
-    int work_scale;                  /* work image scale s (default 3) */
-    const double *snapshot_percents; /* snapshots when these percentages of work pixels are evaluated */
-    int snapshot_percent_count;
-    double snapshot_every_seconds;   /* and every so many seconds (0: never) */
-    pn_snapshot_fn snapshot;         /* NULL: no snapshots */
+    /* Progressive drivers: called with each approximate image (options "snapshots",
+     * "snapshot-every", or pn_render_request_snapshot); NULL: no snapshots. */
+    pn_snapshot_fn snapshot;
     void *snapshot_user;
-    double stop_percent;             /* stop after this percentage of work pixels (0: run to the end);
-                                        with a low threshold: the paper's confidence relocation */
-    int raw_radiance;                /* 1: interpolate radiance itself; 0 (default): radiance divided
-                                        by the first-hit albedo of a primary ray, then multiplied back */
-    int no_light_guide;              /* 1: the demodulation factor is the albedo alone; 0 (default):
-                                        albedo x the unshadowed irradiance of all lights at the
-                                        primary hit (the light guide, progressive.c) */
-    int primary_grid;                /* g x g primary rays per work pixel give the albedo and the
-                                        emitted radiance of the pixel where they change (1..8; 0:
-                                        the default 3; 1: centre rays only). Along emitters,
-                                        `reference` at a fixed spp traces its own eye rays
-                                        instead, so emitters match its estimate exactly */
-    pn_adaptive_rule adaptive_rule;  /* reference with a threshold: the stopping rule */
 } pn_render_settings;
-
-/* contour_flags bits. */
-enum {
-    PN_CONTOUR_NO_SHAFT_CULLING = 1u << 0, /* cast rays even where no obstacle is in the shaft */
-    PN_CONTOUR_NO_SPANS = 1u << 1,         /* a full contour integration at every pixel */
-    PN_CONTOUR_NO_VALIDITY = 1u << 2,      /* no corner test, no subdivision (the Fig. 6 failure) */
-    PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3, /* keep the first-level grid fixed */
-    PN_CONTOUR_NO_RESTARTS = 1u << 4, /* accept inconsistencies instead of restarting finer */
-    /* Our departures from the paper, on by default (bench/contour/RESULTS.md measures each): */
-    PN_CONTOUR_NO_ISLANDS = 1u << 5,    /* no island probes from a nearby pixel's contour */
-    PN_CONTOUR_NO_HALF_CHECK = 1u << 6, /* uniform runs check every first-level sample */
-    PN_CONTOUR_NO_SCOUTS = 1u << 7,     /* no scout probes inside agreeing first-level squares */
-    PN_CONTOUR_NO_LINEAR_RUNS = 1u << 8 /* every run gets its middle integration (the quadratic) */
-};
 
 /* ---------------------------------------------------------------------------------------- */
 /* Images */
@@ -375,6 +395,10 @@ PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_i
  * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a
  * temporary name in the same folder and renamed, so a failed write leaves no broken file. */
 PN_API pn_status pn_image_write(pn_context ctx, pn_image image, const char *path, float exposure);
+
+/* Writes size bytes to path by the same atomic route as pn_image_write (a temporary beside it,
+ * synced and renamed), so that a failed write leaves no broken file. For the CLI's JSON. */
+PN_API pn_status pn_file_write(pn_context ctx, const char *path, const void *data, size_t size);
 
 /* A new image holding the pixel rectangle [x0, x0 + width) x [y0, y0 + height) of every layer
  * (for comparing a crop-window render with the matching part of a full reference). */

@@ -232,9 +232,9 @@ static void check_snapshots(pn_prog *p) {
         fire_snapshot(p, p->percents[p->next_percent]);
         p->next_percent++;
     }
-    if (p->settings->snapshot_every_seconds > 0.0 && pn_clock_seconds() >= p->next_time) {
+    if (p->job.snapshot_every_seconds > 0.0 && pn_clock_seconds() >= p->next_time) {
         fire_snapshot(p, -1.0);
-        p->next_time = pn_clock_seconds() + p->settings->snapshot_every_seconds;
+        p->next_time = pn_clock_seconds() + p->job.snapshot_every_seconds;
     }
     if (atomic_exchange(&p->ctx->snapshot_request, 0)) fire_snapshot(p, -1.0);
 }
@@ -688,17 +688,17 @@ pn_status pn_prog_build_primary(pn_prog *p) {
     p->tag = malloc(n * sizeof *p->tag);
     p->sat_right = calloc(ns, sizeof *p->sat_right);
     p->sat_down = calloc(ns, sizeof *p->sat_down);
-    if (!p->settings->raw_radiance) {
+    if (!p->job.raw_radiance) {
         p->demod = malloc(3 * n * sizeof *p->demod);
         p->emit = malloc(3 * n * sizeof *p->emit);
     }
     if (!r.depth || !r.normal || !p->tag || !p->sat_right || !p->sat_down ||
-        (!p->settings->raw_radiance && (!p->demod || !p->emit))) {
+        (!p->job.raw_radiance && (!p->demod || !p->emit))) {
         free(r.depth);
         free(r.normal);
         return PN_ERROR_OUT_OF_MEMORY;
     }
-    bool guided = p->demod && !p->settings->no_light_guide && p->job.lights->count > 0;
+    bool guided = p->demod && !p->job.no_light_guide && p->job.lights->count > 0;
     if (guided) {
         size_t stride = (size_t)p->job.lights->count + 1, nw = (size_t)pn_threadpool_size(p->pool);
         r.guide = malloc(n * sizeof *r.guide);
@@ -787,20 +787,18 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
                                 const pn_render_job *job, pn_image *out_image, pn_render_stats *stats) {
     if (s->driver < PN_DRIVER_FULL || s->driver > PN_DRIVER_UNIFORM)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)s->driver);
-    int scale = s->work_scale > 0 ? s->work_scale : 3;
-    if (s->work_scale < 0 || scale > 16)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)", s->work_scale);
-    if (s->primary_grid < 0 || s->primary_grid > 8)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "primary grid %d is out of range (1..8)", s->primary_grid);
+    int scale = job->work_scale > 0 ? job->work_scale : 3;
+    if (job->work_scale < 0 || scale > 16)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)", job->work_scale);
+    if (job->primary_grid < 0 || job->primary_grid > 8)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "primary grid %d is out of range (1..8)", job->primary_grid);
     if (s->aovs & ~(uint32_t)(PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
                                "progressive drivers write only the sampling_pattern, block_map and block_direction AOVs");
-    if (!(s->stop_percent >= 0.0 && s->stop_percent <= 100.0) || !(s->snapshot_every_seconds >= 0.0))
+    if (!(job->stop_percent >= 0.0 && job->stop_percent <= 100.0) || !(job->snapshot_every_seconds >= 0.0))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "stop percentage must lie in [0, 100] and the snapshot interval be >= 0");
-    if (s->snapshot_percent_count < 0 || (s->snapshot_percent_count > 0 && !s->snapshot_percents))
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "snapshot percentages missing");
-    for (int i = 0; i < s->snapshot_percent_count; i++)
-        if (!(s->snapshot_percents[i] > 0.0 && s->snapshot_percents[i] <= 100.0))
+    for (int i = 0; i < job->snapshots.count; i++)
+        if (!(job->snapshots.values[i] > 0.0 && job->snapshots.values[i] <= 100.0))
             return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "snapshot percentages must lie in (0, 100]");
     const pn_camera *oc = &job->camera;
     if ((long)oc->full_width * scale > 65536 || (long)oc->full_height * scale > 65536)
@@ -814,7 +812,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->integ = integ;
     p->job = *job;
     p->scale = scale;
-    p->primary_grid = s->primary_grid > 0 ? s->primary_grid : 3;
+    p->primary_grid = job->primary_grid > 0 ? job->primary_grid : 3;
     p->integ_emitted = pn_integrator_reports_emitted(integ);
     p->pixel_samples = pn_integrator_pixel_eye_samples(integ, &p->job);
     float crop[4] = {0, 1, 0, 1};
@@ -838,17 +836,17 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->workers = pn_threadpool_size(p->pool);
     p->scratch = calloc((size_t)p->workers + 1, sizeof *p->scratch);
     p->counters = calloc((size_t)p->workers + 1, sizeof *p->counters);
-    p->percent_count = s->snapshot_percent_count;
+    p->percent_count = job->snapshots.count;
     p->percents = p->percent_count ? malloc((size_t)p->percent_count * sizeof *p->percents) : NULL;
     pn_status st = PN_OK;
     if (!p->rad || !p->orig || !p->relvar || !p->state || !p->pool || !p->scratch || !p->counters || (p->percent_count && !p->percents)) {
         st = pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d work image", p->W, p->H);
     } else {
         if (p->percent_count) {
-            memcpy(p->percents, s->snapshot_percents, (size_t)p->percent_count * sizeof *p->percents);
+            memcpy(p->percents, job->snapshots.values, (size_t)p->percent_count * sizeof *p->percents);
             qsort(p->percents, (size_t)p->percent_count, sizeof *p->percents, cmp_double);
         }
-        p->stop_pixels = s->stop_percent > 0.0 ? percent_pixels(p, s->stop_percent) : 0;
+        p->stop_pixels = job->stop_percent > 0.0 ? percent_pixels(p, job->stop_percent) : 0;
         atomic_init(&p->failed, 0);
         atomic_store(&ctx->cancel, 0);
         atomic_store(&ctx->snapshot_request, 0);
@@ -861,7 +859,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         p->filter_tmp = calloc(nt, sizeof *p->filter_tmp);
         if (p->filter_tmp) memset(p->filter_tmp, 0, nt * sizeof *p->filter_tmp);
         p->t0 = pn_clock_seconds();
-        p->next_time = p->t0 + s->snapshot_every_seconds;
+        p->next_time = p->t0 + job->snapshot_every_seconds;
         if (s->driver != PN_DRIVER_FULL) st = pn_prog_build_primary(p);
         if (st == PN_OK) switch (s->driver) {
         case PN_DRIVER_FULL: st = full_run(p); break;

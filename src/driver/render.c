@@ -7,6 +7,7 @@
 #include "core/threadpool.h"
 #include "driver/progressive.h" /* issue 6: progressive drivers */
 #include "integrators/integrator.h"
+#include "integrators/registry.h"
 #include "io/image.h"
 
 #include <pthread.h>
@@ -14,11 +15,9 @@
 #include <string.h>
 #include <sys/resource.h>
 
-/* The default block side (the IAS paper's 8x8 blocks), also the smallest allowed: ias pools
- * statistics over a block, and below 8x8 that biases it (tests/test_ias.c); and the largest. */
-#define PN_BLOCK 8
-#define PN_DEFAULT_REFERENCE_SPP 64u /* reference with neither spp nor threshold (penumbra.h) */
-#define PN_MAX_BLOCK 32
+/* The block side is the option block-size (registry.c): 8 by default (the IAS paper's 8x8
+ * blocks), also the smallest allowed: ias pools statistics over a block, and below 8x8 that
+ * biases it (tests/test_ias.c). */
 
 typedef struct render_shared {
     const pn_render_job *job;
@@ -102,7 +101,7 @@ static uint64_t peak_memory_bytes(void) {
 
 /* Resolves the settings (zero = default) into the job. */
 static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *s,
-                                  pn_render_job *job) {
+                                  const pn_method_entry *integ, const pn_method_entry *driver, pn_render_job *job) {
     memset(job, 0, sizeof *job);
     job->scene = scene;
     job->accel = scene->accel;
@@ -123,63 +122,28 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop window covers no pixel");
     if (s->threshold < 0.0 || !isfinite(s->threshold))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "threshold must be a positive number");
+    /* Every method option (the table in integrators/registry.c) into its job field. */
+    pn_status st = pn_registry_resolve(ctx, s, integ, driver, job);
+    if (st != PN_OK) return st;
     job->spp = s->spp;
-    /* The reference's default is a fixed spp: on every bench scene it reaches a given relMSE
-     * faster than the threshold mode (docs/adaptive-sampling.md). */
-    if (s->spp == 0 && s->threshold == 0.0 &&
-        (s->integrator == PN_INTEGRATOR_DEFAULT || s->integrator == PN_INTEGRATOR_REFERENCE))
-        job->spp = PN_DEFAULT_REFERENCE_SPP;
+    /* Neither spp nor threshold: the method's default eye-ray count (reference: a fixed 64, which
+     * reaches a given relMSE faster than the threshold mode on every bench scene,
+     * docs/adaptive-sampling.md); 0 keeps it adaptive (ias). */
+    if (s->spp == 0 && s->threshold == 0.0 && (integ->info.capabilities & PN_CAP_THRESHOLD))
+        job->spp = integ->info.default_spp;
     job->threshold = s->threshold > 0.0 ? s->threshold : 0.01;
-    job->shadow_rays = s->shadow_rays > 0 ? s->shadow_rays : 4;
-    job->max_shadow_rays = s->max_shadow_rays > 0 ? s->max_shadow_rays : 20000;
-    job->min_shadow_rays_black = s->min_shadow_rays_black > 0 ? s->min_shadow_rays_black : 2500;
-    job->min_eye_rays = s->min_eye_rays > 0 ? s->min_eye_rays : 4;
+    /* adaptive-rule auto: cross for the reference (unbiased, and faster than the paper's rule at
+     * equal relMSE on the bench scenes); for ias its own test, which its cross variant did not
+     * beat (docs/adaptive-sampling.md). */
+    if (job->adaptive_rule == PN_ADAPTIVE_AUTO)
+        job->adaptive_rule = integ->integrator == &pn_integrator_ias ? PN_ADAPTIVE_PAPER : PN_ADAPTIVE_CROSS;
+    /* vpl-depth not given: the scene's Integrator "maxdepth" (pbrt-v4 counts the camera segment,
+     * so maxdepth - 1 bounces), else the declared default. */
+    if (!pn_options_is_set(s->options, pn_option_find("vpl-depth")))
+        job->vpl_max_depth = pn_scene_vpl_depth(scene, job->vpl_max_depth);
     job->max_specular_depth = s->max_specular_depth > 0 ? s->max_specular_depth : 8;
     job->seed = s->seed;
     job->aovs = s->aovs;
-    job->cluster_solid_angle = s->cluster_solid_angle > 0.0f ? s->cluster_solid_angle : 0.02f;
-    job->aa_rays = s->aa_rays > 0 ? s->aa_rays : 32;
-    job->env_regions = s->env_regions > 0 ? s->env_regions : 300;
-    job->max_passes = s->max_passes > 0 ? s->max_passes : 15;
-    if (s->block_size != 0 && (s->block_size < PN_BLOCK || s->block_size > PN_MAX_BLOCK))
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "block size must be %d..%d pixels", PN_BLOCK,
-                               PN_MAX_BLOCK);
-    job->block_size = s->block_size > 0 ? s->block_size : PN_BLOCK;
-    if (s->light_sampler != PN_LIGHT_SAMPLER_DEFAULT && s->light_sampler != PN_LIGHT_SAMPLER_IRRADIANCE &&
-        s->light_sampler != PN_LIGHT_SAMPLER_BVH)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown light sampler %d", (int)s->light_sampler);
-    job->light_sampler = s->light_sampler == PN_LIGHT_SAMPLER_BVH ? PN_LIGHT_SAMPLER_BVH : PN_LIGHT_SAMPLER_IRRADIANCE;
-    if (s->adaptive_rule != PN_ADAPTIVE_DEFAULT && s->adaptive_rule != PN_ADAPTIVE_PAPER &&
-        s->adaptive_rule != PN_ADAPTIVE_CROSS)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown adaptive rule %d", (int)s->adaptive_rule);
-    /* The default: cross for the reference (unbiased, and faster than the paper's rule at equal
-     * relMSE on every bench scene); for ias its own test, which its cross variant did not beat
-     * (docs/adaptive-sampling.md). */
-    if (s->adaptive_rule == PN_ADAPTIVE_DEFAULT)
-        job->adaptive_rule = s->integrator == PN_INTEGRATOR_IAS ? PN_ADAPTIVE_PAPER : PN_ADAPTIVE_CROSS;
-    else
-        job->adaptive_rule = s->adaptive_rule;
-    /* VPL integrators (issue 5) */
-    if (!(s->vpl_clamp_fraction >= 0.0f && s->vpl_clamp_fraction < 1.0f) || !(s->error_bound >= 0.0f && s->error_bound < 1.0f))
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "VPL clamp fraction and error bound must lie in [0, 1)");
-    job->vpls = s->vpls > 0 ? s->vpls : 600000;
-    job->vpl_max_depth = s->vpl_max_depth > 0 ? s->vpl_max_depth : pn_scene_vpl_depth(scene, 10);
-    job->vpl_clamp_fraction = s->vpl_clamp_fraction > 0.0f ? s->vpl_clamp_fraction : 0.05f;
-    job->error_bound = s->error_bound > 0.0f ? s->error_bound : 0.01f;
-    job->max_cut = s->max_cut;
-    job->visibility_sampling = s->visibility_sampling != 0;
-    /* contour / contour-mc: the paper's 9 first-level samples and 5 dichotomy steps */
-    if (s->contour_grid == 1 || s->contour_grid > 65 || s->contour_steps > 12)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "contour grid must be 2..65 samples per side and dichotomy steps 1..12");
-    if (s->contour_mc_threshold < 0.0 || !isfinite(s->contour_mc_threshold))
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "contour-mc threshold must be a positive number");
-    job->contour_grid = s->contour_grid > 0 ? s->contour_grid : 3;
-    job->contour_steps = s->contour_steps > 0 ? s->contour_steps : 5;
-    job->contour_span = s->contour_span > 0 ? s->contour_span : 8;
-    job->contour_flags = s->contour_flags;
-    job->contour_mc_threshold = s->contour_mc_threshold > 0.0 ? s->contour_mc_threshold : 0.002;
-    job->contour_mc_max_rays = s->contour_mc_max_rays > 0 ? s->contour_mc_max_rays : 256;
     job->cancel = &ctx->cancel;
     return PN_OK;
 }
@@ -253,10 +217,14 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
         if (ctx) pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_render: NULL argument");
         return PN_ERROR_INVALID_ARGUMENT;
     }
-    const pn_integrator *integ = pn_integrator_find(settings->integrator);
-    if (!integ) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown integrator %d", (int)settings->integrator);
+    /* The chosen methods are entries of the one table (integrators/registry.c). */
+    const pn_method_entry *ientry = pn_registry_method_kind(PN_METHOD_INTEGRATOR, (int)settings->integrator);
+    const pn_method_entry *dentry = pn_registry_method_kind(PN_METHOD_DRIVER, (int)settings->driver);
+    if (!ientry) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown integrator %d", (int)settings->integrator);
+    if (!dentry) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)settings->driver);
+    const pn_integrator *integ = ientry->integrator;
     pn_render_job job;
-    pn_status st = resolve_settings(ctx, scene, settings, &job);
+    pn_status st = resolve_settings(ctx, scene, settings, ientry, dentry, &job);
     if (st != PN_OK) return st;
     if (integ->prepare) {
         pn_err perr;
@@ -265,7 +233,7 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
         if (st != PN_OK) return pn_context_fail_from(ctx, &perr);
     }
     /* Progressive drivers (issue 6: dcm, painter, uniform, full) render a work image of their own. */
-    if (settings->driver != PN_DRIVER_DEFAULT)
+    if (dentry->info.capabilities & PN_CAP_PROGRESSIVE)
         st = pn_progressive_render(ctx, settings, integ, &job, out_image, stats);
     else
         st = run_job(ctx, settings, integ, &job, out_image, stats);
@@ -322,10 +290,9 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     atomic_init(&rs.blocks_done, 0);
     pthread_mutex_init(&rs.progress_lock, NULL);
     double t0 = pn_clock_seconds();
-    /* VPL integrators (issue 5): illumcut renders the whole window in one call. */
-    pn_render_image_fn whole_image = pn_integrator_render_image(integ);
-    /* contour (issue 4): scanline jobs, so that its spans can be longer than a block's rows. */
-    if (!whole_image) whole_image = pn_contour_render_image(integ);
+    /* Integrators with a whole-image hook (illumcut's point tree, contour's scanlines) render
+     * the window in one call. */
+    pn_render_image_fn whole_image = integ->render_image;
     if (whole_image) {
         pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
         if (ws != PN_OK) atomic_store(&rs.failed, (int)ws);

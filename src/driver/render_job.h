@@ -8,30 +8,71 @@
 #include "scene/scene.h"
 
 #include <stdatomic.h>
+#include <stdbool.h>
+
+/* How the reference integrator chooses a light for a shadow ray (option light-sampler). */
+enum {
+    PN_LIGHT_SAMPLER_IRRADIANCE = 1, /* PDF over all lights by unoccluded irradiance (IAS §5.1) */
+    PN_LIGHT_SAMPLER_BVH = 2         /* pbrt-v4's light BVH (Conty Estevez & Kulla 2018) */
+};
+
+/* contour_flags bits (option contour-off, in the order of its choices). */
+enum {
+    PN_CONTOUR_NO_SHAFT_CULLING = 1u << 0, /* cast rays even where no obstacle is in the shaft */
+    PN_CONTOUR_NO_SPANS = 1u << 1,         /* a full contour integration at every pixel */
+    PN_CONTOUR_NO_VALIDITY = 1u << 2,      /* no corner test, no subdivision (the Fig. 6 failure) */
+    PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3, /* keep the first-level grid fixed */
+    PN_CONTOUR_NO_RESTARTS = 1u << 4, /* accept inconsistencies instead of restarting finer */
+    /* Our departures from the paper, on by default (bench/contour/RESULTS.md measures each): */
+    PN_CONTOUR_NO_ISLANDS = 1u << 5,    /* no island probes from a nearby pixel's contour */
+    PN_CONTOUR_NO_HALF_CHECK = 1u << 6, /* uniform runs check every first-level sample */
+    PN_CONTOUR_NO_SCOUTS = 1u << 7,     /* no scout probes inside agreeing first-level squares */
+    PN_CONTOUR_NO_LINEAR_RUNS = 1u << 8 /* every run gets its middle integration (the quadratic) */
+};
+
+/* A list option's values (e.g. snapshot percentages). */
+#define PN_JOB_LIST_MAX 64
+typedef struct pn_job_list {
+    int count;
+    double values[PN_JOB_LIST_MAX];
+} pn_job_list;
+
+/* The stopping rules of an adaptive render (docs/adaptive-sampling.md); the codes of the choices
+ * of the option adaptive-rule, in its declared order. */
+enum {
+    PN_ADAPTIVE_AUTO = 0,  /* reference: cross; ias: paper */
+    PN_ADAPTIVE_PAPER = 1, /* Donikian et al. 2006 sections 5.1/5.9: s^2/L^2 of the kept samples, biased */
+    PN_ADAPTIVE_CROSS = 2  /* two independent eye-ray streams, each one's count decided by the
+                              other's pilot: unbiased */
+};
 
 typedef struct pn_render_job {
     const struct pn_scene_s *scene;
     const pn_accel *accel;
     const pn_lights *lights;
     pn_camera camera;
-    /* Settings with defaults applied. */
+    /* Common settings with defaults applied. */
     uint32_t spp;                 /* 0: adaptive */
     double threshold;
+    uint32_t max_specular_depth;
+    uint64_t seed;
+    uint32_t aovs;
+    /* Method options: every option of the table in integrators/registry.c, its set value or its
+     * declared default (pn_registry_resolve). A new option adds its field here. */
     uint32_t shadow_rays;         /* per eye ray */
     uint32_t max_shadow_rays;     /* per pixel */
     uint32_t min_shadow_rays_black;
     uint32_t min_eye_rays;
-    uint32_t max_specular_depth;
-    uint64_t seed;
-    uint32_t aovs;
     /* ias */
     float cluster_solid_angle;
     uint32_t aa_rays, env_regions, max_passes;
     uint32_t block_size; /* pixels per side of the tiled driver's blocks (ias: its blocks) */
     /* reference */
-    pn_light_sampler light_sampler; /* IRRADIANCE or BVH, never DEFAULT */
-    pn_adaptive_rule adaptive_rule; /* PAPER or CROSS, never DEFAULT */
-    /* VPL integrators (issue 5) */
+    int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
+    /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is
+     * resolved by pn_render to CROSS for reference and PAPER for ias, never left AUTO) */
+    int adaptive_rule;
+    /* VPL integrators */
     uint32_t vpls, vpl_max_depth, max_cut;
     float vpl_clamp_fraction, error_bound;
     bool visibility_sampling;
@@ -39,6 +80,15 @@ typedef struct pn_render_job {
     uint32_t contour_grid, contour_steps, contour_span, contour_flags;
     double contour_mc_threshold;
     uint32_t contour_mc_max_rays;
+    int contour_scout;         /* -1: by the first-level density */
+    int contour_part;          /* 1, 2 or 4 */
+    double contour_linear_tol;
+    const char *contour_trace; /* NULL: no trace */
+    /* progressive drivers */
+    int work_scale, primary_grid;
+    double stop_percent, snapshot_every_seconds;
+    bool raw_radiance, no_light_guide;
+    pn_job_list snapshots; /* percentages of the work pixels */
     void *integrator_data; /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
 } pn_render_job;

@@ -94,7 +94,7 @@ pn_status pn_image_compare(pn_context ctx, pn_image reference, pn_image image,
     if (!reference || !image || !metrics) {
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
                                "pn_image_compare: %s is NULL",
-                               !reference ? "reference" : !image ? "image" : "metrics");
+                               !reference ? "reference" : !image ? "image" : "metrics"); /* not-a-method-name: the reference image */
     }
     if (reference->layer_count < 1 || image->layer_count < 1 ||
         reference->layers[0].channels != image->layers[0].channels) {

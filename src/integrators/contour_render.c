@@ -4,7 +4,7 @@
  * reused along a span with quadratic interpolation in between, adaptive first-level density
  * carried along the row, spans ending at creases, the dichotomy hints of a nearby pixel; and the
  * `contour` / `contour-mc` integrators that shade with it. See contour.c's header for the paper's
- * parts and our departures. With PN_CONTOUR_TRACE=FILE in the environment, the rays of every
+ * parts and our departures. With the option contour-trace FILE, the rays of every
  * counted pixel are written to FILE by phase (bench/contour/breakdown.sh).
  *
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
@@ -28,10 +28,9 @@
 #define PN_CONTOUR_DISK_QUADS 5 /* a disk is a 12-gon of equal area: 5 quadrilaterals */
 
 /* Our departure (shade_span): a run whose unoccluded form factor at its middle pixel is within
- * this fraction of the linear interpolation between its ends is interpolated linearly, without
- * the middle integration (cornell-contour at 800x800, 3x3 fixed, span 64: 11.9 -> 10.0 rays per
- * viewing ray; bench/contour/RESULTS.md). */
-#define PN_CONTOUR_LINEAR_TOL 0.003
+ * the fraction contour-linear-tol (default 0.003, registry.c) of the linear interpolation between
+ * its ends is interpolated linearly, without the middle integration (cornell-contour at 800x800,
+ * 3x3 fixed, span 64: 11.9 -> 10.0 rays per viewing ray; bench/contour/RESULTS.md). */
 
 typedef struct contour_light {
     int index; /* in job->lights */
@@ -58,10 +57,10 @@ typedef struct contour_data {
     int obstacle_count;
     float tol;
     int N, p0;
-    FILE *trace; /* PN_CONTOUR_TRACE: one line per counted pixel (bench/contour/ray_breakdown.c) */
-    int scout;         /* PN_CONTOUR_SCOUT: the scout lattice, 0-3 (contour.c) */
-    int penumbra_part; /* PN_CONTOUR_PART: runs with a contour check 1/part of their samples */
-    double linear_tol; /* PN_CONTOUR_LINEAR_TOL */
+    FILE *trace; /* option contour-trace: one line per counted pixel (bench/contour/ray_breakdown.c) */
+    int scout;         /* option contour-scout: the scout lattice, 0-3 (contour.c) */
+    int penumbra_part; /* option contour-part: runs with a contour check 1/part of their samples */
+    double linear_tol; /* option contour-linear-tol */
     uint32_t off; /* the PN_CONTOUR_NO_ISLANDS / NO_HALF_CHECK bits of contour_flags, for every evaluation */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
@@ -101,6 +100,8 @@ static void mesh_obstacle(const pn_mesh *m, obstacle *o) {
         break;
     }
 }
+
+static void contour_release(pn_render_job *job);
 
 static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc) {
     const struct pn_scene_s *scene = job->scene;
@@ -222,25 +223,27 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     atomic_init(&cd->restarts, 0);
     atomic_init(&cd->subdivisions, 0);
     atomic_init(&cd->culled, 0);
-    /* Bench instrumentation: where the shadow rays go, per pixel (not used by tests or the CLI). */
-    const char *trace = getenv("PN_CONTOUR_TRACE");
-    if (trace && *trace) cd->trace = fopen(trace, "w");
-    /* Our departures are switched off by contour_flags (--contour-off islands,half,scouts,linear).
-     * Tuning knobs for the bench only (bench/contour/RESULTS.md), from the environment:
-     * PN_CONTOUR_SCOUT=0..3, the scout probes (contour.c: 0; 1: 4 points, the centres of the
-     * 3 x 3 grid's squares; 2: 16; 3: 49, the inner points of an 8 x 8 lattice), by default 3 with
-     * a fixed first-level density and 1 with the adaptive one (with the adaptive density 3 costs
-     * up to twice the rays on hall-many for a small gain); PN_CONTOUR_PART=1, 2 or 4: runs with a
-     * contour check 1 / PART of their samples from their third pixel on (default 2);
-     * PN_CONTOUR_LINEAR_TOL: the tolerance of run_is_linear. */
+    /* Bench instrumentation (option contour-trace): where the shadow rays go, per pixel. */
+    if (job->contour_trace && *job->contour_trace) {
+        cd->trace = fopen(job->contour_trace, "w");
+        if (!cd->trace) {
+            job->integrator_data = cd;
+            contour_release(job);
+            return pn_err_set(err, PN_ERROR_IO, "%s: cannot write the contour trace", job->contour_trace);
+        }
+    }
+    /* Our departures are switched off by contour_flags (contour-off islands,half,scouts,linear).
+     * Tuning options for the bench (bench/contour/RESULTS.md): contour-scout 0..3, the scout
+     * probes (contour.c: 0; 1: 4 points, the centres of the 3 x 3 grid's squares; 2: 16; 3: 49, the
+     * inner points of an 8 x 8 lattice), by default (-1) 3 with a fixed first-level density and 1
+     * with the adaptive one (with the adaptive density 3 costs up to twice the rays on hall-many
+     * for a small gain); contour-part 1, 2 or 4: runs with a contour check 1 / part of their
+     * samples from their third pixel on; contour-linear-tol: the tolerance of run_is_linear. */
     cd->off = job->contour_flags & (PN_CONTOUR_NO_ISLANDS | PN_CONTOUR_NO_HALF_CHECK);
     cd->scout = (job->contour_flags & PN_CONTOUR_NO_SCOUTS) ? 0 : (job->contour_flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY) ? 3 : 1;
-    const char *scout = getenv("PN_CONTOUR_SCOUT");
-    if (scout && *scout >= '0' && *scout <= '3' && !(job->contour_flags & PN_CONTOUR_NO_SCOUTS)) cd->scout = *scout - '0';
-    const char *part = getenv("PN_CONTOUR_PART");
-    cd->penumbra_part = part && (*part == '1' || *part == '4') ? *part - '0' : 2;
-    const char *lin = getenv("PN_CONTOUR_LINEAR_TOL");
-    cd->linear_tol = (job->contour_flags & PN_CONTOUR_NO_LINEAR_RUNS) ? 0.0 : lin ? atof(lin) : PN_CONTOUR_LINEAR_TOL;
+    if (job->contour_scout >= 0 && !(job->contour_flags & PN_CONTOUR_NO_SCOUTS)) cd->scout = job->contour_scout;
+    cd->penumbra_part = job->contour_part == 1 || job->contour_part == 4 ? job->contour_part : 2;
+    cd->linear_tol = (job->contour_flags & PN_CONTOUR_NO_LINEAR_RUNS) ? 0.0 : job->contour_linear_tol;
     job->integrator_data = cd;
     return PN_OK;
 }
@@ -585,7 +588,7 @@ bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eva
 }
 
 /* Our departure (shade_span): runs check part of their first-level samples from this many pixels
- * after their first on (half; PN_CONTOUR_PART), and uniform runs a quarter from the second. */
+ * after their first on (half; option contour-part), and uniform runs a quarter from the second. */
 #define PN_CONTOUR_UNIFORM_HALF_AFTER 2
 #define PN_CONTOUR_UNIFORM_QUARTER_AFTER 6
 
@@ -708,7 +711,7 @@ static void shade_span(span_ctx *sc) {
         int end = j < n ? j : n - 1;
         if (end > key) full_integration(sc, end, p, WHY_CHANGE);
         /* Our departure: when the unoccluded form factor is linear along the run to within
-         * PN_CONTOUR_LINEAR_TOL at its middle, the run is interpolated linearly between its ends
+         * contour-linear-tol at its middle, the run is interpolated linearly between its ends
          * without the middle integration (run_is_linear()). */
         const bool linear = end - key >= 2 && sc->cd->linear_tol > 0.0 &&
                             pn_contour_run_is_linear(&sc->cl->src, &s->ev[key], &s->ev[(key + end) / 2], &s->ev[end],
@@ -1042,16 +1045,24 @@ static pn_status contour_render_image(const pn_render_job *job, struct pn_thread
     return (pn_status)atomic_load(&sj.failed);
 }
 
-pn_render_image_fn pn_contour_render_image(const pn_integrator *integrator) {
-    return integrator == &pn_integrator_contour ? contour_render_image : NULL;
-}
-
+/* contour's scanline hook lets §5 spans run along whole rows; contour-mc works in blocks. */
 const pn_integrator pn_integrator_contour = {
-    "contour",      contour_prepare,        contour_release,      contour_report,
-    contour_scratch_create, contour_scratch_free, contour_render_batch,
+    .name = "contour",
+    .prepare = contour_prepare,
+    .release = contour_release,
+    .report = contour_report,
+    .scratch_create = contour_scratch_create,
+    .scratch_free = contour_scratch_free,
+    .render_batch = contour_render_batch,
+    .render_image = contour_render_image,
 };
 
 const pn_integrator pn_integrator_contour_mc = {
-    "contour-mc",   contour_mc_prepare,     contour_release,      contour_report,
-    contour_scratch_create, contour_scratch_free, contour_render_batch,
+    .name = "contour-mc",
+    .prepare = contour_mc_prepare,
+    .release = contour_release,
+    .report = contour_report,
+    .scratch_create = contour_scratch_create,
+    .scratch_free = contour_scratch_free,
+    .render_batch = contour_render_batch,
 };

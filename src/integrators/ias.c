@@ -1100,5 +1100,11 @@ static void ias_report(const pn_render_job *job, pn_render_stats *stats) {
 }
 
 const pn_integrator pn_integrator_ias = {
-    "ias", ias_prepare, ias_release, ias_report, ias_scratch_create, ias_scratch_free, ias_render_batch,
+    .name = "ias",
+    .prepare = ias_prepare,
+    .release = ias_release,
+    .report = ias_report,
+    .scratch_create = ias_scratch_create,
+    .scratch_free = ias_scratch_free,
+    .render_batch = ias_render_batch,
 };

@@ -4,7 +4,7 @@
  * visibility sampling (Algorithm 2, "IlluminationCut-Sampling").
  *
  * The whole image window is one batch: every eye sample of every pixel becomes a shading point
- * of one point tree (the driver calls pn_integrator_render_image's hook). A driver that hands
+ * of one point tree (the tiled driver calls its render_image hook). A driver that hands
  * out pixel sets gets one point tree per set (render_batch); a crop window's pixels therefore
  * differ slightly from the same pixels of the full image (other trees, other pairs), within the
  * error bound.
@@ -1024,12 +1024,13 @@ static pn_status illumcut_render_batch(const pn_render_job *job, const pn_batch 
 }
 
 const pn_integrator pn_integrator_illumcut = {
-    "illumcut", illumcut_prepare, pn_vpl_release, pn_vpl_report, NULL, NULL, illumcut_render_batch,
+    .name = "illumcut",
+    .prepare = illumcut_prepare,
+    .release = pn_vpl_release,
+    .report = pn_vpl_report,
+    .render_batch = illumcut_render_batch,
+    .render_image = illumcut_render_image,
 };
-
-pn_render_image_fn pn_integrator_render_image(const pn_integrator *integrator) {
-    return integrator == &pn_integrator_illumcut ? illumcut_render_image : NULL;
-}
 
 /* ---- for the tests ------------------------------------------------------------------------ */
 
@@ -1077,9 +1078,9 @@ int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, ui
     for (int i = 0; i < count && !bad; i++)
         if (seen[i] != 1) bad = why = 9;
     int nodes = t.node_count;
-    if (bad) fprintf(stderr, "point tree invariant %d violated\n", why);
     free(seen);
     free(t.points);
     free(t.nodes);
-    return bad ? -1 : nodes;
+    /* No printing in the library: the violated invariant is in the return value. */
+    return bad ? (why ? -10 - why : -2) : nodes;
 }

@@ -61,8 +61,8 @@ bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, v
 
 /* Builds an illumcut point tree over the receivers and checks its invariants (illumcut.c): node
  * ranges contiguous, children partitioning their parent, every point in exactly one leaf, boxes,
- * cones and BRDF ranges containing the node's points. Returns the node count, -1 on a violated
- * invariant, -2 when out of memory. */
+ * cones and BRDF ranges containing the node's points. Returns the node count, -10 - k when
+ * invariant k (1..9, in the order above) is violated, -2 when out of memory. */
 int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, uint64_t seed);
 
 /* Phase I (illumcut.c): true when a pair failing the criteria refines its light cluster Q, false

@@ -43,6 +43,14 @@ typedef struct pn_pixel_estimate {
     vec3 gradient;
 } pn_pixel_estimate;
 
+struct pn_threadpool;
+/* Renders the whole window at once: fills pixels[y * width + x] for the window (camera x0..x1,
+ * y0..y1) using the pool. */
+typedef pn_status (*pn_render_image_fn)(const pn_render_job *job, struct pn_threadpool *pool,
+                                        pn_pixel_estimate *pixels, int width, int height);
+
+/* The code of one integrator. What it is, what it computes, its capabilities and options are
+ * its entry in the method table (integrators/registry.c), which points here. */
 typedef struct pn_integrator {
     const char *name;
     /* Optional: builds what the whole render shares (e.g. light cluster trees) into
@@ -57,38 +65,30 @@ typedef struct pn_integrator {
     /* Fills out[i] for batch->pixels[i]. */
     pn_status (*render_batch)(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                               void *scratch);
+    /* Optional: under the tiled driver, renders the whole window instead of blocks (illumcut's
+     * point tree spans every shading point of the image; contour runs §5 spans along whole rows). */
+    pn_render_image_fn render_image;
 } pn_integrator;
 
-/* Whether the integrator fills pn_pixel_estimate.emitted (reference and ias); the progressive
- * drivers then interpolate only the rest. */
+/* Capabilities from the method table (registry.c): whether the integrator fills
+ * pn_pixel_estimate.emitted (PN_CAP_EMITTED), so that the progressive drivers interpolate only the
+ * rest; and how many eye rays per pixel it traces as samples 0..n-1 of pn_pixel_eye_sample, each
+ * weighted by its filter weight (PN_CAP_EYE_SAMPLES: job->spp; else 0). */
 bool pn_integrator_reports_emitted(const pn_integrator *integrator);
-/* How many eye rays per pixel the integrator traces as samples 0..n-1 of pn_pixel_eye_sample,
- * every one weighted by its filter weight in the pixel's estimate (reference at a fixed --spp);
- * 0 when it samples the pixel otherwise (adaptive eye-ray counts, ias's block sequences). */
 uint32_t pn_integrator_pixel_eye_samples(const pn_integrator *integrator, const pn_render_job *job);
-/* The table of integrators; NULL if unknown. */
+/* The integrator of the table entry of that kind; NULL if unknown. */
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 
+/* The integrators, each defined at the bottom of its own file. */
 extern const pn_integrator pn_integrator_reference;
 extern const pn_integrator pn_integrator_ias;
 /* contour (Vedel 1993) and contour-mc (Kok & Jansen 1992): src/integrators/contour*.c */
 extern const pn_integrator pn_integrator_contour;
 extern const pn_integrator pn_integrator_contour_mc;
 
-/* VPL integrators (issue 5). illumcut renders the whole window at once (its point tree spans
- * every shading point of the image): pn_integrator_render_image returns that hook for an
- * integrator that has one, else NULL; the driver then calls it instead of handing out blocks.
- * It fills pixels[y * width + x] for the window (camera x0..x1, y0..y1) using the pool. */
 extern const pn_integrator pn_integrator_vpl;
 extern const pn_integrator pn_integrator_lightcuts;
 extern const pn_integrator pn_integrator_illumcut;
-struct pn_threadpool;
-typedef pn_status (*pn_render_image_fn)(const pn_render_job *job, struct pn_threadpool *pool,
-                                        pn_pixel_estimate *pixels, int width, int height);
-pn_render_image_fn pn_integrator_render_image(const pn_integrator *integrator);
-/* contour (issue 4): its scanline hook (contour_render.c), so that §5 spans can run along whole
- * rows; non-NULL for pn_integrator_contour only. */
-pn_render_image_fn pn_contour_render_image(const pn_integrator *integrator);
 /* Adds the VPL integrators' AOV layers (PN_AOV_BOUND_EVALUATIONS, _CUT_SIZE, _PHASE1) to img. */
 struct pn_image_s;
 bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img);

@@ -202,7 +202,13 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
 }
 
 const pn_integrator pn_integrator_lightcuts = {
-    "lightcuts", lc_prepare, pn_vpl_release, pn_vpl_report, lc_scratch_create, lc_scratch_free, lc_render_batch,
+    .name = "lightcuts",
+    .prepare = lc_prepare,
+    .release = pn_vpl_release,
+    .report = pn_vpl_report,
+    .scratch_create = lc_scratch_create,
+    .scratch_free = lc_scratch_free,
+    .render_batch = lc_render_batch,
 };
 
 bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, vec3 *radiance, float *bound_sum,

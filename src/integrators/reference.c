@@ -327,29 +327,10 @@ static void reference_release(pn_render_job *job) {
 }
 
 const pn_integrator pn_integrator_reference = {
-    "reference", reference_prepare, reference_release, NULL, reference_scratch_create, reference_scratch_free,
-    reference_render_batch,
+    .name = "reference",
+    .prepare = reference_prepare,
+    .release = reference_release,
+    .scratch_create = reference_scratch_create,
+    .scratch_free = reference_scratch_free,
+    .render_batch = reference_render_batch,
 };
-
-bool pn_integrator_reports_emitted(const pn_integrator *integrator) {
-    return integrator == &pn_integrator_reference || integrator == &pn_integrator_ias;
-}
-
-uint32_t pn_integrator_pixel_eye_samples(const pn_integrator *integrator, const pn_render_job *job) {
-    return integrator == &pn_integrator_reference ? job->spp : 0;
-}
-
-const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
-    switch (kind) {
-    case PN_INTEGRATOR_DEFAULT:
-    case PN_INTEGRATOR_REFERENCE: return &pn_integrator_reference;
-    case PN_INTEGRATOR_IAS: return &pn_integrator_ias;
-    /* VPL integrators (issue 5) */
-    case PN_INTEGRATOR_VPL: return &pn_integrator_vpl;
-    case PN_INTEGRATOR_LIGHTCUTS: return &pn_integrator_lightcuts;
-    case PN_INTEGRATOR_ILLUMCUT: return &pn_integrator_illumcut;
-    case PN_INTEGRATOR_CONTOUR: return &pn_integrator_contour;
-    case PN_INTEGRATOR_CONTOUR_MC: return &pn_integrator_contour_mc;
-    }
-    return NULL;
-}

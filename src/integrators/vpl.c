@@ -46,5 +46,9 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
 }
 
 const pn_integrator pn_integrator_vpl = {
-    "vpl", vpl_prepare, pn_vpl_release, pn_vpl_report, NULL, NULL, vpl_render_batch,
+    .name = "vpl",
+    .prepare = vpl_prepare,
+    .release = pn_vpl_release,
+    .report = pn_vpl_report,
+    .render_batch = vpl_render_batch,
 };

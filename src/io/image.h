@@ -41,6 +41,10 @@ pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_er
 /* Writes by extension (.exr all layers as 32-bit float; .pfm beauty; .png beauty as 8-bit sRGB
  * after multiplying by 2^exposure and clamping). Writes a temporary file in the same folder and
  * renames it, so a failure leaves no partial file at `path`. */
+/* Writes a file atomically: write_to fills a fresh temporary beside path, which is synced and
+ * renamed over path; on any failure the temporary is removed and path is untouched. */
+typedef pn_status (*pn_write_fn)(void *user, FILE *file, const char *path, pn_err *err);
+pn_status pn_write_atomic(const char *path, pn_write_fn write_to, void *user, pn_err *err);
 pn_status pn_image_write_file(pn_image image, const char *path, float exposure, pn_err *err);
 
 /* Format back ends, called by io/write.c. Readers get a file opened for reading and positioned

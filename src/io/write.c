@@ -8,6 +8,8 @@
  */
 #include "io/image.h"
 
+#include "core/context.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -169,6 +171,22 @@ static int pn_create_temporary(const char *path, char **tmp) {
     return -1;
 }
 
+typedef struct image_write_job {
+    pn_image image;
+    pn_image_format format;
+    float exposure;
+} image_write_job;
+
+static pn_status write_image_to(void *user, FILE *file, const char *path, pn_err *err) {
+    const image_write_job *job = user;
+    switch (job->format) {
+    case PN_FORMAT_EXR: return pn_exr_write(job->image, file, path, err);
+    case PN_FORMAT_PFM: return pn_pfm_write(job->image, file, path, err);
+    case PN_FORMAT_PNG: return pn_png_write(job->image, job->exposure, file, path, err);
+    default: return pn_err_set(err, PN_ERROR_INTERNAL, "%s: unhandled format", path);
+    }
+}
+
 pn_status pn_image_write_file(pn_image image, const char *path, float exposure, pn_err *err) {
     if (!image || !path) {
         return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "pn_image_write_file: %s is NULL",
@@ -197,6 +215,14 @@ pn_status pn_image_write_file(pn_image image, const char *path, float exposure, 
                           "%s: unknown image format '%s' (use .exr, .pfm or .png)", path, dot);
     }
 
+    image_write_job job = {image, format, exposure};
+    return pn_write_atomic(path, write_image_to, &job, err);
+}
+
+/* The one atomic-write routine of the project: every file penumbra writes (images, the CLI's
+ * statistics JSON through pn_file_write) goes through it. */
+pn_status pn_write_atomic(const char *path, pn_write_fn write_to, void *user, pn_err *err) {
+    if (!path || path[0] == '\0') return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "file path is empty");
     char *tmp = NULL;
     int fd = pn_create_temporary(path, &tmp);
     if (fd < 0) return pn_err_set(err, PN_ERROR_IO, "%s: %s", path, strerror(errno));
@@ -210,13 +236,7 @@ pn_status pn_image_write_file(pn_image image, const char *path, float exposure, 
         return pn_err_set(err, PN_ERROR_IO, "%s: %s", path, strerror(e));
     }
 
-    pn_status status;
-    switch (format) {
-    case PN_FORMAT_EXR: status = pn_exr_write(image, file, path, err); break;
-    case PN_FORMAT_PFM: status = pn_pfm_write(image, file, path, err); break;
-    case PN_FORMAT_PNG: status = pn_png_write(image, exposure, file, path, err); break;
-    default: status = pn_err_set(err, PN_ERROR_INTERNAL, "%s: unhandled format", path); break;
-    }
+    pn_status status = write_to(user, file, path, err);
 
     /* Flush, sync and close even after a failure so the descriptor is released. */
     int io_errno = 0;
@@ -236,4 +256,28 @@ pn_status pn_image_write_file(pn_image image, const char *path, float exposure, 
     if (status != PN_OK) unlink(tmp);
     free(tmp);
     return status;
+}
+
+typedef struct bytes_job {
+    const void *data;
+    size_t size;
+} bytes_job;
+
+static pn_status write_bytes_to(void *user, FILE *file, const char *path, pn_err *err) {
+    const bytes_job *job = user;
+    if (job->size && fwrite(job->data, 1, job->size, file) != job->size)
+        return pn_err_set(err, PN_ERROR_IO, "%s: %s", path, strerror(errno ? errno : EIO));
+    return PN_OK;
+}
+
+pn_status pn_file_write(pn_context ctx, const char *path, const void *data, size_t size) {
+    pn_err err;
+    pn_err_init(&err);
+    if (!path || (!data && size)) {
+        pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_file_write: NULL argument");
+        return pn_context_fail_from(ctx, &err);
+    }
+    bytes_job job = {data, size};
+    pn_status status = pn_write_atomic(path, write_bytes_to, &job, &err);
+    return status == PN_OK ? PN_OK : pn_context_fail_from(ctx, &err);
 }

@@ -1,0 +1,292 @@
+/* render_cmd.c — `penumbra render`: the progress bar, Ctrl-C and SIGUSR1, snapshots, the render
+ * itself and the files it writes. */
+#include "cli/cli.h"
+
+#include <math.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+
+/* ---------------------------------------------------------------------------------------- */
+/* Progress bar */
+
+typedef struct progress_state {
+    double start;
+    double last_draw;
+    int drawn;
+} progress_state;
+
+static void format_duration(double seconds, char *out, size_t size) {
+    if (!(seconds >= 0.0) || seconds > 360000.0) {
+        snprintf(out, size, "--:--");
+        return;
+    }
+    long s = (long)(seconds + 0.5);
+    if (s >= 3600)
+        snprintf(out, size, "%ld:%02ld:%02ld", s / 3600, (s / 60) % 60, s % 60);
+    else
+        snprintf(out, size, "%ld:%02ld", s / 60, s % 60);
+}
+
+static void draw_progress(progress_state *state, double fraction, double now) {
+    enum { BAR_WIDTH = 30 };
+    char bar[BAR_WIDTH + 1], elapsed_text[32], eta_text[32];
+    if (fraction < 0.0)
+        fraction = 0.0;
+    if (fraction > 1.0)
+        fraction = 1.0;
+    int filled = (int)(fraction * BAR_WIDTH);
+    for (int i = 0; i < BAR_WIDTH; i++)
+        bar[i] = i < filled ? '#' : '.';
+    bar[BAR_WIDTH] = '\0';
+    double elapsed = now - state->start;
+    format_duration(elapsed, elapsed_text, sizeof elapsed_text);
+    if (fraction > 0.0)
+        format_duration(elapsed * (1.0 - fraction) / fraction, eta_text, sizeof eta_text);
+    else
+        snprintf(eta_text, sizeof eta_text, "--:--");
+    fprintf(stderr, "\r[%s] %5.1f%%  elapsed %s  ETA %s ", bar, 100.0 * fraction, elapsed_text,
+            eta_text);
+    fflush(stderr);
+    state->drawn = 1;
+    state->last_draw = now;
+}
+
+/* Called by the library from worker threads, serialised by its lock. */
+static void on_progress(void *user, double fraction) {
+    progress_state *state = user;
+    double now = monotonic_seconds();
+    if (state->drawn && now - state->last_draw < 0.1 && fraction < 1.0)
+        return;
+    draw_progress(state, fraction, now);
+}
+
+static void finish_progress(progress_state *state, int complete) {
+    if (!state->drawn)
+        return;
+    if (complete)
+        draw_progress(state, 1.0, monotonic_seconds());
+    fputc('\n', stderr);
+}
+
+static pn_context volatile interrupt_context;
+static volatile sig_atomic_t interrupted;
+
+static void on_sigint(int signo) {
+    static const char note[] = "\npenumbra: interrupted; finishing the current tiles "
+                               "(press Ctrl-C again to quit at once)\n";
+    (void)signo;
+    interrupted = 1;
+    if (interrupt_context)
+        pn_render_cancel(interrupt_context);
+    ssize_t ignored = write(STDERR_FILENO, note, sizeof note - 1);
+    (void)ignored;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Progressive drivers: snapshots beside the output (out.exr -> out-6pct.exr), written
+ * atomically by pn_image_write; SIGUSR1 asks for one. */
+typedef struct snapshot_writer {
+    const char *image_path, *png_path;
+    double exposure;
+    int quiet;
+} snapshot_writer;
+
+static void snapshot_name(const char *path, double percent, char *out, size_t size) {
+    const char *slash = strrchr(path, '/');
+    const char *dot = strrchr(path, '.');
+    if (!dot || (slash && dot < slash)) dot = path + strlen(path);
+    snprintf(out, size, "%.*s-%gpct%s", (int)(dot - path), path, percent, dot);
+}
+
+static void on_snapshot(void *user, pn_image image, double requested, double evaluated, double seconds) {
+    const snapshot_writer *sw = user;
+    double percent = requested > 0.0 ? requested : floor(evaluated * 10.0 + 0.5) / 10.0;
+    pn_context wctx = pn_context_new();
+    if (!wctx) return;
+    for (int i = 0; i < 2; i++) {
+        const char *base = i == 0 ? sw->image_path : sw->png_path;
+        if (!base) continue;
+        char path[4096];
+        snapshot_name(base, percent, path, sizeof path);
+        if (pn_image_write(wctx, image, path, (float)sw->exposure) != PN_OK)
+            fprintf(stderr, "penumbra: cannot write snapshot: %s\n", pn_context_error_message(wctx));
+        else if (!sw->quiet)
+            fprintf(stderr, "penumbra: snapshot %s (%.2f%% of the work pixels, %.2f s)\n", path, evaluated, seconds);
+    }
+    pn_context_free(wctx);
+}
+
+static void on_sigusr1(int signo) {
+    (void)signo;
+    if (interrupt_context)
+        pn_render_request_snapshot(interrupt_context);
+}
+
+/* --aov-png: every single-channel AOV layer as a false-colour PNG with a colour bar, named
+ * after the output image: out.exr -> out.passes.png, out.shadow_rays.png, ... */
+static int write_aov_pngs(pn_context ctx, pn_image image, const char *image_path) {
+    const char *dot = strrchr(image_path, '.');
+    size_t stem = dot ? (size_t)(dot - image_path) : strlen(image_path);
+    for (int l = 1; l < pn_image_layer_count(image); l++) {
+        if (pn_image_layer_channels(image, l) != 1) continue;
+        const char *name = pn_image_layer_name(image, l);
+        char path[4096];
+        snprintf(path, sizeof path, "%.*s.%s.png", (int)stem, image_path, name);
+        pn_image fc = NULL;
+        pn_status st = pn_image_false_color(ctx, image, name, 0.0, 0.0, &fc);
+        if (st == PN_OK) st = pn_image_write(ctx, fc, path, 0.0f);
+        pn_image_free(fc);
+        if (st != PN_OK) return report_failure(ctx, st);
+    }
+    return EXIT_OK;
+}
+
+int command_render(int argc, char **argv) {
+    render_options o;
+    memset(&o, 0, sizeof o);
+    o.options = pn_options_new();
+    if (!o.options) {
+        fprintf(stderr, "penumbra: out of memory\n");
+        return EXIT_SYSTEM;
+    }
+    int code = parse_render_args(argc, argv, &o);
+    if (code >= 0) {
+        pn_options_free(o.options);
+        return code;
+    }
+    pn_render_settings *st = &o.settings;
+
+    char *default_name = NULL;
+    const char *image_path = o.output_path;
+    if (image_path == NULL) {
+        default_name = default_output_name(o.scene_path);
+        if (default_name == NULL) {
+            fprintf(stderr, "penumbra: out of memory\n");
+            pn_options_free(o.options);
+            return EXIT_SYSTEM;
+        }
+        image_path = default_name;
+    }
+
+    /* Refuse early when an output folder is missing, rather than after the render. */
+    if ((code = check_output_folder(image_path)) != EXIT_OK ||
+        (o.png_path && (code = check_output_folder(o.png_path)) != EXIT_OK) ||
+        (o.stats_path && (code = check_output_folder(o.stats_path)) != EXIT_OK)) {
+        free(default_name);
+        pn_options_free(o.options);
+        return code;
+    }
+
+    pn_context ctx = pn_context_new();
+    if (ctx == NULL) {
+        fprintf(stderr, "penumbra: out of memory\n");
+        free(default_name);
+        pn_options_free(o.options);
+        return EXIT_SYSTEM;
+    }
+    log_options log = {o.quiet, 1};
+    pn_context_set_log(ctx, on_log, &log);
+
+    pn_scene scene = NULL;
+    pn_image image = NULL;
+    pn_scene_info info;
+    pn_render_stats stats;
+    memset(&info, 0, sizeof info);
+    memset(&stats, 0, sizeof stats);
+    pn_status status = pn_scene_load(ctx, o.scene_path, &scene);
+    if (status != PN_OK) {
+        code = report_failure(ctx, status);
+        goto done;
+    }
+    if ((status = pn_scene_get_info(scene, &info)) != PN_OK) {
+        code = report_failure(ctx, status);
+        goto done;
+    }
+
+    progress_state progress = {monotonic_seconds(), 0.0, 0};
+    if (!o.quiet && isatty(STDERR_FILENO)) {
+        st->progress = on_progress;
+        st->progress_user = &progress;
+    }
+
+    struct sigaction action, previous;
+    memset(&action, 0, sizeof action);
+    action.sa_handler = on_sigint;
+    sigemptyset(&action.sa_mask);
+    action.sa_flags = SA_RESETHAND; /* a second Ctrl-C ends the program at once */
+    interrupt_context = ctx;
+    interrupted = 0;
+    sigaction(SIGINT, &action, &previous);
+    /* progressive drivers (issue 6): snapshots, and SIGUSR1 for one now */
+    snapshot_writer snapshots = {image_path, o.png_path, o.exposure, o.quiet};
+    struct sigaction usr1, previous_usr1;
+    memset(&usr1, 0, sizeof usr1);
+    usr1.sa_handler = on_sigusr1;
+    sigemptyset(&usr1.sa_mask);
+    const int progressive = (pn_method_get(o.driver)->capabilities & PN_CAP_PROGRESSIVE) != 0;
+    if (progressive) {
+        st->snapshot = on_snapshot;
+        st->snapshot_user = &snapshots;
+        sigaction(SIGUSR1, &usr1, &previous_usr1);
+    }
+    status = pn_render(ctx, scene, st, &image, &stats);
+    if (progressive)
+        sigaction(SIGUSR1, &previous_usr1, NULL);
+    sigaction(SIGINT, &previous, NULL);
+    interrupt_context = NULL;
+    finish_progress(&progress, status == PN_OK);
+
+    if (status == PN_ERROR_CANCELLED || (status == PN_OK && interrupted)) {
+        /* The user asked to stop: keep what was rendered, but never under the requested name,
+         * where it could be mistaken for a finished image. */
+        fprintf(stderr, "penumbra: interrupted; the partial image was not written to '%s'\n",
+                image_path);
+        char *partial_path = image ? partial_output_name(image_path) : NULL;
+        int partial_written = 0;
+        if (partial_path) {
+            pn_context_clear_error(ctx);
+            partial_written = pn_image_write(ctx, image, partial_path, (float)o.exposure) == PN_OK;
+            if (partial_written)
+                fprintf(stderr, "penumbra: what was rendered is in '%s'\n", partial_path);
+        }
+        if (o.stats_path)
+            write_stats_json(&o, partial_written ? partial_path : NULL, scene, &info, &stats, 1);
+        free(partial_path);
+        code = EXIT_INTERRUPTED;
+        goto done;
+    }
+    if (status != PN_OK) {
+        code = report_failure(ctx, status);
+        goto done;
+    }
+
+    /* The exposure only affects PNG files. */
+    if ((status = pn_image_write(ctx, image, image_path, (float)o.exposure)) != PN_OK) {
+        code = report_failure(ctx, status);
+        goto done;
+    }
+    if (o.png_path && (status = pn_image_write(ctx, image, o.png_path, (float)o.exposure)) !=
+                          PN_OK) {
+        code = report_failure(ctx, status);
+        goto done;
+    }
+    if (o.aov_png && (code = write_aov_pngs(ctx, image, image_path)) != EXIT_OK)
+        goto done;
+    if (o.stats_path &&
+        (code = write_stats_json(&o, image_path, scene, &info, &stats, 0)) != EXIT_OK)
+        goto done;
+    if (!o.quiet)
+        print_render_summary(&o, &info, &stats, image_path);
+    code = EXIT_OK;
+
+done:
+    pn_image_free(image);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+    pn_options_free(o.options);
+    free(default_name);
+    return code;
+}
