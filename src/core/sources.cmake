@@ -1,6 +1,9 @@
-# core files; a file is compiled once it exists.
-foreach(f error.c vecmath.c context.c sobol.c sampling.c threadpool.c)
-  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
-    list(APPEND PN_SOURCES src/core/${f})
-  endif()
-endforeach()
+# The core module's source files (listed by hand: no globbing).
+list(APPEND PN_SOURCES
+  src/core/error.c
+  src/core/vecmath.c
+  src/core/context.c
+  src/core/sobol.c
+  src/core/sampling.c
+  src/core/threadpool.c
+)

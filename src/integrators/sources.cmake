@@ -1,7 +1,16 @@
-# integrators files; a file is compiled once it exists.
-foreach(f registry.c reference.c ias_math.c ias.c vpl_common.c vpl.c lightcuts.c illumcut.c illumcut_point_tree.c
-        reference_direct.c contour_math.c contour.c contour_render.c contour_mc.c)
-  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
-    list(APPEND PN_SOURCES src/integrators/${f})
-  endif()
-endforeach()
+# The integrators module's source files (listed by hand: no globbing).
+list(APPEND PN_SOURCES
+  src/integrators/registry.c
+  src/integrators/reference.c
+  src/integrators/ias_math.c
+  src/integrators/ias.c
+  src/integrators/vpl_common.c
+  src/integrators/vpl.c
+  src/integrators/lightcuts.c
+  src/integrators/illumcut.c
+  src/integrators/reference_direct.c
+  src/integrators/contour_math.c
+  src/integrators/contour.c
+  src/integrators/contour_render.c
+  src/integrators/contour_mc.c
+)

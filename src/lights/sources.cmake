@@ -1,6 +1,12 @@
-# lights files; a file is compiled once it exists.
-foreach(f lights.c light_sample.c light_pdf.c cluster_tree.c env_regions.c light_bvh.c vpl.c light_tree.c projection.c)
-  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
-    list(APPEND PN_SOURCES src/lights/${f})
-  endif()
-endforeach()
+# The lights module's source files (listed by hand: no globbing).
+list(APPEND PN_SOURCES
+  src/lights/lights.c
+  src/lights/light_sample.c
+  src/lights/light_pdf.c
+  src/lights/cluster_tree.c
+  src/lights/env_regions.c
+  src/lights/light_bvh.c
+  src/lights/vpl.c
+  src/lights/light_tree.c
+  src/lights/projection.c
+)

@@ -1,7 +1,13 @@
-# Scene files; a file is compiled once it exists (the parser is written in parts).
-foreach(f scene_load.c ply.c tokenizer.c params.c parser.c shapes.c materials.c texture.c
-          spectrum.c lightdefs.c)
-  if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/${f})
-    list(APPEND PN_SOURCES src/scene/${f})
-  endif()
-endforeach()
+# The scene module's source files (listed by hand: no globbing).
+list(APPEND PN_SOURCES
+  src/scene/scene_load.c
+  src/scene/ply.c
+  src/scene/tokenizer.c
+  src/scene/params.c
+  src/scene/parser.c
+  src/scene/shapes.c
+  src/scene/materials.c
+  src/scene/texture.c
+  src/scene/spectrum.c
+  src/scene/lightdefs.c
+)
