@@ -208,7 +208,9 @@ typedef struct pn_render_settings {
     uint32_t block_size;
     /* reference only: how a light is chosen for each shadow ray. */
     pn_light_sampler light_sampler;
-    /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
+    /* Progress: called from worker threads under a lock with the fraction done in [0,1],
+     * increasing from call to call, 1 at the end of a finished render (preparation and the
+     * phases of whole-image integrators included). */
     void (*progress)(void *user, double fraction);
     void *progress_user;
     /* VPL integrators (issue 5; zero = default): VPL count (600,000), light path depth (10),
@@ -221,6 +223,12 @@ typedef struct pn_render_settings {
     float error_bound;
     uint32_t max_cut;
     int visibility_sampling;
+    /* VPL integrators: non-zero for direct light only, the quantity reference, ias and contour
+     * compute: the VPLs are the lights themselves (point, spot, goniometric and distant lights as
+     * they are, points on area lights and directions of environment maps sampled with their
+     * emission), no light path bounces; vpl_max_depth must then be 0, and the clamping distance
+     * is 0 unless vpl_clamp_fraction is given. */
+    int vpl_direct_only;
     /* contour (Vedel 1993) only; zero = the paper's values: first-level samples per side of a
      * source (3, i.e. a 3x3 grid of 9 samples), dichotomy steps (5), longest span of pixels
      * (8); contour_flags: PN_CONTOUR_* bits that switch parts of the algorithm off (for
@@ -334,8 +342,11 @@ typedef struct pn_render_stats {
 PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
                            pn_image *out_image, pn_render_stats *stats);
 
-/* Asks running renders of this context to stop after their current tiles. Safe from a signal
- * handler (it only stores an atomic flag). */
+/* Asks running renders of this context to stop after their current tiles, or during their
+ * preparation (VPL tracing, light trees). A cancel issued while no render runs applies to the
+ * next pn_render of the context, which then returns PN_ERROR_CANCELLED at once; pn_render
+ * clears the request when it returns. Safe from a signal handler (it only stores an atomic
+ * flag). */
 PN_API void pn_render_cancel(pn_context ctx);
 
 /* Progressive drivers (issue 6): asks a running progressive render of this context for one

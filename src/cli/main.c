@@ -105,6 +105,9 @@ static const char render_help[] =
     "  --vpls N               virtual point lights to trace (default 600000)\n"
     "  --vpl-depth N          light path bounces that leave VPLs (default 10)\n"
     "  --vpl-clamp F          minimum point-VPL distance, fraction of the scene radius (0.05)\n"
+    "  --vpl-direct-only      direct light only, as reference, ias and contour compute: the lights\n"
+    "                         themselves as VPLs (points sampled on area lights and environment\n"
+    "                         maps), no bounces; no --vpl-depth, and no clamp unless --vpl-clamp\n"
     "  --error E              relative error bound of lightcuts and illumcut (default 0.01)\n"
     "  --max-cut N            lightcuts: at most N clusters per point (default: no limit)\n"
     "  --visibility MODE      illumcut: 'exact' (a shadow ray per point and pair, the default)\n"
@@ -972,6 +975,10 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
             if (!parse_double(value, &v) || !(v > 0.0) || !(v < 1.0))
                 return bad_value(cmd, name, value, "a fraction of the scene radius, > 0 and < 1");
             o->settings.vpl_clamp_fraction = (float)v;
+        } else if (strcmp(name, "--vpl-direct-only") == 0) {
+            if (!scanner_no_value(&s))
+                return EXIT_USAGE;
+            o->settings.vpl_direct_only = 1;
         } else if (strcmp(name, "--error") == 0) {
             double v;
             if ((value = scanner_value(&s)) == NULL)
@@ -1191,6 +1198,8 @@ static int parse_render_args(int argc, char **argv, render_options *o) {
         return usage_error(cmd, "missing the scene file");
     if (o->has_spp && o->has_threshold)
         return usage_error(cmd, "--spp and --threshold exclude each other");
+    if (o->settings.vpl_direct_only && o->settings.vpl_max_depth > 0)
+        return usage_error(cmd, "--vpl-direct-only and --vpl-depth exclude each other");
     if (o->settings.light_sampler != PN_LIGHT_SAMPLER_DEFAULT && o->settings.integrator != PN_INTEGRATOR_DEFAULT &&
         o->settings.integrator != PN_INTEGRATOR_REFERENCE)
         return usage_error(cmd, "--light-sampler applies to the reference integrator only");
