@@ -2,7 +2,7 @@
  * render, or at its first progress report during VPL tracing, ends it with PN_ERROR_CANCELLED
  * before the VPLs are traced (checked by the progress the render reports, not by wall time) and
  * leaves the context usable; progress is monotone, reaches 1 and comes in more than two steps for
- * the tiled driver, illumcut's whole-image phases and the progressive drivers; progressive
+ * the tiled driver, illumcut's whole-image phases, contour's scanlines and the progressive drivers; progressive
  * renders report their peak memory; `penumbra render` interrupted during VPL tracing exits 130
  * and writes no image at all. */
 #include "harness.h"
@@ -163,6 +163,13 @@ static void test_progress_by_phase(void) {
     pn_image_free(img);
     check_progress(&log, "lightcuts");
     CHECK(values_in(&log, 0.12, 1.0) >= 10);
+    /* contour's scanline hook (the whole window in one call): row by row. */
+    log_init(&log);
+    rs = settings(PN_INTEGRATOR_CONTOUR, 0, &log);
+    CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_OK);
+    pn_image_free(img);
+    check_progress(&log, "contour");
+    CHECK_MSG(log.count >= 30, "contour: %d calls for 36 rows", log.count);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }
