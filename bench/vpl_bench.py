@@ -120,6 +120,10 @@ def loadavg():
 
 
 def run(penumbra, scene, out, args, common):
+    # The bench measures global illumination through VPLs, as it always has: the shared scenes say
+    # Integrator maxdepth 1, which penumbra would otherwise read as direct light only.
+    if "--vpl-depth" not in args + common and "--vpl-direct-only" not in args + common:
+        args = args + ["--vpl-depth", "10"]
     cmd = [penumbra, "render", scene, "-o", out + ".pfm", "--stats", out + ".json", "--quiet"] + common + args
     timed = os.path.exists("/usr/bin/time")
     if timed:

@@ -293,7 +293,9 @@ typedef struct pn_render_settings {
     uint32_t aovs;             /* PN_AOV_* bits */
     /* Options of the integrator and driver by name (NULL: all defaults). Not owned. */
     pn_options options;
-    /* Progress: called from worker threads under a lock with the fraction done in [0,1]. */
+    /* Progress: called from worker threads under a lock with the fraction done in [0,1],
+     * increasing from call to call, 1 at the end of a finished render (preparation and the
+     * phases of whole-image integrators included). */
     void (*progress)(void *user, double fraction);
     void *progress_user;
     /* Progressive drivers: called with each approximate image (options "snapshots",
@@ -367,8 +369,11 @@ typedef struct pn_render_stats {
 PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
                            pn_image *out_image, pn_render_stats *stats);
 
-/* Asks running renders of this context to stop after their current tiles. Safe from a signal
- * handler (it only stores an atomic flag). */
+/* Asks running renders of this context to stop after their current tiles, or during their
+ * preparation (VPL tracing, light trees). A cancel issued while no render runs applies to the
+ * next pn_render of the context, which then returns PN_ERROR_CANCELLED at once; pn_render
+ * clears the request when it returns. Safe from a signal handler (it only stores an atomic
+ * flag). */
 PN_API void pn_render_cancel(pn_context ctx);
 
 /* Progressive drivers (issue 6): asks a running progressive render of this context for one

@@ -39,6 +39,11 @@ int exit_code_for(pn_status status) {
         return EXIT_SYSTEM;
     case PN_ERROR_CANCELLED:
         return EXIT_INTERRUPTED;
+    case PN_ERROR_INVALID_ARGUMENT:
+        /* The CLI passes the user's values on: a combination the library refuses (e.g.
+         * --vpl-direct-only with --vpl-depth, a contour grid too fine for its steps) is a usage
+         * error, not a bug. */
+        return EXIT_USAGE;
     default:
         return EXIT_INTERNAL;
     }

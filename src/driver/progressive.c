@@ -12,6 +12,7 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/rng.h"
+#include "driver/progress.h"
 #include "film/downsample.h"
 #include "io/image.h"
 
@@ -20,6 +21,8 @@
 #include <string.h>
 
 #define PN_PROG_BLOCK 8
+/* The primary-ray buffer's share of the progress bar (fixed); evaluation has the rest. */
+#define PN_PROG_PRIMARY_SHARE 0.05
 
 void pn_render_request_snapshot(pn_context ctx) {
     if (ctx) atomic_store(&ctx->snapshot_request, 1);
@@ -256,6 +259,10 @@ pn_status pn_prog_flush(pn_prog *p) {
         st = eval_chunk(p, (const int32_t(*)[2])(p->queue + pos), n);
         if (st != PN_OK) break;
         pos += n;
+        /* Progress: pixels evaluated out of those the render will evaluate at most (all of the
+         * work image, or the stop percentage's); the driver reports 1 when it ends earlier. */
+        size_t target = p->stop_pixels > 0 ? p->stop_pixels : total;
+        pn_progress_report(p->job.progress, (double)p->evaluated / (double)target);
         if (atomic_load(p->job.cancel)) {
             st = PN_ERROR_CANCELLED;
             break;
@@ -848,7 +855,6 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         }
         p->stop_pixels = job->stop_percent > 0.0 ? percent_pixels(p, job->stop_percent) : 0;
         atomic_init(&p->failed, 0);
-        atomic_store(&ctx->cancel, 0);
         atomic_store(&ctx->snapshot_request, 0);
         p->driver_stats = stats;
         /* The reconstruction buffer, touched once here so that the first snapshot does not pay
@@ -860,7 +866,14 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         if (p->filter_tmp) memset(p->filter_tmp, 0, nt * sizeof *p->filter_tmp);
         p->t0 = pn_clock_seconds();
         p->next_time = p->t0 + job->snapshot_every_seconds;
-        if (s->driver != PN_DRIVER_FULL) st = pn_prog_build_primary(p);
+        /* A cancel issued before or during preparation is honoured here. */
+        if (atomic_load(p->job.cancel)) st = PN_ERROR_CANCELLED;
+        if (st == PN_OK && s->driver != PN_DRIVER_FULL) {
+            pn_progress_phase(p->job.progress, 0.0, PN_PROG_PRIMARY_SHARE);
+            st = pn_prog_build_primary(p);
+            pn_progress_report(p->job.progress, 1.0);
+            pn_progress_phase(p->job.progress, PN_PROG_PRIMARY_SHARE, 1.0);
+        }
         if (st == PN_OK) switch (s->driver) {
         case PN_DRIVER_FULL: st = full_run(p); break;
         case PN_DRIVER_DCM: st = pn_dcm_run(p, false); break;
@@ -869,6 +882,10 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         default: st = PN_ERROR_INVALID_ARGUMENT; break;
         }
         double t1 = pn_clock_seconds();
+        if (st == PN_OK) {
+            pn_progress_phase(p->job.progress, 0.0, 1.0);
+            pn_progress_report(p->job.progress, 1.0);
+        }
         pn_status img_st = PN_OK;
         if (st == PN_OK || st == PN_ERROR_CANCELLED) {
             img_st = make_image(p, out_image);
@@ -900,6 +917,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             stats->mrays_per_second = stats->render_seconds > 0.0
                                           ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
             stats->partial = st == PN_ERROR_CANCELLED;
+            stats->peak_memory_bytes = pn_peak_memory_bytes();
             if (integ->report) integ->report(&p->job, stats);
             stats->threads = p->workers;
             stats->width = p->out_w;

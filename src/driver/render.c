@@ -5,6 +5,7 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/threadpool.h"
+#include "driver/progress.h"
 #include "driver/progressive.h" /* issue 6: progressive drivers */
 #include "integrators/integrator.h"
 #include "integrators/registry.h"
@@ -13,7 +14,6 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 
 /* The block side is the option block-size (registry.c): 8 by default (the IAS paper's 8x8
  * blocks), also the smallest allowed: ias pools statistics over a block, and below 8x8 that
@@ -28,7 +28,6 @@ typedef struct render_shared {
     atomic_int failed;
     atomic_long blocks_done;
     long block_count;
-    pthread_mutex_t progress_lock;
     const pn_render_settings *settings;
     unsigned char *block_finished;
     int32_t (**batch_pixels)[2];          /* per worker: block_size^2 pixel coordinates */
@@ -75,11 +74,7 @@ static void render_block(void *user, size_t job_index, int worker) {
     }
     rs->block_finished[job_index] = 1;
     long done = atomic_fetch_add(&rs->blocks_done, 1) + 1;
-    if (rs->settings->progress) {
-        pthread_mutex_lock(&rs->progress_lock);
-        rs->settings->progress(rs->settings->progress_user, (double)done / (double)rs->block_count);
-        pthread_mutex_unlock(&rs->progress_lock);
-    }
+    pn_progress_report(job->progress, (double)done / (double)rs->block_count);
 }
 
 static void free_batches(render_shared *rs, int workers) {
@@ -91,12 +86,6 @@ static void free_batches(render_shared *rs, int workers) {
     free(rs->batch_estimates);
     rs->batch_pixels = NULL;
     rs->batch_estimates = NULL;
-}
-
-static uint64_t peak_memory_bytes(void) {
-    struct rusage ru;
-    if (getrusage(RUSAGE_SELF, &ru) != 0) return 0;
-    return (uint64_t)ru.ru_maxrss * 1024u;
 }
 
 /* Resolves the settings (zero = default) into the job. */
@@ -139,8 +128,19 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
         job->adaptive_rule = integ->integrator == &pn_integrator_ias ? PN_ADAPTIVE_PAPER : PN_ADAPTIVE_CROSS;
     /* vpl-depth not given: the scene's Integrator "maxdepth" (pbrt-v4 counts the camera segment,
      * so maxdepth - 1 bounces), else the declared default. */
-    if (!pn_options_is_set(s->options, pn_option_find("vpl-depth")))
-        job->vpl_max_depth = pn_scene_vpl_depth(scene, job->vpl_max_depth);
+    bool depth_given = pn_options_is_set(s->options, pn_option_find("vpl-depth"));
+    if (job->vpl_direct_only && depth_given)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "vpl-direct-only and vpl-depth exclude each other: direct light has no light path bounces");
+    if (!depth_given) job->vpl_max_depth = pn_scene_vpl_depth(scene, job->vpl_max_depth);
+    /* A scene whose Integrator "maxdepth" is 1 asks for direct lighting (pbrt-v4's meaning): the
+     * VPL integrators then render the direct-light-only VPL set, the quantity of reference. */
+    if (job->vpl_max_depth == 0) job->vpl_direct_only = true;
+    /* Direct light only: no bounces, and no clamp unless asked for (reference has none). */
+    if (job->vpl_direct_only) {
+        job->vpl_max_depth = 0;
+        if (!pn_options_is_set(s->options, pn_option_find("vpl-clamp"))) job->vpl_clamp_fraction = 0.0f;
+    }
     job->max_specular_depth = s->max_specular_depth > 0 ? s->max_specular_depth : 8;
     job->seed = s->seed;
     job->aovs = s->aovs;
@@ -225,13 +225,27 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     const pn_integrator *integ = ientry->integrator;
     pn_render_job job;
     pn_status st = resolve_settings(ctx, scene, settings, ientry, dentry, &job);
-    if (st != PN_OK) return st;
+    if (st != PN_OK) {
+        atomic_store(&ctx->cancel, 0);
+        return st;
+    }
+    /* One progress and cancel path from here on: the integrator's preparation reports into the
+     * first window it picks, the driver's work into the rest. A cancel issued before this call
+     * or during preparation is honoured; the request is cleared when the render returns. */
+    pn_progress progress;
+    pn_progress_init(&progress, settings->progress, settings->progress_user, &ctx->cancel);
+    job.progress = &progress;
     if (integ->prepare) {
         pn_err perr;
         pn_err_init(&perr);
         st = integ->prepare(&job, &perr);
-        if (st != PN_OK) return pn_context_fail_from(ctx, &perr);
+        if (st != PN_OK) {
+            pn_progress_destroy(&progress);
+            atomic_store(&ctx->cancel, 0);
+            return pn_context_fail_from(ctx, &perr);
+        }
     }
+    pn_progress_window(&progress, pn_progress_value(&progress), 1.0);
     /* Progressive drivers (issue 6: dcm, painter, uniform, full) render a work image of their own. */
     if (dentry->info.capabilities & PN_CAP_PROGRESSIVE)
         st = pn_progressive_render(ctx, settings, integ, &job, out_image, stats);
@@ -239,6 +253,8 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
         st = run_job(ctx, settings, integ, &job, out_image, stats);
     if (st == PN_OK) pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
     if (integ->release) integ->release(&job);
+    pn_progress_destroy(&progress);
+    atomic_store(&ctx->cancel, 0);
     return st;
 }
 
@@ -247,7 +263,6 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
                          pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats) {
     pn_render_job job = *job_in;
     pn_status st;
-    atomic_store(&ctx->cancel, 0);
 
     render_shared rs;
     memset(&rs, 0, sizeof rs);
@@ -288,7 +303,6 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     for (size_t i = 0; i < n; i++) rs.pixels[i].depth = INFINITY;
     atomic_init(&rs.failed, 0);
     atomic_init(&rs.blocks_done, 0);
-    pthread_mutex_init(&rs.progress_lock, NULL);
     double t0 = pn_clock_seconds();
     /* Integrators with a whole-image hook (illumcut's point tree, contour's scanlines) render
      * the window in one call. */
@@ -297,12 +311,14 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
         if (ws != PN_OK) atomic_store(&rs.failed, (int)ws);
         else memset(rs.block_finished, 1, (size_t)rs.block_count);
-        if (ws == PN_OK && settings->progress) settings->progress(settings->progress_user, 1.0);
+        if (ws == PN_OK && !atomic_load(&ctx->cancel)) {
+            pn_progress_phase(job.progress, 0.0, 1.0);
+            pn_progress_report(job.progress, 1.0);
+        }
     } else {
         pn_threadpool_run(pool, (size_t)rs.block_count, render_block, &rs);
     }
     double t1 = pn_clock_seconds();
-    pthread_mutex_destroy(&rs.progress_lock);
     for (int w = 0; w <= workers; w++)
         if (rs.scratch[w] && integ->scratch_free) integ->scratch_free(rs.scratch[w]);
     free(rs.scratch);
@@ -362,7 +378,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         stats->shadow_rays_per_pixel_max = max_shadow;
         stats->mrays_per_second = stats->render_seconds > 0.0
                                       ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
-        stats->peak_memory_bytes = peak_memory_bytes();
+        stats->peak_memory_bytes = pn_peak_memory_bytes();
         stats->partial = cancelled ? 1 : 0;
         stats->passes_per_pixel_mean = passes / (double)n;
         stats->aa_regions_per_pixel_mean = regions / (double)n;

@@ -76,6 +76,7 @@ typedef struct pn_render_job {
     uint32_t vpls, vpl_max_depth, max_cut;
     float vpl_clamp_fraction, error_bound;
     bool visibility_sampling;
+    bool vpl_direct_only; /* the lights themselves as VPLs, no bounces (direct light only) */
     /* contour / contour-mc (Vedel 1993; Kok & Jansen 1992) */
     uint32_t contour_grid, contour_steps, contour_span, contour_flags;
     double contour_mc_threshold;
@@ -91,6 +92,7 @@ typedef struct pn_render_job {
     pn_job_list snapshots; /* percentages of the work pixels */
     void *integrator_data; /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
+    struct pn_progress *progress; /* driver/progress.h: the render's progress path (may be NULL) */
 } pn_render_job;
 
 /* The result of following an eye ray through perfect specular interactions to the first

@@ -16,6 +16,7 @@
 
 #include "core/rng.h"
 #include "core/threadpool.h"
+#include "driver/progress.h"
 #include "shade/bsdf.h"
 
 #include <stdatomic.h>
@@ -976,6 +977,7 @@ typedef struct scanline_jobs {
     pn_pixel_estimate **row_out;
     int row_x0, row_count;     /* the pixels a scanline job renders (the same for every row) */
     atomic_int failed;
+    atomic_long rows_done; /* for the render's progress (rows finish in any order) */
 } scanline_jobs;
 
 /* One job per scanline of the window: rows are independent, so the image does not depend on the
@@ -1011,6 +1013,8 @@ static void scanline_job(void *user, size_t index, int worker) {
     }
     memcpy(sj->pixels + (size_t)index * (size_t)sj->width, sj->row_out[worker] + (cam->x0 - sj->row_x0),
            (size_t)sj->width * sizeof *sj->pixels);
+    long done = atomic_fetch_add(&sj->rows_done, 1) + 1;
+    pn_progress_report(job->progress, (double)done / (double)(cam->y1 - cam->y0));
 }
 
 static pn_status contour_render_image(const pn_render_job *job, struct pn_threadpool *pool,
@@ -1032,6 +1036,7 @@ static pn_status contour_render_image(const pn_render_job *job, struct pn_thread
     sj.row_pixels = calloc((size_t)workers, sizeof *sj.row_pixels);
     sj.row_out = calloc((size_t)workers, sizeof *sj.row_out);
     atomic_init(&sj.failed, 0);
+    atomic_init(&sj.rows_done, 0);
     if (sj.scratch && sj.row_pixels && sj.row_out) pn_threadpool_run(pool, (size_t)height, scanline_job, &sj);
     else atomic_store(&sj.failed, PN_ERROR_OUT_OF_MEMORY);
     for (int w = 0; w < workers; w++) {

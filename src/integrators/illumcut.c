@@ -84,6 +84,7 @@
 #include "core/clock.h"
 #include "core/rng.h"
 #include "core/threadpool.h"
+#include "driver/progress.h"
 #include "shade/bsdf.h"
 
 #include <stdio.h>
@@ -314,7 +315,34 @@ typedef struct ic_render {
     int32_t group_count;
     int32_t *group_of_node; /* group index of a node at or below a group root, -1 above */
     atomic_int failed;
+    /* Progress of the whole window's render (NULL for batches: their driver reports): work
+     * items of the running phase done, out of progress_items. */
+    struct pn_progress *progress;
+    atomic_size_t progress_done;
+    size_t progress_items;
 } ic_render;
+
+/* The phases of a whole-window render as shares of its progress bar (fixed, not measured):
+ * eye samples, point tree, Phase I, Phase II (the rest). */
+#define IC_SHARE_EYE 0.25
+#define IC_SHARE_TREE 0.05
+#define IC_SHARE_PHASE1 0.10
+
+static void ic_phase(ic_render *ir, double start, double end, size_t items) {
+    if (!ir->progress) return;
+    pn_progress_phase(ir->progress, start, end);
+    atomic_store(&ir->progress_done, 0);
+    ir->progress_items = items;
+}
+
+/* One work item of the running phase is done. */
+static void ic_step(ic_render *ir) {
+    if (!ir->progress || ir->progress_items == 0) return;
+    size_t done = atomic_fetch_add(&ir->progress_done, 1) + 1;
+    pn_progress_report(ir->progress, (double)done / (double)ir->progress_items);
+}
+
+static bool ic_cancelled(const ic_render *ir) { return atomic_load(ir->job->cancel) != 0; }
 
 static float light_radius(const ic_render *ir, const pn_light_node *q, int kind) {
     float r = pn_light_node_radius(q);
@@ -443,6 +471,7 @@ static void phase1_group(void *user, size_t gi, int worker) {
     ic_group *g = &ir->groups[gi];
     reverse_pairs(&g->pending1);
     if (!phase1_descend(ir, &g->pending1, (int32_t)gi)) atomic_store(&ir->failed, PN_ERROR_OUT_OF_MEMORY);
+    ic_step(ir);
 }
 
 /* Phase I: the top of the descent on one thread, the groups in parallel (as Phase II), then the
@@ -770,6 +799,7 @@ static void phase2_group(void *user, size_t gi, int worker) {
         atomic_store(&ir->failed, PN_ERROR_OUT_OF_MEMORY);
     rays_flush(ir, rb);
     free(rb);
+    ic_step(ir);
 }
 
 /* Marks the groups: the highest point-tree nodes with at most `limit` points. */
@@ -842,6 +872,7 @@ static void eye_chunk(void *user, size_t chunk, int worker) {
     (void)worker;
     ic_render *ir = ((ic_eye_job *)user)->ir;
     const pn_render_job *job = ir->job;
+    if (ic_cancelled(ir)) return;
     size_t end = (chunk + 1) * IC_EYE_CHUNK < (size_t)ir->count ? (chunk + 1) * IC_EYE_CHUNK : (size_t)ir->count;
     for (size_t pix = chunk * IC_EYE_CHUNK; pix < end; pix++) {
         int px, py;
@@ -867,6 +898,7 @@ static void eye_chunk(void *user, size_t chunk, int worker) {
             if (sp.has_point) ir->tree.points[pix * ir->spp + s].r = sp.r;
         }
     }
+    ic_step(ir);
 }
 
 static void free_render(ic_render *ir) {
@@ -899,6 +931,8 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
     ir.spp = pn_vpl_spp(job);
     ir.scene_diameter = 2.0f * job->lights->scene_radius;
     atomic_init(&ir.failed, 0);
+    ir.progress = coords ? NULL : job->progress;
+    atomic_init(&ir.progress_done, 0);
     size_t n = (size_t)count * ir.spp;
     if (n > (size_t)INT32_MAX) return PN_ERROR_UNSUPPORTED;
     ir.samples = malloc(n * sizeof *ir.samples);
@@ -909,7 +943,14 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
     }
     /* Eye samples (parallel by chunks of pixels), then the points compacted in sample order. */
     ic_eye_job ej = {&ir};
-    pn_threadpool_run(pool, ((size_t)count + IC_EYE_CHUNK - 1) / IC_EYE_CHUNK, eye_chunk, &ej);
+    size_t eye_chunks = ((size_t)count + IC_EYE_CHUNK - 1) / IC_EYE_CHUNK;
+    ic_phase(&ir, 0.0, IC_SHARE_EYE, eye_chunks);
+    pn_threadpool_run(pool, eye_chunks, eye_chunk, &ej);
+    /* Cancelled: the samples are incomplete; the driver reports the render as cancelled. */
+    if (ic_cancelled(&ir)) {
+        free_render(&ir);
+        return PN_OK;
+    }
     int32_t m = 0;
     for (size_t i = 0; i < n; i++) {
         if (ir.samples[i].point < 0) continue;
@@ -920,7 +961,9 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
     }
     ir.tree.point_count = m;
     double t0 = pn_clock_seconds();
+    ic_phase(&ir, IC_SHARE_EYE, IC_SHARE_EYE + IC_SHARE_TREE, 1);
     pn_status st = build_point_tree(&ir.tree, job->seed ^ UINT64_C(0x9071));
+    ic_step(&ir);
     double t1 = pn_clock_seconds();
     /* The build permuted the points (Morton order): re-link the samples. */
     for (int32_t j = 0; j < ir.tree.point_count; j++) ir.samples[ir.tree.points[j].sample].point = j;
@@ -929,9 +972,17 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
     int32_t limit = m / 256 + 1;
     if (limit < 256) limit = 256;
     if (st == PN_OK && m > 0 && !make_groups(&ir, limit)) st = PN_ERROR_OUT_OF_MEMORY;
+    const double p1 = IC_SHARE_EYE + IC_SHARE_TREE, p2 = p1 + IC_SHARE_PHASE1;
+    ic_phase(&ir, p1, p2, (size_t)ir.group_count);
+    /* Cancelled before Phase II: no point has its radiance; the driver reports the cancel. */
+    if (st == PN_OK && ic_cancelled(&ir)) {
+        free_render(&ir);
+        return PN_OK;
+    }
     if (st == PN_OK && m > 0) st = phase1(&ir, pool);
     double t2 = pn_clock_seconds();
-    if (st == PN_OK && m > 0) st = phase2(&ir, pool, &bound_evals, &pairs);
+    ic_phase(&ir, p2, 1.0, (size_t)ir.group_count);
+    if (st == PN_OK && m > 0 && !ic_cancelled(&ir)) st = phase2(&ir, pool, &bound_evals, &pairs);
     double t3 = pn_clock_seconds();
     if (st != PN_OK) {
         free_render(&ir);

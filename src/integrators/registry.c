@@ -41,7 +41,7 @@ enum {
 #define PROGRESSIVE_DRIVERS (BIT(M_FULL) | BIT(M_DCM) | BIT(M_PAINTER) | BIT(M_UNIFORM))
 
 #define DIRECT "direct light only: the emitters' light reflected once, and emitters seen directly or through specular chains"
-#define GLOBAL "global illumination through VPLs (light paths of --vpl-depth bounces), direct light included"
+#define GLOBAL "global illumination through VPLs (light paths of --vpl-depth bounces), direct light included; direct light only with --vpl-direct-only or a scene of maxdepth 1"
 #define PROG_AOVS (PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION)
 #define PROG_CAPS (PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_OWN_AOVS)
 
@@ -163,8 +163,15 @@ static const pn_option_decl options[] = {
     /* vpl, lightcuts, illumcut */
     {{"vpls", PN_OPTION_INT, "600000", 1, 100000000, 0, 0, "VPLs", "", "virtual point lights to trace"},
      VPL_FAMILY, F(vpls), PN_FIELD_U32, 0},
-    {{"vpl-depth", PN_OPTION_INT, "10", 1, 1000, 0, 0, "bounces", "", "light path bounces that leave VPLs"},
+    {{"vpl-depth", PN_OPTION_INT, "10", 1, 1000, 0, 0, "bounces", "",
+      "light path bounces that leave VPLs (not given: the scene's Integrator maxdepth - 1, and maxdepth 1 means "
+      "vpl-direct-only; without maxdepth 10)"},
      VPL_FAMILY, F(vpl_max_depth), PN_FIELD_U32, 0},
+    {{"vpl-direct-only", PN_OPTION_FLAG, "0", 0, 0, 0, 0, "", "",
+      "direct light only, the quantity reference, ias and contour compute: the lights themselves as VPLs (points "
+      "sampled on area lights and environment maps by their emission), no bounces; excludes vpl-depth, and no "
+      "clamp unless vpl-clamp is given"},
+     VPL_FAMILY, F(vpl_direct_only), PN_FIELD_BOOL, 0},
     {{"vpl-clamp", PN_OPTION_DOUBLE, "0.05", 0, 1, 1, 1, "scene radius", "",
       "minimum distance between a point and a VPL, as a fraction of the scene radius"},
      VPL_FAMILY, F(vpl_clamp_fraction), PN_FIELD_F32, 0},

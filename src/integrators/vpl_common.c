@@ -3,6 +3,7 @@
 #include "integrators/illumcut.h"
 
 #include "core/rng.h"
+#include "driver/progress.h"
 #include "io/image.h"
 #include "scene/scene.h"
 #include "shade/bsdf.h"
@@ -10,17 +11,40 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Shares of the whole render's progress bar (fixed, not measured): VPL tracing, then the
+ * light tree. */
+#define PN_VPL_TRACE_SHARE 0.08
+#define PN_VPL_TREE_SHARE 0.04
+
+static pn_status prepare_cancelled(pn_err *err) {
+    return pn_err_set(err, PN_ERROR_CANCELLED, "render cancelled during preparation");
+}
+
 pn_status pn_vpl_prepare(pn_render_job *job, bool with_tree, pn_err *err) {
+    if (pn_progress_cancelled(job->progress)) return prepare_cancelled(err);
     pn_vpl_data *d = calloc(1, sizeof *d);
     if (!d) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
     pn_vpl_settings vs = {job->vpls, job->vpl_max_depth, job->vpl_clamp_fraction, job->seed};
-    pn_status st = pn_vpl_trace(job->scene, job->lights, job->accel, &vs, &d->set, err);
+    pn_vpl_trace_options vo = {job->vpl_direct_only, NULL, NULL};
+    if (job->progress) {
+        vo.progress = pn_progress_step;
+        vo.progress_user = job->progress;
+        pn_progress_phase(job->progress, 0.0, PN_VPL_TRACE_SHARE);
+    }
+    pn_status st = pn_vpl_trace_with(job->scene, job->lights, job->accel, &vs, &vo, &d->set, err);
     if (st != PN_OK) {
         free(d);
         return st;
     }
     d->vpl_seconds = d->set.seconds;
+    /* The tree build runs to its end once started; a cancel during it is seen right after. */
+    if (pn_progress_cancelled(job->progress)) {
+        pn_vpl_set_free(&d->set);
+        free(d);
+        return prepare_cancelled(err);
+    }
     if (with_tree) {
+        pn_progress_phase(job->progress, PN_VPL_TRACE_SHARE, PN_VPL_TRACE_SHARE + PN_VPL_TREE_SHARE);
         float diag = 2.0f * job->lights->scene_radius;
         st = pn_light_tree_build(&d->set, diag, job->seed, &d->tree, err);
         if (st == PN_OK) st = pn_light_tree_order_vpls(&d->tree, &d->set, err);
@@ -31,6 +55,13 @@ pn_status pn_vpl_prepare(pn_render_job *job, bool with_tree, pn_err *err) {
             return st;
         }
         d->tree_seconds = d->tree.seconds;
+        pn_progress_report(job->progress, 1.0);
+        if (pn_progress_cancelled(job->progress)) {
+            pn_light_tree_free(&d->tree);
+            pn_vpl_set_free(&d->set);
+            free(d);
+            return prepare_cancelled(err);
+        }
     }
     job->integrator_data = d;
     return PN_OK;

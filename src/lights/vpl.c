@@ -4,7 +4,18 @@
  * Light path i: a light chosen in proportion to its luminous power, a start point and direction
  * on it, then bounces; the path's power is (light power / choice probability) and is divided by
  * the number of paths at the end, so the VPLs of all paths together estimate the light leaving
- * the lights and every surface once (up to max_depth bounces). */
+ * the lights and every surface once (up to max_depth bounces).
+ *
+ * Direct light only (options->direct_only): the lights themselves, as Lightcuts (Walter et al.
+ * 2005, §3) converts them: point, spot and goniometric lights are omni VPLs and distant lights
+ * directional VPLs, exactly (as in the global-illumination set); every area light becomes
+ * oriented VPLs at points on it and every environment map directional VPLs, a stratified set
+ * of n_i = B p_i points per light (B the VPLs left after the exact ones, p_i the light's share
+ * of the sampled lights' power), rounded up or down at random so that E[n_i] = B p_i. Each point
+ * carries power_i / n_i (power_i / (B p_i) when B p_i < 1, where n_i is 0 or 1), so the set's
+ * light is an unbiased estimate of the lights' (per realisation exact in total power for every
+ * light with B p_i >= 1), and the strata (a shifted Hammersley set per light) keep the variance
+ * of the points' positions well below that of independent choices. */
 #include "lights/vpl.h"
 
 #include "core/clock.h"
@@ -118,6 +129,79 @@ static void sample_area(const pn_light *l, float u1, float u2, vec3 *p, vec3 *n)
     }
 }
 
+/* Bits of i reversed, as a fraction in [0, 1) (the base-2 radical inverse, 24 bits). */
+static float radical_inverse2(uint32_t i) {
+    i = (i << 16) | (i >> 16);
+    i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
+    i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
+    i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
+    i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
+    return (float)(i >> 8) * 0x1p-24f;
+}
+
+static float frac_shift(float u, float shift) {
+    float v = u + shift;
+    return v >= 1.0f ? v - 1.0f : v;
+}
+
+/* Direct light only (see the header comment): the sampled VPLs of area lights and environment
+ * maps; budget is the number wanted beyond the exact lights. *samples receives the points drawn
+ * (the "paths" of this set). Returns false when out of memory. */
+static bool direct_samples(const pn_lights *L, const vec3 *power, uint32_t budget, uint64_t seed, vpl_buf *buf,
+                           uint32_t *samples) {
+    int n = L->count;
+    double total = 0.0;
+    for (int i = 0; i < n; i++) {
+        const pn_light *l = &L->lights[i];
+        bool sampled = l->kind == PN_LIGHT_TRIANGLE || l->kind == PN_LIGHT_RECTANGLE || l->kind == PN_LIGHT_DISK ||
+                       l->kind == PN_LIGHT_SPHERE || l->kind == PN_LIGHT_ENVIRONMENT;
+        float y = fmaxf(0.0f, v3_luminance(power[i]));
+        if (sampled && isfinite(y)) total += (double)y;
+    }
+    *samples = 0;
+    if (!(total > 0.0) || budget == 0) return true;
+    for (int i = 0; i < n; i++) {
+        const pn_light *l = &L->lights[i];
+        bool area = l->kind == PN_LIGHT_TRIANGLE || l->kind == PN_LIGHT_RECTANGLE || l->kind == PN_LIGHT_DISK ||
+                    l->kind == PN_LIGHT_SPHERE;
+        if (!area && l->kind != PN_LIGHT_ENVIRONMENT) continue;
+        float y = fmaxf(0.0f, v3_luminance(power[i]));
+        if (!(y > 0.0f) || !isfinite(y)) continue;
+        pn_rng rng;
+        pn_rng_seed(&rng, pn_hash64(seed ^ UINT64_C(0x6469726563742d31)), (uint64_t)i);
+        double expected = (double)budget * (double)y / total;
+        uint32_t count = (uint32_t)floor(expected + (double)pn_rng_float(&rng));
+        if (count == 0) continue;
+        /* The weight of one point: 1 / n_i, or 1 / E[n_i] where n_i is 0 or 1. */
+        float weight = expected >= 1.0 ? 1.0f / (float)count : (float)(1.0 / expected);
+        float shift1 = pn_rng_float(&rng), shift2 = pn_rng_float(&rng);
+        uint32_t side0 = pn_rng_u32(&rng) & 1u;
+        for (uint32_t j = 0; j < count; j++) {
+            float u1 = ((float)j + shift1) / (float)count;
+            if (!(u1 < 1.0f)) u1 = 0x1.fffffep-1f;
+            float u2 = frac_shift(radical_inverse2(j), shift2);
+            pn_vpl v;
+            if (area) {
+                vec3 p, nn;
+                sample_area(l, u1, u2, &p, &nn);
+                /* Two-sided: the sides alternate, each carrying the power of both halves. */
+                if (l->two_sided && ((j + side0) & 1u)) nn = v3_neg(nn);
+                /* power_i / pi is the intensity along the normal of the whole light. */
+                v = (pn_vpl){p, nn, v3_scale(power[i], PN_INV_PI * weight), PN_VPL_ORIENTED, -1};
+            } else {
+                vec3 w = pn_sample_uniform_sphere(u1, u2);
+                vec3 le = pn_env_radiance(&L->envs[l->env], w);
+                if (v3_is_zero(le)) continue;
+                /* The irradiance of a direction sampled with density 1 / (4 pi). */
+                v = (pn_vpl){w, v3(0, 0, 0), v3_scale(le, 4.0f * PN_PI * weight), PN_VPL_DIRECTIONAL, -1};
+            }
+            if (!buf_push(buf, v, false)) return false;
+        }
+        *samples += count;
+    }
+    return true;
+}
+
 typedef struct tracer {
     const struct pn_scene_s *scene;
     const pn_lights *L;
@@ -173,6 +257,14 @@ static bool trace_bounces(const tracer *t, pn_rng *rng, vec3 o, vec3 d, vec3 bet
 
 pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const pn_accel *accel,
                        const pn_vpl_settings *s, pn_vpl_set *out, pn_err *err) {
+    return pn_vpl_trace_with(scene, L, accel, s, NULL, out, err);
+}
+
+pn_status pn_vpl_trace_with(const struct pn_scene_s *scene, const pn_lights *L, const pn_accel *accel,
+                            const pn_vpl_settings *s, const pn_vpl_trace_options *options, pn_vpl_set *out,
+                            pn_err *err) {
+    static const pn_vpl_trace_options none = {0};
+    const pn_vpl_trace_options *opt = options ? options : &none;
     memset(out, 0, sizeof *out);
     double t0 = pn_clock_seconds();
     out->clamp_distance = s->clamp_fraction * L->scene_radius;
@@ -183,6 +275,7 @@ pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const
     double *cdf = calloc((size_t)n + 1, sizeof *cdf);
     vec3 *power = calloc((size_t)n + 1, sizeof *power);
     if (!cdf || !power) goto oom;
+    if (opt->progress && !opt->progress(opt->progress_user, 0.0)) goto cancelled;
     /* The exact lights: point, spot, goniometric, projection (omni) and distant (directional). */
     for (int i = 0; i < n; i++) {
         const pn_light *l = &L->lights[i];
@@ -206,13 +299,17 @@ pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const
     double total = cdf[n];
     uint32_t paths = 0;
     const uint32_t exact = buf.count;
-    if (total > 0.0 && s->count > exact) {
+    if (opt->direct_only) {
+        if (!direct_samples(L, power, s->count > exact ? s->count - exact : 0, s->seed, &buf, &paths)) goto oom;
+    } else if (total > 0.0 && s->count > exact) {
         /* A path may leave no VPL (it escapes, or hits black): stop after many empty paths. */
         const uint64_t max_paths = (uint64_t)s->count * 64u + 4096u;
         float R = L->scene_radius;
         while (buf.count < s->count && paths < max_paths) {
             /* Light that reaches nothing (an open scene, black surfaces): give up early. */
             if (paths >= 65536 && buf.count == exact) break;
+            if ((paths & 4095u) == 0 && opt->progress && !opt->progress(opt->progress_user, (double)buf.count / (double)s->count))
+                goto cancelled;
             pn_rng rng;
             pn_rng_seed(&rng, pn_hash64(s->seed ^ UINT64_C(0x5bd1e995)), paths);
             paths++;
@@ -317,7 +414,15 @@ pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *L, const
     out->count = m;
     out->paths = paths;
     out->seconds = pn_clock_seconds() - t0;
+    if (opt->progress) opt->progress(opt->progress_user, 1.0);
     return PN_OK;
+cancelled:
+    free(buf.v);
+    free(buf.scaled);
+    free(cdf);
+    free(power);
+    memset(out, 0, sizeof *out);
+    return pn_err_set(err, PN_ERROR_CANCELLED, "render cancelled while tracing VPLs");
 oom:
     free(buf.v);
     free(buf.scaled);

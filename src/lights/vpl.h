@@ -55,6 +55,19 @@ typedef struct pn_vpl_settings {
     uint64_t seed;
 } pn_vpl_settings;
 
+/* What pn_vpl_trace_with adds (zero = off). */
+typedef struct pn_vpl_trace_options {
+    /* Direct light only (Lightcuts §3's conversion of the lights alone): the exact lights, and
+     * for every area light and environment map a stratified set of points (directions) with its
+     * emission, their number in proportion to the light's power; no path bounces (max_depth is
+     * not used). */
+    bool direct_only;
+    /* Called with the fraction of VPLs traced (now and then, and once before the first); when it
+     * returns false, tracing stops with PN_ERROR_CANCELLED. NULL: never. */
+    bool (*progress)(void *user, double fraction);
+    void *progress_user;
+} pn_vpl_trace_options;
+
 typedef struct pn_vpl_set {
     pn_vpl *vpls;
     uint32_t count;
@@ -69,6 +82,11 @@ typedef struct pn_vpl_set {
  * without lights gives an empty set (not an error). */
 pn_status pn_vpl_trace(const struct pn_scene_s *scene, const pn_lights *lights, const pn_accel *accel,
                        const pn_vpl_settings *settings, pn_vpl_set *out, pn_err *err);
+/* pn_vpl_trace with options (NULL: none); returns PN_ERROR_CANCELLED (and an empty set) when
+ * options->progress asks to stop. */
+pn_status pn_vpl_trace_with(const struct pn_scene_s *scene, const pn_lights *lights, const pn_accel *accel,
+                            const pn_vpl_settings *settings, const pn_vpl_trace_options *options, pn_vpl_set *out,
+                            pn_err *err);
 void pn_vpl_set_free(pn_vpl_set *set);
 
 /* What a receiving point needs for eq. 1: position, normals, view direction and its BRDF
