@@ -39,8 +39,8 @@ static pn_scene load(pn_context ctx, const char *name, const char *body) {
 }
 
 static bool has_warning(pn_scene s, const char *needle) {
-    for (int i = 0; i < s->warning_count; i++)
-        if (strstr(s->warnings[i], needle)) return true;
+    for (int i = 0; i < s->warnings.count; i++)
+        if (strstr(s->warnings.items[i], needle)) return true;
     return false;
 }
 

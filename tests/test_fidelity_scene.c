@@ -107,8 +107,8 @@ static const float *pixel(pn_image img, int x, int y) {
 }
 
 static bool has_warning(struct pn_scene_s *s, const char *needle) {
-    for (int i = 0; i < s->warning_count; i++)
-        if (strstr(s->warnings[i], needle)) return true;
+    for (int i = 0; i < s->warnings.count; i++)
+        if (strstr(s->warnings.items[i], needle)) return true;
     return false;
 }
 

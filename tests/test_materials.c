@@ -100,19 +100,18 @@ static void free_scene(struct pn_scene_s *s) {
         free(s->images[i].path);
     }
     for (int i = 0; i < s->light_def_count; i++) free(s->light_defs[i].source);
-    for (int i = 0; i < s->warning_count; i++) free(s->warnings[i]);
     free(s->materials);
     free(s->textures);
     free(s->images);
     free(s->light_defs);
-    free(s->warnings);
+    pn_warning_list_free(&s->warnings);
     pn_context_free(s->ctx);
     free(s);
 }
 
 static bool has_warning(const struct pn_scene_s *s, const char *needle) {
-    for (int i = 0; i < s->warning_count; i++)
-        if (strstr(s->warnings[i], needle)) return true;
+    for (int i = 0; i < s->warnings.count; i++)
+        if (strstr(s->warnings.items[i], needle)) return true;
     return false;
 }
 
@@ -548,7 +547,7 @@ static void test_v3_uber(void) {
         CHECK_NEAR(m->ks.value.x, 0.25, 1e-6);
         CHECK_NEAR(m->exponent, blinn_n(v3_alpha(0.1)), 1e-4);
         CHECK_STR_CONTAINS(m->description, "U: pbrt-v3 uber -> Lambert kd=0.25 + Blinn ks=0.25");
-        CHECK(s->warning_count == 0);
+        CHECK(s->warnings.count == 0);
     }
     /* Kr, Kt and opacity < 1 are dropped with warnings; a missing vroughness follows uroughness. */
     ps = make_params();
@@ -600,7 +599,7 @@ static void test_v3_glass(void) {
         CHECK_NEAR(m->specular.x, 1.0, 1e-6);
         CHECK_NEAR(m->specular.z, 1.0, 1e-6);
         CHECK_STR_CONTAINS(m->description, "G: pbrt-v3 glass -> dielectric eta=1.5");
-        CHECK(s->warning_count == 0);
+        CHECK(s->warnings.count == 0);
     }
     /* "index" is pbrt-v3's older name for eta; "eta" wins when both are given. */
     ps = make_params();

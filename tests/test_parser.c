@@ -84,8 +84,8 @@ static struct pn_scene_s *parse_ok(const char *rel, const char *text) {
 }
 
 static bool has_warning(const struct pn_scene_s *s, const char *needle) {
-    for (int i = 0; i < s->warning_count; i++)
-        if (strstr(s->warnings[i], needle)) return true;
+    for (int i = 0; i < s->warnings.count; i++)
+        if (strstr(s->warnings.items[i], needle)) return true;
     return false;
 }
 
@@ -256,7 +256,7 @@ static void test_attribute_defaults(void) {
         CHECK_NEAR(s->spheres[1].radius, 0.5, 1e-6);
         CHECK_NEAR(s->spheres[2].radius, 1.0, 1e-6);
     }
-    CHECK(s->warning_count == 0);
+    CHECK(s->warnings.count == 0);
     pn_scene_parse_free(s);
 }
 
@@ -346,7 +346,7 @@ static void test_trianglemesh_contents(void) {
         CHECK_NEAR(m->alpha.value.x, 0.5, 1e-6);
         CHECK(!m->flip_normals);
     }
-    CHECK(s->warning_count == 0);
+    CHECK(s->warnings.count == 0);
     pn_scene_parse_free(s);
 }
 
@@ -801,7 +801,7 @@ static void test_real_scenes(void) {
         int emitters = s->emission_count + s->light_def_count;
         fprintf(stderr, "    %-28s %7.3f s  %8llu triangles  %3d spheres  %4d emitters  %3d materials  %2d warnings\n",
                 names[i], dt, (unsigned long long)tris, s->sphere_count, emitters, s->material_count,
-                s->warning_count);
+                s->warnings.count);
         CHECK_MSG(tris > 0 || s->sphere_count > 0, "%s: no geometry", path);
         CHECK_MSG(emitters > 0, "%s: no lights", path);
         CHECK_MSG(s->material_count > 0, "%s: no materials", path);

@@ -3,6 +3,7 @@ list(APPEND PN_SOURCES
   src/core/error.c
   src/core/vecmath.c
   src/core/context.c
+  src/core/warn.c
   src/core/sobol.c
   src/core/sampling.c
   src/core/threadpool.c

@@ -4,6 +4,7 @@
 
 #include "accel/accel.h"
 #include "core/sampling.h"
+#include "core/warn.h"
 #include "scene/scene.h"
 
 #include <stdlib.h>
@@ -314,7 +315,7 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         l->two_sided = em->two_sided;
         l->mesh = mi;
         if (d->inner_radius > 0.0f)
-            pn_scene_warn(scene, "%s: the disk light's inner radius is ignored for light sampling",
+            pn_warn(scene->ctx, &scene->warnings, "%s: the disk light's inner radius is ignored for light sampling",
                           m->source ? m->source : "disk");
         return PN_OK;
     }
@@ -363,7 +364,8 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         }
     }
     if (dropped)
-        pn_scene_warn(scene, "%s: %d zero-area emitting triangle(s) dropped", m->source ? m->source : "mesh", dropped);
+        pn_warn(scene->ctx, &scene->warnings, "%s: %d zero-area emitting triangle(s) dropped",
+                m->source ? m->source : "mesh", dropped);
     return PN_OK;
 }
 
@@ -448,7 +450,8 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
     for (int i = 0; st == PN_OK && i < scene->light_def_count; i++) {
         const pn_light_def *d = &scene->light_defs[i];
         if (d->kind != PN_LIGHTDEF_INFINITE && v3_max_component(d->intensity) <= 0.0f) {
-            pn_scene_warn(scene, "%s: light with zero power dropped", d->source ? d->source : "LightSource");
+            pn_warn(scene->ctx, &scene->warnings, "%s: light with zero power dropped",
+                    d->source ? d->source : "LightSource");
             continue;
         }
         pn_light *l = push_light(&ll, err);
@@ -474,7 +477,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             l->env = L->projection_count++;
             st = pn_projection_prepare(scene, d, pr, l, err);
             if (st == PN_OK && !(l->power > 0.0f)) {
-                pn_scene_warn(scene, "%s: projection light with a black image dropped",
+                pn_warn(scene->ctx, &scene->warnings, "%s: projection light with a black image dropped",
                               d->source ? d->source : "LightSource");
                 ll.count--;
             }
@@ -511,7 +514,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             st = env_prepare(env, err);
             if (st != PN_OK) break;
             if (env->average_luminance <= 0.0f) {
-                pn_scene_warn(scene, "%s: environment light with zero power dropped",
+                pn_warn(scene->ctx, &scene->warnings, "%s: environment light with zero power dropped",
                               d->source ? d->source : "LightSource");
                 pn_distribution2d_free(env->dist);
                 env->dist = NULL;
@@ -530,7 +533,8 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         if (m->emission < 0 || m->object >= 0) continue;
         if (v3_max_component(scene->emissions[m->emission].radiance) <= 0.0f) continue;
         if (is_interface(scene, m->material)) {
-            pn_scene_warn(scene, "%s: area light on a shape with the \"interface\" material ignored (as pbrt-v4 does)",
+            pn_warn(scene->ctx, &scene->warnings,
+                    "%s: area light on a shape with the \"interface\" material ignored (as pbrt-v4 does)",
                           m->source ? m->source : "mesh");
             continue;
         }
@@ -541,12 +545,13 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         if (s->emission < 0 || s->object >= 0) continue;
         if (v3_max_component(scene->emissions[s->emission].radiance) <= 0.0f) continue;
         if (is_interface(scene, s->material)) {
-            pn_scene_warn(scene, "sphere light %d: area light on a shape with the \"interface\" material ignored "
-                          "(as pbrt-v4 does)", si);
+            pn_warn(scene->ctx, &scene->warnings,
+                    "sphere light %d: area light on a shape with the \"interface\" material ignored (as pbrt-v4 does)",
+                    si);
             continue;
         }
         if (s->flip_normals) {
-            pn_scene_warn(scene, "%s: sphere light %d emits inwards; it is not sampled",
+            pn_warn(scene->ctx, &scene->warnings, "%s: sphere light %d emits inwards; it is not sampled",
                           s->source ? s->source : "?:0:0", si);
             continue;
         }

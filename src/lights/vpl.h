@@ -30,6 +30,7 @@
 #include "core/error.h"
 #include "core/vecmath.h"
 #include "lights/lights.h"
+#include "shade/bounds.h"
 #include "shade/bsdf.h"
 
 #include <math.h>
@@ -37,7 +38,7 @@
 
 struct pn_scene_s;
 
-typedef enum pn_vpl_kind { PN_VPL_OMNI = 0, PN_VPL_ORIENTED = 1, PN_VPL_DIRECTIONAL = 2, PN_VPL_KIND_COUNT = 3 } pn_vpl_kind;
+/* pn_vpl_kind (omni, oriented, directional) is declared in shade/bounds.h, whose bounds depend on it. */
 
 typedef struct pn_vpl {
     vec3 p;         /* OMNI / ORIENTED: position; DIRECTIONAL: unit direction towards the light */

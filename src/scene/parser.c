@@ -25,7 +25,6 @@
 #include <unistd.h>
 
 #define PN_MAX_INCLUDE_DEPTH 64
-#define PN_MAX_WARNINGS 10000
 #define PN_DISK_SEGMENTS 64
 #define PN_CYLINDER_SEGMENTS 64
 #define PN_PI_D 3.14159265358979323846
@@ -174,23 +173,11 @@ static void grow_bounds(pn_parser *p, vec3 lo, vec3 hi) {
 /* ---- warnings ---------------------------------------------------------------------------- */
 
 void pn_scene_warn(struct pn_scene_s *scene, const char *fmt, ...) {
-    if (!scene || scene->warning_count > PN_MAX_WARNINGS) return;
-    char buf[1024];
-    if (scene->warning_count == PN_MAX_WARNINGS) {
-        snprintf(buf, sizeof buf, "more than %d warnings; the rest are not reported", PN_MAX_WARNINGS);
-    } else {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(buf, sizeof buf, fmt, ap);
-        va_end(ap);
-    }
-    char *copy = strdup(buf);
-    if (!copy || !pn_grow_for_append((void **)&scene->warnings, scene->warning_count, sizeof *scene->warnings)) {
-        free(copy);
-        return;
-    }
-    scene->warnings[scene->warning_count++] = copy;
-    if (scene->ctx) pn_context_log(scene->ctx, PN_LOG_WARNING, "%s", buf);
+    if (!scene) return;
+    va_list ap;
+    va_start(ap, fmt);
+    pn_warnv(scene->ctx, &scene->warnings, fmt, ap);
+    va_end(ap);
 }
 
 /* ---- reading directive arguments --------------------------------------------------------- */
@@ -2031,7 +2018,6 @@ void pn_scene_parse_free(struct pn_scene_s *scene) {
     free(scene->emissions);
     for (int i = 0; i < scene->light_def_count; i++) free(scene->light_defs[i].source);
     free(scene->light_defs);
-    for (int i = 0; i < scene->warning_count; i++) free(scene->warnings[i]);
-    free(scene->warnings);
+    pn_warning_list_free(&scene->warnings);
     free(scene);
 }

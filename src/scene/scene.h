@@ -10,6 +10,7 @@
 #define PN_SCENE_SCENE_H
 
 #include "core/error.h"
+#include "core/warn.h"
 #include "core/vecmath.h"
 #include "penumbra/penumbra.h"
 
@@ -280,8 +281,7 @@ struct pn_scene_s {
     pn_light_def *light_defs;
     int light_def_count;
 
-    char **warnings; /* "file:line:column: message" */
-    int warning_count;
+    pn_warning_list warnings; /* "file:line:column: message"; parser and light builder (core/warn.h) */
 
     vec3 bounds_min, bounds_max; /* of world geometry and instances */
     double parse_seconds, bvh_seconds;
@@ -298,7 +298,8 @@ pn_status pn_scene_parse(pn_context ctx, const char *path, struct pn_scene_s **o
 /* Frees everything parse allocated (accel and lights are freed by pn_scene_free). */
 void pn_scene_parse_free(struct pn_scene_s *scene);
 
-/* Adds a warning to the scene (copies the text) and logs it. */
+/* The parser's shorthand for pn_warn(scene->ctx, &scene->warnings, ...): adds a warning to the
+ * scene (copies the text) and logs it. */
 void pn_scene_warn(struct pn_scene_s *scene, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 /* The VPL integrators' default light-path depth (bounces that may leave a VPL) for this scene:

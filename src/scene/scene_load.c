@@ -79,7 +79,7 @@ pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info) {
     }
     info->materials = (uint32_t)scene->material_count;
     info->textures = (uint32_t)scene->texture_count;
-    info->warnings = (uint32_t)scene->warning_count;
+    info->warnings = (uint32_t)scene->warnings.count;
     info->bounds_min[0] = scene->bounds_min.x;
     info->bounds_min[1] = scene->bounds_min.y;
     info->bounds_min[2] = scene->bounds_min.z;
@@ -106,9 +106,9 @@ const char *pn_scene_material_description(pn_scene scene, uint32_t index) {
     return d ? d : "";
 }
 
-uint32_t pn_scene_warning_count(pn_scene scene) { return scene ? (uint32_t)scene->warning_count : 0; }
+uint32_t pn_scene_warning_count(pn_scene scene) { return scene ? (uint32_t)scene->warnings.count : 0; }
 
 const char *pn_scene_warning(pn_scene scene, uint32_t index) {
-    if (!scene || index >= (uint32_t)scene->warning_count) return "";
-    return scene->warnings[index];
+    if (!scene || index >= (uint32_t)scene->warnings.count) return "";
+    return scene->warnings.items[index];
 }

@@ -1,9 +1,6 @@
 /* bounds.c — M_max and G_max of Lightcuts / Multidimensional Lightcuts (see bounds.h). */
 #include "shade/bounds.h"
 
-#include "lights/vpl.h"
-
-
 /* Inline min / max (the libm calls were a tenth of the render time). */
 static inline float mnf(float a, float b) { return a < b ? a : b; }
 static inline float mxf(float a, float b) { return a > b ? a : b; }

@@ -17,6 +17,17 @@
 
 #include "core/vecmath.h"
 
+/* The kinds of point emitter (VPL) the bounds tell apart: omni (uniform intensity), oriented
+ * (cosine-weighted about a normal) and directional (at infinity). Declared here rather than in
+ * lights/vpl.h so that shade/ depends on nothing in lights/ (lights/ builds on shade/: VPLs
+ * bounce off BSDFs and the light tree uses these bounds). */
+typedef enum pn_vpl_kind {
+    PN_VPL_OMNI = 0,
+    PN_VPL_ORIENTED = 1,
+    PN_VPL_DIRECTIONAL = 2,
+    PN_VPL_KIND_COUNT = 3
+} pn_vpl_kind;
+
 /* A cluster of receiving points: box of positions, cone of shading normals, cone of reflected
  * view directions, and per-channel maxima / range of the BRDF parameters (Lambert k_diff,
  * Blinn-Phong k_spec and exponent n). The exponent range is over the points with a non-zero
