@@ -11,3 +11,6 @@ add_test(NAME check_method_names
 add_test(NAME docs_options_current
          COMMAND sh -c "\"$1\" methods --markdown | cmp - \"$2\"" sh $<TARGET_FILE:penumbra_cli>
                  ${CMAKE_SOURCE_DIR}/docs/options.md)
+# Each docs/methods page lists exactly the options the table declares for its methods.
+add_test(NAME check_method_docs
+         COMMAND sh ${CMAKE_CURRENT_SOURCE_DIR}/check_method_docs.sh ${CMAKE_SOURCE_DIR} $<TARGET_FILE:penumbra_cli>)
