@@ -13,6 +13,7 @@
 #include "core/context.h"
 #include "core/rng.h"
 #include "driver/progress.h"
+#include "film/aovs.h"
 #include "film/downsample.h"
 #include "io/image.h"
 
@@ -289,9 +290,9 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
     pn_image img = pn_image_create(p->out_w, p->out_h);
     float *pattern = NULL, *map = NULL, *mapdir = NULL;
     bool ok = work && img && (!want_map || (cls && dir));
-    if (ok && (aovs & PN_AOV_SAMPLING_PATTERN)) ok = (pattern = pn_image_add_layer(img, "sampling_pattern", 1)) != NULL;
-    if (ok && (aovs & PN_AOV_BLOCK_MAP)) ok = (map = pn_image_add_layer(img, "block_map", 1)) != NULL;
-    if (ok && (aovs & PN_AOV_BLOCK_DIRECTION)) ok = (mapdir = pn_image_add_layer(img, "block_direction", 1)) != NULL;
+    if (ok && (aovs & PN_AOV_SAMPLING_PATTERN)) ok = (pattern = pn_film_add_aov(img, PN_AOV_SAMPLING_PATTERN)) != NULL;
+    if (ok && (aovs & PN_AOV_BLOCK_MAP)) ok = (map = pn_film_add_aov(img, PN_AOV_BLOCK_MAP)) != NULL;
+    if (ok && (aovs & PN_AOV_BLOCK_DIRECTION)) ok = (mapdir = pn_film_add_aov(img, PN_AOV_BLOCK_DIRECTION)) != NULL;
     if (ok) {
         if (cls)
             for (size_t i = 0; i < n; i++) {

@@ -7,6 +7,7 @@
 #include "core/threadpool.h"
 #include "driver/progress.h"
 #include "driver/progressive.h" /* issue 6: progressive drivers */
+#include "film/aovs.h"
 #include "integrators/integrator.h"
 #include "integrators/registry.h"
 #include "io/image.h"
@@ -148,64 +149,6 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     return PN_OK;
 }
 
-static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *out) {
-    pn_image img = pn_image_create(rs->width, rs->height);
-    if (!img) return PN_ERROR_OUT_OF_MEMORY;
-    size_t n = (size_t)rs->width * (size_t)rs->height;
-    float *beauty = (float *)pn_image_layer_data(img, 0);
-    float *shadow = NULL, *eye = NULL, *relvar = NULL, *depth = NULL, *normal = NULL, *albedo = NULL;
-    bool ok = true;
-    if (aovs & PN_AOV_SHADOW_RAYS) ok = ok && (shadow = pn_image_add_layer(img, "shadow_rays", 1));
-    if (aovs & PN_AOV_EYE_RAYS) ok = ok && (eye = pn_image_add_layer(img, "eye_rays", 1));
-    if (aovs & PN_AOV_RELATIVE_VARIANCE) ok = ok && (relvar = pn_image_add_layer(img, "relative_variance", 1));
-    if (aovs & PN_AOV_DEPTH) ok = ok && (depth = pn_image_add_layer(img, "depth", 1));
-    if (aovs & PN_AOV_NORMAL) ok = ok && (normal = pn_image_add_layer(img, "normal", 3));
-    if (aovs & PN_AOV_ALBEDO) ok = ok && (albedo = pn_image_add_layer(img, "albedo", 3));
-    float *passes = NULL, *regions = NULL, *clusters = NULL, *visible = NULL;
-    if (aovs & PN_AOV_PASSES) ok = ok && (passes = pn_image_add_layer(img, "passes", 1));
-    if (aovs & PN_AOV_AA_REGIONS) ok = ok && (regions = pn_image_add_layer(img, "aa_regions", 1));
-    if (aovs & PN_AOV_CLUSTERS) ok = ok && (clusters = pn_image_add_layer(img, "clusters", 1));
-    if (aovs & PN_AOV_VISIBLE_FRACTION) ok = ok && (visible = pn_image_add_layer(img, "visible_fraction", 1));
-    ok = ok && pn_vpl_write_aovs(rs->pixels, n, aovs, img); /* VPL integrators (issue 5) */
-    float *gradient = NULL; /* contour */
-    if (aovs & PN_AOV_GRADIENT) ok = ok && (gradient = pn_image_add_layer(img, "gradient", 3));
-    if (!ok) {
-        pn_image_free(img);
-        return PN_ERROR_OUT_OF_MEMORY;
-    }
-    for (size_t i = 0; i < n; i++) {
-        const pn_pixel_estimate *e = &rs->pixels[i];
-        beauty[3 * i] = e->radiance.x;
-        beauty[3 * i + 1] = e->radiance.y;
-        beauty[3 * i + 2] = e->radiance.z;
-        if (shadow) shadow[i] = (float)e->shadow_rays;
-        if (eye) eye[i] = (float)e->eye_rays;
-        if (relvar) relvar[i] = e->relative_variance;
-        if (depth) depth[i] = e->depth;
-        if (normal) {
-            normal[3 * i] = e->normal.x;
-            normal[3 * i + 1] = e->normal.y;
-            normal[3 * i + 2] = e->normal.z;
-        }
-        if (passes) passes[i] = (float)e->passes;
-        if (regions) regions[i] = (float)e->aa_regions;
-        if (clusters) clusters[i] = e->clusters;
-        if (visible) visible[i] = e->visible_fraction;
-        if (gradient) {
-            gradient[3 * i] = e->gradient.x;
-            gradient[3 * i + 1] = e->gradient.y;
-            gradient[3 * i + 2] = e->gradient.z;
-        }
-        if (albedo) {
-            albedo[3 * i] = e->albedo.x;
-            albedo[3 * i + 1] = e->albedo.y;
-            albedo[3 * i + 2] = e->albedo.z;
-        }
-    }
-    *out = img;
-    return PN_OK;
-}
-
 static pn_status run_job(pn_context ctx, const pn_render_settings *settings, const pn_integrator *integ,
                          pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats);
 
@@ -336,7 +279,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         for (long b = 0; b < rs.block_count; b++)
             if (!rs.block_finished[b]) cancelled = true;
     }
-    st = build_image(&rs, settings->aovs, out_image);
+    st = pn_film_assemble(rs.pixels, rs.width, rs.height, settings->aovs, out_image);
     if (st != PN_OK) {
         free(rs.pixels);
         free(rs.block_finished);

@@ -5,6 +5,7 @@
 #define PN_INTEGRATORS_INTEGRATOR_H
 
 #include "driver/render_job.h"
+#include "film/aovs.h"
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -19,29 +20,7 @@ typedef struct pn_batch {
     const int32_t (*pixels)[2]; /* full-image pixel coordinates, in evaluation order */
 } pn_batch;
 
-typedef struct pn_pixel_estimate {
-    vec3 radiance;
-    vec3 emitted;            /* the part of radiance that eye rays saw emitted, weighted as radiance
-                                (filled where pn_integrator_reports_emitted says so) */
-    float relative_variance; /* s^2 / L^2 of the estimate (luminance), 0 when L = 0 */
-    uint32_t eye_rays, shadow_rays, specular_rays;
-    float depth;  /* first-hit distance of the first eye ray (INFINITY on a miss) */
-    vec3 normal;  /* first-hit shading normal */
-    vec3 albedo;  /* first-hit diffuse reflectance */
-    float embree_seconds; /* estimated time inside Embree calls for this pixel (sampled) */
-    /* ias statistics (zero for other integrators) */
-    uint32_t passes, aa_regions;
-    uint32_t visible_lights;  /* distinct lights (and environment regions) seen unoccluded */
-    float clusters;          /* clusters per shading point, mean over the pixel's regions */
-    float visible_fraction;  /* unoccluded shadow rays / shadow rays */
-    float cut_seconds, pdf_seconds; /* time in cluster cuts and in PDF upkeep (estimates) */
-    /* VPL integrators (issue 5; zero otherwise): L_UB evaluations for the pixel's points, cut
-     * size per point (lightcuts) or pairs touching the pixel (illumcut), Phase I radiance */
-    float bound_evaluations, cut_size;
-    vec3 phase1;
-    /* contour: gradient of the irradiance luminance from contour lights (PN_AOV_GRADIENT) */
-    vec3 gradient;
-} pn_pixel_estimate;
+/* pn_pixel_estimate, what an integrator returns per pixel, is film's (film/aovs.h). */
 
 struct pn_threadpool;
 /* Renders the whole window at once: fills pixels[y * width + x] for the window (camera x0..x1,
@@ -89,8 +68,5 @@ extern const pn_integrator pn_integrator_contour_mc;
 extern const pn_integrator pn_integrator_vpl;
 extern const pn_integrator pn_integrator_lightcuts;
 extern const pn_integrator pn_integrator_illumcut;
-/* Adds the VPL integrators' AOV layers (PN_AOV_BOUND_EVALUATIONS, _CUT_SIZE, _PHASE1) to img. */
-struct pn_image_s;
-bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img);
 
 #endif

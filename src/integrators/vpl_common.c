@@ -1,4 +1,4 @@
-/* vpl_common.c — preparation, eye samples, statistics and AOVs shared by the VPL integrators
+/* vpl_common.c — preparation, eye samples and statistics shared by the VPL integrators
  * (vpl, lightcuts, illumcut; see illumcut.h). */
 #include "integrators/illumcut.h"
 
@@ -124,30 +124,4 @@ void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t i, pn_
     sp->r.kd = b.kd;
     sp->r.ks = b.ks;
     sp->r.exponent = b.exponent;
-}
-
-bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img) {
-    float *bounds = NULL, *log_bounds = NULL, *cut = NULL, *phase1 = NULL;
-    if (aovs & PN_AOV_BOUND_EVALUATIONS) {
-        /* And its logarithm, IlluminationCut's Fig. 4 (with --aov-png: the false-colour picture). */
-        if (!(bounds = pn_image_add_layer(img, "bound_evaluations", 1))) return false;
-        if (!(log_bounds = pn_image_add_layer(img, "log10_bound_evaluations", 1))) return false;
-    }
-    if (aovs & PN_AOV_CUT_SIZE) {
-        if (!(cut = pn_image_add_layer(img, "cut_size", 1))) return false;
-    }
-    if (aovs & PN_AOV_PHASE1) {
-        if (!(phase1 = pn_image_add_layer(img, "phase1", 3))) return false;
-    }
-    for (size_t i = 0; i < count; i++) {
-        if (bounds) bounds[i] = pixels[i].bound_evaluations;
-        if (log_bounds) log_bounds[i] = log10f(1.0f + pixels[i].bound_evaluations);
-        if (cut) cut[i] = pixels[i].cut_size;
-        if (phase1) {
-            phase1[3 * i] = pixels[i].phase1.x;
-            phase1[3 * i + 1] = pixels[i].phase1.y;
-            phase1[3 * i + 2] = pixels[i].phase1.z;
-        }
-    }
-    return true;
 }
