@@ -12,10 +12,11 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/rng.h"
-#include "driver/progress.h"
 #include "film/aovs.h"
 #include "film/downsample.h"
+#include "integrators/registry.h"
 #include "io/image.h"
+#include "render/progress.h"
 
 #include <math.h>
 #include <stdlib.h>

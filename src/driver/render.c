@@ -5,12 +5,11 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/threadpool.h"
-#include "driver/progress.h"
 #include "driver/progressive.h" /* issue 6: progressive drivers */
 #include "film/aovs.h"
-#include "integrators/integrator.h"
 #include "integrators/registry.h"
 #include "io/image.h"
+#include "render/progress.h"
 
 #include <pthread.h>
 #include <stdlib.h>

@@ -16,7 +16,7 @@
 
 #include "core/rng.h"
 #include "core/threadpool.h"
-#include "driver/progress.h"
+#include "render/progress.h"
 #include "shade/bsdf.h"
 
 #include <stdatomic.h>

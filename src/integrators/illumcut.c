@@ -84,7 +84,7 @@
 #include "core/clock.h"
 #include "core/rng.h"
 #include "core/threadpool.h"
-#include "driver/progress.h"
+#include "render/progress.h"
 #include "shade/bsdf.h"
 
 #include <stdio.h>

@@ -3,8 +3,8 @@
 #include "integrators/illumcut.h"
 
 #include "core/rng.h"
-#include "driver/progress.h"
 #include "io/image.h"
+#include "render/progress.h"
 #include "scene/scene.h"
 #include "shade/bsdf.h"
 

@@ -1,6 +1,6 @@
 /* eye_path.c — camera rays followed through perfect specular reflection and refraction to the
  * first surface whose direct illumination is estimated. */
-#include "driver/render_job.h"
+#include "render/render_job.h"
 
 #include "core/rng.h"
 #include "core/sobol.h"
