@@ -113,9 +113,23 @@ static bool eval_block_pixels(pn_prog *p, int worker, const int32_t (*px)[2], in
         full[i][0] = px[i][0] + p->wx0;
         full[i][1] = px[i][1] + p->wy0;
     }
-    pn_batch batch = {full[0][0] / PN_PROG_BLOCK, full[0][1] / PN_PROG_BLOCK, n, (const int32_t(*)[2])full};
+    pn_batch batch = {full[0][0] / PN_PROG_BLOCK, full[0][1] / PN_PROG_BLOCK, n, (const int32_t(*)[2])full, 0, NULL};
+    /* Integrators of a fixed eye-sample count get the block's shading points traced here. */
+    uint32_t per_pixel = p->integ->batch_points ? p->integ->batch_points(&p->job) : 0;
+    pn_batch_point *points = NULL;
+    if (per_pixel > 0) {
+        points = malloc((size_t)n * per_pixel * sizeof *points);
+        if (!points) {
+            atomic_store(&p->failed, (int)PN_ERROR_OUT_OF_MEMORY);
+            return false;
+        }
+        pn_batch_trace_points(&p->job, n, batch.pixels, per_pixel, points);
+        batch.points_per_pixel = per_pixel;
+        batch.points = points;
+    }
     memset(est, 0, (size_t)n * sizeof *est);
     pn_status st = p->integ->render_batch(&p->job, &batch, est, p->scratch[worker]);
+    free(points);
     if (st != PN_OK) {
         atomic_store(&p->failed, (int)st);
         return false;

@@ -32,6 +32,8 @@ typedef struct render_shared {
     unsigned char *block_finished;
     int32_t (**batch_pixels)[2];          /* per worker: block_size^2 pixel coordinates */
     pn_pixel_estimate **batch_estimates;  /* per worker: block_size^2 estimates */
+    uint32_t points_per_pixel;            /* integrator->batch_points, 0 when it traces its own */
+    pn_batch_point **batch_points;        /* per worker: block_size^2 * points_per_pixel points */
 } render_shared;
 
 static void render_block(void *user, size_t job_index, int worker) {
@@ -62,7 +64,13 @@ static void render_block(void *user, size_t job_index, int worker) {
             return;
         }
     }
-    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels};
+    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels, 0, NULL};
+    if (rs->points_per_pixel > 0) {
+        /* The camera rays and specular chains of the block, traced once here (render/batch.h). */
+        pn_batch_trace_points(job, count, batch.pixels, rs->points_per_pixel, rs->batch_points[worker]);
+        batch.points_per_pixel = rs->points_per_pixel;
+        batch.points = rs->batch_points[worker];
+    }
     pn_status st = rs->integrator->render_batch(job, &batch, est, rs->scratch[worker]);
     if (st != PN_OK) {
         atomic_store(&rs->failed, (int)st);
@@ -81,9 +89,12 @@ static void free_batches(render_shared *rs, int workers) {
     for (int w = 0; w <= workers; w++) {
         if (rs->batch_pixels) free(rs->batch_pixels[w]);
         if (rs->batch_estimates) free(rs->batch_estimates[w]);
+        if (rs->batch_points) free(rs->batch_points[w]);
     }
     free(rs->batch_pixels);
     free(rs->batch_estimates);
+    free(rs->batch_points);
+    rs->batch_points = NULL;
     rs->batch_pixels = NULL;
     rs->batch_estimates = NULL;
 }
@@ -227,11 +238,17 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     if (pool) {
         rs.batch_pixels = calloc((size_t)workers + 1, sizeof *rs.batch_pixels);
         rs.batch_estimates = calloc((size_t)workers + 1, sizeof *rs.batch_estimates);
-        batches_ok = rs.batch_pixels && rs.batch_estimates;
+        rs.points_per_pixel = integ->batch_points ? integ->batch_points(&job) : 0;
+        rs.batch_points = rs.points_per_pixel ? calloc((size_t)workers + 1, sizeof *rs.batch_points) : NULL;
+        batches_ok = rs.batch_pixels && rs.batch_estimates && (!rs.points_per_pixel || rs.batch_points);
         for (int w = 0; batches_ok && w <= workers; w++) {
             rs.batch_pixels[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_pixels[w]);
             rs.batch_estimates[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_estimates[w]);
             batches_ok = rs.batch_pixels[w] && rs.batch_estimates[w];
+            if (batches_ok && rs.points_per_pixel) {
+                rs.batch_points[w] = malloc((size_t)B * (size_t)B * rs.points_per_pixel * sizeof *rs.batch_points[w]);
+                batches_ok = rs.batch_points[w] != NULL;
+            }
         }
     }
     if (!rs.pixels || !rs.block_finished || !pool || !rs.scratch || !batches_ok) {

@@ -888,7 +888,9 @@ static void eye_chunk(void *user, size_t chunk, int worker) {
         o->depth = INFINITY;
         for (uint32_t s = 0; s < ir->spp; s++) {
             pn_shading_point sp;
-            pn_vpl_eye_sample(job, px, py, s, &sp, o);
+            pn_batch_point pt;
+            pn_eye_point_trace(job, px, py, s, &pt);
+            pn_eye_point_apply(&pt, s, &sp, o);
             ic_sample *smp = &ir->samples[pix * ir->spp + s];
             smp->emitted = sp.emitted;
             smp->throughput = sp.throughput;

@@ -94,34 +94,4 @@ void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats) {
     stats->illumcut_pairs = d->pairs;
 }
 
-void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t i, pn_shading_point *sp,
-                       pn_pixel_estimate *est) {
-    uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
-    float fw, u_specular;
-    vec3 ro, rd;
-    pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
-    pn_eye_path path;
-    pn_trace_eye_path(job, ro, rd, u_specular, &path);
-    if (i == 0) {
-        est->depth = path.first_depth;
-        est->normal = path.first_normal;
-        est->albedo = path.first_albedo;
-    }
-    est->eye_rays++;
-    est->specular_rays += path.rays - 1;
-    memset(sp, 0, sizeof *sp);
-    sp->weight = fw;
-    sp->emitted = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
-    sp->throughput = path.throughput;
-    if (!path.has_point) return;
-    pn_bsdf b;
-    pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
-    sp->has_point = true;
-    sp->r.p = path.hit.p;
-    sp->r.ng = b.ng;
-    sp->r.ns = b.ns;
-    sp->r.wo = path.wo;
-    sp->r.kd = b.kd;
-    sp->r.ks = b.ks;
-    sp->r.exponent = b.exponent;
-}
+uint32_t pn_vpl_batch_points(const pn_render_job *job) { return pn_vpl_spp(job); }
