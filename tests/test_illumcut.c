@@ -317,9 +317,9 @@ static void test_batch_interface(void) {
 }
 
 /* Driver-traced shading points (render/batch.h): a batch that carries the points of its pixels'
- * eye samples gives vpl and lightcuts the estimates, bit for bit, that they compute when they
- * trace the same samples themselves; and the points are the samples' (weights in the pixel filter's
- * range, eye rays counted once per sample). */
+ * eye samples gives vpl, lightcuts and illumcut (its batch path) the estimates, bit for bit, that
+ * they compute when they trace the same samples themselves; the points are the samples' (weights
+ * in the pixel filter's range, eye rays counted once per sample), and the integrator reads them. */
 static void test_batch_points(void) {
     pn_context ctx = pn_context_new();
     const int W = 16, H = 16;
@@ -345,8 +345,8 @@ static void test_batch_points(void) {
     atomic_int cancel;
     atomic_init(&cancel, 0);
     job.cancel = &cancel;
-    const pn_integrator *integs[2] = {&pn_integrator_vpl, &pn_integrator_lightcuts};
-    for (int k = 0; k < 2; k++) {
+    const pn_integrator *integs[3] = {&pn_integrator_vpl, &pn_integrator_lightcuts, &pn_integrator_illumcut};
+    for (int k = 0; k < 3; k++) {
         const pn_integrator *in = integs[k];
         CHECK(in->batch_points != NULL);
         uint32_t per = in->batch_points(&job);

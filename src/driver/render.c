@@ -238,7 +238,8 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     if (pool) {
         rs.batch_pixels = calloc((size_t)workers + 1, sizeof *rs.batch_pixels);
         rs.batch_estimates = calloc((size_t)workers + 1, sizeof *rs.batch_estimates);
-        rs.points_per_pixel = integ->batch_points ? integ->batch_points(&job) : 0;
+        /* Whole-image integrators take no batches here, so no points either. */
+        rs.points_per_pixel = integ->batch_points && !integ->render_image ? integ->batch_points(&job) : 0;
         rs.batch_points = rs.points_per_pixel ? calloc((size_t)workers + 1, sizeof *rs.batch_points) : NULL;
         batches_ok = rs.batch_pixels && rs.batch_estimates && (!rs.points_per_pixel || rs.batch_points);
         for (int w = 0; batches_ok && w <= workers; w++) {

@@ -11,7 +11,7 @@
  *
  * What a batch carries today: the pixels (full-image coordinates, in evaluation order), the
  * block they lie in and, for integrators that take a fixed number of eye samples per pixel
- * (pn_integrator.batch_points: vpl and lightcuts), the shading points of those samples with
+ * (pn_integrator.batch_points: vpl, lightcuts, and illumcut's batch path), the shading points of those samples with
  * their filter weights, traced once by the tiled and the progressive drivers through
  * pn_batch_trace_points (camera ray, perfect-specular chain, BSDF at the end point).
  *
@@ -94,8 +94,9 @@ typedef struct pn_integrator {
      * point tree spans every shading point of the image; contour runs §5 spans along whole rows). */
     pn_render_image_fn render_image;
     /* Optional: the fixed number of eye samples per pixel (samples 0..n-1 of
-     * pn_eye_point_trace) the integrator takes from the batch; the tiled driver then traces them
-     * into batch->points. NULL: the integrator traces its own eye rays. */
+     * pn_eye_point_trace) the integrator takes from the batch; the tiled and progressive drivers
+     * then trace them into batch->points for render_batch (not for render_image). NULL: the
+     * integrator traces its own eye rays. */
     uint32_t (*batch_points)(const pn_render_job *job);
 } pn_integrator;
 
