@@ -117,7 +117,7 @@ static void test_spot_falloff_and_power(void) {
         CHECK_NEAR(phi, 2.0 * 10.0, 2e-3 * 20.0);
         /* The light BVH bounds of pbrt-v4's SpotLight::Bounds: phi = 4 pi I, cos theta_o =
          * cos start, cos theta_e = cos(theta_end - theta_start). */
-        pn_light_bounds b;
+        pn_light_bvh_bounds b;
         CHECK(pn_light_bounds_of(L, &L->lights[0], &b));
         CHECK_NEAR(b.phi, 4.0 * M_PI * 2.0, 1e-4);
         CHECK_NEAR(b.cos_o, cs, 1e-6);

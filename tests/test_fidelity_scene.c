@@ -8,7 +8,7 @@
 #include "harness.h"
 
 #include "core/context.h"
-#include "driver/camera.h"
+#include "render/camera.h"
 #include "scene/scene.h"
 
 #include <errno.h>

@@ -281,7 +281,7 @@ static void test_batch_interface(void) {
         px[i][0] = i % W;
         px[i][1] = i / W;
     }
-    pn_batch all = {0, 0, W * H, (const int32_t(*)[2])px};
+    pn_batch all = {0, 0, W * H, (const int32_t(*)[2])px, 0, NULL};
     CHECK(pn_integrator_illumcut.render_batch(&job, &all, est, NULL) == PN_OK);
     if (whole && ref) {
         const float *w = pn_image_layer_data(whole, 0), *r = pn_image_layer_data(ref, 0);
@@ -297,7 +297,7 @@ static void test_batch_interface(void) {
                 px[n][1] = y;
                 n++;
             }
-        pn_batch block = {1, 1, n, (const int32_t(*)[2])px};
+        pn_batch block = {1, 1, n, (const int32_t(*)[2])px, 0, NULL};
         CHECK(pn_integrator_illumcut.render_batch(&job, &block, est, NULL) == PN_OK);
         double rel = 0.0;
         for (int i = 0; i < n; i++) {
@@ -312,6 +312,90 @@ static void test_batch_interface(void) {
     free(est);
     pn_image_free(whole);
     pn_image_free(ref);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* Driver-traced shading points (render/batch.h): a batch that carries the points of its pixels'
+ * eye samples gives vpl, lightcuts and illumcut (its batch path) the estimates, bit for bit, that
+ * they compute when they trace the same samples themselves; the points are the samples' (weights
+ * in the pixel filter's range, eye rays counted once per sample), and the integrator reads them. */
+static void test_batch_points(void) {
+    pn_context ctx = pn_context_new();
+    const int W = 16, H = 16;
+    pn_scene scene = vpl_test_load(ctx, "room_points.pbrt", pn_test_room_scene(0, W, H));
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    pn_render_job job;
+    memset(&job, 0, sizeof job);
+    job.scene = scene;
+    job.accel = scene->accel;
+    job.lights = scene->lights;
+    float crop[4] = {0, 1, 0, 1};
+    CHECK(pn_camera_setup(&scene->camera, W, H, crop, &job.camera));
+    job.spp = 3;
+    job.max_specular_depth = 8;
+    job.vpls = 500;
+    job.vpl_max_depth = 3;
+    job.vpl_clamp_fraction = 0.05f;
+    job.error_bound = 0.02f;
+    job.max_cut = 1000;
+    atomic_int cancel;
+    atomic_init(&cancel, 0);
+    job.cancel = &cancel;
+    const pn_integrator *integs[3] = {&pn_integrator_vpl, &pn_integrator_lightcuts, &pn_integrator_illumcut};
+    for (int k = 0; k < 3; k++) {
+        const pn_integrator *in = integs[k];
+        CHECK(in->batch_points != NULL);
+        uint32_t per = in->batch_points(&job);
+        CHECK(per == 3);
+        pn_err err;
+        pn_err_init(&err);
+        CHECK(in->prepare(&job, &err) == PN_OK);
+        int32_t px[64][2];
+        int n = 0;
+        for (int y = 8; y < 16; y++)
+            for (int x = 0; x < 8; x++) {
+                px[n][0] = x;
+                px[n][1] = y;
+                n++;
+            }
+        pn_batch_point *pts = malloc((size_t)n * per * sizeof *pts);
+        pn_batch_trace_points(&job, n, (const int32_t(*)[2])px, per, pts);
+        int hits = 0;
+        for (int i = 0; i < n * (int)per; i++) {
+            CHECK(pts[i].rays >= 1);
+            CHECK(pts[i].sp.weight > 0.0f && pts[i].sp.weight <= 1.0f);
+            hits += pts[i].sp.has_point;
+        }
+        CHECK(hits > n); /* the room is closed: most eye rays end on a surface */
+        void *scr[2] = {in->scratch_create ? in->scratch_create(&job) : NULL,
+                        in->scratch_create ? in->scratch_create(&job) : NULL};
+        pn_pixel_estimate a[64], b[64];
+        pn_batch own = {0, 1, n, (const int32_t(*)[2])px, 0, NULL};
+        pn_batch given = {0, 1, n, (const int32_t(*)[2])px, per, pts};
+        CHECK(in->render_batch(&job, &own, a, scr[0]) == PN_OK);
+        CHECK(in->render_batch(&job, &given, b, scr[1]) == PN_OK);
+        int same = 0;
+        for (int i = 0; i < n; i++) {
+            same += memcmp(&a[i].radiance, &b[i].radiance, sizeof(vec3)) == 0 && a[i].eye_rays == b[i].eye_rays &&
+                    a[i].shadow_rays == b[i].shadow_rays && a[i].specular_rays == b[i].specular_rays &&
+                    memcmp(&a[i].depth, &b[i].depth, sizeof(float)) == 0;
+            CHECK(b[i].eye_rays == per);
+        }
+        CHECK_MSG(same == n, "%s: %d of %d pixels identical", in->name, same, n);
+        /* The integrator reads the batch's points: light added to one point reaches its pixel. */
+        pts[0].sp.emitted = v3_add(pts[0].sp.emitted, v3(1, 1, 1));
+        CHECK(in->render_batch(&job, &given, b, scr[1]) == PN_OK);
+        CHECK(b[0].radiance.x > a[0].radiance.x + 0.1f);
+        CHECK(memcmp(&a[1].radiance, &b[1].radiance, sizeof(vec3)) == 0);
+        for (int j = 0; j < 2; j++)
+            if (scr[j]) in->scratch_free(scr[j]);
+        free(pts);
+        in->release(&job);
+    }
     pn_scene_free(scene);
     pn_context_free(ctx);
 }
@@ -404,5 +488,6 @@ static void setup(void) { vpl_test_setup("illumcut"); }
 static void teardown(void) { vpl_test_teardown(); }
 
 PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_phase1_refinement_choice), TEST(test_illumcut_against_vpl),
-         TEST(test_sampling_never_traces_more), TEST(test_batch_interface), TEST(test_packet_occlusion_matches_single_rays),
+         TEST(test_sampling_never_traces_more), TEST(test_batch_interface), TEST(test_batch_points),
+         TEST(test_packet_occlusion_matches_single_rays),
          TEST(teardown))

@@ -12,9 +12,11 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/rng.h"
-#include "driver/progress.h"
+#include "film/aovs.h"
 #include "film/downsample.h"
+#include "integrators/registry.h"
 #include "io/image.h"
+#include "render/progress.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -111,9 +113,23 @@ static bool eval_block_pixels(pn_prog *p, int worker, const int32_t (*px)[2], in
         full[i][0] = px[i][0] + p->wx0;
         full[i][1] = px[i][1] + p->wy0;
     }
-    pn_batch batch = {full[0][0] / PN_PROG_BLOCK, full[0][1] / PN_PROG_BLOCK, n, (const int32_t(*)[2])full};
+    pn_batch batch = {full[0][0] / PN_PROG_BLOCK, full[0][1] / PN_PROG_BLOCK, n, (const int32_t(*)[2])full, 0, NULL};
+    /* Integrators of a fixed eye-sample count get the block's shading points traced here. */
+    uint32_t per_pixel = p->integ->batch_points ? p->integ->batch_points(&p->job) : 0;
+    pn_batch_point *points = NULL;
+    if (per_pixel > 0) {
+        points = malloc((size_t)n * per_pixel * sizeof *points);
+        if (!points) {
+            atomic_store(&p->failed, (int)PN_ERROR_OUT_OF_MEMORY);
+            return false;
+        }
+        pn_batch_trace_points(&p->job, n, batch.pixels, per_pixel, points);
+        batch.points_per_pixel = per_pixel;
+        batch.points = points;
+    }
     memset(est, 0, (size_t)n * sizeof *est);
     pn_status st = p->integ->render_batch(&p->job, &batch, est, p->scratch[worker]);
+    free(points);
     if (st != PN_OK) {
         atomic_store(&p->failed, (int)st);
         return false;
@@ -289,9 +305,9 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
     pn_image img = pn_image_create(p->out_w, p->out_h);
     float *pattern = NULL, *map = NULL, *mapdir = NULL;
     bool ok = work && img && (!want_map || (cls && dir));
-    if (ok && (aovs & PN_AOV_SAMPLING_PATTERN)) ok = (pattern = pn_image_add_layer(img, "sampling_pattern", 1)) != NULL;
-    if (ok && (aovs & PN_AOV_BLOCK_MAP)) ok = (map = pn_image_add_layer(img, "block_map", 1)) != NULL;
-    if (ok && (aovs & PN_AOV_BLOCK_DIRECTION)) ok = (mapdir = pn_image_add_layer(img, "block_direction", 1)) != NULL;
+    if (ok && (aovs & PN_AOV_SAMPLING_PATTERN)) ok = (pattern = pn_film_add_aov(img, PN_AOV_SAMPLING_PATTERN)) != NULL;
+    if (ok && (aovs & PN_AOV_BLOCK_MAP)) ok = (map = pn_film_add_aov(img, PN_AOV_BLOCK_MAP)) != NULL;
+    if (ok && (aovs & PN_AOV_BLOCK_DIRECTION)) ok = (mapdir = pn_film_add_aov(img, PN_AOV_BLOCK_DIRECTION)) != NULL;
     if (ok) {
         if (cls)
             for (size_t i = 0; i < n; i++) {

@@ -12,7 +12,7 @@
 #define PN_DRIVER_PROGRESSIVE_H
 
 #include "core/threadpool.h"
-#include "integrators/integrator.h"
+#include "render/batch.h"
 
 #include <stdatomic.h>
 #include <stdbool.h>

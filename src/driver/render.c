@@ -5,11 +5,11 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/threadpool.h"
-#include "driver/progress.h"
 #include "driver/progressive.h" /* issue 6: progressive drivers */
-#include "integrators/integrator.h"
+#include "film/aovs.h"
 #include "integrators/registry.h"
 #include "io/image.h"
+#include "render/progress.h"
 
 #include <pthread.h>
 #include <stdlib.h>
@@ -32,6 +32,8 @@ typedef struct render_shared {
     unsigned char *block_finished;
     int32_t (**batch_pixels)[2];          /* per worker: block_size^2 pixel coordinates */
     pn_pixel_estimate **batch_estimates;  /* per worker: block_size^2 estimates */
+    uint32_t points_per_pixel;            /* integrator->batch_points, 0 when it traces its own */
+    pn_batch_point **batch_points;        /* per worker: block_size^2 * points_per_pixel points */
 } render_shared;
 
 static void render_block(void *user, size_t job_index, int worker) {
@@ -62,7 +64,13 @@ static void render_block(void *user, size_t job_index, int worker) {
             return;
         }
     }
-    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels};
+    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels, 0, NULL};
+    if (rs->points_per_pixel > 0) {
+        /* The camera rays and specular chains of the block, traced once here (render/batch.h). */
+        pn_batch_trace_points(job, count, batch.pixels, rs->points_per_pixel, rs->batch_points[worker]);
+        batch.points_per_pixel = rs->points_per_pixel;
+        batch.points = rs->batch_points[worker];
+    }
     pn_status st = rs->integrator->render_batch(job, &batch, est, rs->scratch[worker]);
     if (st != PN_OK) {
         atomic_store(&rs->failed, (int)st);
@@ -81,9 +89,12 @@ static void free_batches(render_shared *rs, int workers) {
     for (int w = 0; w <= workers; w++) {
         if (rs->batch_pixels) free(rs->batch_pixels[w]);
         if (rs->batch_estimates) free(rs->batch_estimates[w]);
+        if (rs->batch_points) free(rs->batch_points[w]);
     }
     free(rs->batch_pixels);
     free(rs->batch_estimates);
+    free(rs->batch_points);
+    rs->batch_points = NULL;
     rs->batch_pixels = NULL;
     rs->batch_estimates = NULL;
 }
@@ -145,64 +156,6 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     job->seed = s->seed;
     job->aovs = s->aovs;
     job->cancel = &ctx->cancel;
-    return PN_OK;
-}
-
-static pn_status build_image(const render_shared *rs, uint32_t aovs, pn_image *out) {
-    pn_image img = pn_image_create(rs->width, rs->height);
-    if (!img) return PN_ERROR_OUT_OF_MEMORY;
-    size_t n = (size_t)rs->width * (size_t)rs->height;
-    float *beauty = (float *)pn_image_layer_data(img, 0);
-    float *shadow = NULL, *eye = NULL, *relvar = NULL, *depth = NULL, *normal = NULL, *albedo = NULL;
-    bool ok = true;
-    if (aovs & PN_AOV_SHADOW_RAYS) ok = ok && (shadow = pn_image_add_layer(img, "shadow_rays", 1));
-    if (aovs & PN_AOV_EYE_RAYS) ok = ok && (eye = pn_image_add_layer(img, "eye_rays", 1));
-    if (aovs & PN_AOV_RELATIVE_VARIANCE) ok = ok && (relvar = pn_image_add_layer(img, "relative_variance", 1));
-    if (aovs & PN_AOV_DEPTH) ok = ok && (depth = pn_image_add_layer(img, "depth", 1));
-    if (aovs & PN_AOV_NORMAL) ok = ok && (normal = pn_image_add_layer(img, "normal", 3));
-    if (aovs & PN_AOV_ALBEDO) ok = ok && (albedo = pn_image_add_layer(img, "albedo", 3));
-    float *passes = NULL, *regions = NULL, *clusters = NULL, *visible = NULL;
-    if (aovs & PN_AOV_PASSES) ok = ok && (passes = pn_image_add_layer(img, "passes", 1));
-    if (aovs & PN_AOV_AA_REGIONS) ok = ok && (regions = pn_image_add_layer(img, "aa_regions", 1));
-    if (aovs & PN_AOV_CLUSTERS) ok = ok && (clusters = pn_image_add_layer(img, "clusters", 1));
-    if (aovs & PN_AOV_VISIBLE_FRACTION) ok = ok && (visible = pn_image_add_layer(img, "visible_fraction", 1));
-    ok = ok && pn_vpl_write_aovs(rs->pixels, n, aovs, img); /* VPL integrators (issue 5) */
-    float *gradient = NULL; /* contour */
-    if (aovs & PN_AOV_GRADIENT) ok = ok && (gradient = pn_image_add_layer(img, "gradient", 3));
-    if (!ok) {
-        pn_image_free(img);
-        return PN_ERROR_OUT_OF_MEMORY;
-    }
-    for (size_t i = 0; i < n; i++) {
-        const pn_pixel_estimate *e = &rs->pixels[i];
-        beauty[3 * i] = e->radiance.x;
-        beauty[3 * i + 1] = e->radiance.y;
-        beauty[3 * i + 2] = e->radiance.z;
-        if (shadow) shadow[i] = (float)e->shadow_rays;
-        if (eye) eye[i] = (float)e->eye_rays;
-        if (relvar) relvar[i] = e->relative_variance;
-        if (depth) depth[i] = e->depth;
-        if (normal) {
-            normal[3 * i] = e->normal.x;
-            normal[3 * i + 1] = e->normal.y;
-            normal[3 * i + 2] = e->normal.z;
-        }
-        if (passes) passes[i] = (float)e->passes;
-        if (regions) regions[i] = (float)e->aa_regions;
-        if (clusters) clusters[i] = e->clusters;
-        if (visible) visible[i] = e->visible_fraction;
-        if (gradient) {
-            gradient[3 * i] = e->gradient.x;
-            gradient[3 * i + 1] = e->gradient.y;
-            gradient[3 * i + 2] = e->gradient.z;
-        }
-        if (albedo) {
-            albedo[3 * i] = e->albedo.x;
-            albedo[3 * i + 1] = e->albedo.y;
-            albedo[3 * i + 2] = e->albedo.z;
-        }
-    }
-    *out = img;
     return PN_OK;
 }
 
@@ -285,11 +238,18 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     if (pool) {
         rs.batch_pixels = calloc((size_t)workers + 1, sizeof *rs.batch_pixels);
         rs.batch_estimates = calloc((size_t)workers + 1, sizeof *rs.batch_estimates);
-        batches_ok = rs.batch_pixels && rs.batch_estimates;
+        /* Whole-image integrators take no batches here, so no points either. */
+        rs.points_per_pixel = integ->batch_points && !integ->render_image ? integ->batch_points(&job) : 0;
+        rs.batch_points = rs.points_per_pixel ? calloc((size_t)workers + 1, sizeof *rs.batch_points) : NULL;
+        batches_ok = rs.batch_pixels && rs.batch_estimates && (!rs.points_per_pixel || rs.batch_points);
         for (int w = 0; batches_ok && w <= workers; w++) {
             rs.batch_pixels[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_pixels[w]);
             rs.batch_estimates[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_estimates[w]);
             batches_ok = rs.batch_pixels[w] && rs.batch_estimates[w];
+            if (batches_ok && rs.points_per_pixel) {
+                rs.batch_points[w] = malloc((size_t)B * (size_t)B * rs.points_per_pixel * sizeof *rs.batch_points[w]);
+                batches_ok = rs.batch_points[w] != NULL;
+            }
         }
     }
     if (!rs.pixels || !rs.block_finished || !pool || !rs.scratch || !batches_ok) {
@@ -336,7 +296,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         for (long b = 0; b < rs.block_count; b++)
             if (!rs.block_finished[b]) cancelled = true;
     }
-    st = build_image(&rs, settings->aovs, out_image);
+    st = pn_film_assemble(rs.pixels, rs.width, rs.height, settings->aovs, out_image);
     if (st != PN_OK) {
         free(rs.pixels);
         free(rs.block_finished);

@@ -84,7 +84,7 @@
 #include "core/clock.h"
 #include "core/rng.h"
 #include "core/threadpool.h"
-#include "driver/progress.h"
+#include "render/progress.h"
 #include "shade/bsdf.h"
 
 #include <stdio.h>
@@ -306,6 +306,7 @@ typedef struct ic_render {
     ic_sample *samples;
     pn_pixel_estimate *pixels;
     const int32_t (*coords)[2]; /* the batch's pixels, or NULL: the window in raster order */
+    const pn_batch *batch;      /* the batch (its driver-traced points, if any), or NULL */
     int32_t count;              /* pixels */
     int width;                  /* of the window (coords == NULL) */
     uint32_t spp;
@@ -888,7 +889,13 @@ static void eye_chunk(void *user, size_t chunk, int worker) {
         o->depth = INFINITY;
         for (uint32_t s = 0; s < ir->spp; s++) {
             pn_shading_point sp;
-            pn_vpl_eye_sample(job, px, py, s, &sp, o);
+            if (ir->batch) {
+                pn_batch_eye_point(job, ir->batch, (int)pix, s, &sp, o);
+            } else {
+                pn_batch_point pt;
+                pn_eye_point_trace(job, px, py, s, &pt);
+                pn_eye_point_apply(&pt, s, &sp, o);
+            }
             ic_sample *smp = &ir->samples[pix * ir->spp + s];
             smp->emitted = sp.emitted;
             smp->throughput = sp.throughput;
@@ -917,8 +924,9 @@ static void free_render(ic_render *ir) {
 /* IlluminationCut over a set of pixels: the window in raster order (coords NULL, `width` wide)
  * or a batch's pixels. The whole render's statistics are stored (whole window) or added (batches,
  * possibly from several threads). */
-static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool *pool, const int32_t (*coords)[2],
-                                        int32_t count, int width, pn_pixel_estimate *pixels) {
+static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool *pool, const pn_batch *batch,
+                                        const int32_t (*coords)[2], int32_t count, int width,
+                                        pn_pixel_estimate *pixels) {
     pn_vpl_data *d = job->integrator_data;
     ic_render ir;
     memset(&ir, 0, sizeof ir);
@@ -926,6 +934,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
     ir.d = d;
     ir.pixels = pixels;
     ir.coords = coords;
+    ir.batch = batch;
     ir.count = count;
     ir.width = width;
     ir.spp = pn_vpl_spp(job);
@@ -1061,7 +1070,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
 
 static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *pool, pn_pixel_estimate *pixels,
                                        int width, int height) {
-    return illumcut_render_pixels(job, pool, NULL, (int32_t)width * height, width, pixels);
+    return illumcut_render_pixels(job, pool, NULL, NULL, (int32_t)width * height, width, pixels);
 }
 
 static pn_status illumcut_prepare(pn_render_job *job, pn_err *err) { return pn_vpl_prepare(job, true, err); }
@@ -1071,7 +1080,7 @@ static pn_status illumcut_prepare(pn_render_job *job, pn_err *err) { return pn_v
 static pn_status illumcut_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                        void *scratch) {
     (void)scratch;
-    return illumcut_render_pixels(job, NULL, batch->pixels, batch->count, 0, out);
+    return illumcut_render_pixels(job, NULL, batch, batch->pixels, batch->count, 0, out);
 }
 
 const pn_integrator pn_integrator_illumcut = {
@@ -1081,6 +1090,7 @@ const pn_integrator pn_integrator_illumcut = {
     .report = pn_vpl_report,
     .render_batch = illumcut_render_batch,
     .render_image = illumcut_render_image,
+    .batch_points = pn_vpl_batch_points, /* batches only: the whole-image path traces its own */
 };
 
 /* ---- for the tests ------------------------------------------------------------------------ */

@@ -29,21 +29,12 @@ void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats);
 
 /* Eye samples per pixel of the VPL integrators: spp, or 1 when spp is 0 (adaptive). */
 static inline uint32_t pn_vpl_spp(const pn_render_job *job) { return job->spp > 0 ? job->spp : 1u; }
+/* The same, as pn_integrator.batch_points: vpl and lightcuts take their points from the batch. */
+uint32_t pn_vpl_batch_points(const pn_render_job *job);
 
-/* One eye sample of a pixel, followed through specular chains (the same numbers in every VPL
- * integrator, so their images can be compared point for point). */
-typedef struct pn_shading_point {
-    pn_vpl_receiver r;
-    vec3 throughput; /* specular tints up to the point */
-    vec3 emitted;    /* emitters and environment seen along the way */
-    float weight;    /* pixel filter weight */
-    bool has_point;
-} pn_shading_point;
+/* pn_shading_point, one eye sample of a pixel followed through specular chains, is render/'s
+ * (render/batch.h): the tiled driver traces them for the VPL integrators. */
 
-/* Eye sample `sample` of pixel (px, py); fills the AOV fields of *est on sample 0 and adds the
- * rays it traced. */
-void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t sample, pn_shading_point *sp,
-                       pn_pixel_estimate *est);
 
 /* Lightcuts for one receiver outside a render (lightcuts.c; used by the tests): the estimate, the
  * sum of the final cut's error bounds (the guarantee: |estimate - exact| <= that sum), the cut

@@ -167,7 +167,6 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
     uint64_t bounds_total = 0, cut_total = 0, points = 0;
     for (int pi = 0; pi < batch->count; pi++) {
         if (atomic_load(job->cancel)) break;
-        int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
         pn_pixel_estimate *o = &out[pi];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
@@ -176,7 +175,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
         uint64_t bounds = 0, cut = 0, pts = 0;
         for (uint32_t smp = 0; smp < spp; smp++) {
             pn_shading_point sp;
-            pn_vpl_eye_sample(job, px, py, smp, &sp, o);
+            pn_batch_eye_point(job, batch, pi, smp, &sp, o);
             vec3 value = sp.emitted;
             if (sp.has_point) {
                 vec3 L;
@@ -209,6 +208,7 @@ const pn_integrator pn_integrator_lightcuts = {
     .scratch_create = lc_scratch_create,
     .scratch_free = lc_scratch_free,
     .render_batch = lc_render_batch,
+    .batch_points = pn_vpl_batch_points,
 };
 
 bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, vec3 *radiance, float *bound_sum,

@@ -5,8 +5,8 @@
 #ifndef PN_INTEGRATORS_REFERENCE_DIRECT_H
 #define PN_INTEGRATORS_REFERENCE_DIRECT_H
 
-#include "driver/render_job.h"
 #include "lights/light_bvh.h"
+#include "render/render_job.h"
 #include "shade/bsdf.h"
 
 typedef struct pn_reference_direct_scratch {

@@ -287,38 +287,7 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
     return e ? e->integrator : NULL;
 }
 
-/* ---- AOV names ------------------------------------------------------------------------- */
-
-static const struct {
-    const char *name;
-    uint32_t bit;
-} aov_names[] = {
-    {"shadow_rays", PN_AOV_SHADOW_RAYS},
-    {"eye_rays", PN_AOV_EYE_RAYS},
-    {"relative_variance", PN_AOV_RELATIVE_VARIANCE},
-    {"depth", PN_AOV_DEPTH},
-    {"normal", PN_AOV_NORMAL},
-    {"albedo", PN_AOV_ALBEDO},
-    {"passes", PN_AOV_PASSES},
-    {"aa_regions", PN_AOV_AA_REGIONS},
-    {"clusters", PN_AOV_CLUSTERS},
-    {"visible_fraction", PN_AOV_VISIBLE_FRACTION},
-    {"bound_evaluations", PN_AOV_BOUND_EVALUATIONS},
-    {"cut_size", PN_AOV_CUT_SIZE},
-    {"phase1", PN_AOV_PHASE1},
-    {"gradient", PN_AOV_GRADIENT},
-    {"sampling_pattern", PN_AOV_SAMPLING_PATTERN},
-    {"block_map", PN_AOV_BLOCK_MAP},
-    {"block_direction", PN_AOV_BLOCK_DIRECTION},
-};
-
-int pn_aov_count(void) { return (int)(sizeof aov_names / sizeof aov_names[0]); }
-
-const char *pn_aov_name(int index, uint32_t *bit) {
-    if (index < 0 || index >= pn_aov_count()) return NULL;
-    if (bit) *bit = aov_names[index].bit;
-    return aov_names[index].name;
-}
+/* AOV names: the one table is film's (film/aovs.c), which implements pn_aov_count / pn_aov_name. */
 
 /* ---- options: declarations ------------------------------------------------------------- */
 

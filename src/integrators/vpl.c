@@ -14,7 +14,6 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
     const uint32_t spp = pn_vpl_spp(job);
     for (int pi = 0; pi < batch->count; pi++) {
         if (atomic_load(job->cancel)) return PN_OK;
-        int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
         pn_pixel_estimate *o = &out[pi];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
@@ -22,7 +21,7 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
         double wsum = 0.0;
         for (uint32_t s = 0; s < spp; s++) {
             pn_shading_point sp;
-            pn_vpl_eye_sample(job, px, py, s, &sp, o);
+            pn_batch_eye_point(job, batch, pi, s, &sp, o);
             vec3 value = sp.emitted;
             if (sp.has_point) {
                 vec3 L = v3(0, 0, 0);
@@ -51,4 +50,5 @@ const pn_integrator pn_integrator_vpl = {
     .release = pn_vpl_release,
     .report = pn_vpl_report,
     .render_batch = vpl_render_batch,
+    .batch_points = pn_vpl_batch_points,
 };

@@ -1,10 +1,10 @@
-/* vpl_common.c — preparation, eye samples, statistics and AOVs shared by the VPL integrators
+/* vpl_common.c — preparation, eye samples and statistics shared by the VPL integrators
  * (vpl, lightcuts, illumcut; see illumcut.h). */
 #include "integrators/illumcut.h"
 
 #include "core/rng.h"
-#include "driver/progress.h"
 #include "io/image.h"
+#include "render/progress.h"
 #include "scene/scene.h"
 #include "shade/bsdf.h"
 
@@ -94,60 +94,4 @@ void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats) {
     stats->illumcut_pairs = d->pairs;
 }
 
-void pn_vpl_eye_sample(const pn_render_job *job, int px, int py, uint32_t i, pn_shading_point *sp,
-                       pn_pixel_estimate *est) {
-    uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
-    float fw, u_specular;
-    vec3 ro, rd;
-    pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
-    pn_eye_path path;
-    pn_trace_eye_path(job, ro, rd, u_specular, &path);
-    if (i == 0) {
-        est->depth = path.first_depth;
-        est->normal = path.first_normal;
-        est->albedo = path.first_albedo;
-    }
-    est->eye_rays++;
-    est->specular_rays += path.rays - 1;
-    memset(sp, 0, sizeof *sp);
-    sp->weight = fw;
-    sp->emitted = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
-    sp->throughput = path.throughput;
-    if (!path.has_point) return;
-    pn_bsdf b;
-    pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
-    sp->has_point = true;
-    sp->r.p = path.hit.p;
-    sp->r.ng = b.ng;
-    sp->r.ns = b.ns;
-    sp->r.wo = path.wo;
-    sp->r.kd = b.kd;
-    sp->r.ks = b.ks;
-    sp->r.exponent = b.exponent;
-}
-
-bool pn_vpl_write_aovs(const pn_pixel_estimate *pixels, size_t count, uint32_t aovs, struct pn_image_s *img) {
-    float *bounds = NULL, *log_bounds = NULL, *cut = NULL, *phase1 = NULL;
-    if (aovs & PN_AOV_BOUND_EVALUATIONS) {
-        /* And its logarithm, IlluminationCut's Fig. 4 (with --aov-png: the false-colour picture). */
-        if (!(bounds = pn_image_add_layer(img, "bound_evaluations", 1))) return false;
-        if (!(log_bounds = pn_image_add_layer(img, "log10_bound_evaluations", 1))) return false;
-    }
-    if (aovs & PN_AOV_CUT_SIZE) {
-        if (!(cut = pn_image_add_layer(img, "cut_size", 1))) return false;
-    }
-    if (aovs & PN_AOV_PHASE1) {
-        if (!(phase1 = pn_image_add_layer(img, "phase1", 3))) return false;
-    }
-    for (size_t i = 0; i < count; i++) {
-        if (bounds) bounds[i] = pixels[i].bound_evaluations;
-        if (log_bounds) log_bounds[i] = log10f(1.0f + pixels[i].bound_evaluations);
-        if (cut) cut[i] = pixels[i].cut_size;
-        if (phase1) {
-            phase1[3 * i] = pixels[i].phase1.x;
-            phase1[3 * i + 1] = pixels[i].phase1.y;
-            phase1[3 * i + 2] = pixels[i].phase1.z;
-        }
-    }
-    return true;
-}
+uint32_t pn_vpl_batch_points(const pn_render_job *job) { return pn_vpl_spp(job); }

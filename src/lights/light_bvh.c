@@ -13,10 +13,10 @@
 static float safe_sqrt(float x) { return sqrtf(fmaxf(0.0f, x)); }
 static float safe_acos(float x) { return acosf(fminf(1.0f, fmaxf(-1.0f, x))); }
 
-static pn_light_bounds bounds_union(const pn_light_bounds *a, const pn_light_bounds *b) {
+static pn_light_bvh_bounds bounds_union(const pn_light_bvh_bounds *a, const pn_light_bvh_bounds *b) {
     if (a->phi == 0.0f) return *b;
     if (b->phi == 0.0f) return *a;
-    pn_light_bounds u;
+    pn_light_bvh_bounds u;
     u.bmin = v3_min(a->bmin, b->bmin);
     u.bmax = v3_max(a->bmax, b->bmax);
     pn_cluster_merge_cones(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
@@ -28,7 +28,7 @@ static pn_light_bounds bounds_union(const pn_light_bounds *a, const pn_light_bou
 
 /* ---- bounds of one light ------------------------------------------------------------------ */
 
-bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bounds *b) {
+bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bvh_bounds *b) {
     memset(b, 0, sizeof *b);
     b->w = v3(0, 0, 1);
     b->cos_o = -1.0f; /* any direction */
@@ -104,7 +104,7 @@ static float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b)
     return sin_a * cos_b - cos_a * sin_b;
 }
 
-float pn_light_bounds_importance(const pn_light_bounds *b, vec3 p, vec3 n) {
+float pn_light_bounds_importance(const pn_light_bvh_bounds *b, vec3 p, vec3 n) {
     vec3 pc = v3_scale(v3_add(b->bmin, b->bmax), 0.5f);
     vec3 dp = v3_sub(p, pc);
     float dc2 = v3_length2(dp);
@@ -141,7 +141,7 @@ float pn_light_bounds_importance(const pn_light_bounds *b, vec3 p, vec3 n) {
 
 typedef struct bvh_item {
     int light;
-    pn_light_bounds b;
+    pn_light_bvh_bounds b;
 } bvh_item;
 
 typedef struct bvh_builder {
@@ -164,7 +164,7 @@ static float surface_area(vec3 lo, vec3 hi) {
     return 2.0f * (d.x * d.y + d.y * d.z + d.z * d.x);
 }
 
-static float split_cost(const pn_light_bounds *b, float kr) {
+static float split_cost(const pn_light_bvh_bounds *b, float kr) {
     return b->phi * orientation_measure(b->cos_o, b->cos_e) * kr * surface_area(b->bmin, b->bmax);
 }
 
@@ -187,7 +187,7 @@ static int build_range(bvh_builder *bb, bvh_item *items, int start, int end, int
         t->node_of_light[items[start].light] = me;
         return me;
     }
-    pn_light_bounds all = items[start].b;
+    pn_light_bvh_bounds all = items[start].b;
     vec3 cmin = v3_scale(v3_add(items[start].b.bmin, items[start].b.bmax), 0.5f), cmax = cmin;
     for (int i = start + 1; i < end; i++) {
         all = bounds_union(&all, &items[i].b);
@@ -203,7 +203,7 @@ static int build_range(bvh_builder *bb, bvh_item *items, int start, int end, int
     for (int dim = 0; dim < 3; dim++) {
         float lo = v3_get(cmin, dim), hi = v3_get(cmax, dim);
         if (!(hi > lo)) continue;
-        pn_light_bounds bucket[BVH_BUCKETS];
+        pn_light_bvh_bounds bucket[BVH_BUCKETS];
         memset(bucket, 0, sizeof bucket);
         for (int i = start; i < end; i++) {
             float c = 0.5f * (v3_get(items[i].b.bmin, dim) + v3_get(items[i].b.bmax, dim));
@@ -215,7 +215,7 @@ static int build_range(bvh_builder *bb, bvh_item *items, int start, int end, int
         float extent = v3_get(diag, dim);
         float kr = extent > 0.0f ? max_extent / extent : 1.0f;
         for (int split = 0; split < BVH_BUCKETS - 1; split++) {
-            pn_light_bounds below, above;
+            pn_light_bvh_bounds below, above;
             memset(&below, 0, sizeof below);
             memset(&above, 0, sizeof above);
             for (int k = 0; k <= split; k++) below = bounds_union(&below, &bucket[k]);

@@ -16,17 +16,17 @@
 
 #include "lights/lights.h"
 
-typedef struct pn_light_bounds {
+typedef struct pn_light_bvh_bounds {
     vec3 bmin, bmax;  /* box of the emitting geometry */
     vec3 w;           /* principal emitting normal */
     float phi;        /* power */
     float cos_o;      /* cos theta_o: normals lie within theta_o of w (-1: any direction) */
     float cos_e;      /* cos theta_e: emission reaches theta_e beyond the normals */
     bool two_sided;   /* emits around -w as well */
-} pn_light_bounds;
+} pn_light_bvh_bounds;
 
 typedef struct pn_light_bvh_node {
-    pn_light_bounds b;
+    pn_light_bvh_bounds b;
     int second;       /* interior: index of the second child (the first is this index + 1);
                          leaf: the light's index in pn_lights */
     int parent;       /* -1 at the root */
@@ -44,10 +44,10 @@ typedef struct pn_light_bvh {
 
 /* The bounds of one light; false for lights outside the tree (distant, environment) and for
  * lights without power. */
-bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bounds *out);
+bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bvh_bounds *out);
 
 /* pbrt-v4's LightBounds::Importance at point p with normal n (n = 0: no cosine factor). */
-float pn_light_bounds_importance(const pn_light_bounds *b, vec3 p, vec3 n);
+float pn_light_bounds_importance(const pn_light_bvh_bounds *b, vec3 p, vec3 n);
 
 pn_status pn_light_bvh_build(const pn_lights *lights, pn_light_bvh *out, pn_err *err);
 void pn_light_bvh_free(pn_light_bvh *bvh);

@@ -1,6 +1,6 @@
 /* progress.c — the one progress and cancel path of a render (see progress.h), and the peak
  * memory every driver reports. */
-#include "driver/progress.h"
+#include "render/progress.h"
 
 #include <sys/resource.h>
 

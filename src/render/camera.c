@@ -1,7 +1,7 @@
 /* camera.c — pbrt-v4's cameras (cameras.cpp: perspective and orthographic with a thin lens,
  * spherical with its two mappings), filter sampling, and the film's response (film.cpp:
  * PixelSensor's imaging ratio and white balance, RGBFilm's maxcomponentvalue). */
-#include "driver/camera.h"
+#include "render/camera.h"
 
 #include "lights/lights.h"
 

@@ -1,10 +1,10 @@
 /* render_job.h — everything an integrator needs to know about one render, resolved once. */
-#ifndef PN_DRIVER_RENDER_JOB_H
-#define PN_DRIVER_RENDER_JOB_H
+#ifndef PN_RENDER_RENDER_JOB_H
+#define PN_RENDER_RENDER_JOB_H
 
 #include "accel/accel.h"
-#include "driver/camera.h"
 #include "lights/lights.h"
+#include "render/camera.h"
 #include "scene/scene.h"
 
 #include <stdatomic.h>
@@ -92,7 +92,7 @@ typedef struct pn_render_job {
     pn_job_list snapshots; /* percentages of the work pixels */
     void *integrator_data; /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
-    struct pn_progress *progress; /* driver/progress.h: the render's progress path (may be NULL) */
+    struct pn_progress *progress; /* render/progress.h: the render's progress path (may be NULL) */
 } pn_render_job;
 
 /* The result of following an eye ray through perfect specular interactions to the first

@@ -10,8 +10,8 @@
  * callback never sees the bar go back when worker threads finish out of order.
  *
  * The weights of the phases are fixed shares (not measured times): a bar, not a clock. */
-#ifndef PN_DRIVER_PROGRESS_H
-#define PN_DRIVER_PROGRESS_H
+#ifndef PN_RENDER_PROGRESS_H
+#define PN_RENDER_PROGRESS_H
 
 #include <pthread.h>
 #include <stdatomic.h>

@@ -1,6 +1,6 @@
 /* eye_path.c — camera rays followed through perfect specular reflection and refraction to the
  * first surface whose direct illumination is estimated. */
-#include "driver/render_job.h"
+#include "render/batch.h"
 
 #include "core/rng.h"
 #include "core/sobol.h"
@@ -83,4 +83,62 @@ void pn_pixel_eye_sample(const pn_render_job *job, int px, int py, uint32_t scra
                             &rx, &ry, fw);
     pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), o, d);
     *u_specular = pn_sobol_sample(i, 4, scramble);
+}
+
+void pn_eye_point_trace(const pn_render_job *job, int px, int py, uint32_t i, pn_batch_point *out) {
+    uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+    float fw, u_specular;
+    vec3 ro, rd;
+    pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
+    pn_eye_path path;
+    pn_trace_eye_path(job, ro, rd, u_specular, &path);
+    memset(out, 0, sizeof *out);
+    out->rays = path.rays;
+    out->first_depth = path.first_depth;
+    out->first_normal = path.first_normal;
+    out->first_albedo = path.first_albedo;
+    pn_shading_point *sp = &out->sp;
+    sp->weight = fw;
+    sp->emitted = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
+    sp->throughput = path.throughput;
+    if (!path.has_point) return;
+    pn_bsdf b;
+    pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+    sp->has_point = true;
+    sp->r.p = path.hit.p;
+    sp->r.ng = b.ng;
+    sp->r.ns = b.ns;
+    sp->r.wo = path.wo;
+    sp->r.kd = b.kd;
+    sp->r.ks = b.ks;
+    sp->r.exponent = b.exponent;
+}
+
+void pn_eye_point_apply(const pn_batch_point *pt, uint32_t i, pn_shading_point *sp, pn_pixel_estimate *est) {
+    if (i == 0) {
+        est->depth = pt->first_depth;
+        est->normal = pt->first_normal;
+        est->albedo = pt->first_albedo;
+    }
+    est->eye_rays++;
+    est->specular_rays += pt->rays - 1;
+    *sp = pt->sp;
+}
+
+void pn_batch_eye_point(const pn_render_job *job, const pn_batch *batch, int pi, uint32_t i, pn_shading_point *sp,
+                        pn_pixel_estimate *est) {
+    if (batch->points && i < batch->points_per_pixel) {
+        pn_eye_point_apply(&batch->points[(size_t)pi * batch->points_per_pixel + i], i, sp, est);
+        return;
+    }
+    pn_batch_point pt;
+    pn_eye_point_trace(job, batch->pixels[pi][0], batch->pixels[pi][1], i, &pt);
+    pn_eye_point_apply(&pt, i, sp, est);
+}
+
+void pn_batch_trace_points(const pn_render_job *job, int count, const int32_t (*pixels)[2], uint32_t per_pixel,
+                           pn_batch_point *out) {
+    for (int k = 0; k < count; k++)
+        for (uint32_t s = 0; s < per_pixel; s++)
+            pn_eye_point_trace(job, pixels[k][0], pixels[k][1], s, &out[(size_t)k * per_pixel + s]);
 }

@@ -2,8 +2,8 @@
  * orthographic; spherical, equal-area or equirectangular), the pixel filters, importance-sampled
  * as pbrt-v4's FilterSampler does, and the film's response (imaging ratio, clamp, white
  * balance), applied to the finished image in one place. */
-#ifndef PN_DRIVER_CAMERA_H
-#define PN_DRIVER_CAMERA_H
+#ifndef PN_RENDER_CAMERA_H
+#define PN_RENDER_CAMERA_H
 
 #include "core/vecmath.h"
 #include "scene/scene.h"
