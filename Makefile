@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps configure build demo test sanitize bench format clean
+.PHONY: all deps configure build demo test sanitize bench format format-check clean
 
 all: build
 
@@ -33,8 +33,17 @@ sanitize: deps
 bench: build
 	$(BUILD)/penumbra_bench --config bench/bench.conf --runs 3 --out bench/results
 
+# The C files clang-format keeps in the style of .clang-format.
+FORMAT_FILES = include/penumbra/*.h src/*/*.[ch] tests/*.[ch] bench/*.c bench/*/*.c
+
 format:
-	clang-format -i include/penumbra/*.h src/*/*.[ch] tests/*.[ch]
+	sh scripts/install-deps.sh clang-format
+	clang-format -i $(FORMAT_FILES)
+
+# Fails, naming the files, when a C file differs from what `make format` would make of it.
+format-check:
+	sh scripts/install-deps.sh clang-format
+	clang-format --dry-run --Werror $(FORMAT_FILES)
 
 clean:
 	rm -rf $(BUILD) build-asan out

@@ -76,15 +76,17 @@ static const char curve_list[] = "2,4,6,8,10,15,25,50"; /* snapshot percentages 
 static const char *shared_dir = "../shared";
 
 static void resolve(const char *in, char *out, size_t n) {
-    if (strncmp(in, "shared/", 7) == 0) snprintf(out, n, "%s/%s", shared_dir, in + 7);
-    else snprintf(out, n, "%s", in);
+    if (strncmp(in, "shared/", 7) == 0)
+        snprintf(out, n, "%s/%s", shared_dir, in + 7);
+    else
+        snprintf(out, n, "%s", in);
 }
 
 /* The case's short names for options of the method table (any table name works as well). */
 static const char *const option_aliases[][2] = {
-    {"shadow", "shadow-rays"}, {"max", "max-samples"},         {"sampler", "light-sampler"}, {"stop", "stop-at"},
-    {"csa", "cluster-solid-angle"}, {"grid", "contour-grid"}, {"steps", "contour-steps"},
-    {"mcthreshold", "mc-threshold"},
+    {"shadow", "shadow-rays"},  {"max", "max-samples"},          {"sampler", "light-sampler"},
+    {"stop", "stop-at"},        {"csa", "cluster-solid-angle"},  {"grid", "contour-grid"},
+    {"steps", "contour-steps"}, {"mcthreshold", "mc-threshold"},
 };
 
 /* Sets the case's method options on o; with_stop 0 leaves stop-at out (the full run). */
@@ -105,10 +107,14 @@ static int parse_settings(const char *text, bench_case *bc) {
         if (!eq) return 0;
         *eq = '\0';
         const char *v = eq + 1;
-        if (strcmp(tok, "spp") == 0) s->spp = (uint32_t)strtoul(v, NULL, 10);
-        else if (strcmp(tok, "threshold") == 0) s->threshold = strtod(v, NULL);
-        else if (strcmp(tok, "seed") == 0) s->seed = strtoull(v, NULL, 10);
-        else if (strcmp(tok, "group") == 0) snprintf(bc->group, sizeof bc->group, "%s", v);
+        if (strcmp(tok, "spp") == 0)
+            s->spp = (uint32_t)strtoul(v, NULL, 10);
+        else if (strcmp(tok, "threshold") == 0)
+            s->threshold = strtod(v, NULL);
+        else if (strcmp(tok, "seed") == 0)
+            s->seed = strtoull(v, NULL, 10);
+        else if (strcmp(tok, "group") == 0)
+            snprintf(bc->group, sizeof bc->group, "%s", v);
         else if (strcmp(tok, "res") == 0) {
             if (sscanf(v, "%dx%d", &s->width, &s->height) != 2) return 0;
         } else if (strcmp(tok, "integrator") == 0 || strcmp(tok, "driver") == 0) {
@@ -116,8 +122,10 @@ static int parse_settings(const char *text, bench_case *bc) {
             pn_method_role role = tok[0] == 'i' ? PN_METHOD_INTEGRATOR : PN_METHOD_DRIVER;
             int m = pn_method_find(role, v);
             if (m < 0) return 0;
-            if (role == PN_METHOD_INTEGRATOR) s->integrator = (pn_integrator_kind)pn_method_get(m)->kind;
-            else s->driver = (pn_driver_kind)pn_method_get(m)->kind;
+            if (role == PN_METHOD_INTEGRATOR)
+                s->integrator = (pn_integrator_kind)pn_method_get(m)->kind;
+            else
+                s->driver = (pn_driver_kind)pn_method_get(m)->kind;
         } else {
             const char *name = tok;
             for (size_t i = 0; i < sizeof option_aliases / sizeof option_aliases[0]; i++)
@@ -256,7 +264,8 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
             pn_context_free(ctx);
             return;
         }
-        if (!first) first = img;
+        if (!first)
+            first = img;
         else {
             if (!same_pixels(first, img)) r->bit_identical = 0;
             pn_image_free(img);
@@ -444,8 +453,8 @@ static void equal_quality(FILE *md, FILE *js, const bench_case *cases, const int
             int m = 0;
             for (int j = 0; j < n; j++) {
                 const bench_case *cj = &cases[which[j]];
-                if (j == i || strcmp(cj->group, ci->group) != 0 || !is_reference(&cj->settings) || !res[j].has_metrics ||
-                    cj->bvh != bvh)
+                if (j == i || strcmp(cj->group, ci->group) != 0 || !is_reference(&cj->settings) ||
+                    !res[j].has_metrics || cj->bvh != bvh)
                     continue;
                 pts[m].relmse = res[j].metrics.relmse;
                 pts[m].seconds = res[j].median;
@@ -461,17 +470,25 @@ static void equal_quality(FILE *md, FILE *js, const bench_case *cases, const int
             int qt = reference_at_seconds(pts, m, t, &ref_e);
             const char *qmark = q > 0 ? "> " : q < 0 ? "< " : "";
             const char *tmark = qt < 0 ? "> " : qt > 0 ? "< " : "";
-            fprintf(md, "| %s | %s | %s | %.3g | %.3f | %.1f | %s%.3f | %s%.1f | %s%.2f× | %s%.2f× | %s%.3g | %s%.2f× |\n",
-                    ci->group, ci->name, baseline, e, t, rays, qmark, ref_t, qmark, ref_rays, qmark, t > 0 ? ref_t / t : 0.0,
-                    qmark, rays > 0 ? ref_rays / rays : 0.0, tmark, ref_e, tmark, e > 0 ? ref_e / e : 0.0);
+            fprintf(md,
+                    "| %s | %s | %s | %.3g | %.3f | %.1f | %s%.3f | %s%.1f | %s%.2f× | %s%.2f× | %s%.3g | %s%.2f× |\n",
+                    ci->group, ci->name, baseline, e, t, rays, qmark, ref_t, qmark, ref_rays, qmark,
+                    t > 0 ? ref_t / t : 0.0, qmark, rays > 0 ? ref_rays / rays : 0.0, tmark, ref_e, tmark,
+                    e > 0 ? ref_e / e : 0.0);
             fprintf(js,
-                    "%s\n    {\"group\": \"%s\", \"case\": \"%s\", \"baseline\": \"%s\", \"relmse\": %.6g, \"seconds\": %.4f, "
+                    "%s\n    {\"group\": \"%s\", \"case\": \"%s\", \"baseline\": \"%s\", \"relmse\": %.6g, "
+                    "\"seconds\": %.4f, "
                     "\"shadow_rays_per_pixel\": %.3f, \"reference_seconds_equal_relmse\": %.4f, "
                     "\"reference_shadow_rays_equal_relmse\": %.3f, \"equal_relmse_bound\": \"%s\", "
                     "\"reference_relmse_equal_time\": %.6g, \"equal_time_bound\": \"%s\"}",
                     first ? "" : ",", ci->group, ci->name, baseline, e, t, rays, ref_t, ref_rays,
-                    q > 0 ? "lower" : q < 0 ? "upper" : "interpolated", ref_e,
-                    qt < 0 ? "lower" : qt > 0 ? "upper" : "interpolated");
+                    q > 0   ? "lower"
+                    : q < 0 ? "upper"
+                            : "interpolated",
+                    ref_e,
+                    qt < 0   ? "lower"
+                    : qt > 0 ? "upper"
+                             : "interpolated");
             first = 0;
         }
     }
@@ -485,12 +502,18 @@ int main(int argc, char **argv) {
     const char *config = "bench/bench.conf", *out_dir = "bench/results", *only = NULL;
     int runs = 3, threads = 0;
     for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--config") == 0 && i + 1 < argc) config = argv[++i];
-        else if (strcmp(argv[i], "--runs") == 0 && i + 1 < argc) runs = atoi(argv[++i]);
-        else if (strcmp(argv[i], "--threads") == 0 && i + 1 < argc) threads = atoi(argv[++i]);
-        else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc) out_dir = bench_out_dir = argv[++i];
-        else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) only = argv[++i];
-        else if (strcmp(argv[i], "--shared") == 0 && i + 1 < argc) shared_dir = argv[++i];
+        if (strcmp(argv[i], "--config") == 0 && i + 1 < argc)
+            config = argv[++i];
+        else if (strcmp(argv[i], "--runs") == 0 && i + 1 < argc)
+            runs = atoi(argv[++i]);
+        else if (strcmp(argv[i], "--threads") == 0 && i + 1 < argc)
+            threads = atoi(argv[++i]);
+        else if (strcmp(argv[i], "--out") == 0 && i + 1 < argc)
+            out_dir = bench_out_dir = argv[++i];
+        else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc)
+            only = argv[++i];
+        else if (strcmp(argv[i], "--shared") == 0 && i + 1 < argc)
+            shared_dir = argv[++i];
         else {
             fprintf(stderr, "usage: penumbra_bench [--config FILE] [--runs N] [--threads N] [--out DIR] "
                             "[--only NAME] [--shared DIR]\n");
@@ -517,7 +540,8 @@ int main(int argc, char **argv) {
         return 4;
     }
     fprintf(md, "| case | crop | settings | triangles | lights | time median (s) [min, max] | Mrays/s | "
-                "shadow rays/px | eye rays/px | peak MiB | relMSE vs pbrt-v4 | Embree share | ias cut + PDF share | identical runs |\n");
+                "shadow rays/px | eye rays/px | peak MiB | relMSE vs pbrt-v4 | Embree share | ias cut + PDF share | "
+                "identical runs |\n");
     fprintf(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     fprintf(js, "{\n  \"penumbra\": \"%s\",\n  \"runs\": %d,\n  \"threads\": %d,\n  \"cases\": [", pn_version_string(),
             runs, threads);
@@ -552,7 +576,8 @@ int main(int argc, char **argv) {
         int status = 0;
         waitpid(pid, &status, 0);
         if (got != (ssize_t)sizeof r || !r.ok) {
-            fprintf(stderr, "penumbra_bench: %s: failed: %s\n", bc->name, got == (ssize_t)sizeof r ? r.error : "crashed");
+            fprintf(stderr, "penumbra_bench: %s: failed: %s\n", bc->name,
+                    got == (ssize_t)sizeof r ? r.error : "crashed");
             fprintf(md, "| %s | %s | %s | failed: %s ||||||||||\n", bc->name, bc->crop_text, bc->settings_text,
                     r.error);
             continue;
@@ -560,37 +585,43 @@ int main(int argc, char **argv) {
         double px = (double)r.stats.width * (double)r.stats.height;
         double embree_share = r.stats.render_seconds > 0 ? r.stats.embree_seconds_estimate / r.stats.render_seconds : 0;
         /* ias: cluster cuts and PDF upkeep (zero for the reference). */
-        double upkeep_share = r.stats.render_seconds > 0
-                                  ? (r.stats.cut_seconds_estimate + r.stats.pdf_seconds_estimate) / r.stats.render_seconds
-                                  : 0;
+        double upkeep_share =
+            r.stats.render_seconds > 0
+                ? (r.stats.cut_seconds_estimate + r.stats.pdf_seconds_estimate) / r.stats.render_seconds
+                : 0;
         char relmse[64] = "n/a", relmse_json[64] = "null", rmse_json[64] = "null";
         if (r.has_metrics) {
             snprintf(relmse, sizeof relmse, "%.3g", r.metrics.relmse);
             snprintf(relmse_json, sizeof relmse_json, "%.6g", r.metrics.relmse);
             snprintf(rmse_json, sizeof rmse_json, "%.6g", r.metrics.rmse);
         }
-        fprintf(md, "| %s | %s | %s | %llu | %u | %.3f [%.3f, %.3f] | %.2f | %.1f | %.1f | %.0f | %s | %.0f%% | %.0f%% | %s |\n",
+        fprintf(md,
+                "| %s | %s | %s | %llu | %u | %.3f [%.3f, %.3f] | %.2f | %.1f | %.1f | %.0f | %s | %.0f%% | %.0f%% | "
+                "%s |\n",
                 bc->name, bc->crop_text, bc->settings_text, (unsigned long long)r.triangles, r.lights, r.median, r.min,
                 r.max, r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
                 (double)r.stats.peak_memory_bytes / 1048576.0, relmse, 100.0 * embree_share, 100.0 * upkeep_share,
                 r.bit_identical ? "yes" : "NO");
-        fprintf(js,
-                "%s\n    {\"name\": \"%s\", \"scene\": \"%s\", \"crop\": \"%s\", \"settings\": \"%s\", "
-                "\"width\": %d, \"height\": %d, \"pixels\": %.0f, \"triangles\": %llu, \"lights\": %u, "
-                "\"parse_seconds\": %.4f, \"bvh_seconds\": %.4f, \"render_seconds_median\": %.4f, "
-                "\"render_seconds_min\": %.4f, \"render_seconds_max\": %.4f, \"mrays_per_second\": %.3f, "
-                "\"shadow_rays_per_pixel\": %.3f, \"eye_rays_per_pixel\": %.3f, \"peak_memory_bytes\": %llu, "
-                "\"embree_share\": %.4f, \"upkeep_share\": %.4f, \"relmse\": %s, \"rmse\": %s, \"bit_identical_runs\": %s}",
-                first ? "" : ",", bc->name, bc->scene, bc->crop_text, bc->settings_text, r.stats.width, r.stats.height,
-                px, (unsigned long long)r.triangles, r.lights, r.parse_seconds, r.bvh_seconds, r.median, r.min, r.max,
-                r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
-                (unsigned long long)r.stats.peak_memory_bytes, embree_share, upkeep_share, relmse_json, rmse_json, r.bit_identical ? "true" : "false");
+        fprintf(
+            js,
+            "%s\n    {\"name\": \"%s\", \"scene\": \"%s\", \"crop\": \"%s\", \"settings\": \"%s\", "
+            "\"width\": %d, \"height\": %d, \"pixels\": %.0f, \"triangles\": %llu, \"lights\": %u, "
+            "\"parse_seconds\": %.4f, \"bvh_seconds\": %.4f, \"render_seconds_median\": %.4f, "
+            "\"render_seconds_min\": %.4f, \"render_seconds_max\": %.4f, \"mrays_per_second\": %.3f, "
+            "\"shadow_rays_per_pixel\": %.3f, \"eye_rays_per_pixel\": %.3f, \"peak_memory_bytes\": %llu, "
+            "\"embree_share\": %.4f, \"upkeep_share\": %.4f, \"relmse\": %s, \"rmse\": %s, \"bit_identical_runs\": %s}",
+            first ? "" : ",", bc->name, bc->scene, bc->crop_text, bc->settings_text, r.stats.width, r.stats.height, px,
+            (unsigned long long)r.triangles, r.lights, r.parse_seconds, r.bvh_seconds, r.median, r.min, r.max,
+            r.stats.mrays_per_second, r.stats.shadow_rays_per_pixel_mean, r.stats.eye_rays_per_pixel_mean,
+            (unsigned long long)r.stats.peak_memory_bytes, embree_share, upkeep_share, relmse_json, rmse_json,
+            r.bit_identical ? "true" : "false");
         first = 0;
         done_case[done_count] = c;
         done[done_count++] = r;
         if (r.curve_n > 0) { /* progressive drivers (issue 6) */
             if (!prog && (prog = fopen(prog_path, "w")) != NULL) {
-                fprintf(prog, "| case | settings | work pixels %% | rel L1 | rel L2 | time (s) | time / full | full render (s) |\n");
+                fprintf(prog, "| case | settings | work pixels %% | rel L1 | rel L2 | time (s) | time / full | full "
+                              "render (s) |\n");
                 fprintf(prog, "|---|---|---|---|---|---|---|---|\n");
             }
             for (int k = 0; prog && k < r.curve_n; k++)

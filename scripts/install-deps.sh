@@ -1,7 +1,9 @@
 #!/bin/sh
 # install-deps.sh — installs the Debian 12 packages penumbra needs, only those that are missing.
+# usage: sh scripts/install-deps.sh [EXTRA_PACKAGE...]
 set -eu
-packages="build-essential cmake pkg-config libembree-dev libopenexr-dev libstb-dev libcjson-dev"
+# Extra package names may be given as arguments (e.g. clang-format, for `make format`).
+packages="build-essential cmake pkg-config libembree-dev libopenexr-dev libstb-dev libcjson-dev $*"
 missing=""
 for p in $packages; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

@@ -21,42 +21,42 @@ typedef struct pn_test_case {
 static int pn_test_failures_in_case;
 static int pn_test_skipped_case;
 
-#define CHECK(cond)                                                                        \
-    do {                                                                                   \
-        if (!(cond)) {                                                                     \
-            fprintf(stderr, "  %s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);    \
-            pn_test_failures_in_case++;                                                    \
-        }                                                                                  \
+#define CHECK(cond)                                                                                                    \
+    do {                                                                                                               \
+        if (!(cond)) {                                                                                                 \
+            fprintf(stderr, "  %s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);                                 \
+            pn_test_failures_in_case++;                                                                                \
+        }                                                                                                              \
     } while (0)
 
-#define CHECK_MSG(cond, ...)                                                               \
-    do {                                                                                   \
-        if (!(cond)) {                                                                     \
-            fprintf(stderr, "  %s:%d: CHECK failed: %s: ", __FILE__, __LINE__, #cond);    \
-            fprintf(stderr, __VA_ARGS__);                                                  \
-            fputc('\n', stderr);                                                           \
-            pn_test_failures_in_case++;                                                    \
-        }                                                                                  \
+#define CHECK_MSG(cond, ...)                                                                                           \
+    do {                                                                                                               \
+        if (!(cond)) {                                                                                                 \
+            fprintf(stderr, "  %s:%d: CHECK failed: %s: ", __FILE__, __LINE__, #cond);                                 \
+            fprintf(stderr, __VA_ARGS__);                                                                              \
+            fputc('\n', stderr);                                                                                       \
+            pn_test_failures_in_case++;                                                                                \
+        }                                                                                                              \
     } while (0)
 
-#define CHECK_NEAR(a, b, tol)                                                              \
-    do {                                                                                   \
-        double pn_a_ = (double)(a), pn_b_ = (double)(b), pn_t_ = (double)(tol);            \
-        if (!(fabs(pn_a_ - pn_b_) <= pn_t_)) {                                             \
-            fprintf(stderr, "  %s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, tol %.3g\n", \
-                    __FILE__, __LINE__, #a, pn_a_, #b, pn_b_, pn_t_);                      \
-            pn_test_failures_in_case++;                                                    \
-        }                                                                                  \
+#define CHECK_NEAR(a, b, tol)                                                                                          \
+    do {                                                                                                               \
+        double pn_a_ = (double)(a), pn_b_ = (double)(b), pn_t_ = (double)(tol);                                        \
+        if (!(fabs(pn_a_ - pn_b_) <= pn_t_)) {                                                                         \
+            fprintf(stderr, "  %s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, tol %.3g\n", __FILE__, __LINE__, #a,    \
+                    pn_a_, #b, pn_b_, pn_t_);                                                                          \
+            pn_test_failures_in_case++;                                                                                \
+        }                                                                                                              \
     } while (0)
 
-#define CHECK_STR_CONTAINS(haystack, needle)                                               \
-    do {                                                                                   \
-        const char *pn_h_ = (haystack), *pn_n_ = (needle);                                 \
-        if (pn_h_ == NULL || strstr(pn_h_, pn_n_) == NULL) {                               \
-            fprintf(stderr, "  %s:%d: expected \"%s\" to contain \"%s\"\n", __FILE__,      \
-                    __LINE__, pn_h_ ? pn_h_ : "(null)", pn_n_);                            \
-            pn_test_failures_in_case++;                                                    \
-        }                                                                                  \
+#define CHECK_STR_CONTAINS(haystack, needle)                                                                           \
+    do {                                                                                                               \
+        const char *pn_h_ = (haystack), *pn_n_ = (needle);                                                             \
+        if (pn_h_ == NULL || strstr(pn_h_, pn_n_) == NULL) {                                                           \
+            fprintf(stderr, "  %s:%d: expected \"%s\" to contain \"%s\"\n", __FILE__, __LINE__,                        \
+                    pn_h_ ? pn_h_ : "(null)", pn_n_);                                                                  \
+            pn_test_failures_in_case++;                                                                                \
+        }                                                                                                              \
     } while (0)
 
 static inline void pn_test_skip(const char *why) {
@@ -64,31 +64,32 @@ static inline void pn_test_skip(const char *why) {
     pn_test_skipped_case = 1;
 }
 
-#define TEST(fn) {#fn, fn}
+#define TEST(fn)                                                                                                       \
+    { #fn, fn }
 
-#define PN_TESTS(...)                                                                      \
-    int main(void) {                                                                       \
-        static const pn_test_case cases[] = {__VA_ARGS__};                                 \
-        int passed = 0, failed = 0, skipped = 0;                                           \
-        for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {                      \
-            pn_test_failures_in_case = 0;                                                  \
-            pn_test_skipped_case = 0;                                                      \
-            fprintf(stderr, "[ RUN  ] %s\n", cases[i].name);                               \
-            cases[i].fn();                                                                 \
-            if (pn_test_failures_in_case) {                                                \
-                failed++;                                                                  \
-                fprintf(stderr, "[ FAIL ] %s\n", cases[i].name);                           \
-            } else if (pn_test_skipped_case) {                                             \
-                skipped++;                                                                 \
-                fprintf(stderr, "[ SKIP ] %s\n", cases[i].name);                           \
-            } else {                                                                       \
-                passed++;                                                                  \
-                fprintf(stderr, "[  OK  ] %s\n", cases[i].name);                           \
-            }                                                                              \
-        }                                                                                  \
-        printf("%d passed, %d failed, %d skipped\n", passed, failed, skipped);             \
-        /* 77: CTest reports the test as skipped (SKIP_RETURN_CODE) when nothing ran. */   \
-        return failed ? 1 : (passed == 0 && skipped > 0 ? 77 : 0);                         \
+#define PN_TESTS(...)                                                                                                  \
+    int main(void) {                                                                                                   \
+        static const pn_test_case cases[] = {__VA_ARGS__};                                                             \
+        int passed = 0, failed = 0, skipped = 0;                                                                       \
+        for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {                                                  \
+            pn_test_failures_in_case = 0;                                                                              \
+            pn_test_skipped_case = 0;                                                                                  \
+            fprintf(stderr, "[ RUN  ] %s\n", cases[i].name);                                                           \
+            cases[i].fn();                                                                                             \
+            if (pn_test_failures_in_case) {                                                                            \
+                failed++;                                                                                              \
+                fprintf(stderr, "[ FAIL ] %s\n", cases[i].name);                                                       \
+            } else if (pn_test_skipped_case) {                                                                         \
+                skipped++;                                                                                             \
+                fprintf(stderr, "[ SKIP ] %s\n", cases[i].name);                                                       \
+            } else {                                                                                                   \
+                passed++;                                                                                              \
+                fprintf(stderr, "[  OK  ] %s\n", cases[i].name);                                                       \
+            }                                                                                                          \
+        }                                                                                                              \
+        printf("%d passed, %d failed, %d skipped\n", passed, failed, skipped);                                         \
+        /* 77: CTest reports the test as skipped (SKIP_RETURN_CODE) when nothing ran. */                               \
+        return failed ? 1 : (passed == 0 && skipped > 0 ? 77 : 0);                                                     \
     }
 
 /* Writes `text` to dir/name and returns the path (static storage, valid until the next call),

@@ -25,8 +25,8 @@ static pn_scene load_scene(pn_context ctx, const char *name, const char *text) {
 
 static pn_integrator_kind integrator = PN_INTEGRATOR_REFERENCE; /* of render() */
 
-static pn_image render(pn_context ctx, pn_scene scene, uint32_t spp, double threshold, const char *rule,
-                       uint64_t seed, int threads) {
+static pn_image render(pn_context ctx, pn_scene scene, uint32_t spp, double threshold, const char *rule, uint64_t seed,
+                       int threads) {
     pn_render_settings s = {0};
     s.integrator = integrator;
     s.spp = spp;
@@ -82,7 +82,8 @@ static const char slope_scene[] =
     "LightSource \"point\" \"point3 from\" [ -2 -2 2.5 ] \"rgb I\" [ 0.5 0.5 0.5 ]\n"
     "AttributeBegin\n"
     "  AreaLightSource \"diffuse\" \"rgb L\" [ 3 3 3 ]\n"
-    "  Shape \"trianglemesh\" \"point3 P\" [ -1 2.5 2  1 2.5 2  1 3.5 2  -1 3.5 2 ] \"integer indices\" [ 0 2 1  0 3 2 ]\n"
+    "  Shape \"trianglemesh\" \"point3 P\" [ -1 2.5 2  1 2.5 2  1 3.5 2  -1 3.5 2 ] \"integer indices\" [ 0 2 1  0 3 2 "
+    "]\n"
     "AttributeEnd\n";
 
 /* relMSE against a 1024-spp render falls with the threshold: the least-squares slope of
@@ -133,13 +134,15 @@ static void test_error_proportional_to_threshold(void) {
         }
         double slope = (3.0 * sxy - sx * sy) / (3.0 * sxx - sx * sx);
         fprintf(stderr,
-                "  cross relMSE %.3g %.3g %.3g at T = 0.02 0.005 0.00125: slope %.3f (paper rule: %.3g %.3g %.3g, slope %.3f); "
+                "  cross relMSE %.3g %.3g %.3g at T = 0.02 0.005 0.00125: slope %.3f (paper rule: %.3g %.3g %.3g, "
+                "slope %.3f); "
                 "reference noise (two seeds) %.3g\n",
-                e[0], e[1], e[2], slope, paper[0], paper[1], paper[2], log(paper[0] / paper[2]) / log(t[0] / t[2]), ref_noise);
+                e[0], e[1], e[2], slope, paper[0], paper[1], paper[2], log(paper[0] / paper[2]) / log(t[0] / t[2]),
+                ref_noise);
         CHECK(0.5 * ref_noise < 0.1 * e[2]); /* the reference's noise is not what is measured */
         CHECK(slope > 0.8 && slope < 1.8);
         double paper_slope = log(paper[0] / paper[2]) / log(t[0] / t[2]);
-        CHECK(paper_slope < 0.8); /* the scene does show the old rule's failure */
+        CHECK(paper_slope < 0.8);                       /* the scene does show the old rule's failure */
         for (int k = 0; k < 3; k++) CHECK(e[k] < t[k]); /* s^2/L^2 < T per pixel: the mean is below T */
     }
     pn_image_free(ref);

@@ -27,8 +27,8 @@
 /* What a render reported through its progress callback. */
 typedef struct progress_log {
     double values[4096];
-    int count;      /* calls (values beyond the array are not kept) */
-    int monotone;   /* 1 while every value exceeded the one before */
+    int count;    /* calls (values beyond the array are not kept) */
+    int monotone; /* 1 while every value exceeded the one before */
     double last, max;
     pn_context cancel_ctx; /* when set: cancel at the first call */
 } progress_log;
@@ -122,8 +122,8 @@ static void test_cancel_during_vpl_tracing(void) {
         pn_image img = NULL;
         CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_ERROR_CANCELLED);
         CHECK(img == NULL);
-        CHECK_MSG(log.count >= 1 && log.count <= 2 && log.max > 0.0 && log.max < EARLY_FRACTION,
-                  "%d calls, up to %g", log.count, log.max);
+        CHECK_MSG(log.count >= 1 && log.count <= 2 && log.max > 0.0 && log.max < EARLY_FRACTION, "%d calls, up to %g",
+                  log.count, log.max);
         pn_context_clear_error(ctx);
     }
     pn_scene_free(scene);
@@ -200,7 +200,8 @@ static void test_progressive_drivers(void) {
         CHECK_MSG(pn_render(ctx, scene, &rs, &img, &stats) == PN_OK, "%s: %s", names[d], pn_context_error_message(ctx));
         pn_image_free(img);
         check_progress(&log, names[d]);
-        CHECK_MSG(stats.peak_memory_bytes > 0, "%s: peak memory %llu", names[d], (unsigned long long)stats.peak_memory_bytes);
+        CHECK_MSG(stats.peak_memory_bytes > 0, "%s: peak memory %llu", names[d],
+                  (unsigned long long)stats.peak_memory_bytes);
     }
     /* With a VPL integrator: its preparation first, then the driver's pixels. */
     progress_log log;
@@ -283,7 +284,9 @@ static void test_cli_interrupt_during_preparation(void) {
     CHECK(access(partial_path, F_OK) != 0);
 }
 
-static void setup(void) { vpl_test_setup("cancel"); }
+static void setup(void) {
+    vpl_test_setup("cancel");
+}
 
 static void teardown(void) {
     pn_options_free(vpl_options);
@@ -291,5 +294,6 @@ static void teardown(void) {
     vpl_test_teardown();
 }
 
-PN_TESTS(TEST(setup), TEST(test_cancel_before_render), TEST(test_cancel_during_vpl_tracing), TEST(test_progress_by_phase),
-         TEST(test_progressive_drivers), TEST(test_cli_interrupt_during_preparation), TEST(teardown))
+PN_TESTS(TEST(setup), TEST(test_cancel_before_render), TEST(test_cancel_during_vpl_tracing),
+         TEST(test_progress_by_phase), TEST(test_progressive_drivers), TEST(test_cli_interrupt_during_preparation),
+         TEST(teardown))

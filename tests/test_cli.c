@@ -40,13 +40,11 @@ static char work_dir[256];
 static void remove_tree(const char *path) {
     DIR *dir = opendir(path);
     struct dirent *entry;
-    if (dir == NULL)
-        return;
+    if (dir == NULL) return;
     while ((entry = readdir(dir)) != NULL) {
         char child[1024];
         struct stat st;
-        if (strcmp(entry->d_name, ".") == 0 || strcmp(entry->d_name, "..") == 0)
-            continue;
+        if (strcmp(entry->d_name, ".") == 0 || strcmp(entry->d_name, "..") == 0) continue;
         snprintf(child, sizeof child, "%s/%s", path, entry->d_name);
         if (lstat(child, &st) == 0 && S_ISDIR(st.st_mode))
             remove_tree(child);
@@ -58,16 +56,14 @@ static void remove_tree(const char *path) {
 }
 
 static void remove_work_dir(void) {
-    if (work_dir[0] && getenv("PN_KEEP_TEST_DIR") == NULL)
-        remove_tree(work_dir);
+    if (work_dir[0] && getenv("PN_KEEP_TEST_DIR") == NULL) remove_tree(work_dir);
 }
 
 /* Creates the work folder on first use; all paths below are relative to it. */
 static const char *work(void) {
     if (work_dir[0] == '\0') {
         const char *tmp = getenv("TMPDIR");
-        snprintf(work_dir, sizeof work_dir, "%s/penumbra-cli-XXXXXX",
-                 tmp && tmp[0] ? tmp : "/tmp");
+        snprintf(work_dir, sizeof work_dir, "%s/penumbra-cli-XXXXXX", tmp && tmp[0] ? tmp : "/tmp");
         if (mkdtemp(work_dir) == NULL) {
             fprintf(stderr, "mkdtemp failed: %s\n", strerror(errno));
             exit(1);
@@ -98,8 +94,7 @@ static char *read_file(const char *name, size_t *size_out) {
     char path[512];
     work_path(name, path, sizeof path);
     FILE *f = fopen(path, "rb");
-    if (f == NULL)
-        return NULL;
+    if (f == NULL) return NULL;
     size_t cap = 4096, size = 0;
     char *data = malloc(cap);
     size_t n;
@@ -117,10 +112,8 @@ static char *read_file(const char *name, size_t *size_out) {
         }
     }
     fclose(f);
-    if (data)
-        data[size] = '\0';
-    if (size_out)
-        *size_out = size;
+    if (data) data[size] = '\0';
+    if (size_out) *size_out = size;
     return data;
 }
 
@@ -159,16 +152,14 @@ static run_result run_cli_interrupted(const char *const *args, long interrupt_ms
     char *argv[64];
     int argc = 0;
     argv[argc++] = (char *)PN_CLI_PATH;
-    for (int i = 0; args[i] && argc < 63; i++)
-        argv[argc++] = (char *)args[i];
+    for (int i = 0; args[i] && argc < 63; i++) argv[argc++] = (char *)args[i];
     argv[argc] = NULL;
 
     (void)work(); /* create the folder here, not in the child */
     fflush(stdout);
     fflush(stderr);
     pid_t pid = fork();
-    if (pid < 0)
-        return r;
+    if (pid < 0) return r;
     if (pid == 0) {
         char out_path[512], err_path[512];
         work_path("cli.stdout", out_path, sizeof out_path);
@@ -176,8 +167,7 @@ static run_result run_cli_interrupted(const char *const *args, long interrupt_ms
         int out_fd = open(out_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
         int err_fd = open(err_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
         int null_fd = open("/dev/null", O_RDONLY);
-        if (out_fd < 0 || err_fd < 0 || null_fd < 0 || chdir(work()) != 0)
-            _exit(126);
+        if (out_fd < 0 || err_fd < 0 || null_fd < 0 || chdir(work()) != 0) _exit(126);
         dup2(null_fd, STDIN_FILENO);
         dup2(out_fd, STDOUT_FILENO);
         dup2(err_fd, STDERR_FILENO);
@@ -189,13 +179,10 @@ static run_result run_cli_interrupted(const char *const *args, long interrupt_ms
     int wstatus = 0, signalled = 0;
     for (;;) {
         pid_t done = waitpid(pid, &wstatus, WNOHANG);
-        if (done == pid)
-            break;
-        if (done < 0 && errno != EINTR)
-            return r;
+        if (done == pid) break;
+        if (done < 0 && errno != EINTR) return r;
         clock_gettime(CLOCK_MONOTONIC, &now);
-        long elapsed_ms = (long)(now.tv_sec - start.tv_sec) * 1000 +
-                          (long)(now.tv_nsec - start.tv_nsec) / 1000000;
+        long elapsed_ms = (long)(now.tv_sec - start.tv_sec) * 1000 + (long)(now.tv_nsec - start.tv_nsec) / 1000000;
         if (interrupt_ms > 0 && !signalled && elapsed_ms >= interrupt_ms) {
             kill(pid, SIGINT);
             signalled = 1;
@@ -216,10 +203,8 @@ static run_result run_cli_interrupted(const char *const *args, long interrupt_ms
         r.status = 128 + WTERMSIG(wstatus);
     r.out = read_file("cli.stdout", NULL);
     r.err = read_file("cli.stderr", NULL);
-    if (r.out == NULL)
-        r.out = calloc(1, 1);
-    if (r.err == NULL)
-        r.err = calloc(1, 1);
+    if (r.out == NULL) r.out = calloc(1, 1);
+    if (r.err == NULL) r.err = calloc(1, 1);
     return r;
 }
 
@@ -228,37 +213,35 @@ static run_result run_cli(const char *const *args) {
 }
 
 /* Runs and checks the exit status; prints the captured output when it differs. */
-#define RUN_EXPECT(result, expected_status, ...)                                           \
-    do {                                                                                   \
-        const char *const pn_args_[] = {__VA_ARGS__, NULL};                                \
-        result = run_cli(pn_args_);                                                        \
-        CHECK_MSG(result.status == (expected_status),                                      \
-                  "penumbra %s %s: exit %d, expected %d\n  stdout: %s\n  stderr: %s",      \
-                  pn_args_[0], pn_args_[1] ? pn_args_[1] : "", result.status,              \
-                  (expected_status), result.out ? result.out : "",                         \
-                  result.err ? result.err : "");                                           \
+#define RUN_EXPECT(result, expected_status, ...)                                                                       \
+    do {                                                                                                               \
+        const char *const pn_args_[] = {__VA_ARGS__, NULL};                                                            \
+        result = run_cli(pn_args_);                                                                                    \
+        CHECK_MSG(result.status == (expected_status),                                                                  \
+                  "penumbra %s %s: exit %d, expected %d\n  stdout: %s\n  stderr: %s", pn_args_[0],                     \
+                  pn_args_[1] ? pn_args_[1] : "", result.status, (expected_status), result.out ? result.out : "",      \
+                  result.err ? result.err : "");                                                                       \
     } while (0)
 
 /* ---------------------------------------------------------------------------------------- */
 /* Scenes */
 
 /* One quad at z = 0 seen from z = -3, lit by a point light and a small two-sided area light. */
-static const char tiny_scene[] =
-    "# tiny test scene\n"
-    "LookAt 0 0 -3  0 0 0  0 1 0\n"
-    "Camera \"perspective\" \"float fov\" [ 45 ]\n"
-    "Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]\n"
-    "    \"string filename\" [ \"ignored.exr\" ]\n"
-    "WorldBegin\n"
-    "LightSource \"point\" \"point3 from\" [ 0.3 0.2 -1 ] \"rgb I\" [ 1 1 1 ]\n"
-    "AttributeBegin\n"
-    "    AreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ] \"bool twosided\" true\n"
-    "    Shape \"trianglemesh\" \"integer indices\" [ 0 1 2 0 2 3 ]\n"
-    "        \"point3 P\" [ -0.6 -0.6 -1  -0.4 -0.6 -1  -0.4 -0.4 -1  -0.6 -0.4 -1 ]\n"
-    "AttributeEnd\n"
-    "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
-    "Shape \"trianglemesh\" \"integer indices\" [ 0 1 2 0 2 3 ]\n"
-    "    \"point3 P\" [ -1 -1 0  1 -1 0  1 1 0  -1 1 0 ]\n";
+static const char tiny_scene[] = "# tiny test scene\n"
+                                 "LookAt 0 0 -3  0 0 0  0 1 0\n"
+                                 "Camera \"perspective\" \"float fov\" [ 45 ]\n"
+                                 "Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]\n"
+                                 "    \"string filename\" [ \"ignored.exr\" ]\n"
+                                 "WorldBegin\n"
+                                 "LightSource \"point\" \"point3 from\" [ 0.3 0.2 -1 ] \"rgb I\" [ 1 1 1 ]\n"
+                                 "AttributeBegin\n"
+                                 "    AreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ] \"bool twosided\" true\n"
+                                 "    Shape \"trianglemesh\" \"integer indices\" [ 0 1 2 0 2 3 ]\n"
+                                 "        \"point3 P\" [ -0.6 -0.6 -1  -0.4 -0.6 -1  -0.4 -0.4 -1  -0.6 -0.4 -1 ]\n"
+                                 "AttributeEnd\n"
+                                 "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+                                 "Shape \"trianglemesh\" \"integer indices\" [ 0 1 2 0 2 3 ]\n"
+                                 "    \"point3 P\" [ -1 -1 0  1 -1 0  1 1 0  -1 1 0 ]\n";
 
 static void write_tiny_scene(void) {
     write_file("tiny.pbrt", tiny_scene);
@@ -325,8 +308,7 @@ static void test_usage_errors(void) {
     static const usage_case cases[] = {
         {{"frobnicate"}, "penumbra: unknown command 'frobnicate'"},
         {{"--frobnicate"}, "unknown option '--frobnicate'"},
-        {{"render", "x.pbrt", "--foo"},
-         "penumbra render: unknown option '--foo' (see penumbra render --help)"},
+        {{"render", "x.pbrt", "--foo"}, "penumbra render: unknown option '--foo' (see penumbra render --help)"},
         {{"render", "x.pbrt", "--spp"}, "option '--spp' needs a value"},
         {{"render", "x.pbrt", "-o"}, "option '-o' needs a value"},
         {{"render", "x.pbrt", "--spp", "abc"}, "invalid value 'abc' for --spp"},
@@ -383,12 +365,10 @@ static void test_usage_errors(void) {
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         run_result r = run_cli(cases[i].args);
-        CHECK_MSG(r.status == 2, "case %zu (%s %s ...): exit %d, stderr: %s", i,
-                  cases[i].args[0], cases[i].args[1] ? cases[i].args[1] : "", r.status,
-                  r.err ? r.err : "");
+        CHECK_MSG(r.status == 2, "case %zu (%s %s ...): exit %d, stderr: %s", i, cases[i].args[0],
+                  cases[i].args[1] ? cases[i].args[1] : "", r.status, r.err ? r.err : "");
         CHECK_STR_CONTAINS(r.err, cases[i].message);
-        CHECK_MSG(r.out && r.out[0] == '\0', "case %zu printed to stdout: %s", i,
-                  r.out ? r.out : "");
+        CHECK_MSG(r.out && r.out[0] == '\0', "case %zu printed to stdout: %s", i, r.out ? r.out : "");
         run_free(&r);
     }
     /* The inline form of a valid option is accepted (it fails later, on the missing scene). */
@@ -467,11 +447,10 @@ static void test_bad_scenes(void) {
     write_file("corrupt.png", "\x89PNG\r\n\x1a\nnot really");
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         write_file(cases[i].file, cases[i].text);
-        const char *const args[] = {"render", cases[i].file, "--spp", "1", "-o", "bad.exr",
-                                    "--png", "bad.png", "--stats", "bad.json", NULL};
+        const char *const args[] = {"render", cases[i].file, "--spp",   "1",        "-o", "bad.exr",
+                                    "--png",  "bad.png",     "--stats", "bad.json", NULL};
         run_result r = run_cli(args);
-        CHECK_MSG(r.status == 3, "%s: exit %d, stderr: %s", cases[i].file, r.status,
-                  r.err ? r.err : "");
+        CHECK_MSG(r.status == 3, "%s: exit %d, stderr: %s", cases[i].file, r.status, r.err ? r.err : "");
         CHECK_STR_CONTAINS(r.err, cases[i].location);
         CHECK_STR_CONTAINS(r.err, "penumbra: ");
         CHECK(!file_exists("bad.exr"));
@@ -481,8 +460,7 @@ static void test_bad_scenes(void) {
 
         /* Without -o nothing named after the scene appears either; info fails the same way. */
         char default_name[128];
-        snprintf(default_name, sizeof default_name, "%.*s.exr",
-                 (int)(strlen(cases[i].file) - 5), cases[i].file);
+        snprintf(default_name, sizeof default_name, "%.*s.exr", (int)(strlen(cases[i].file) - 5), cases[i].file);
         const char *const args2[] = {"render", cases[i].file, "--spp", "1", NULL};
         r = run_cli(args2);
         CHECK(r.status == 3);
@@ -508,9 +486,8 @@ static void test_render_outputs(void) {
     char out_dir[512];
     work_path("out", out_dir, sizeof out_dir);
     mkdir(out_dir, 0755);
-    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--spp", "4", "-o", "out/full.exr", "--png",
-               "out/full.png", "--stats", "out/full.json", "--aov", "all", "--threads", "2",
-               "--seed", "7");
+    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--spp", "4", "-o", "out/full.exr", "--png", "out/full.png", "--stats",
+               "out/full.json", "--aov", "all", "--threads", "2", "--seed", "7");
     CHECK_STR_CONTAINS(r.out, "16x16");
     CHECK_STR_CONTAINS(r.out, "shadow rays");
     CHECK_STR_CONTAINS(r.out, "out/full.exr");
@@ -518,9 +495,8 @@ static void test_render_outputs(void) {
 
     size_t size = 0;
     char *exr = read_file("out/full.exr", &size);
-    CHECK(exr != NULL && size > 4 && (unsigned char)exr[0] == 0x76 &&
-          (unsigned char)exr[1] == 0x2f && (unsigned char)exr[2] == 0x31 &&
-          (unsigned char)exr[3] == 0x01);
+    CHECK(exr != NULL && size > 4 && (unsigned char)exr[0] == 0x76 && (unsigned char)exr[1] == 0x2f &&
+          (unsigned char)exr[2] == 0x31 && (unsigned char)exr[3] == 0x01);
     free(exr);
     char *png = read_file("out/full.png", &size);
     CHECK(png != NULL && size > 8 && memcmp(png, "\x89PNG", 4) == 0);
@@ -539,8 +515,7 @@ static void test_render_outputs(void) {
 
     /* Default output name, and --quiet prints nothing on stdout. */
     remove_file("tiny.exr");
-    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--spp", "1", "--quiet", "--crop",
-               "0.25,0.75,0,0.5");
+    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--spp", "1", "--quiet", "--crop", "0.25,0.75,0,0.5");
     CHECK(file_exists("tiny.exr"));
     CHECK(r.out && r.out[0] == '\0');
     run_free(&r);
@@ -579,8 +554,7 @@ static void test_info(void) {
 /* Value printed after `label` on its own line of `text`, or NAN. */
 static double printed_value(const char *text, const char *label) {
     const char *p = text ? strstr(text, label) : NULL;
-    if (p == NULL)
-        return NAN;
+    if (p == NULL) return NAN;
     return strtod(p + strlen(label), NULL);
 }
 
@@ -603,8 +577,7 @@ static void test_diff(void) {
     run_free(&r);
 
     /* Images of different sizes cannot be compared. */
-    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--spp", "1", "--resolution", "8x8", "-o",
-               "small.exr", "--quiet");
+    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--spp", "1", "--resolution", "8x8", "-o", "small.exr", "--quiet");
     run_free(&r);
     RUN_EXPECT(r, 3, "diff", "tiny.exr", "small.exr", "--error-image", "err2.exr");
     CHECK_STR_CONTAINS(r.err, "differ");
@@ -620,11 +593,11 @@ static void test_diff(void) {
 static void test_same_image_for_any_thread_count(void) {
     run_result r;
     write_tiny_scene();
-    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--threshold", "0.05", "--threads", "1", "--seed",
-               "3", "-o", "t1.exr", "--quiet");
+    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--threshold", "0.05", "--threads", "1", "--seed", "3", "-o", "t1.exr",
+               "--quiet");
     run_free(&r);
-    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--threshold", "0.05", "--threads", "2", "--seed",
-               "3", "-o", "t2.exr", "--quiet");
+    RUN_EXPECT(r, 0, "render", "tiny.pbrt", "--threshold", "0.05", "--threads", "2", "--seed", "3", "-o", "t2.exr",
+               "--quiet");
     run_free(&r);
     RUN_EXPECT(r, 0, "diff", "t1.exr", "t2.exr");
     CHECK(printed_value(r.out, "\nRMSE") == 0.0);
@@ -634,8 +607,8 @@ static void test_same_image_for_any_thread_count(void) {
 /* Ctrl-C: exit status 130 and nothing at the -o path (the partial image goes elsewhere). */
 static void test_interrupt(void) {
     write_file("slow.pbrt", tiny_scene);
-    const char *const args[] = {"render", "slow.pbrt", "--resolution", "1024x1024", "--spp", "4096",
-                                "--threads", "2", "-o", "slow.exr", "--stats", "slow.json", NULL};
+    const char *const args[] = {"render", "slow.pbrt", "--resolution", "1024x1024", "--spp",     "4096", "--threads",
+                                "2",      "-o",        "slow.exr",     "--stats",   "slow.json", NULL};
     run_result r = run_cli_interrupted(args, 400);
     CHECK_MSG(r.status == 130, "exit %d, stderr: %s", r.status, r.err ? r.err : "");
     CHECK(!file_exists("slow.exr"));
@@ -647,8 +620,7 @@ static void test_interrupt(void) {
         CHECK(file_exists("slow.partial.exr"));
         char *json = read_file("slow.json", NULL);
         CHECK(json != NULL);
-        if (json)
-            CHECK_STR_CONTAINS(json, "\"partial\": true");
+        if (json) CHECK_STR_CONTAINS(json, "\"partial\": true");
         free(json);
     }
     run_free(&r);
@@ -664,18 +636,15 @@ static void test_unwritable_output(void) {
     CHECK(!file_exists("unwritable.exr"));
     run_free(&r);
 
-    RUN_EXPECT(r, 4, "render", "tiny.pbrt", "--spp", "1", "-o", "ok.exr", "--stats",
-               "no-such-dir/stats.json");
+    RUN_EXPECT(r, 4, "render", "tiny.pbrt", "--spp", "1", "-o", "ok.exr", "--stats", "no-such-dir/stats.json");
     CHECK(!file_exists("ok.exr"));
     run_free(&r);
 
-    if (!render_tiny())
-        return;
+    if (!render_tiny()) return;
     RUN_EXPECT(r, 4, "diff", "tiny.exr", "tiny.exr", "--error-image", "no-such-dir/err.exr");
     run_free(&r);
 }
 
-PN_TESTS(TEST(test_version_and_help), TEST(test_usage_errors), TEST(test_bad_scenes),
-         TEST(test_render_outputs), TEST(test_info), TEST(test_diff),
-         TEST(test_same_image_for_any_thread_count), TEST(test_interrupt),
+PN_TESTS(TEST(test_version_and_help), TEST(test_usage_errors), TEST(test_bad_scenes), TEST(test_render_outputs),
+         TEST(test_info), TEST(test_diff), TEST(test_same_image_for_any_thread_count), TEST(test_interrupt),
          TEST(test_unwritable_output))

@@ -21,7 +21,9 @@ static float rnd(test_rng *r) {
     return (float)(z >> 40) * (1.0f / 16777216.0f);
 }
 
-static float rnd_range(test_rng *r, float a, float b) { return a + (b - a) * rnd(r); }
+static float rnd_range(test_rng *r, float a, float b) {
+    return a + (b - a) * rnd(r);
+}
 
 static vec3 rnd_unit(test_rng *r) {
     float z = 1.0f - 2.0f * rnd(r);
@@ -59,9 +61,7 @@ static pn_light make_light(test_rng *r, pn_light_kind kind, float h, vec3 facing
         l.cos_falloff_start = cosf(w * rnd(r));
         break;
     }
-    case PN_LIGHT_DISTANT:
-        l.n = dir;
-        break;
+    case PN_LIGHT_DISTANT: l.n = dir; break;
     case PN_LIGHT_TRIANGLE: {
         vec3 t, b;
         v3_basis(dir, &t, &b);
@@ -100,11 +100,8 @@ static pn_light make_light(test_rng *r, pn_light_kind kind, float h, vec3 facing
         l.radius = rnd_range(r, 0.01f, 0.5f);
         l.area = 4.0f * PN_PI * l.radius * l.radius;
         break;
-    case PN_LIGHT_ENVIRONMENT:
-        l.env = 0;
-        break;
-    default:
-        break;
+    case PN_LIGHT_ENVIRONMENT: l.env = 0; break;
+    default: break;
     }
     return l;
 }
@@ -121,8 +118,8 @@ static pn_lights wrap_lights(pn_light *l, int count) {
 /* A mix of every kind, some lights with zero emission. */
 static pn_light *mixed_lights(test_rng *r, int count, float h) {
     pn_light *l = malloc((size_t)count * sizeof *l);
-    static const pn_light_kind kinds[] = {PN_LIGHT_POINT,     PN_LIGHT_SPOT,   PN_LIGHT_TRIANGLE,
-                                          PN_LIGHT_RECTANGLE, PN_LIGHT_DISK,   PN_LIGHT_SPHERE,
+    static const pn_light_kind kinds[] = {PN_LIGHT_POINT,       PN_LIGHT_SPOT,     PN_LIGHT_TRIANGLE,
+                                          PN_LIGHT_RECTANGLE,   PN_LIGHT_DISK,     PN_LIGHT_SPHERE,
                                           PN_LIGHT_GONIOMETRIC, PN_LIGHT_TRIANGLE, PN_LIGHT_RECTANGLE};
     for (int i = 0; i < count; i++) {
         pn_light_kind k = kinds[(int)(rnd(r) * 9.0f) % 9];
@@ -140,7 +137,9 @@ static double dotd(vec3 a, vec3 b) {
     return (double)a.x * (double)b.x + (double)a.y * (double)b.y + (double)a.z * (double)b.z;
 }
 
-static vec3 subv(vec3 a, vec3 b) { return v3_sub(a, b); }
+static vec3 subv(vec3 a, vec3 b) {
+    return v3_sub(a, b);
+}
 
 /* True when light l gives no light at all to p with normal n (n = 0: no horizon), computed in
  * double from the definitions: no part of the emitter above the tangent plane, p behind a
@@ -149,8 +148,7 @@ static bool gives_nothing(const pn_light *l, vec3 p, vec3 n) {
     bool horizon = !v3_is_zero(n);
     switch (l->kind) {
     case PN_LIGHT_POINT:
-    case PN_LIGHT_GONIOMETRIC:
-        return horizon && dotd(subv(l->p, p), n) <= 0.0;
+    case PN_LIGHT_GONIOMETRIC: return horizon && dotd(subv(l->p, p), n) <= 0.0;
     case PN_LIGHT_SPOT: {
         vec3 d = subv(p, l->p);
         double d2 = dotd(d, d);
@@ -173,12 +171,9 @@ static bool gives_nothing(const pn_light *l, vec3 p, vec3 n) {
         double c = dotd(l->n, n);
         return dotd(subv(l->p, p), n) + (double)l->radius * sqrt(fmax(0.0, 1.0 - c * c)) <= 0.0;
     }
-    case PN_LIGHT_SPHERE:
-        return horizon && dotd(subv(l->p, p), n) + (double)l->radius <= 0.0;
-    case PN_LIGHT_DISTANT:
-        return horizon && dotd(l->n, n) <= 0.0;
-    default:
-        return false;
+    case PN_LIGHT_SPHERE: return horizon && dotd(subv(l->p, p), n) + (double)l->radius <= 0.0;
+    case PN_LIGHT_DISTANT: return horizon && dotd(l->n, n) <= 0.0;
+    default: return false;
     }
 }
 
@@ -204,10 +199,8 @@ static bool sphere_holds_light(const pn_cluster_node *nd, const pn_light *l) {
         return true;
     }
     case PN_LIGHT_DISK:
-    case PN_LIGHT_SPHERE:
-        return sphere_holds(nd->center, nd->radius, l->p, l->radius);
-    default:
-        return sphere_holds(nd->center, nd->radius, l->p, 0.0f);
+    case PN_LIGHT_SPHERE: return sphere_holds(nd->center, nd->radius, l->p, l->radius);
+    default: return sphere_holds(nd->center, nd->radius, l->p, 0.0f);
     }
 }
 
@@ -577,8 +570,8 @@ static void test_cut_properties(void) {
     taken = pn_cluster_cut_ex(&f, &L, v3(0.2f, 0.3f, 0.0f), v3(0, 0, 1), 0.02f, out2, cap2, culled2, cap2, &nc);
     CHECK(taken > 0 && nc == 0);
     for (int i = 0; i < 40; i++)
-        check_cut(&f, &L, v3(rnd_range(&r, -12, 12), rnd_range(&r, -12, 12), rnd_range(&r, 0, 3)), rnd_unit(&r),
-                  0.05f, out2, culled2, cap2, mark, stats2);
+        check_cut(&f, &L, v3(rnd_range(&r, -12, 12), rnd_range(&r, -12, 12), rnd_range(&r, 0, 3)), rnd_unit(&r), 0.05f,
+                  out2, culled2, cap2, mark, stats2);
     pn_cluster_forest_free(&f);
     free(out2);
     free(culled2);

@@ -135,7 +135,7 @@ static pn_contour_g occluded_g(const occluded_config *c, pn_dvec3 m, bool obstac
     pn_contour_border_velocity(q0, ty, i0, ds, m, vq0);
     pn_contour_border_velocity(q1, ty, i0, ds, m, vq1);
     pn_dvec3 a0 = pn_dv3_sub(q0, m), a1 = pn_dv3_sub(q1, m);
-    pn_contour_add_segment(&g, v[0], v[1], true);               /* silhouette, fixed 3D points */
+    pn_contour_add_segment(&g, v[0], v[1], true);                 /* silhouette, fixed 3D points */
     pn_contour_add_segment_moving(&g, v[1], a1, NULL, vq1, true); /* along the ray from M: nothing */
     pn_contour_add_segment_moving(&g, a1, v[2], vq1, NULL, true); /* border, sliding end */
     pn_contour_add_segment(&g, v[2], v[3], true);
@@ -206,23 +206,21 @@ static void test_strip_threshold(void) {
     CHECK_NEAR(t2, t / 2, 1e-7);
 }
 
-
 /* ---- with rays: the marching squares of §3 on a real scene ------------------------------------ */
 
 /* Source [-1,1]^2 at z = 2 facing down; an occluding quad covering y <= 0.1 at z = 1. */
-static const char *edge_scene =
-    "LookAt 0 -3 3  0 0 0  0 0 1\n"
-    "Camera \"perspective\" \"float fov\" [ 40 ]\n"
-    "Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]\n"
-    "WorldBegin\n"
-    "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 1  5 -5 1  5 0.1 1  -5 0.1 1 ]\n"
-    "   \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-    "AttributeBegin\n"
-    "  AreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ]\n"
-    "  Shape \"trianglemesh\" \"point3 P\" [ -1 -1 2  -1 1 2  1 1 2  1 -1 2 ]\n"
-    "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-    "AttributeEnd\n";
+static const char *edge_scene = "LookAt 0 -3 3  0 0 0  0 0 1\n"
+                                "Camera \"perspective\" \"float fov\" [ 40 ]\n"
+                                "Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]\n"
+                                "WorldBegin\n"
+                                "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+                                "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 1  5 -5 1  5 0.1 1  -5 0.1 1 ]\n"
+                                "   \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                                "AttributeBegin\n"
+                                "  AreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ]\n"
+                                "  Shape \"trianglemesh\" \"point3 P\" [ -1 -1 2  -1 1 2  1 1 2  1 -1 2 ]\n"
+                                "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                                "AttributeEnd\n";
 
 static void test_marching_squares_with_rays(void) {
     pn_context ctx = pn_context_new();
@@ -253,7 +251,8 @@ static void test_marching_squares_with_rays(void) {
         pn_dvec3 m = points[i];
         pn_contour_eval ev;
         memset(vis, 0, (size_t)(N + 1) * (N + 1));
-        bool sees = pn_contour_eval_setup(&ev, &job, &src, pn_dv3_to(m), v3(0, 0, 1), v3(0, 0, 1), N, vis, thit, true, 7);
+        bool sees =
+            pn_contour_eval_setup(&ev, &job, &src, pn_dv3_to(m), v3(0, 0, 1), v3(0, 0, 1), N, vis, thit, true, 7);
         CHECK(sees);
         pn_contour_integrate(&ev, 2);
         pn_contour_g exact = occluded_g(&cfg, m, true);
@@ -278,15 +277,16 @@ static void test_marching_squares_with_rays(void) {
                                             false, 7));
                 pn_contour_integrate(&plain, 2);
                 memset(vis2, 0, (size_t)(N + 1) * (N + 1));
-                CHECK(pn_contour_eval_setup(&hinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vis2, thit2,
-                                            false, 7));
+                CHECK(pn_contour_eval_setup(&hinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vis2,
+                                            thit2, false, 7));
                 hinted.hint = vis;
                 pn_contour_integrate(&hinted, 2);
                 double fe2 = pn_dv3_dot(occluded_g(&cfg, m2, true).g, N_UP);
                 CHECK_NEAR(pn_dv3_dot(hinted.acc.g, N_UP), fe2, 0.01 * fe2);
                 CHECK_NEAR(pn_dv3_dot(plain.acc.g, N_UP), fe2, 0.01 * fe2);
-                if (h == 0) CHECK_MSG(hinted.rays < plain.rays, "point %zu: %u rays with the hint, %u without", i,
-                                      hinted.rays, plain.rays);
+                if (h == 0)
+                    CHECK_MSG(hinted.rays < plain.rays, "point %zu: %u rays with the hint, %u without", i, hinted.rays,
+                              plain.rays);
             }
         }
     }
@@ -340,7 +340,8 @@ static void set_contour_flags(pn_context ctx, pn_options o, uint32_t flags) {
     int k = 0;
     for (const char *p = choices; *p; k++) {
         size_t n = strcspn(p, ",");
-        if (flags & (1u << k)) snprintf(text + strlen(text), sizeof text - strlen(text), "%s%.*s", text[0] ? "," : "", (int)n, p);
+        if (flags & (1u << k))
+            snprintf(text + strlen(text), sizeof text - strlen(text), "%s%.*s", text[0] ? "," : "", (int)n, p);
         p += n;
         if (*p == ',') p++;
     }
@@ -405,7 +406,8 @@ static void test_contour_matches_reference(void) {
         pn_image mc = render(ctx, scene, PN_INTEGRATOR_CONTOUR_MC, 4, 0, 0, 2, NULL);
         CHECK(ref && fine && paper && mc);
         if (ref && fine && paper && mc) {
-            double e_fine = mean_rel_diff(ref, fine), e_paper = mean_rel_diff(ref, paper), e_mc = mean_rel_diff(ref, mc);
+            double e_fine = mean_rel_diff(ref, fine), e_paper = mean_rel_diff(ref, paper),
+                   e_mc = mean_rel_diff(ref, mc);
             CHECK_MSG(e_fine < 0.004, "triangle %d: fine contour differs by %g", triangle, e_fine);
             CHECK_MSG(e_paper < 0.02, "triangle %d: contour differs by %g", triangle, e_paper);
             CHECK_MSG(e_mc < 0.03, "triangle %d: contour-mc differs by %g", triangle, e_mc);
@@ -485,7 +487,8 @@ static void test_thread_determinism_and_bad_settings(void) {
         CHECK(a && b && c);
         if (a && b && c)
             for (int l = 0; l < pn_image_layer_count(a); l++) {
-                size_t n = (size_t)pn_image_width(a) * pn_image_height(a) * pn_image_layer_channels(a, l) * sizeof(float);
+                size_t n =
+                    (size_t)pn_image_width(a) * pn_image_height(a) * pn_image_layer_channels(a, l) * sizeof(float);
                 CHECK(memcmp(pn_image_layer_data(a, l), pn_image_layer_data(b, l), n) == 0);
                 CHECK(memcmp(pn_image_layer_data(a, l), pn_image_layer_data(c, l), n) == 0);
             }
@@ -586,7 +589,8 @@ static void test_scanline_spans(void) {
         CHECK_MSG(e8 < 0.02 && e32 < 0.025, "differences from the reference: span 8 %g, span 32 %g", e8, e32);
         CHECK(s1.contour_shadow_rays == s32.contour_shadow_rays);
         for (int l = 0; l < pn_image_layer_count(a32); l++) {
-            size_t n = (size_t)pn_image_width(a32) * pn_image_height(a32) * pn_image_layer_channels(a32, l) * sizeof(float);
+            size_t n =
+                (size_t)pn_image_width(a32) * pn_image_height(a32) * pn_image_layer_channels(a32, l) * sizeof(float);
             CHECK(memcmp(pn_image_layer_data(a32, l), pn_image_layer_data(b32, l), n) == 0);
             CHECK(memcmp(pn_image_layer_data(a32, l), pn_image_layer_data(c32, l), n) == 0);
         }
@@ -603,9 +607,10 @@ static void test_scanline_spans(void) {
                 const float *full = pn_image_layer_data(a32, l), *part = pn_image_layer_data(crop32, l);
                 for (int y = y0; y < y1; y++)
                     for (int x = x0; x < x1; x++)
-                        mismatches += memcmp(full + ((size_t)y * 64 + (size_t)x) * (size_t)c,
-                                             part + ((size_t)(y - y0) * (size_t)(x1 - x0) + (size_t)(x - x0)) * (size_t)c,
-                                             (size_t)c * sizeof(float)) != 0;
+                        mismatches +=
+                            memcmp(full + ((size_t)y * 64 + (size_t)x) * (size_t)c,
+                                   part + ((size_t)(y - y0) * (size_t)(x1 - x0) + (size_t)(x - x0)) * (size_t)c,
+                                   (size_t)c * sizeof(float)) != 0;
             }
             CHECK_MSG(mismatches == 0, "%d crop pixels differ from the full image", mismatches);
         }
@@ -696,7 +701,8 @@ static void test_island_probes(void) {
                   f, fe, full);
         /* A nearby point, no scout: with the first point's samples as its hint, one probe finds
          * the island; without the hint it is missed. */
-        CHECK(pn_contour_eval_setup(&hinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vb, NULL, false, 7));
+        CHECK(
+            pn_contour_eval_setup(&hinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vb, NULL, false, 7));
         hinted.hint = va;
         pn_contour_probe_islands(&hinted, va, 2);
         CHECK(hinted.probe_count >= 1 && hinted.probe_count <= 2);
@@ -711,7 +717,8 @@ static void test_island_probes(void) {
         CHECK(!pn_contour_probe_contradicts(&hinted, i0, j0, 32, 2));
         CHECK(!pn_contour_probe_contradicts(&hinted, 32 - i0, j0, 32, 1));
         memset(vb, 0, size);
-        CHECK(pn_contour_eval_setup(&unhinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vb, NULL, false, 7));
+        CHECK(pn_contour_eval_setup(&unhinted, &job, &src, pn_dv3_to(m2), v3(0, 0, 1), v3(0, 0, 1), N, vb, NULL, false,
+                                    7));
         pn_contour_probe_islands(&unhinted, NULL, 2);
         pn_contour_integrate(&unhinted, 2);
         CHECK(unhinted.islands_found == 0 && pn_dv3_dot(unhinted.acc.g, N_UP) > fe2 + 0.5 * (full - fe2));
@@ -869,8 +876,8 @@ static void test_inconsistency_bookkeeping(void) {
     /* Leaves: the square (0, 0) of size 4 has been treated. */
     CHECK(!pn_contour_treated_square_has_on_side(&ev, 2, 4));
     pn_contour_add_leaf(&ev, 0, 0, 4);
-    CHECK(pn_contour_treated_square_has_on_side(&ev, 2, 4)); /* inside its top side */
-    CHECK(pn_contour_treated_square_has_on_side(&ev, 4, 1)); /* inside its right side */
+    CHECK(pn_contour_treated_square_has_on_side(&ev, 2, 4));  /* inside its top side */
+    CHECK(pn_contour_treated_square_has_on_side(&ev, 4, 1));  /* inside its right side */
     CHECK(!pn_contour_treated_square_has_on_side(&ev, 4, 4)); /* its corner: it used that sample */
     CHECK(!pn_contour_treated_square_has_on_side(&ev, 6, 4)); /* the side of an untreated square */
     CHECK(!pn_contour_treated_square_has_on_side(&ev, 2, 2)); /* its inside, on no side */
@@ -976,12 +983,15 @@ static void setup(void) {
     if (!mkdtemp(tmpdir)) tmpdir[0] = 0;
 }
 
-static void test_setup(void) { setup(); CHECK(tmpdir[0] != 0); }
+static void test_setup(void) {
+    setup();
+    CHECK(tmpdir[0] != 0);
+}
 
 PN_TESTS(TEST(test_setup), TEST(test_rectangle_matches_closed_form), TEST(test_horizon_clipping),
          TEST(test_triangle_source), TEST(test_gradient_matches_finite_differences), TEST(test_strip_threshold),
          TEST(test_marching_squares_with_rays), TEST(test_contour_matches_reference), TEST(test_unoccluded_closed_form),
          TEST(test_thread_determinism_and_bad_settings), TEST(test_scanline_spans),
-         TEST(test_inconsistency_bookkeeping), TEST(test_pattern_boundary),
-         TEST(test_spans_end_at_creases), TEST(test_island_probes), TEST(test_island_beside_a_contour),
-         TEST(test_run_is_linear), TEST(test_uniform_runs_check_part))
+         TEST(test_inconsistency_bookkeeping), TEST(test_pattern_boundary), TEST(test_spans_end_at_creases),
+         TEST(test_island_probes), TEST(test_island_beside_a_contour), TEST(test_run_is_linear),
+         TEST(test_uniform_runs_check_part))

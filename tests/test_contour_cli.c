@@ -42,10 +42,10 @@ static void test_bad_options(void) {
     static const struct {
         const char *args, *expect;
     } cases[] = {
-        {"--contour-grid 1", "--contour-grid"},      {"--contour-grid 66", "--contour-grid"},
-        {"--contour-steps 0", "--contour-steps"},    {"--contour-steps 13", "--contour-steps"},
-        {"--contour-span 0", "--contour-span"},      {"--contour-off shadows", "--contour-off"},
-        {"--mc-threshold -1", "--mc-threshold"},     {"--mc-max-rays 2", "--mc-max-rays"},
+        {"--contour-grid 1", "--contour-grid"},   {"--contour-grid 66", "--contour-grid"},
+        {"--contour-steps 0", "--contour-steps"}, {"--contour-steps 13", "--contour-steps"},
+        {"--contour-span 0", "--contour-span"},   {"--contour-off shadows", "--contour-off"},
+        {"--mc-threshold -1", "--mc-threshold"},  {"--mc-max-rays 2", "--mc-max-rays"},
         {"--aov gradients", "gradients"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
@@ -57,8 +57,8 @@ static void test_bad_options(void) {
     }
     /* Too large a sample array: a clear message from the library, exit 2 (invalid argument). */
     char args[4096], err[4096];
-    snprintf(args, sizeof args, "render '%s' --integrator contour --contour-grid 65 --contour-steps 12 -o '%s/o.exr'", scene,
-             dir);
+    snprintf(args, sizeof args, "render '%s' --integrator contour --contour-grid 65 --contour-steps 12 -o '%s/o.exr'",
+             scene, dir);
     CHECK(run(args, err, sizeof err) != 0);
     CHECK_STR_CONTAINS(err, "sample array");
 }
@@ -67,8 +67,8 @@ static void test_good_run(void) {
     const char *scene = pn_test_write_file(dir, "s2.pbrt", scene_text);
     char args[4096], err[4096];
     snprintf(args, sizeof args,
-             "render '%s' --integrator contour --aov gradient,shadow_rays --stats '%s/s.json' -o '%s/g.exr' --quiet", scene,
-             dir, dir);
+             "render '%s' --integrator contour --aov gradient,shadow_rays --stats '%s/s.json' -o '%s/g.exr' --quiet",
+             scene, dir, dir);
     CHECK(run(args, err, sizeof err) == 0);
     char path[512];
     snprintf(path, sizeof path, "%s/s.json", dir);

@@ -58,8 +58,7 @@ static void test_hash_avalanche(void) {
 
 static void test_rng_reference(void) {
     /* Reference output of the PCG32 demo program (seed 42, stream 54). */
-    static const uint32_t expected[6] = {0xa15c02b7u, 0x7b47f409u, 0xba1d3330u,
-                                         0x83d2f293u, 0xbfa4784bu, 0xcbed606eu};
+    static const uint32_t expected[6] = {0xa15c02b7u, 0x7b47f409u, 0xba1d3330u, 0x83d2f293u, 0xbfa4784bu, 0xcbed606eu};
     pn_rng rng;
     pn_rng_seed(&rng, 42u, 54u);
     for (int i = 0; i < 6; i++) {
@@ -151,8 +150,7 @@ static void run_pool_checks(pn_threadpool *pool, int runs) {
             int expect = i < jobs ? 1 : 0;
             if (atomic_load(&pc.hits[i]) != expect) wrong++;
         }
-        CHECK_MSG(wrong == 0, "run %d (%zu jobs, %d workers): %d jobs not run exactly once", r,
-                  jobs, pc.size, wrong);
+        CHECK_MSG(wrong == 0, "run %d (%zu jobs, %d workers): %d jobs not run exactly once", r, jobs, pc.size, wrong);
         CHECK(atomic_load(&pc.bad_worker) == 0);
         CHECK(atomic_load(&pc.overlap) == 0);
         if (wrong) break;
@@ -217,6 +215,5 @@ static void test_threadpool_worker_scratch(void) {
 }
 
 PN_TESTS(TEST(test_hash_determinism), TEST(test_hash_avalanche), TEST(test_rng_reference),
-         TEST(test_rng_determinism_and_streams), TEST(test_rng_float_range),
-         TEST(test_threadpool_counts), TEST(test_threadpool_null_and_default),
-         TEST(test_threadpool_worker_scratch))
+         TEST(test_rng_determinism_and_streams), TEST(test_rng_float_range), TEST(test_threadpool_counts),
+         TEST(test_threadpool_null_and_default), TEST(test_threadpool_worker_scratch))

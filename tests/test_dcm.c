@@ -70,13 +70,17 @@ static void test_least_discrepancy_exact(void) {
     for (int k = 8; k <= 16; k += 8)
         for (int i = 0; i < PN_DCM_DIRECTIONS; i++)
             for (int off = -1; off <= 1; off++) {
-                edge e = {0.5f * (float)k + 0.7f * (float)off, 0.5f * (float)k - 0.4f * (float)off,
-                          (float)(i * M_PI / PN_DCM_DIRECTIONS), 1.5f, 0.2f, 1.0f};
+                edge e = {0.5f * (float)k + 0.7f * (float)off,
+                          0.5f * (float)k - 0.4f * (float)off,
+                          (float)(i * M_PI / PN_DCM_DIRECTIONS),
+                          1.5f,
+                          0.2f,
+                          1.0f};
                 fill_loop(k, k, edge_value, &e, lum);
                 float d[PN_DCM_DIRECTIONS];
                 int got = pn_dcm_least_discrepancy(lum, k, k, d);
-                CHECK_MSG(got == i, "k %d direction %d offset %d: got %d (d = %g vs %g)", k, i, off, got, (double)d[got],
-                          (double)d[i]);
+                CHECK_MSG(got == i, "k %d direction %d offset %d: got %d (d = %g vs %g)", k, i, off, got,
+                          (double)d[got], (double)d[i]);
             }
 }
 
@@ -118,7 +122,9 @@ static float shape_value(float x, float y, const void *u) {
     return ((x > s->a) == (y > s->a)) ? 1.0f : 0.1f;
 }
 
-static float shape_inner(void *user, int x, int y) { return shape_value((float)x, (float)y, user); }
+static float shape_inner(void *user, int x, int y) {
+    return shape_value((float)x, (float)y, user);
+}
 
 static void test_simplicity_tests(void) {
     float lum[64];
@@ -320,7 +326,8 @@ static void test_snapshots_and_error_at_6_percent(void) {
             CHECK(log.requested[0] == 2.0 && log.requested[1] == -1.0 && log.requested[2] == 6.0 &&
                   log.requested[3] == 10.0);
             for (int i = 0; i < 4; i++) {
-                if (log.requested[i] > 0) CHECK(log.evaluated[i] >= log.requested[i] && log.evaluated[i] < log.requested[i] + 1.0);
+                if (log.requested[i] > 0)
+                    CHECK(log.evaluated[i] >= log.requested[i] && log.evaluated[i] < log.requested[i] + 1.0);
                 CHECK(log.images[i] && pn_image_width(log.images[i]) == 40);
             }
             double e2 = rel_l1(ctx, full, log.images[0]), e6 = rel_l1(ctx, full, log.images[2]);
@@ -428,7 +435,8 @@ static const char *crease_scene =
     "WorldBegin\n"
     "LightSource \"distant\" \"point3 from\" [ 0 0 1 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 3 3 3 ]\n"
     "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [ -3 -9 0  0.13 -9 0  0.13 9 0  -3 9 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [ -3 -9 0  0.13 -9 0  0.13 9 0  -3 9 0 ] \"integer indices\" [ 0 1 2  0 2 3 "
+    "]\n"
     "Shape \"trianglemesh\" \"point3 P\" [ 0.13 -9 0  5.13 -9 -8  5.13 9 -8  0.13 9 0 ]\n"
     "   \"integer indices\" [ 0 1 2  0 2 3 ]\n";
 
@@ -477,7 +485,8 @@ static const char *lit_wall_scene =
     "WorldBegin\n"
     "AttributeBegin\n"
     "AreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [ -4 -4 0.6  4 -4 0.6  4 4 0.6  -4 4 0.6 ] \"integer indices\" [ 0 2 1  0 3 2 ]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [ -4 -4 0.6  4 -4 0.6  4 4 0.6  -4 4 0.6 ] \"integer indices\" [ 0 2 1  0 3 2 "
+    "]\n"
     "AttributeEnd\n"
     "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
     "Shape \"trianglemesh\" \"point3 P\" [ -9 -9 0  9 -9 0  9 9 0  -9 9 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n";
@@ -663,8 +672,8 @@ static void test_cli_snapshots(void) {
     char dir[512];
     snprintf(dir, sizeof dir, "%s/snap", tmpdir);
     mkdir(dir, 0755);
-    const char *args[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--spp", "2", "--snapshots", "2.5,6",
-                          "--quiet", NULL};
+    const char *args[] = {PN_CLI_PATH, "render", scene,         "-o",    out,       "--driver", "dcm",
+                          "--spp",     "2",      "--snapshots", "2.5,6", "--quiet", NULL};
     CHECK(run(args, err) == 0);
     pn_context ctx = pn_context_new();
     pn_image a = NULL, b = NULL, c = NULL;
@@ -691,8 +700,8 @@ static void test_cli_snapshots(void) {
      * the evaluated percentage with one decimal */
     char out2[512];
     snprintf(out2, sizeof out2, "%s/timed.pfm", tmpdir);
-    const char *timed[] = {PN_CLI_PATH, "render", scene, "-o", out2, "--driver", "uniform", "--spp", "1",
-                           "--snapshot-every", "0.000001", "--quiet", NULL};
+    const char *timed[] = {PN_CLI_PATH, "render",           scene,      "-o",      out2, "--driver", "uniform", "--spp",
+                           "1",         "--snapshot-every", "0.000001", "--quiet", NULL};
     CHECK(run(timed, err) == 0);
     int timed_files = 0;
     d = opendir(tmpdir);
@@ -743,11 +752,13 @@ static void remove_tree(const char *path, int depth) {
     rmdir(path);
 }
 
-static void test_cleanup(void) { remove_tree(tmpdir, 1); }
+static void test_cleanup(void) {
+    remove_tree(tmpdir, 1);
+}
 
 PN_TESTS(TEST(test_setup), TEST(test_loop_geometry), TEST(test_least_discrepancy_exact),
          TEST(test_elements_reproduce_linear_ramp), TEST(test_simplicity_tests), TEST(test_object_test_and_contrast),
          TEST(test_gaussian_downsample), TEST(test_full_refinement_equals_full_render),
-         TEST(test_snapshots_and_error_at_6_percent), TEST(test_emitters_from_primary_rays), TEST(test_segments_across_visible_lines), TEST(test_smooth_blocks_filter_noise),
-         TEST(test_light_guide_glow), TEST(test_stop_and_aovs), TEST(test_cli_snapshots),
-         TEST(test_cleanup))
+         TEST(test_snapshots_and_error_at_6_percent), TEST(test_emitters_from_primary_rays),
+         TEST(test_segments_across_visible_lines), TEST(test_smooth_blocks_filter_noise), TEST(test_light_guide_glow),
+         TEST(test_stop_and_aovs), TEST(test_cli_snapshots), TEST(test_cleanup))

@@ -131,7 +131,10 @@ static void check_tiling(const test_map *m, const pn_env_regions *r) {
 }
 
 static void test_tiling_and_count(void) {
-    const struct { int w, h; bool ea; } maps[] = {{64, 64, true}, {128, 64, false}, {64, 32, false}};
+    const struct {
+        int w, h;
+        bool ea;
+    } maps[] = {{64, 64, true}, {128, 64, false}, {64, 32, false}};
     for (size_t i = 0; i < sizeof maps / sizeof maps[0]; i++) {
         test_map m = make_map(maps[i].w, maps[i].h, maps[i].ea, 1, true);
         pn_env_regions r;
@@ -145,7 +148,10 @@ static void test_tiling_and_count(void) {
 }
 
 static void test_energy_balance(void) {
-    const struct { int w, h; bool ea; } maps[] = {{64, 64, true}, {128, 64, false}, {256, 128, false}};
+    const struct {
+        int w, h;
+        bool ea;
+    } maps[] = {{64, 64, true}, {128, 64, false}, {256, 128, false}};
     for (size_t i = 0; i < sizeof maps / sizeof maps[0]; i++) {
         test_map m = make_map(maps[i].w, maps[i].h, maps[i].ea, 0, false);
         pn_env_regions r;
@@ -166,7 +172,10 @@ static void test_energy_balance(void) {
 }
 
 static void test_integrals(void) {
-    const struct { int w, h; bool ea; } maps[] = {{64, 64, true}, {128, 64, false}};
+    const struct {
+        int w, h;
+        bool ea;
+    } maps[] = {{64, 64, true}, {128, 64, false}};
     for (size_t i = 0; i < sizeof maps / sizeof maps[0]; i++) {
         test_map m = make_map(maps[i].w, maps[i].h, maps[i].ea, 1, true);
         m.env.scale = v3(0.5f, 2.0f, 1.5f);
@@ -293,9 +302,8 @@ static void check_sampling(const test_map *m, const pn_env_regions *r, int per_r
         if (cells > 1) dof += cells - 1;
     }
     double z = dof > 0 ? (chi2 - dof) / sqrt(2.0 * dof) : 0.0;
-    fprintf(stderr, "  %dx%d %s: chi2 %.1f dof %d (z %.2f), worst region estimate error %.4f%% (region %d)\n",
-            w, h, r->virtual_grid ? "constant" : (ea ? "equal-area" : "lat-long"), chi2, dof, z,
-            100.0 * worst_rel, worst_k);
+    fprintf(stderr, "  %dx%d %s: chi2 %.1f dof %d (z %.2f), worst region estimate error %.4f%% (region %d)\n", w, h,
+            r->virtual_grid ? "constant" : (ea ? "equal-area" : "lat-long"), chi2, dof, z, 100.0 * worst_rel, worst_k);
     CHECK_MSG(outside == 0, "%d samples outside their region", outside);
     CHECK_MSG(failed == 0, "%d samples failed", failed);
     CHECK_MSG(bad_pdf == 0, "%d pdfs differ from luminance / region energy", bad_pdf);
@@ -308,7 +316,10 @@ static void check_sampling(const test_map *m, const pn_env_regions *r, int per_r
 }
 
 static void test_sampling(void) {
-    const struct { int w, h; bool ea; } maps[] = {{64, 64, true}, {128, 64, false}};
+    const struct {
+        int w, h;
+        bool ea;
+    } maps[] = {{64, 64, true}, {128, 64, false}};
     for (size_t i = 0; i < sizeof maps / sizeof maps[0]; i++) {
         test_map m = make_map(maps[i].w, maps[i].h, maps[i].ea, 1, true);
         pn_env_regions r;
@@ -342,7 +353,8 @@ static void check_cull(const test_map *m, const pn_env_regions *r, uint64_t seed
     for (int trial = 0; trial < 200; trial++) {
         vec3 n = pn_sample_uniform_sphere(pn_rng_float(&rng), pn_rng_float(&rng));
         if (trial < 6) n = v3(trial == 0 ? 1.0f : 0.0f, trial == 1 ? 1.0f : 0.0f, trial == 2 ? 1.0f : 0.0f);
-        if (trial >= 3 && trial < 6) n = v3_neg(v3(trial == 3 ? 1.0f : 0.0f, trial == 4 ? 1.0f : 0.0f, trial == 5 ? 1.0f : 0.0f));
+        if (trial >= 3 && trial < 6)
+            n = v3_neg(v3(trial == 3 ? 1.0f : 0.0f, trial == 4 ? 1.0f : 0.0f, trial == 5 ? 1.0f : 0.0f));
         n = v3_scale(n, 2.5f); /* need not be unit */
         for (int k = 0; k < r->count; k++) {
             const pn_env_region *g = &r->regions[k];
@@ -380,7 +392,10 @@ static void check_cull(const test_map *m, const pn_env_regions *r, uint64_t seed
 }
 
 static void test_cull(void) {
-    const struct { int w, h; bool ea; } maps[] = {{64, 64, true}, {128, 64, false}};
+    const struct {
+        int w, h;
+        bool ea;
+    } maps[] = {{64, 64, true}, {128, 64, false}};
     for (size_t i = 0; i < sizeof maps / sizeof maps[0]; i++) {
         test_map m = make_map(maps[i].w, maps[i].h, maps[i].ea, 1, true);
         pn_env_regions r;

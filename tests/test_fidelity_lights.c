@@ -21,11 +21,10 @@
 
 static char tmpdir[256];
 
-static const char *header =
-    "LookAt 0 0 5  0 0 0  0 1 0\n"
-    "Camera \"perspective\" \"float fov\" [ 30 ]\n"
-    "Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]\n"
-    "WorldBegin\n";
+static const char *header = "LookAt 0 0 5  0 0 0  0 1 0\n"
+                            "Camera \"perspective\" \"float fov\" [ 30 ]\n"
+                            "Film \"rgb\" \"integer xresolution\" [ 16 ] \"integer yresolution\" [ 16 ]\n"
+                            "WorldBegin\n";
 
 /* Loads header + body; NULL (with a failed check) when it does not load. */
 static pn_scene load(pn_context ctx, const char *name, const char *body) {
@@ -68,12 +67,13 @@ static void test_spot_falloff_and_power(void) {
     /* Cone 30 degrees, falloff over the last 10 (conedeltaangle), rgb I (2, 2, 2); a second spot
      * gives only "conedelta" (not a pbrt-v4 name: unused, so the default 5 degrees applies); a
      * third has "power" 10 and rgb I (2, 2, 2). */
-    pn_scene s = load(ctx, "spot.pbrt",
-                      "LightSource \"spot\" \"float coneangle\" [ 30 ] \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 2 2 2 ]\n"
-                      "LightSource \"spot\" \"float coneangle\" [ 30 ] \"float conedelta\" [ 10 ]\n"
-                      "LightSource \"spot\" \"float coneangle\" [ 30 ] \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 2 2 2 ]\n"
-                      "    \"float power\" [ 10 ]\n"
-                      "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
+    pn_scene s =
+        load(ctx, "spot.pbrt",
+             "LightSource \"spot\" \"float coneangle\" [ 30 ] \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 2 2 2 ]\n"
+             "LightSource \"spot\" \"float coneangle\" [ 30 ] \"float conedelta\" [ 10 ]\n"
+             "LightSource \"spot\" \"float coneangle\" [ 30 ] \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 2 2 2 ]\n"
+             "    \"float power\" [ 10 ]\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
     if (!s) {
         pn_context_free(ctx);
         return;
@@ -87,8 +87,7 @@ static void test_spot_falloff_and_power(void) {
             double c = cos(angles[i] * M_PI / 180.0);
             double expected = 2.0 * smoothstep(c, ce, cs);
             double got = spot_intensity(L, &L->lights[0], angles[i]);
-            CHECK_MSG(fabs(got - expected) <= 2e-4 * 2.0 + 1e-6, "theta %g: %g, expected %g", angles[i], got,
-                      expected);
+            CHECK_MSG(fabs(got - expected) <= 2e-4 * 2.0 + 1e-6, "theta %g: %g, expected %g", angles[i], got, expected);
             /* The irradiance estimate agrees: luminance(I) * cos / d^2 * falloff at normal incidence. */
             double t = angles[i] * M_PI / 180.0;
             vec3 p = v3((float)(2.0 * sin(t)), 0.0f, (float)(2.0 * cos(t)));
@@ -210,7 +209,8 @@ static const char *mix_scene =
     "MakeNamedMaterial \"B\" \"string type\" \"diffuse\" \"rgb reflectance\" [ 0.2 0.8 0.5 ]\n"
     "MakeNamedMaterial \"M\" \"string type\" \"mix\" \"string materials\" [ \"A\" \"B\" ] \"texture amount\" \"amt\"\n"
     "NamedMaterial \"M\"\n"
-    "Shape \"trianglemesh\" \"point3 P\" [ -20 -20 0  20 -20 0  20 20 0  -20 20 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n";
+    "Shape \"trianglemesh\" \"point3 P\" [ -20 -20 0  20 -20 0  20 20 0  -20 20 0 ] \"integer indices\" [ 0 1 2  0 2 3 "
+    "]\n";
 
 static pn_image render_mix(pn_context ctx, pn_scene s, int threads) {
     pn_render_settings rs = {0};
@@ -259,7 +259,8 @@ static void test_mix_proportions(void) {
                 var[c] += d * d / (double)(n - 1);
             }
         const double expected[3] = {0.65, 0.35, 0.5};
-        fprintf(stderr, "  mix image mean (%.4f, %.4f, %.4f), expected (0.65, 0.35, 0.5); pixel sd (%.4f, %.4f, %.4f)\n",
+        fprintf(stderr,
+                "  mix image mean (%.4f, %.4f, %.4f), expected (0.65, 0.35, 0.5); pixel sd (%.4f, %.4f, %.4f)\n",
                 mean[0], mean[1], mean[2], sqrt(var[0]), sqrt(var[1]), sqrt(var[2]));
         for (int c = 0; c < 3; c++) {
             /* 5 standard errors of the mean of 256 independent pixels (their measured spread
@@ -304,10 +305,11 @@ static void test_interface_shapes_do_not_emit(void) {
 /* hair: pbrt-v4's colour input is "reflectance" (the Lambert substitute takes it as kd). */
 static void test_hair_reflectance(void) {
     pn_context ctx = pn_context_new();
-    pn_scene s = load(ctx, "hair.pbrt",
-                      "MakeNamedMaterial \"H\" \"string type\" \"hair\" \"rgb reflectance\" [ 0.6 0.3 0.1 ]\n"
-                      "MakeNamedMaterial \"D\" \"string type\" \"hair\"\n"
-                      "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
+    pn_scene s =
+        load(ctx, "hair.pbrt",
+             "MakeNamedMaterial \"H\" \"string type\" \"hair\" \"rgb reflectance\" [ 0.6 0.3 0.1 ]\n"
+             "MakeNamedMaterial \"D\" \"string type\" \"hair\"\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
     if (s) {
         int h = pn_scene_find_material(s, "H"), d = pn_scene_find_material(s, "D");
         CHECK(h >= 0 && d >= 0);
@@ -331,11 +333,12 @@ static vec3 chromaticity(double x, double y) {
 
 static void test_named_illuminants_keep_colour(void) {
     pn_context ctx = pn_context_new();
-    pn_scene s = load(ctx, "illum.pbrt",
-                      "LightSource \"point\" \"spectrum I\" \"stdillum-A\"\n"
-                      "LightSource \"point\" \"spectrum I\" \"stdillum-D65\"\n"
-                      "LightSource \"point\" \"spectrum I\" \"stdillum-F11\" \"float scale\" [ 2 ]\n"
-                      "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
+    pn_scene s =
+        load(ctx, "illum.pbrt",
+             "LightSource \"point\" \"spectrum I\" \"stdillum-A\"\n"
+             "LightSource \"point\" \"spectrum I\" \"stdillum-D65\"\n"
+             "LightSource \"point\" \"spectrum I\" \"stdillum-F11\" \"float scale\" [ 2 ]\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
     if (s && s->light_def_count == 3) {
         vec3 a = s->light_defs[0].intensity, d65 = s->light_defs[1].intensity, f11 = s->light_defs[2].intensity;
         vec3 ea = chromaticity(0.44757, 0.40745), ef = chromaticity(0.38052, 0.37713);
@@ -372,17 +375,19 @@ static bool write_tga(const char *path, unsigned char r, unsigned char g, unsign
     FILE *f = fopen(path, "wb");
     if (!f) return false;
     unsigned char h[18] = {0};
-    h[2] = 2;           /* uncompressed true colour */
-    h[12] = 1;          /* width 1 */
-    h[14] = 1;          /* height 1 */
-    h[16] = 24;         /* bits per pixel */
-    h[17] = 0x20;       /* top-left origin */
+    h[2] = 2;     /* uncompressed true colour */
+    h[12] = 1;    /* width 1 */
+    h[14] = 1;    /* height 1 */
+    h[16] = 24;   /* bits per pixel */
+    h[17] = 0x20; /* top-left origin */
     unsigned char px[3] = {b, g, r};
     bool ok = fwrite(h, 1, sizeof h, f) == sizeof h && fwrite(px, 1, 3, f) == 3;
     return fclose(f) == 0 && ok;
 }
 
-static double srgb_to_linear(double v) { return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4); }
+static double srgb_to_linear(double v) {
+    return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+}
 
 static vec3 texture_value(pn_scene s, const char *name) {
     int t = pn_scene_find_texture(s, name);
@@ -407,16 +412,17 @@ static void test_encoding_and_float_lookups(void) {
         pn_image_free(img);
     }
     CHECK(png_ok);
-    pn_scene s = load(ctx, "tex.pbrt",
-                      "Texture \"tga\" \"spectrum\" \"imagemap\" \"string filename\" \"px.tga\"\n"
-                      "Texture \"tgalin\" \"spectrum\" \"imagemap\" \"string filename\" \"px.tga\" \"string encoding\" \"linear\"\n"
-                      "Texture \"png\" \"spectrum\" \"imagemap\" \"string filename\" \"px.png\"\n"
-                      "Texture \"pnglin\" \"spectrum\" \"imagemap\" \"string filename\" \"px.png\" \"string encoding\" \"linear\"\n"
-                      "Texture \"pngg\" \"spectrum\" \"imagemap\" \"string filename\" \"px.png\" \"string encoding\" \"gamma 2.2\"\n"
-                      "Texture \"favg\" \"float\" \"imagemap\" \"string filename\" \"px.tga\"\n"
-                      "Texture \"fpoint\" \"float\" \"imagemap\" \"string filename\" \"px.tga\" \"string filter\" \"point\"\n"
-                      "Texture \"finv\" \"float\" \"imagemap\" \"string filename\" \"px.tga\" \"bool invert\" true\n"
-                      "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
+    pn_scene s = load(
+        ctx, "tex.pbrt",
+        "Texture \"tga\" \"spectrum\" \"imagemap\" \"string filename\" \"px.tga\"\n"
+        "Texture \"tgalin\" \"spectrum\" \"imagemap\" \"string filename\" \"px.tga\" \"string encoding\" \"linear\"\n"
+        "Texture \"png\" \"spectrum\" \"imagemap\" \"string filename\" \"px.png\"\n"
+        "Texture \"pnglin\" \"spectrum\" \"imagemap\" \"string filename\" \"px.png\" \"string encoding\" \"linear\"\n"
+        "Texture \"pngg\" \"spectrum\" \"imagemap\" \"string filename\" \"px.png\" \"string encoding\" \"gamma 2.2\"\n"
+        "Texture \"favg\" \"float\" \"imagemap\" \"string filename\" \"px.tga\"\n"
+        "Texture \"fpoint\" \"float\" \"imagemap\" \"string filename\" \"px.tga\" \"string filter\" \"point\"\n"
+        "Texture \"finv\" \"float\" \"imagemap\" \"string filename\" \"px.tga\" \"bool invert\" true\n"
+        "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 -1  1 -1 -1  1 1 -1 ] \"integer indices\" [ 0 1 2 ]\n");
     if (s) {
         double half = srgb_to_linear(128.0 / 255.0);
         /* TGA: always the sRGB curve (pbrt-v4 decodes non-PNG 8-bit files as sRGB); the
@@ -454,9 +460,10 @@ static void setup(void) {
     }
 }
 
-static void test_setup(void) { setup(); }
+static void test_setup(void) {
+    setup();
+}
 
 PN_TESTS(TEST(test_setup), TEST(test_spot_falloff_and_power), TEST(test_area_power_per_shape),
          TEST(test_mix_proportions), TEST(test_interface_shapes_do_not_emit), TEST(test_hair_reflectance),
-         TEST(test_named_illuminants_keep_colour),
-         TEST(test_encoding_and_float_lookups))
+         TEST(test_named_illuminants_keep_colour), TEST(test_encoding_and_float_lookups))

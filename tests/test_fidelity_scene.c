@@ -128,9 +128,9 @@ static bool starts_with_location(const char *w, const char *path) {
 
 /* A lit world: a constant environment and, far behind the camera, one small triangle so that
  * the scene has geometry. The camera at the origin looks along +z and sees only the sky. */
-#define SKY_WORLD(L)                                                                               \
-    "WorldBegin\n"                                                                                 \
-    "LightSource \"infinite\" \"rgb L\" [" L "]\n"                                                 \
+#define SKY_WORLD(L)                                                                                                   \
+    "WorldBegin\n"                                                                                                     \
+    "LightSource \"infinite\" \"rgb L\" [" L "]\n"                                                                     \
     "Shape \"trianglemesh\" \"point3 P\" [0 0 -50 1 0 -50 0 1 -50] \"integer indices\" [0 1 2]\n"
 
 /* ---- 1. relative paths --------------------------------------------------------------------- */
@@ -158,7 +158,8 @@ static void test_paths_resolve_against_top_level_file(void) {
                                "Material \"diffuse\" \"texture reflectance\" \"t\"\n"
                                "Shape \"plymesh\" \"string filename\" \"meshes/tri.ply\"\n"
                                "Include \"sub/inc2.pbrt\"\n");
-    write_file("sub/inc2.pbrt", "Shape \"trianglemesh\" \"point3 P\" [0 0 3 1 0 3 0 1 3] \"integer indices\" [0 1 2]\n");
+    write_file("sub/inc2.pbrt",
+               "Shape \"trianglemesh\" \"point3 P\" [0 0 3 1 0 3 0 1 3] \"integer indices\" [0 1 2]\n");
     pn_err err;
     struct pn_scene_s *s = parse_text("paths_main.pbrt", "WorldBegin\nInclude \"sub/inc.pbrt\"\n", &err);
     CHECK_MSG(s != NULL, "%s", err.message);
@@ -189,8 +190,8 @@ static void test_paths_resolve_against_top_level_file(void) {
 
 static void test_maxdepth_sets_vpl_depth(void) {
     pn_err err;
-    struct pn_scene_s *s = parse_text("depth3.pbrt", "Integrator \"path\"\n  \"integer maxdepth\" [ 3 ]\n" SKY_WORLD("1 1 1"),
-                                      &err);
+    struct pn_scene_s *s =
+        parse_text("depth3.pbrt", "Integrator \"path\"\n  \"integer maxdepth\" [ 3 ]\n" SKY_WORLD("1 1 1"), &err);
     CHECK_MSG(s != NULL, "%s", err.message);
     if (s) {
         /* a path of 3 scattering events = the receiving point + a VPL left after 2 bounces */
@@ -215,13 +216,14 @@ static void test_maxdepth_sets_vpl_depth(void) {
     CHECK_STR_CONTAINS(err.message, "depth_neg.pbrt:1:19: ");
 
     /* End to end: the VPL integrator's default depth is the scene's maxdepth - 1, bit for bit. */
-    const char *room = "Integrator \"path\" \"integer maxdepth\" 4\n"
-                       "LookAt 0 1 -3  0 1 0  0 1 0\nCamera \"perspective\" \"float fov\" 60\n"
-                       "Film \"rgb\" \"integer xresolution\" 12 \"integer yresolution\" 12\n"
-                       "WorldBegin\nLightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 1.8 0]\n"
-                       "Shape \"trianglemesh\" \"point3 P\" [-2 0 -2 2 0 -2 2 0 2 -2 0 2] \"integer indices\" [0 1 2 0 2 3]\n"
-                       "Shape \"trianglemesh\" \"point3 P\" [-2 2 -2 -2 2 2 2 2 2 2 2 -2] \"integer indices\" [0 1 2 0 2 3]\n"
-                       "Shape \"trianglemesh\" \"point3 P\" [-2 0 2 2 0 2 2 2 2 -2 2 2] \"integer indices\" [0 1 2 0 2 3]\n";
+    const char *room =
+        "Integrator \"path\" \"integer maxdepth\" 4\n"
+        "LookAt 0 1 -3  0 1 0  0 1 0\nCamera \"perspective\" \"float fov\" 60\n"
+        "Film \"rgb\" \"integer xresolution\" 12 \"integer yresolution\" 12\n"
+        "WorldBegin\nLightSource \"point\" \"rgb I\" [5 5 5] \"point3 from\" [0 1.8 0]\n"
+        "Shape \"trianglemesh\" \"point3 P\" [-2 0 -2 2 0 -2 2 0 2 -2 0 2] \"integer indices\" [0 1 2 0 2 3]\n"
+        "Shape \"trianglemesh\" \"point3 P\" [-2 2 -2 -2 2 2 2 2 2 2 2 -2] \"integer indices\" [0 1 2 0 2 3]\n"
+        "Shape \"trianglemesh\" \"point3 P\" [-2 0 2 2 0 2 2 2 2 -2 2 2] \"integer indices\" [0 1 2 0 2 3]\n";
     pn_scene sc = load_text("depth_room.pbrt", room);
     if (!sc) return;
     pn_image img[3] = {NULL, NULL, NULL};
@@ -297,7 +299,8 @@ static void test_every_warning_has_a_location(void) {
         char want[700];
         snprintf(want, sizeof want, "%s%s", path, expected[k]);
         bool found = false;
-        for (uint32_t i = 0; i < n && !found; i++) found = strstr(pn_scene_warning(sc, i), want) == pn_scene_warning(sc, i);
+        for (uint32_t i = 0; i < n && !found; i++)
+            found = strstr(pn_scene_warning(sc, i), want) == pn_scene_warning(sc, i);
         CHECK_MSG(found, "no warning \"%s\"", want);
     }
     pn_scene_free(sc);
@@ -348,10 +351,11 @@ static void test_iso_and_shutter_scale_the_image(void) {
 
     /* pbrt-v4: a shutter that does not open (close <= open, as written) stops the render */
     pn_err err;
-    struct pn_scene_s *s = parse_text("exp_shut.pbrt",
-                                      "LookAt 0 0 0 0 0 1 0 1 0\n"
-                                      "  Camera \"perspective\" \"float shutteropen\" 1 \"float shutterclose\" 0.5\n"
-                                      SKY_WORLD("1 1 1"), &err);
+    struct pn_scene_s *s =
+        parse_text("exp_shut.pbrt",
+                   "LookAt 0 0 0 0 0 1 0 1 0\n"
+                   "  Camera \"perspective\" \"float shutteropen\" 1 \"float shutterclose\" 0.5\n" SKY_WORLD("1 1 1"),
+                   &err);
     CHECK(s == NULL && err.status == PN_ERROR_BAD_INPUT);
     CHECK_STR_CONTAINS(err.message, "exp_shut.pbrt:2:3: ");
     CHECK_STR_CONTAINS(err.message, "shutter does not open");
@@ -401,8 +405,8 @@ static void test_white_balance_and_max_component(void) {
 
     /* a named sensor: warned, the XYZ response is kept and pbrt's 6500 K default applied */
     pn_err err;
-    struct pn_scene_s *s = parse_text("sensor.pbrt", "Film \"rgb\" \"string sensor\" \"canon_eos_100d\"\n" SKY_WORLD("1 1 1"),
-                                      &err);
+    struct pn_scene_s *s =
+        parse_text("sensor.pbrt", "Film \"rgb\" \"string sensor\" \"canon_eos_100d\"\n" SKY_WORLD("1 1 1"), &err);
     CHECK(s != NULL);
     if (s) {
         CHECK(has_warning(s, "sensor.pbrt:1:12: \"sensor\" \"canon_eos_100d\" is not supported"));
@@ -413,10 +417,10 @@ static void test_white_balance_and_max_component(void) {
 
 /* ---- 4b. pixelbounds and reversed crop windows --------------------------------------------- */
 
-#define LIT_WORLD                                                                                  \
-    "LookAt 0 0 -4  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 50\n"                       \
-    "WorldBegin\nLightSource \"point\" \"rgb I\" [4 4 4] \"point3 from\" [1 2 -3]\n"               \
-    "Shape \"sphere\" \"float radius\" 1\n"                                                        \
+#define LIT_WORLD                                                                                                      \
+    "LookAt 0 0 -4  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 50\n"                                           \
+    "WorldBegin\nLightSource \"point\" \"rgb I\" [4 4 4] \"point3 from\" [1 2 -3]\n"                                   \
+    "Shape \"sphere\" \"float radius\" 1\n"                                                                            \
     "Shape \"trianglemesh\" \"point3 P\" [-3 -1 -3 3 -1 -3 3 -1 3 -3 -1 3] \"integer indices\" [0 1 2 0 2 3]\n"
 
 static pn_image render_film(const char *rel, const char *film) {
@@ -464,10 +468,11 @@ static void test_pixelbounds_and_reversed_cropwindow(void) {
     pn_image_free(cw);
     /* both given: the crop window wins (pbrt), with a warning at the pixel bounds */
     pn_err err;
-    struct pn_scene_s *s = parse_text("pb_both.pbrt",
-                                      "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12\n"
-                                      "  \"float cropwindow\" [0 0.5 0 0.5] \"integer pixelbounds\" [0 2 0 2]\n" LIT_WORLD,
-                                      &err);
+    struct pn_scene_s *s =
+        parse_text("pb_both.pbrt",
+                   "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12\n"
+                   "  \"float cropwindow\" [0 0.5 0 0.5] \"integer pixelbounds\" [0 2 0 2]\n" LIT_WORLD,
+                   &err);
     CHECK(s != NULL);
     if (s) {
         CHECK(!s->camera.pixel_bounds_given && s->camera.crop[1] == 0.5f);
@@ -475,21 +480,24 @@ static void test_pixelbounds_and_reversed_cropwindow(void) {
         pn_scene_parse_free(s);
     }
     s = parse_text("pb_clamp_w.pbrt",
-                   "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12 \"integer pixelbounds\" [-2 4 0 20]\n"
-                   LIT_WORLD, &err);
+                   "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12 \"integer pixelbounds\" [-2 4 0 "
+                   "20]\n" LIT_WORLD,
+                   &err);
     if (s) {
         CHECK(has_warning(s, "pb_clamp_w.pbrt:1:62: \"pixelbounds\" extends beyond the 16x12 film"));
         pn_scene_parse_free(s);
     }
     /* empty windows are errors at the parameter */
     s = parse_text("pb_empty.pbrt",
-                   "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12 \"integer pixelbounds\" [3 3 0 5]\n"
-                   LIT_WORLD, &err);
+                   "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12 \"integer pixelbounds\" [3 3 0 "
+                   "5]\n" LIT_WORLD,
+                   &err);
     CHECK(s == NULL && err.status == PN_ERROR_BAD_INPUT);
     CHECK_STR_CONTAINS(err.message, "pb_empty.pbrt:1:62: \"pixelbounds\" [3 3 0 5] covers no pixel");
     s = parse_text("cw_empty.pbrt",
-                   "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12 \"float cropwindow\" [0.51 0.55 0 1]\n"
-                   LIT_WORLD, &err);
+                   "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 12 \"float cropwindow\" [0.51 0.55 "
+                   "0 1]\n" LIT_WORLD,
+                   &err);
     CHECK(s == NULL && err.status == PN_ERROR_BAD_INPUT);
     CHECK_STR_CONTAINS(err.message, "cw_empty.pbrt:1:62: \"cropwindow\"");
     pn_image_free(full);
@@ -558,14 +566,15 @@ static void test_orthographic_camera_rays(void) {
      * column 30 of 40, whatever its depth; its radiance is kd / pi. */
     for (int depth = 3; depth <= 30; depth *= 10) {
         char text[1024];
-        snprintf(text, sizeof text,
-                 "Camera \"orthographic\" \"float screenwindow\" [-2 2 -1 1]\n"
-                 "Film \"rgb\" \"integer xresolution\" 40 \"integer yresolution\" 20\n"
-                 "PixelFilter \"box\"\nWorldBegin\n"
-                 "LightSource \"distant\" \"point3 from\" [0 0 0] \"point3 to\" [0 0 1] \"rgb L\" [1 1 1]\n"
-                 "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
-                 "Shape \"trianglemesh\" \"point3 P\" [1 -5 %d 9 -5 %d 9 5 %d 1 5 %d] \"integer indices\" [0 1 2 0 2 3]\n",
-                 depth, depth, depth, depth);
+        snprintf(
+            text, sizeof text,
+            "Camera \"orthographic\" \"float screenwindow\" [-2 2 -1 1]\n"
+            "Film \"rgb\" \"integer xresolution\" 40 \"integer yresolution\" 20\n"
+            "PixelFilter \"box\"\nWorldBegin\n"
+            "LightSource \"distant\" \"point3 from\" [0 0 0] \"point3 to\" [0 0 1] \"rgb L\" [1 1 1]\n"
+            "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+            "Shape \"trianglemesh\" \"point3 P\" [1 -5 %d 9 -5 %d 9 5 %d 1 5 %d] \"integer indices\" [0 1 2 0 2 3]\n",
+            depth, depth, depth, depth);
         char rel[64];
         snprintf(rel, sizeof rel, "ortho_wall_%d.pbrt", depth);
         pn_scene sc = load_text(rel, text);
@@ -617,8 +626,9 @@ static void test_spherical_camera_rays(void) {
     }
     pn_scene_parse_free(s);
 
-    ok = camera_of("equalarea.pbrt", "Camera \"spherical\"\n"
-                                     "Film \"rgb\" \"integer xresolution\" 32 \"integer yresolution\" 32\n" SKY_WORLD("1 1 1"),
+    ok = camera_of("equalarea.pbrt",
+                   "Camera \"spherical\"\n"
+                   "Film \"rgb\" \"integer xresolution\" 32 \"integer yresolution\" 32\n" SKY_WORLD("1 1 1"),
                    &cam, &s);
     CHECK(ok);
     if (ok) {
@@ -655,7 +665,8 @@ static void test_spherical_camera_rays(void) {
     s = parse_text("sph_bad.pbrt", "Camera \"spherical\" \"string mapping\" \"equirect\"\n" SKY_WORLD("1 1 1"), &err);
     CHECK(s == NULL && err.status == PN_ERROR_BAD_INPUT);
     CHECK_STR_CONTAINS(err.message, "sph_bad.pbrt:1:20: unknown \"mapping\" \"equirect\"");
-    s = parse_text("realistic.pbrt", "Camera \"realistic\" \"string lensfile\" \"wide.dat\"\n" SKY_WORLD("1 1 1"), &err);
+    s = parse_text("realistic.pbrt", "Camera \"realistic\" \"string lensfile\" \"wide.dat\"\n" SKY_WORLD("1 1 1"),
+                   &err);
     CHECK(s == NULL && err.status == PN_ERROR_UNSUPPORTED);
     CHECK_STR_CONTAINS(err.message, "realistic.pbrt:1:8: Camera \"realistic\"");
     CHECK_STR_CONTAINS(err.message, "use Camera \"perspective\" with \"lensradius\" and \"focaldistance\"");

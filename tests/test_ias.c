@@ -136,21 +136,22 @@ static const char *many_light_scene(void) {
                               "LightSource \"point\" \"point3 from\" [ %g %g 1.5 ] \"rgb I\" [ %g %g 1 ]\n", x, y,
                               1.0 + 0.1 * (i % 5), 0.8 + 0.05 * (i % 3));
     }
-    n += (size_t)snprintf(text + n, sizeof text - n,
-                          "AttributeBegin\n"
-                          "  AreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ]\n"
-                          "  Shape \"trianglemesh\" \"point3 P\" [ -3 4 2.9  -3 5 2.9  -2 5 2.9  -2 4 2.9 ]\n"
-                          "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                          "  Shape \"trianglemesh\" \"point3 P\" [ 2 4 2.9  2 5 2.9  3 5 2.9  3 4 2.9 ]\n"
-                          "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                          "  Shape \"trianglemesh\" \"point3 P\" [ -0.2 -1.2 2.5  -0.2 -0.8 2.5  0.2 -0.8 2.5  0.2 -1.2 2.5 ]\n"
-                          "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                          "AttributeEnd\n"
-                          "AttributeBegin\n"
-                          "  AreaLightSource \"diffuse\" \"rgb L\" [ 20 16 12 ]\n"
-                          "  Translate 3 -2 1\n"
-                          "  Shape \"sphere\" \"float radius\" [ 0.1 ]\n"
-                          "AttributeEnd\n");
+    n += (size_t)snprintf(
+        text + n, sizeof text - n,
+        "AttributeBegin\n"
+        "  AreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ]\n"
+        "  Shape \"trianglemesh\" \"point3 P\" [ -3 4 2.9  -3 5 2.9  -2 5 2.9  -2 4 2.9 ]\n"
+        "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+        "  Shape \"trianglemesh\" \"point3 P\" [ 2 4 2.9  2 5 2.9  3 5 2.9  3 4 2.9 ]\n"
+        "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+        "  Shape \"trianglemesh\" \"point3 P\" [ -0.2 -1.2 2.5  -0.2 -0.8 2.5  0.2 -0.8 2.5  0.2 -1.2 2.5 ]\n"
+        "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+        "AttributeEnd\n"
+        "AttributeBegin\n"
+        "  AreaLightSource \"diffuse\" \"rgb L\" [ 20 16 12 ]\n"
+        "  Translate 3 -2 1\n"
+        "  Shape \"sphere\" \"float radius\" [ 0.1 ]\n"
+        "AttributeEnd\n");
     return text;
 }
 
@@ -304,8 +305,8 @@ static void test_black_detection_keeps_lit_pixels(void) {
     for (int i = 0; i < 30; i++) {
         double a = 2.0 * 3.14159265358979 * i / 30.0, r = 1.6 + 0.5 * (i % 3);
         n += (size_t)snprintf(text + n, sizeof text - n,
-                              "LightSource \"point\" \"point3 from\" [ %g %g 2.5 ] \"rgb I\" [ 5 5 5 ]\n",
-                              r * cos(a), r * sin(a));
+                              "LightSource \"point\" \"point3 from\" [ %g %g 2.5 ] \"rgb I\" [ 5 5 5 ]\n", r * cos(a),
+                              r * sin(a));
     }
     pn_context ctx = pn_context_new();
     pn_scene scene = load_scene(ctx, "hole.pbrt", text);
@@ -399,8 +400,8 @@ static void test_false_color_aov(void) {
             CHECK(hi > lo);
             for (int i = 0; i < w * h; i++) {
                 const float *c = rgb + 3 * i;
-                if (src[i] == lo) CHECK(c[2] > c[0]);  /* the minimum is blue */
-                if (src[i] == hi) CHECK(c[0] > c[2]);  /* the maximum is red */
+                if (src[i] == lo) CHECK(c[2] > c[0]); /* the minimum is blue */
+                if (src[i] == hi) CHECK(c[0] > c[2]); /* the maximum is red */
             }
             /* The bar runs from blue (left) to red (right) under the picture. */
             int bar_y = h + 3;
@@ -434,6 +435,6 @@ static void test_teardown(void) {
 }
 
 PN_TESTS(TEST(test_feedback_minimises_variance), TEST(test_blend_weights), TEST(test_inverse_variance),
-         TEST(test_setup), TEST(test_ias_matches_reference), TEST(test_ias_block_sizes), TEST(test_black_detection_keeps_lit_pixels),
-         TEST(test_ias_thread_determinism), TEST(test_false_color_aov),
+         TEST(test_setup), TEST(test_ias_matches_reference), TEST(test_ias_block_sizes),
+         TEST(test_black_detection_keeps_lit_pixels), TEST(test_ias_thread_determinism), TEST(test_false_color_aov),
          TEST(test_teardown))

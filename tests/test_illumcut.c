@@ -20,7 +20,6 @@
 #include <string.h>
 #include <unistd.h>
 
-
 static vec3 rand_dir(pn_rng *rng) {
     for (;;) {
         vec3 v = v3(2.0f * pn_rng_float(rng) - 1.0f, 2.0f * pn_rng_float(rng) - 1.0f, 2.0f * pn_rng_float(rng) - 1.0f);
@@ -91,7 +90,8 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
     pn_options_set_int(ctx, o, "vpls", 2000);
     /* The error bound and visibility mode where the integrator has them (lightcuts, illumcut). */
     const int m = pn_method_find_kind(PN_METHOD_INTEGRATOR, kind);
-    if (error > 0.0f && pn_option_applies(pn_option_find("error"), m)) pn_options_set_double(ctx, o, "error", (double)error);
+    if (error > 0.0f && pn_option_applies(pn_option_find("error"), m))
+        pn_options_set_double(ctx, o, "error", (double)error);
     if (pn_option_applies(pn_option_find("visibility"), m))
         pn_options_set(ctx, o, "visibility", sampling ? "sampling" : "exact");
     rs.threads = threads;
@@ -103,7 +103,9 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
     return img;
 }
 
-static double lum(const float *p, int i) { return (double)v3_luminance(v3(p[3 * i], p[3 * i + 1], p[3 * i + 2])); }
+static double lum(const float *p, int i) {
+    return (double)v3_luminance(v3(p[3 * i], p[3 * i + 1], p[3 * i + 2]));
+}
 
 /* Mean and largest |a - b| / b in luminance over pixels with b > 0. */
 static double mean_rel_error(pn_image a, pn_image b, int layer_a, double *max_rel) {
@@ -149,10 +151,10 @@ static void test_illumcut_against_vpl(void) {
         double e_ic = mean_rel_error(ic, ref, 0, &mx_ic);
         double e_ics = mean_rel_error(ics, ref, 0, &mx_ics);
         fprintf(stderr, "  lc %g/%g  ic %g/%g  ics %g/%g\n", e_lc, mx_lc, e_ic, mx_ic, e_ics, mx_ics);
-        fprintf(stderr, "  rays: ref %g lc %g ic %g ics %g; bounds lc %g ic %g ics %g\n", s_ref.shadow_rays_per_pixel_mean,
-                s_lc.shadow_rays_per_pixel_mean, s_ic.shadow_rays_per_pixel_mean, s_ics.shadow_rays_per_pixel_mean,
-                s_lc.bound_evaluations_per_pixel_mean, s_ic.bound_evaluations_per_pixel_mean,
-                s_ics.bound_evaluations_per_pixel_mean);
+        fprintf(stderr, "  rays: ref %g lc %g ic %g ics %g; bounds lc %g ic %g ics %g\n",
+                s_ref.shadow_rays_per_pixel_mean, s_lc.shadow_rays_per_pixel_mean, s_ic.shadow_rays_per_pixel_mean,
+                s_ics.shadow_rays_per_pixel_mean, s_lc.bound_evaluations_per_pixel_mean,
+                s_ic.bound_evaluations_per_pixel_mean, s_ics.bound_evaluations_per_pixel_mean);
         /* Each illumination-aware pair's error is below delta times the Phase I radiance. */
         CHECK_MSG(e_ic < 0.015 && mx_ic < 0.06, "illumcut 1.5%%: mean %g max %g", e_ic, mx_ic);
         CHECK_MSG(e_ics < 0.02 && mx_ics < 0.1, "illumcut-sampling 1%%: mean %g max %g", e_ics, mx_ics);
@@ -286,8 +288,7 @@ static void test_batch_interface(void) {
     if (whole && ref) {
         const float *w = pn_image_layer_data(whole, 0), *r = pn_image_layer_data(ref, 0);
         int same = 0;
-        for (int i = 0; i < W * H; i++)
-            same += memcmp(&est[i].radiance, &w[3 * i], sizeof(vec3)) == 0;
+        for (int i = 0; i < W * H; i++) same += memcmp(&est[i].radiance, &w[3 * i], sizeof(vec3)) == 0;
         CHECK_MSG(same == W * H, "%d of %d pixels identical", same, W * H);
         /* One 8x8 block on its own. */
         int n = 0;
@@ -483,11 +484,14 @@ static void test_packet_occlusion_matches_single_rays(void) {
     pn_context_free(ctx);
 }
 
-static void setup(void) { vpl_test_setup("illumcut"); }
+static void setup(void) {
+    vpl_test_setup("illumcut");
+}
 
-static void teardown(void) { vpl_test_teardown(); }
+static void teardown(void) {
+    vpl_test_teardown();
+}
 
-PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_phase1_refinement_choice), TEST(test_illumcut_against_vpl),
-         TEST(test_sampling_never_traces_more), TEST(test_batch_interface), TEST(test_batch_points),
-         TEST(test_packet_occlusion_matches_single_rays),
-         TEST(teardown))
+PN_TESTS(TEST(setup), TEST(test_point_tree_invariants), TEST(test_phase1_refinement_choice),
+         TEST(test_illumcut_against_vpl), TEST(test_sampling_never_traces_more), TEST(test_batch_interface),
+         TEST(test_batch_points), TEST(test_packet_occlusion_matches_single_rays), TEST(teardown))

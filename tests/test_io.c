@@ -79,8 +79,8 @@ static int write_bytes(const char *path, const void *data, size_t size) {
 
 /* A deterministic test pattern with negative, tiny, large and fractional values. */
 static float pattern(int x, int y, int c, int seed) {
-    uint32_t h = (uint32_t)x * 73856093u ^ (uint32_t)y * 19349663u ^ (uint32_t)c * 83492791u ^
-                 (uint32_t)seed * 2654435761u;
+    uint32_t h =
+        (uint32_t)x * 73856093u ^ (uint32_t)y * 19349663u ^ (uint32_t)c * 83492791u ^ (uint32_t)seed * 2654435761u;
     h ^= h >> 13;
     h *= 0x5bd1e995u;
     h ^= h >> 15;
@@ -139,8 +139,7 @@ static int read_exr_channel(const char *path, const char *channel, int w, int h,
             ok = 0;
             break;
         }
-        exr_result_t rv = ready ? exr_decoding_update(ex, 0, &ci, &dec)
-                                : exr_decoding_initialize(ex, 0, &ci, &dec);
+        exr_result_t rv = ready ? exr_decoding_update(ex, 0, &ci, &dec) : exr_decoding_initialize(ex, 0, &ci, &dec);
         ready = 1;
         if (rv != EXR_ERR_SUCCESS) {
             ok = 0;
@@ -234,12 +233,10 @@ static int write_part_chunks(exr_context_t ex, int part, const test_part *tp) {
     for (int ty = 0; ok && ty * step_y < tp->h; ty++) {
         for (int tx = 0; ok && tx * step_x < tp->w; tx++) {
             exr_chunk_info_t ci;
-            exr_result_t rv =
-                tp->tiled ? exr_write_tile_chunk_info(ex, part, tx, ty, 0, 0, &ci)
-                          : exr_write_scanline_chunk_info(ex, part, tp->oy + ty * step_y, &ci);
+            exr_result_t rv = tp->tiled ? exr_write_tile_chunk_info(ex, part, tx, ty, 0, 0, &ci)
+                                        : exr_write_scanline_chunk_info(ex, part, tp->oy + ty * step_y, &ci);
             if (rv == EXR_ERR_SUCCESS)
-                rv = ready ? exr_encoding_update(ex, part, &ci, &enc)
-                           : exr_encoding_initialize(ex, part, &ci, &enc);
+                rv = ready ? exr_encoding_update(ex, part, &ci, &enc) : exr_encoding_initialize(ex, part, &ci, &enc);
             ready = 1;
             if (rv != EXR_ERR_SUCCESS) {
                 ok = 0;
@@ -247,12 +244,10 @@ static int write_part_chunks(exr_context_t ex, int part, const test_part *tp) {
             }
             for (int i = 0; i < enc.channel_count; i++) {
                 int c = 0;
-                while (c < tp->nchan && strcmp(tp->names[c], enc.channels[i].channel_name) != 0)
-                    c++;
+                while (c < tp->nchan && strcmp(tp->names[c], enc.channels[i].channel_name) != 0) c++;
                 exr_coding_channel_info_t *ch = &enc.channels[i];
-                ch->encode_from_ptr = planes + (((size_t)c * tp->h + (size_t)ty * step_y) * tp->w +
-                                                (size_t)tx * step_x) *
-                                                   bpe;
+                ch->encode_from_ptr =
+                    planes + (((size_t)c * tp->h + (size_t)ty * step_y) * tp->w + (size_t)tx * step_x) * bpe;
                 ch->user_pixel_stride = (int32_t)bpe;
                 ch->user_line_stride = (int32_t)(bpe * tp->w);
                 ch->user_data_type = (uint16_t)tp->type;
@@ -277,8 +272,8 @@ static int write_test_exr_parts(const char *path, const test_part *parts, int np
     for (int p = 0; ok && p < nparts; p++) {
         const test_part *tp = &parts[p];
         int part = 0;
-        ok = exr_add_part(ex, tp->part_name, tp->tiled ? EXR_STORAGE_TILED : EXR_STORAGE_SCANLINE,
-                          &part) == EXR_ERR_SUCCESS &&
+        ok = exr_add_part(ex, tp->part_name, tp->tiled ? EXR_STORAGE_TILED : EXR_STORAGE_SCANLINE, &part) ==
+                 EXR_ERR_SUCCESS &&
              part == p;
         exr_attr_box2i_t disp, data;
         memset(&disp, 0, sizeof disp);
@@ -289,15 +284,14 @@ static int write_test_exr_parts(const char *path, const test_part *parts, int np
         data.min.y = tp->oy;
         exr_attr_v2f_t center;
         memset(&center, 0, sizeof center);
-        ok = ok && exr_initialize_required_attr(ex, part, &disp, &data, 1.0f, &center, 1.0f,
-                                                EXR_LINEORDER_INCREASING_Y,
+        ok = ok && exr_initialize_required_attr(ex, part, &disp, &data, 1.0f, &center, 1.0f, EXR_LINEORDER_INCREASING_Y,
                                                 tp->comp) == EXR_ERR_SUCCESS;
         if (tp->tiled)
-            ok = ok && exr_set_tile_descriptor(ex, part, 8, 8, EXR_TILE_ONE_LEVEL,
-                                               EXR_TILE_ROUND_DOWN) == EXR_ERR_SUCCESS;
+            ok = ok &&
+                 exr_set_tile_descriptor(ex, part, 8, 8, EXR_TILE_ONE_LEVEL, EXR_TILE_ROUND_DOWN) == EXR_ERR_SUCCESS;
         for (int c = 0; ok && c < tp->nchan; c++)
-            ok = exr_add_channel(ex, part, tp->names[c], tp->type, EXR_PERCEPTUALLY_LOGARITHMIC,
-                                 1, 1) == EXR_ERR_SUCCESS;
+            ok = exr_add_channel(ex, part, tp->names[c], tp->type, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1) ==
+                 EXR_ERR_SUCCESS;
     }
     ok = ok && exr_write_header(ex) == EXR_ERR_SUCCESS;
     for (int p = 0; ok && p < nparts; p++) ok = write_part_chunks(ex, p, &parts[p]);
@@ -305,8 +299,8 @@ static int write_test_exr_parts(const char *path, const test_part *parts, int np
     return ok;
 }
 
-static int write_test_exr(const char *path, int tiled, exr_pixel_type_t type, const char **names,
-                          int nchan, int w, int h, int ox, int oy, exr_compression_t comp) {
+static int write_test_exr(const char *path, int tiled, exr_pixel_type_t type, const char **names, int nchan, int w,
+                          int h, int ox, int oy, exr_compression_t comp) {
     test_part tp = {NULL, tiled, type, names, nchan, w, h, ox, oy, comp};
     return write_test_exr_parts(path, &tp, 1);
 }
@@ -372,8 +366,7 @@ static void test_exr_round_trip(void) {
 
     /* AOV layers: check channel names and exact values straight from the file. */
     float *plane = malloc(sizeof(float) * w * h);
-    const char *names[] = {"B", "G", "R", "depth", "normal.B", "normal.G", "normal.R",
-                           "shadow_rays"};
+    const char *names[] = {"B", "G", "R", "depth", "normal.B", "normal.G", "normal.R", "shadow_rays"};
     exr_context_t ex = NULL;
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     CHECK(exr_start_read(&ex, path, &init) == EXR_ERR_SUCCESS);
@@ -393,16 +386,14 @@ static void test_exr_round_trip(void) {
     struct {
         const char *channel;
         int layer, comp;
-    } checks[] = {{"R", 0, 0},        {"B", 0, 2},        {"shadow_rays", 1, 0},
-                  {"normal.R", 2, 0}, {"normal.G", 2, 1}, {"normal.B", 2, 2},
-                  {"depth", 3, 0}};
+    } checks[] = {{"R", 0, 0},        {"B", 0, 2},        {"shadow_rays", 1, 0}, {"normal.R", 2, 0},
+                  {"normal.G", 2, 1}, {"normal.B", 2, 2}, {"depth", 3, 0}};
     for (size_t k = 0; k < sizeof checks / sizeof checks[0]; k++) {
         const pn_image_layer *L = &img->layers[checks[k].layer];
         CHECK_MSG(read_exr_channel(path, checks[k].channel, w, h, plane), "%s", checks[k].channel);
         int same = 1;
         for (int p = 0; p < w * h; p++)
-            if (memcmp(&plane[p], &L->data[(size_t)p * L->channels + checks[k].comp], 4) != 0)
-                same = 0;
+            if (memcmp(&plane[p], &L->data[(size_t)p * L->channels + checks[k].comp], 4) != 0) same = 0;
         CHECK_MSG(same, "channel %s differs", checks[k].channel);
     }
     free(plane);
@@ -463,8 +454,7 @@ static void test_exr_other_layouts(void) {
         int grey;
     } cases[] = {
         {"half_scan.exr", 0, EXR_PIXEL_HALF, {"B", "G", "R"}, 3, 0, 0, EXR_COMPRESSION_ZIP, 0},
-        {"half_tiled_rgba.exr", 1, EXR_PIXEL_HALF, {"A", "B", "G", "R"}, 4, 3, 2,
-         EXR_COMPRESSION_PIZ, 0},
+        {"half_tiled_rgba.exr", 1, EXR_PIXEL_HALF, {"A", "B", "G", "R"}, 4, 3, 2, EXR_COMPRESSION_PIZ, 0},
         {"float_tiled.exr", 1, EXR_PIXEL_FLOAT, {"B", "G", "R"}, 3, 0, 0, EXR_COMPRESSION_NONE, 0},
         {"uint_scan.exr", 0, EXR_PIXEL_UINT, {"B", "G", "R"}, 3, -4, 5, EXR_COMPRESSION_RLE, 0},
         {"half_y.exr", 0, EXR_PIXEL_HALF, {"Y"}, 1, 0, 0, EXR_COMPRESSION_ZIPS, 1},
@@ -472,15 +462,14 @@ static void test_exr_other_layouts(void) {
     const int w = 19, h = 13;
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         snprintf(path, sizeof path, "%s/%s", dir, cases[k].file);
-        int wrote = write_test_exr(path, cases[k].tiled, cases[k].type, cases[k].names,
-                                   cases[k].nchan, w, h, cases[k].ox, cases[k].oy, cases[k].comp);
+        int wrote = write_test_exr(path, cases[k].tiled, cases[k].type, cases[k].names, cases[k].nchan, w, h,
+                                   cases[k].ox, cases[k].oy, cases[k].comp);
         CHECK_MSG(wrote, "writing %s", cases[k].file);
         if (!wrote) continue;
         pn_image img = NULL;
         pn_err err;
         pn_err_init(&err);
-        CHECK_MSG(pn_image_read_file(path, 0.0f, &img, &err) == PN_OK, "%s: %s", cases[k].file,
-                  err.message);
+        CHECK_MSG(pn_image_read_file(path, 0.0f, &img, &err) == PN_OK, "%s: %s", cases[k].file, err.message);
         if (!img) continue;
         CHECK(img->width == w && img->height == h);
         int bad = 0;
@@ -500,8 +489,8 @@ static void test_exr_other_layouts(void) {
                     float got = img->layers[0].data[((size_t)y * w + x) * 3 + c];
                     if (got != expect) {
                         if (!bad)
-                            fprintf(stderr, "  %s (%d,%d,%d): %g vs %g\n", cases[k].file, x, y, c,
-                                    (double)got, (double)expect);
+                            fprintf(stderr, "  %s (%d,%d,%d): %g vs %g\n", cases[k].file, x, y, c, (double)got,
+                                    (double)expect);
                         bad = 1;
                     }
                 }
@@ -617,9 +606,9 @@ static void test_png(void) {
     pn_image img = pn_image_create(w, h);
     float *d = img->layers[0].data;
     for (int i = 0; i < w * h * 3; i++) d[i] = (float)((i * 37) % 101) / 100.0f;
-    d[0] = 5.0f;      /* clamps to 1 */
-    d[1] = -1.0f;     /* clamps to 0 */
-    d[2] = NAN;       /* becomes 0 */
+    d[0] = 5.0f;  /* clamps to 1 */
+    d[1] = -1.0f; /* clamps to 0 */
+    d[2] = NAN;   /* becomes 0 */
     pn_err err;
     pn_err_init(&err);
     CHECK(pn_image_write_file(img, path, 0.0f, &err) == PN_OK);
@@ -747,8 +736,8 @@ static void check_truncations(const char *dir, const char *ext, int tail_ok) {
         pn_image back = NULL;
         pn_err_init(&err);
         pn_status st = pn_image_read_file(bad, 0.0f, &back, &err);
-        CHECK_MSG(st == PN_ERROR_BAD_INPUT, "%s truncated to %zu of %zu bytes: status %d (%s)",
-                  ext, len, size, (int)st, err.message);
+        CHECK_MSG(st == PN_ERROR_BAD_INPUT, "%s truncated to %zu of %zu bytes: status %d (%s)", ext, len, size, (int)st,
+                  err.message);
         CHECK(back == NULL);
         if (st == PN_ERROR_BAD_INPUT) CHECK_STR_CONTAINS(err.message, bad);
         pn_image_free(back);
@@ -796,8 +785,7 @@ static void test_garbage_files(void) {
         pn_image img = NULL;
         pn_err err;
         pn_err_init(&err);
-        CHECK_MSG(pn_image_read_file(path, 0.0f, &img, &err) == PN_ERROR_BAD_INPUT, "%s: %s",
-                  names[k], err.message);
+        CHECK_MSG(pn_image_read_file(path, 0.0f, &img, &err) == PN_ERROR_BAD_INPUT, "%s: %s", names[k], err.message);
         CHECK(img == NULL);
     }
 
@@ -824,8 +812,8 @@ static void test_garbage_files(void) {
         pn_image img = NULL;
         pn_err err;
         pn_err_init(&err);
-        CHECK_MSG(pn_image_read_file(path, 0.0f, &img, &err) == PN_ERROR_BAD_INPUT, "%s: %s",
-                  heads[k].name, err.message);
+        CHECK_MSG(pn_image_read_file(path, 0.0f, &img, &err) == PN_ERROR_BAD_INPUT, "%s: %s", heads[k].name,
+                  err.message);
         CHECK(img == NULL);
     }
 
@@ -846,8 +834,7 @@ static void test_garbage_files(void) {
         pn_image img = NULL;
         pn_err_init(&err);
         pn_status st = pn_image_read_file(path, 0.0f, &img, &err);
-        CHECK_MSG(st == PN_OK || st == PN_ERROR_BAD_INPUT, "flip at %zu: %d %s", pos, (int)st,
-                  err.message);
+        CHECK_MSG(st == PN_OK || st == PN_ERROR_BAD_INPUT, "flip at %zu: %d %s", pos, (int)st, err.message);
         CHECK((st == PN_OK) == (img != NULL));
         pn_image_free(img);
     }
@@ -974,8 +961,10 @@ static void test_shared_reference(void) {
     size_t n = (size_t)img->width * img->height * 3, nonfinite = 0;
     double sum = 0.0;
     for (size_t i = 0; i < n; i++) {
-        if (!isfinite(img->layers[0].data[i])) nonfinite++;
-        else sum += (double)img->layers[0].data[i];
+        if (!isfinite(img->layers[0].data[i]))
+            nonfinite++;
+        else
+            sum += (double)img->layers[0].data[i];
     }
     CHECK(nonfinite == 0);
     CHECK(sum > 0.0);
@@ -991,7 +980,7 @@ static void test_shared_reference(void) {
     pn_image_free(img);
 }
 
-PN_TESTS(TEST(test_image_layers), TEST(test_exr_round_trip), TEST(test_exr_zip_equal_size), TEST(test_exr_other_layouts),
-         TEST(test_pfm), TEST(test_png), TEST(test_atomic_write), TEST(test_truncated_files),
-         TEST(test_garbage_files), TEST(test_metrics), TEST(test_compare),
+PN_TESTS(TEST(test_image_layers), TEST(test_exr_round_trip), TEST(test_exr_zip_equal_size),
+         TEST(test_exr_other_layouts), TEST(test_pfm), TEST(test_png), TEST(test_atomic_write),
+         TEST(test_truncated_files), TEST(test_garbage_files), TEST(test_metrics), TEST(test_compare),
          TEST(test_shared_reference))

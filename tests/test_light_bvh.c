@@ -16,7 +16,9 @@
 
 #define N_LIGHTS 60
 
-static float rnd(pn_rng *r, float lo, float hi) { return lo + (hi - lo) * pn_rng_float(r); }
+static float rnd(pn_rng *r, float lo, float hi) {
+    return lo + (hi - lo) * pn_rng_float(r);
+}
 
 static vec3 rnd_unit(pn_rng *r) {
     for (;;) {
@@ -133,8 +135,8 @@ static void test_structure(void) {
             if (nd->b.cos_o <= -1.0f) continue;
             float to = acosf(fminf(1.0f, nd->b.cos_o));
             float td = acosf(fmaxf(-1.0f, fminf(1.0f, v3_dot(nd->b.w, leaf->b.w))));
-            CHECK_MSG(td + tc <= to + 2e-3f, "node %d: the cone of light %d is outside (%g + %g > %g)", a,
-                      leaf->second, (double)td, (double)tc, (double)to);
+            CHECK_MSG(td + tc <= to + 2e-3f, "node %d: the cone of light %d is outside (%g + %g > %g)", a, leaf->second,
+                      (double)td, (double)tc, (double)to);
         }
     }
     CHECK(leaves == N_LIGHTS);
@@ -206,13 +208,15 @@ static const char *scene_text =
     "WorldBegin\n"
     "Material \"diffuse\" \"rgb reflectance\" [0.6 0.6 0.6]\n"
     "Shape \"trianglemesh\" \"point3 P\" [-5 -5 0 5 -5 0 5 5 0 -5 5 0] \"integer indices\" [0 1 2 0 2 3]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [-0.5 -0.5 1 0.5 -0.5 1 0.5 0.5 1 -0.5 0.5 1] \"integer indices\" [0 1 2 0 2 3]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [-0.5 -0.5 1 0.5 -0.5 1 0.5 0.5 1 -0.5 0.5 1] \"integer indices\" [0 1 2 0 2 "
+    "3]\n"
     "LightSource \"point\" \"point3 from\" [2 -1 2] \"rgb I\" [3 3 3]\n"
     "LightSource \"point\" \"point3 from\" [-2 1 1.5] \"rgb I\" [1 2 1]\n"
     "LightSource \"spot\" \"point3 from\" [0 -3 3] \"point3 to\" [0 0 0] \"float coneangle\" 40 \"rgb I\" [6 6 6]\n"
     "AttributeBegin\n"
     "AreaLightSource \"diffuse\" \"rgb L\" [4 4 4]\n"
-    "Shape \"trianglemesh\" \"point3 P\" [-0.4 -0.4 3 -0.4 0.4 3 0.4 0.4 3 0.4 -0.4 3] \"integer indices\" [0 1 2 0 2 3]\n"
+    "Shape \"trianglemesh\" \"point3 P\" [-0.4 -0.4 3 -0.4 0.4 3 0.4 0.4 3 0.4 -0.4 3] \"integer indices\" [0 1 2 0 2 "
+    "3]\n"
     "AttributeEnd\n"
     "AttributeBegin\n"
     "AreaLightSource \"diffuse\" \"rgb L\" [2 1 1]\n"
@@ -257,8 +261,7 @@ static void test_render_agrees(void) {
         pn_image_free(img);
     }
     /* 576 pixels x 256 shadow rays each: the image means agree to well under 1.5%. */
-    CHECK_MSG(mean[0] > 0.0 && fabs(mean[1] - mean[0]) <= 0.015 * mean[0], "irradiance %g, bvh %g", mean[0],
-              mean[1]);
+    CHECK_MSG(mean[0] > 0.0 && fabs(mean[1] - mean[0]) <= 0.015 * mean[0], "irradiance %g, bvh %g", mean[0], mean[1]);
     pn_scene_free(scene);
     pn_context_free(ctx);
     unlink(path);

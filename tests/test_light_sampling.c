@@ -44,16 +44,36 @@ typedef struct dv {
     double x, y, z;
 } dv;
 
-static dv dv3(double x, double y, double z) { return (dv){x, y, z}; }
-static dv dvf(vec3 a) { return dv3((double)a.x, (double)a.y, (double)a.z); }
-static vec3 fv(dv a) { return v3((float)a.x, (float)a.y, (float)a.z); }
-static dv dv_add(dv a, dv b) { return dv3(a.x + b.x, a.y + b.y, a.z + b.z); }
-static dv dv_sub(dv a, dv b) { return dv3(a.x - b.x, a.y - b.y, a.z - b.z); }
-static dv dv_scale(dv a, double s) { return dv3(a.x * s, a.y * s, a.z * s); }
-static double dv_dot(dv a, dv b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-static dv dv_cross(dv a, dv b) { return dv3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x); }
-static double dv_len(dv a) { return sqrt(dv_dot(a, a)); }
-static dv dv_norm(dv a) { return dv_scale(a, 1.0 / dv_len(a)); }
+static dv dv3(double x, double y, double z) {
+    return (dv){x, y, z};
+}
+static dv dvf(vec3 a) {
+    return dv3((double)a.x, (double)a.y, (double)a.z);
+}
+static vec3 fv(dv a) {
+    return v3((float)a.x, (float)a.y, (float)a.z);
+}
+static dv dv_add(dv a, dv b) {
+    return dv3(a.x + b.x, a.y + b.y, a.z + b.z);
+}
+static dv dv_sub(dv a, dv b) {
+    return dv3(a.x - b.x, a.y - b.y, a.z - b.z);
+}
+static dv dv_scale(dv a, double s) {
+    return dv3(a.x * s, a.y * s, a.z * s);
+}
+static double dv_dot(dv a, dv b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+static dv dv_cross(dv a, dv b) {
+    return dv3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
+}
+static double dv_len(dv a) {
+    return sqrt(dv_dot(a, a));
+}
+static dv dv_norm(dv a) {
+    return dv_scale(a, 1.0 / dv_len(a));
+}
 
 /* Some unit vector perpendicular to unit n, and the third axis n x t. */
 static void dv_frame(dv n, dv *t, dv *b) {
@@ -114,8 +134,10 @@ static double chi2_critical(int dof, double alpha) {
     double lo = 0.0, hi = (double)dof + 50.0 * sqrt(2.0 * (double)dof) + 100.0;
     for (int it = 0; it < 200; it++) {
         double mid = 0.5 * (lo + hi);
-        if (gamma_q(0.5 * (double)dof, 0.5 * mid) > alpha) lo = mid;
-        else hi = mid;
+        if (gamma_q(0.5 * (double)dof, 0.5 * mid) > alpha)
+            lo = mid;
+        else
+            hi = mid;
     }
     return 0.5 * (lo + hi);
 }
@@ -133,16 +155,17 @@ static int cmp_chi_bin(const void *a, const void *b) {
  * with expected count below 5 are pooled (in increasing order of expected count) until the
  * pool reaches 5. A count in a bin of zero probability fails outright. Returns true when the
  * fit is accepted at p = 0.001; prints the statistic either way when `verbose`. */
-static bool chi2_accepts(const char *label, const double *obs, const double *prob, int n, double total,
-                         bool verbose) {
+static bool chi2_accepts(const char *label, const double *obs, const double *prob, int n, double total, bool verbose) {
     chi_bin *bins = malloc((size_t)n * sizeof *bins);
     if (!bins) return false;
     int m = 0;
     double psum = 0.0, impossible = 0.0;
     for (int i = 0; i < n; i++) {
         psum += prob[i];
-        if (prob[i] > 0.0) bins[m++] = (chi_bin){prob[i] * total, obs[i]};
-        else impossible += obs[i];
+        if (prob[i] > 0.0)
+            bins[m++] = (chi_bin){prob[i] * total, obs[i]};
+        else
+            impossible += obs[i];
     }
     qsort(bins, (size_t)m, sizeof *bins, cmp_chi_bin);
     double stat = 0.0, pe = 0.0, po = 0.0;
@@ -175,9 +198,9 @@ static bool chi2_accepts(const char *label, const double *obs, const double *pro
 
 typedef struct run_stats {
     long drawn, valid;
-    long bad_basic;   /* pdf <= 0 or not finite, radiance / pdf not finite, wi not unit, ... */
-    long off_light;   /* sampled point not on the light */
-    long bad_pdf;     /* pdf differs from the technique's density */
+    long bad_basic; /* pdf <= 0 or not finite, radiance / pdf not finite, wi not unit, ... */
+    long off_light; /* sampled point not on the light */
+    long bad_pdf;   /* pdf differs from the technique's density */
     double max_off, max_pdf_rel;
     double inv_pdf_sum, inv_pdf_sum2;
 } run_stats;
@@ -212,8 +235,8 @@ static void check_solid_angle(const char *label, const run_stats *st, double ome
     double mean = st->inv_pdf_sum / n;
     double var = fmax(0.0, st->inv_pdf_sum2 / n - mean * mean);
     double se = sqrt(var / n);
-    CHECK_MSG(fabs(mean - omega) <= 4.5 * se + 1e-5 * omega, "%s: E[1/pdf] = %.7g, solid angle %.7g (se %.2g)",
-              label, mean, omega, se);
+    CHECK_MSG(fabs(mean - omega) <= 4.5 * se + 1e-5 * omega, "%s: E[1/pdf] = %.7g, solid angle %.7g (se %.2g)", label,
+              mean, omega, se);
 }
 
 static pn_lights one_light(pn_light *l) {
@@ -265,9 +288,12 @@ static void run_planar(const char *label, pn_light l, vec3 pf, planar_pdf techni
     dv_frame(n, &ta, &tb);
     double R = (double)l.radius;
     double area;
-    if (l.kind == PN_LIGHT_TRIANGLE) area = 0.5 * dv_len(dv_cross(e1, e2));
-    else if (l.kind == PN_LIGHT_RECTANGLE) area = dv_len(dv_cross(e1, e2));
-    else area = PI_D * R * R;
+    if (l.kind == PN_LIGHT_TRIANGLE)
+        area = 0.5 * dv_len(dv_cross(e1, e2));
+    else if (l.kind == PN_LIGHT_RECTANGLE)
+        area = dv_len(dv_cross(e1, e2));
+    else
+        area = PI_D * R * R;
     double size = l.kind == PN_LIGHT_DISK ? 2.0 * R : dv_len(e1) + dv_len(e2);
     double g11 = dv_dot(e1, e1), g12 = dv_dot(e1, e2), g22 = dv_dot(e2, e2), det = g11 * g22 - g12 * g12;
 
@@ -278,7 +304,8 @@ static void run_planar(const char *label, pn_light l, vec3 pf, planar_pdf techni
         omega = tri_solid_angle(dv_sub(p0, p), dv_sub(dv_add(p0, e1), p), dv_sub(dv_add(p0, e2), p));
         for (int j = 0; j < GRID; j++)
             for (int i = 0; i < GRID; i++)
-                prob[j * GRID + i] = i + j < GRID - 1 ? 2.0 / (GRID * GRID) : (i + j == GRID - 1 ? 1.0 / (GRID * GRID) : 0.0);
+                prob[j * GRID + i] =
+                    i + j < GRID - 1 ? 2.0 / (GRID * GRID) : (i + j == GRID - 1 ? 1.0 / (GRID * GRID) : 0.0);
     } else if (l.kind == PN_LIGHT_RECTANGLE) {
         omega = quad_solid_angle(p, p0, e1, e2);
         for (int j = 0; j < GRID; j++)
@@ -416,8 +443,8 @@ static void test_triangle_light(void) {
     dv n = dv_norm(dv_cross(e1, e2));
     dv centroid = dv_add(p0, dv_scale(dv_add(e1, e2), 1.0 / 3.0));
     pn_light l = triangle_light(p0, e1, e2, false);
-    run_planar("triangle, in front", l, fv(dv_add(centroid, dv_add(dv_scale(n, 0.6), dv3(0.2, 0.1, 0.0)))),
-               PDF_AREA, true);
+    run_planar("triangle, in front", l, fv(dv_add(centroid, dv_add(dv_scale(n, 0.6), dv3(0.2, 0.1, 0.0)))), PDF_AREA,
+               true);
     /* Close to the surface, above a point near a corner. */
     dv near = dv_add(p0, dv_add(dv_scale(e1, 0.3), dv_scale(e2, 0.2)));
     run_planar("triangle, close", l, fv(dv_add(near, dv_scale(n, 0.03))), PDF_AREA, true);
@@ -461,10 +488,10 @@ static void test_disk_light(void) {
     dv_frame(n, &t, &b);
     run_planar("disk, oblique", disk_light(c, n, 0.5, false), fv(dv_add(c, dv_add(dv_scale(t, 1.2), dv_scale(n, 0.3)))),
                PDF_AREA, true);
-    run_planar("disk, two-sided from behind", disk_light(dv3(0, 0, 1), dv3(0, 0, -1), 0.6, true),
-               v3(0.2f, 0.0f, 1.4f), PDF_AREA, true);
-    run_planar("disk, one-sided from behind", disk_light(dv3(0, 0, 1), dv3(0, 0, -1), 0.6, false),
-               v3(0.2f, 0.0f, 1.4f), PDF_AREA, false);
+    run_planar("disk, two-sided from behind", disk_light(dv3(0, 0, 1), dv3(0, 0, -1), 0.6, true), v3(0.2f, 0.0f, 1.4f),
+               PDF_AREA, true);
+    run_planar("disk, one-sided from behind", disk_light(dv3(0, 0, 1), dv3(0, 0, -1), 0.6, false), v3(0.2f, 0.0f, 1.4f),
+               PDF_AREA, false);
 }
 
 /* The disk's solid angle by quadrature (used above for E[1/pdf]) against the on-axis closed
@@ -621,8 +648,9 @@ static void test_spot_falloff(void) {
         double alpha = (double)ia * 0.25 * PI_D / 180.0;
         for (int iz = 0; iz < 4; iz++)
             for (int id = 0; id < 2; id++) {
-                dv dir = dv_add(dv_scale(axis, cos(alpha)),
-                                dv_scale(dv_add(dv_scale(t, cos(azimuths[iz])), dv_scale(b, sin(azimuths[iz]))), sin(alpha)));
+                dv dir = dv_add(
+                    dv_scale(axis, cos(alpha)),
+                    dv_scale(dv_add(dv_scale(t, cos(azimuths[iz])), dv_scale(b, sin(azimuths[iz]))), sin(alpha)));
                 vec3 p = fv(dv_add(pos, dv_scale(dir, dists[id])));
                 /* The falloff the sampler should apply, from the receiver actually used. */
                 dv rel = dv_sub(dvf(p), dvf(l.p));
@@ -659,7 +687,8 @@ static void test_spot_falloff(void) {
     CHECK(in_band > 100);
     CHECK_MSG(bad_presence == 0, "%d receivers lit / unlit against the cone", bad_presence);
     CHECK_MSG(bad_geometry == 0, "%d samples with wrong wi / dist / pdf / delta", bad_geometry);
-    CHECK_MSG(bad_value == 0, "%d radiance values off the smoothstep falloff (max rel. error %.3g)", bad_value, max_rel);
+    CHECK_MSG(bad_value == 0, "%d radiance values off the smoothstep falloff (max rel. error %.3g)", bad_value,
+              max_rel);
     CHECK_MSG(bad_estimate == 0, "%d irradiance estimates off the falloff", bad_estimate);
     /* Half way across the band (in cos theta) the smoothstep is exactly 1/2. */
     double cmid = 0.5 * ((double)l.cos_total_width + (double)l.cos_falloff_start);
@@ -730,16 +759,20 @@ static void remove_file(const char *name) {
 }
 
 /* Light space -> world for "Rotate -90 1 0 0": (x, y, z) -> (x, z, -y), and back. */
-static dv light_to_world(dv a) { return dv3(a.x, a.z, -a.y); }
-static dv world_to_light(dv a) { return dv3(a.x, -a.z, a.y); }
+static dv light_to_world(dv a) {
+    return dv3(a.x, a.z, -a.y);
+}
+static dv world_to_light(dv a) {
+    return dv3(a.x, -a.z, a.y);
+}
 
 typedef struct env_case {
     const char *label;
     int w, h;
     bool equal_area;
-    float *rgb;        /* our copy of the image */
+    float *rgb; /* our copy of the image */
     float scale;
-    double *prob;      /* per texel: mean-channel weight x solid angle, normalised */
+    double *prob; /* per texel: mean-channel weight x solid angle, normalised */
 } env_case;
 
 /* Texel of a light-space direction, by our own inversion for lat-long maps. */
@@ -770,8 +803,9 @@ static void env_compute_prob(env_case *ec) {
         for (int x = 0; x < ec->w; x++) {
             const float *px = ec->rgb + 3 * (y * ec->w + x);
             double mean = ((double)px[0] + (double)px[1] + (double)px[2]) / 3.0 * (double)ec->scale;
-            double omega = ec->equal_area ? 4.0 * PI_D / n
-                                          : (2.0 * PI_D / ec->w) * (cos(PI_D * y / ec->h) - cos(PI_D * (y + 1) / ec->h));
+            double omega = ec->equal_area
+                               ? 4.0 * PI_D / n
+                               : (2.0 * PI_D / ec->w) * (cos(PI_D * y / ec->h) - cos(PI_D * (y + 1) / ec->h));
             ec->prob[y * ec->w + x] = mean * omega;
             total += mean * omega;
         }
@@ -871,8 +905,10 @@ static void env_edge_consistency(const env_case *ec, const pn_lights *L, const p
                     for (int it = 0; it < 64 && nextafterf(a, 1.0f) < b; it++) {
                         float m = 0.5f * (a + b);
                         if (m <= a || m >= b) break;
-                        if (chosen_cell_key(env, axis ? fixed : m, axis ? m : fixed) == prev_key) a = m;
-                        else b = m;
+                        if (chosen_cell_key(env, axis ? fixed : m, axis ? m : fixed) == prev_key)
+                            a = m;
+                        else
+                            b = m;
                     }
                     const float side[2] = {a, b};
                     for (int q = 0; q < 2; q++) {
@@ -1004,8 +1040,8 @@ static void run_env_case(env_case *ec) {
     }
     report_stats(ec->label, &st, N_SAMPLES);
     CHECK_MSG(black_hits == 0, "%s: %ld samples in black texels", ec->label, black_hits);
-    CHECK_MSG(radiance_mismatch <= N_SAMPLES / 2000, "%s: %ld samples whose radiance is not their texel's",
-              ec->label, radiance_mismatch);
+    CHECK_MSG(radiance_mismatch <= N_SAMPLES / 2000, "%s: %ld samples whose radiance is not their texel's", ec->label,
+              radiance_mismatch);
 
     /* Texel frequencies against weight x solid angle. */
     char label[96];
@@ -1067,7 +1103,8 @@ static void run_env_case(env_case *ec) {
             est = dv_add(est, dv_scale(dvf(s.radiance), c / (double)s.pdf));
         }
         est = dv_scale(est, 1.0 / M);
-        worst = fmax(worst, fmax(fabs(est.x / ref.x - 1.0), fmax(fabs(est.y / ref.y - 1.0), fabs(est.z / ref.z - 1.0))));
+        worst =
+            fmax(worst, fmax(fabs(est.x / ref.x - 1.0), fmax(fabs(est.y / ref.y - 1.0), fabs(est.z / ref.z - 1.0))));
         CHECK_MSG(fabs(est.x - ref.x) <= 0.01 * ref.x && fabs(est.y - ref.y) <= 0.01 * ref.y &&
                       fabs(est.z - ref.z) <= 0.01 * ref.z,
                   "%s, normal %d: estimate (%.5g %.5g %.5g), quadrature (%.5g %.5g %.5g)", ec->label, ni, est.x, est.y,
@@ -1151,9 +1188,11 @@ static void test_equal_area_jacobian(void) {
             /* Skip points near the creases: the axes and the diamond |x| + |y| = 1. */
             if (fabs(x) < 4.0 * h || fabs(y) < 4.0 * h || fabs(fabs(x) + fabs(y) - 1.0) < 8.0 * h) continue;
             dv du = dv_scale(dv_sub(dvf(pn_equal_area_square_to_sphere((float)(u + h), (float)v)),
-                                    dvf(pn_equal_area_square_to_sphere((float)(u - h), (float)v))), 0.5 / h);
+                                    dvf(pn_equal_area_square_to_sphere((float)(u - h), (float)v))),
+                             0.5 / h);
             dv dvv = dv_scale(dv_sub(dvf(pn_equal_area_square_to_sphere((float)u, (float)(v + h))),
-                                     dvf(pn_equal_area_square_to_sphere((float)u, (float)(v - h)))), 0.5 / h);
+                                     dvf(pn_equal_area_square_to_sphere((float)u, (float)(v - h)))),
+                              0.5 / h);
             double jac = dv_len(dv_cross(du, dvv));
             double rel = fabs(jac / (4.0 * PI_D) - 1.0);
             if (rel > worst) worst = rel;
@@ -1213,7 +1252,9 @@ static void test_setup(void) {
     }
 }
 
-static void test_teardown(void) { rmdir(tmpdir); }
+static void test_teardown(void) {
+    rmdir(tmpdir);
+}
 
 /* Goniometric light: I times the nearest texel of its square equal-area image, looked up in the
  * light's frame with y and z swapped (pbrt-v4). The scene places it under Rotate -90 about x, so
@@ -1273,8 +1314,8 @@ static void test_goniometric(void) {
     /* pbrt-v4's goniometric image must be square. */
     float flat[3 * 4 * 2] = {0};
     CHECK(write_pfm("gonio42.pfm", flat, 4, 2));
-    pn_scene bad = load_env_scene(
-        ctx, "gonio42.pbrt", "LightSource \"goniometric\" \"string filename\" \"gonio42.pfm\"");
+    pn_scene bad =
+        load_env_scene(ctx, "gonio42.pbrt", "LightSource \"goniometric\" \"string filename\" \"gonio42.pfm\"");
     CHECK(bad == NULL);
     CHECK_STR_CONTAINS(pn_context_error_message(ctx), "must be square");
     pn_scene_free(bad);
@@ -1286,7 +1327,6 @@ static void test_goniometric(void) {
 }
 
 PN_TESTS(TEST(test_setup), TEST(test_chi2_machinery), TEST(test_triangle_light), TEST(test_rectangle_light),
-         TEST(test_disk_light), TEST(test_disk_reference_solid_angle), TEST(test_sphere_light),
-         TEST(test_spot_falloff), TEST(test_point_and_distant), TEST(test_equal_area_jacobian),
-         TEST(test_env_equal_area), TEST(test_env_latlong), TEST(test_env_constant), TEST(test_goniometric),
-         TEST(test_teardown))
+         TEST(test_disk_light), TEST(test_disk_reference_solid_angle), TEST(test_sphere_light), TEST(test_spot_falloff),
+         TEST(test_point_and_distant), TEST(test_equal_area_jacobian), TEST(test_env_equal_area),
+         TEST(test_env_latlong), TEST(test_env_constant), TEST(test_goniometric), TEST(test_teardown))

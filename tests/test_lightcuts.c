@@ -20,7 +20,6 @@
 #include <string.h>
 #include <unistd.h>
 
-
 static vec3 rand_dir(pn_rng *rng) {
     for (;;) {
         vec3 v = v3(2.0f * pn_rng_float(rng) - 1.0f, 2.0f * pn_rng_float(rng) - 1.0f, 2.0f * pn_rng_float(rng) - 1.0f);
@@ -35,7 +34,9 @@ static vec3 rand_in_box(pn_rng *rng, vec3 lo, vec3 hi) {
 }
 
 /* A direction within roughly `spread` of axis. */
-static vec3 near_dir(pn_rng *rng, vec3 axis, float spread) { return v3_normalize(v3_add(axis, v3_scale(rand_dir(rng), spread))); }
+static vec3 near_dir(pn_rng *rng, vec3 axis, float spread) {
+    return v3_normalize(v3_add(axis, v3_scale(rand_dir(rng), spread)));
+}
 
 static void test_bound_cos(void) {
     pn_rng rng;
@@ -87,14 +88,15 @@ static void test_lobe_bound(void) {
             for (int j = 0; j <= 4; j++) {
                 double c = (double)cb * (1.0 - 0.25 * j);
                 double f = (n + 2.0) / (2.0 * (double)PN_PI) * pow(c, n);
-                CHECK_MSG(f <= (double)bound * 1.0001 + 1e-12, "cb %g n [%g, %g]: lobe %g at n %g > bound %g", (double)cb,
-                          (double)n0, (double)n1, f, n, (double)bound);
+                CHECK_MSG(f <= (double)bound * 1.0001 + 1e-12, "cb %g n [%g, %g]: lobe %g at n %g > bound %g",
+                          (double)cb, (double)n0, (double)n1, f, n, (double)bound);
                 if (j == 0 && f > best) best = f;
             }
         }
         /* The grid misses the maximum by at most a step of n: allow that much. */
         double step = ((double)n1 - (double)n0) / 400.0;
-        double slack = step > 0.0 ? best * expm1(step * (1.0 / ((double)n0 + 2.0) - log(fmax((double)cb, 1e-30)))) : 0.0;
+        double slack =
+            step > 0.0 ? best * expm1(step * (1.0 / ((double)n0 + 2.0) - log(fmax((double)cb, 1e-30)))) : 0.0;
         CHECK_MSG((double)bound <= best * 1.0001 + slack + 1e-12, "cb %g n [%g, %g]: bound %g above the maximum %g",
                   (double)cb, (double)n0, (double)n1, (double)bound, best);
     }
@@ -141,7 +143,8 @@ static void test_bounds_never_below_truth(void) {
             r->exponent = lambert ? 1.0f : 1.0f + 200.0f * pn_rng_float(&rng);
             vec3 refl = pn_reflect(r->wo, r->ns);
             if (i == 0) {
-                rb = (pn_receiver_bounds){r->p, r->p, r->ns, 0.0f, refl, 0.0f, r->kd, r->ks, r->exponent, r->exponent, 1, 0, 1, 0};
+                rb = (pn_receiver_bounds){r->p,  r->p,        r->ns,       0.0f, refl, 0.0f, r->kd,
+                                          r->ks, r->exponent, r->exponent, 1,    0,    1,    0};
                 if (lambert) rb.n_min = INFINITY, rb.n_max = -INFINITY;
             } else {
                 rb.lo = v3_min(rb.lo, r->p);
@@ -169,12 +172,14 @@ static void test_bounds_never_below_truth(void) {
             memset(v, 0, sizeof *v);
             v->kind = kind;
             v->light = -1;
-            v->p = kind == PN_VPL_DIRECTIONAL ? near_dir(&rng, qaxis, qspread) : rand_in_box(&rng, v3_sub(qcen, qext), v3_add(qcen, qext));
+            v->p = kind == PN_VPL_DIRECTIONAL ? near_dir(&rng, qaxis, qspread)
+                                              : rand_in_box(&rng, v3_sub(qcen, qext), v3_add(qcen, qext));
             v->n = kind == PN_VPL_ORIENTED ? near_dir(&rng, qaxis, qspread) : v3(0, 0, 0);
             v->intensity = v3(pn_rng_float(&rng), pn_rng_float(&rng), pn_rng_float(&rng));
             isum = v3_add(isum, v->intensity);
             if (j == 0) {
-                lb = (pn_light_bounds){kind, v->p, v->p, kind == PN_VPL_ORIENTED ? v->n : v3(0, 0, 1), 0.0f, 1.0f, 0.0f};
+                lb =
+                    (pn_light_bounds){kind, v->p, v->p, kind == PN_VPL_ORIENTED ? v->n : v3(0, 0, 1), 0.0f, 1.0f, 0.0f};
             } else {
                 lb.lo = v3_min(lb.lo, v->p);
                 lb.hi = v3_max(lb.hi, v->p);
@@ -495,21 +500,22 @@ static void test_lightcuts_image_against_vpl(void) {
  * as well as the oriented one) and a glossy sphere: lightcuts and illumcut against vpl. */
 static void test_all_light_kinds(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = vpl_test_load(ctx, "kinds.pbrt",
-                          "LookAt 0 -6 3  0 0 0.5  0 0 1\nCamera \"perspective\" \"float fov\" [ 50 ]\n"
-                          "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 24 ]\nWorldBegin\n"
-                          "LightSource \"infinite\" \"rgb L\" [ 0.2 0.25 0.3 ]\n"
-                          "LightSource \"distant\" \"point3 from\" [ 1 -1 3 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 0.8 0.7 0.6 ]\n"
-                          "LightSource \"spot\" \"point3 from\" [ -1 -1 3 ] \"point3 to\" [ -1 0 0 ] \"float coneangle\" [ 30 ]\n"
-                          "    \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 4 4 3 ]\n"
-                          "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [ 5 4 3 ]\n  Translate 1.5 0 1.2\n"
-                          "  Shape \"sphere\" \"float radius\" [ 0.15 ]\nAttributeEnd\n"
-                          "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
-                          "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                          "Material \"diffuse\" \"rgb reflectance\" [ 0.3 0.5 0.7 ]\n"
-                          "Shape \"trianglemesh\" \"point3 P\" [ -2 1 0  2 1 0  2 1 2  -2 1 2 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                          "Material \"coateddiffuse\" \"rgb reflectance\" [ 0.5 0.3 0.2 ] \"float roughness\" [ 0.2 ]\n"
-                          "AttributeBegin\n  Translate 0 -0.5 0.5\n  Shape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n");
+    pn_scene scene = vpl_test_load(
+        ctx, "kinds.pbrt",
+        "LookAt 0 -6 3  0 0 0.5  0 0 1\nCamera \"perspective\" \"float fov\" [ 50 ]\n"
+        "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 24 ]\nWorldBegin\n"
+        "LightSource \"infinite\" \"rgb L\" [ 0.2 0.25 0.3 ]\n"
+        "LightSource \"distant\" \"point3 from\" [ 1 -1 3 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 0.8 0.7 0.6 ]\n"
+        "LightSource \"spot\" \"point3 from\" [ -1 -1 3 ] \"point3 to\" [ -1 0 0 ] \"float coneangle\" [ 30 ]\n"
+        "    \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 4 4 3 ]\n"
+        "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [ 5 4 3 ]\n  Translate 1.5 0 1.2\n"
+        "  Shape \"sphere\" \"float radius\" [ 0.15 ]\nAttributeEnd\n"
+        "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
+        "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+        "Material \"diffuse\" \"rgb reflectance\" [ 0.3 0.5 0.7 ]\n"
+        "Shape \"trianglemesh\" \"point3 P\" [ -2 1 0  2 1 0  2 1 2  -2 1 2 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+        "Material \"coateddiffuse\" \"rgb reflectance\" [ 0.5 0.3 0.2 ] \"float roughness\" [ 0.2 ]\n"
+        "AttributeBegin\n  Translate 0 -0.5 0.5\n  Shape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n");
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -532,10 +538,14 @@ static void test_all_light_kinds(void) {
     pn_context_free(ctx);
 }
 
-static void setup(void) { vpl_test_setup("lightcuts"); }
+static void setup(void) {
+    vpl_test_setup("lightcuts");
+}
 
-static void teardown(void) { vpl_test_teardown(); }
+static void teardown(void) {
+    vpl_test_teardown();
+}
 
-PN_TESTS(TEST(setup), TEST(test_bound_cos), TEST(test_lobe_bound), TEST(test_bounds_never_below_truth), TEST(test_light_tree_structure),
-         TEST(test_representative_probability), TEST(test_lightcut_guarantee), TEST(test_lightcuts_image_against_vpl), TEST(test_all_light_kinds),
-         TEST(teardown))
+PN_TESTS(TEST(setup), TEST(test_bound_cos), TEST(test_lobe_bound), TEST(test_bounds_never_below_truth),
+         TEST(test_light_tree_structure), TEST(test_representative_probability), TEST(test_lightcut_guarantee),
+         TEST(test_lightcuts_image_against_vpl), TEST(test_all_light_kinds), TEST(teardown))

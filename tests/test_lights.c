@@ -185,5 +185,5 @@ static void test_equal_area_round_trip(void) {
 }
 
 PN_TESTS(TEST(test_rectangle_closed_form), TEST(test_disk_closed_form), TEST(test_sphere_closed_form),
-         TEST(test_triangle_matches_half_rectangle), TEST(test_polygon_clipped_by_horizon),
-         TEST(test_point_and_spot), TEST(test_equal_area_round_trip))
+         TEST(test_triangle_matches_half_rectangle), TEST(test_polygon_clipped_by_horizon), TEST(test_point_and_spot),
+         TEST(test_equal_area_round_trip))

@@ -49,7 +49,9 @@ static void add_nums(pn_params *ps, pn_param_type type, const char *name, int n,
     p->num_count = n;
 }
 
-static void add_float(pn_params *ps, const char *name, double v) { add_nums(ps, PN_PT_FLOAT, name, 1, &v); }
+static void add_float(pn_params *ps, const char *name, double v) {
+    add_nums(ps, PN_PT_FLOAT, name, 1, &v);
+}
 
 static void add_bool(pn_params *ps, const char *name, bool b) {
     double v = b ? 1.0 : 0.0;
@@ -305,7 +307,8 @@ static void test_dielectric_mix_interface(void) {
         /* pbrt-v4 chooses per hit: a MIX record with the second input at probability 0.7. */
         CHECK(s->materials[i].kind == PN_MATERIAL_MIX);
         CHECK(s->materials[i].mix[0] == diffuse);
-        CHECK(s->materials[i].kind != PN_MATERIAL_MIX || s->materials[s->materials[i].mix[1]].kind == PN_MATERIAL_DIELECTRIC);
+        CHECK(s->materials[i].kind != PN_MATERIAL_MIX ||
+              s->materials[s->materials[i].mix[1]].kind == PN_MATERIAL_DIELECTRIC);
         CHECK_NEAR(s->materials[i].mix_amount.value.x, 0.7, 1e-6);
         CHECK_STR_CONTAINS(s->materials[i].description, "Mix: pbrt mix -> per-hit choice of 'D' and 'Water'");
     }
@@ -563,7 +566,7 @@ static void test_v3_uber(void) {
         CHECK_NEAR(m->kd.value.x, 0.3, 1e-6);
         CHECK_NEAR(m->exponent, blinn_n(v3_alpha(0.5)), 1e-6);
         CHECK_NEAR(m->exponent, 1.0, 1e-6);
-        CHECK(has_warning(s, "scene.pbrt:15:5:"));  /* Kr */
+        CHECK(has_warning(s, "scene.pbrt:15:5:")); /* Kr */
         CHECK(has_warning(s, "specular reflection \"Kr\""));
         CHECK(has_warning(s, "specular transmission \"Kt\""));
         CHECK(has_warning(s, "\"opacity\" 0.5 (below 1) is ignored"));
@@ -733,7 +736,7 @@ static void check_v3_substitute(const char *type, const char *colour_param, doub
     struct pn_scene_s *s = new_scene();
     pn_params ps = make_params();
     if (colour_param) add_rgb(&ps, colour_param, 0.2, 0.4, 0.6);
-    add_float(&ps, "eta", 1.33);       /* other inputs are accepted without "unused" warnings */
+    add_float(&ps, "eta", 1.33); /* other inputs are accepted without "unused" warnings */
     add_str(&ps, PN_PT_STRING, "bsdffile", "x.bsdf");
     int i = build_keep(s, type, "Sub", &ps);
     if (i >= 0) {
@@ -757,10 +760,18 @@ static void check_v3_substitute(const char *type, const char *colour_param, doub
     free_scene(s);
 }
 
-static void test_v3_translucent(void) { check_v3_substitute("translucent", "Kd", 0.5); }
-static void test_v3_kdsubsurface(void) { check_v3_substitute("kdsubsurface", NULL, 0.5); }
-static void test_v3_fourier(void) { check_v3_substitute("fourier", "reflectance", 0.5); }
-static void test_v3_disney(void) { check_v3_substitute("disney", "color", 0.5); }
+static void test_v3_translucent(void) {
+    check_v3_substitute("translucent", "Kd", 0.5);
+}
+static void test_v3_kdsubsurface(void) {
+    check_v3_substitute("kdsubsurface", NULL, 0.5);
+}
+static void test_v3_fourier(void) {
+    check_v3_substitute("fourier", "reflectance", 0.5);
+}
+static void test_v3_disney(void) {
+    check_v3_substitute("disney", "color", 0.5);
+}
 
 static void test_v3_mix(void) {
     struct pn_scene_s *s = new_scene();
@@ -1163,8 +1174,7 @@ static void test_texture_eval(void) {
 
 PN_TESTS(TEST(test_diffuse_default), TEST(test_coateddiffuse), TEST(test_conductor),
          TEST(test_dielectric_mix_interface), TEST(test_unknown_material), TEST(test_v3_remap_closed_form),
-         TEST(test_v3_matte), TEST(test_v3_plastic), TEST(test_v3_substrate), TEST(test_v3_uber),
-         TEST(test_v3_glass), TEST(test_v3_metal), TEST(test_v3_mirror), TEST(test_v3_translucent),
-         TEST(test_v3_kdsubsurface), TEST(test_v3_fourier), TEST(test_v3_disney), TEST(test_v3_mix),
-         TEST(test_spectra),
-         TEST(test_spd_file), TEST(test_light_power), TEST(test_texture_eval))
+         TEST(test_v3_matte), TEST(test_v3_plastic), TEST(test_v3_substrate), TEST(test_v3_uber), TEST(test_v3_glass),
+         TEST(test_v3_metal), TEST(test_v3_mirror), TEST(test_v3_translucent), TEST(test_v3_kdsubsurface),
+         TEST(test_v3_fourier), TEST(test_v3_disney), TEST(test_v3_mix), TEST(test_spectra), TEST(test_spd_file),
+         TEST(test_light_power), TEST(test_texture_eval))

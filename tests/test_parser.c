@@ -104,15 +104,15 @@ static vec3 mesh_vertex(const pn_mesh *m, uint32_t i) {
 /* ---- transforms and camera --------------------------------------------------------------- */
 
 static void test_look_at_camera(void) {
-    struct pn_scene_s *s = parse_ok("camera.pbrt",
-                                    "LookAt 0 0 5   0 0 0   0 1 0\n"
-                                    "Camera \"perspective\" \"float fov\" [ 45 ]\n"
-                                    "Film \"rgb\" \"integer xresolution\" 200 \"integer yresolution\" [100]\n"
-                                    "  \"string filename\" \"out.exr\"\n"
-                                    "Sampler \"zsobol\" \"integer pixelsamples\" 64\n"
-                                    "Integrator \"path\" \"integer maxdepth\" [ 1 ]\n"
-                                    "PixelFilter \"box\"\n"
-                                    "WorldBegin\n" TRI);
+    struct pn_scene_s *s =
+        parse_ok("camera.pbrt", "LookAt 0 0 5   0 0 0   0 1 0\n"
+                                "Camera \"perspective\" \"float fov\" [ 45 ]\n"
+                                "Film \"rgb\" \"integer xresolution\" 200 \"integer yresolution\" [100]\n"
+                                "  \"string filename\" \"out.exr\"\n"
+                                "Sampler \"zsobol\" \"integer pixelsamples\" 64\n"
+                                "Integrator \"path\" \"integer maxdepth\" [ 1 ]\n"
+                                "PixelFilter \"box\"\n"
+                                "WorldBegin\n" TRI);
     if (!s) return;
     const pn_camera_def *c = &s->camera;
     /* pbrt's camera looks down +z; +y is up and +x = up x view (left-handed). */
@@ -137,17 +137,15 @@ static void test_look_at_camera(void) {
 }
 
 static void test_transform_composition(void) {
-    struct pn_scene_s *s = parse_ok("xform.pbrt",
-                                    "Camera \"perspective\"\nWorldBegin\n"
-                                    "AttributeBegin\n"
-                                    "  Translate 1 2 3\n  Rotate 90 0 0 1\n  Scale 2 2 2\n" TRI
-                                    "AttributeEnd\n"
-                                    "AttributeBegin\n"
-                                    "  Transform [1 0 0 0  0 1 0 0  0 0 1 0  5 6 7 1]\n"
-                                    "  ConcatTransform [2 0 0 0  0 2 0 0  0 0 2 0  0 0 0 1]\n" TRI
-                                    "  Identity\n  Translate 0 0 -1\n" TRI
-                                    "AttributeEnd\n"
-                                    "TransformBegin\n  Translate 100 0 0\nTransformEnd\n" TRI);
+    struct pn_scene_s *s =
+        parse_ok("xform.pbrt", "Camera \"perspective\"\nWorldBegin\n"
+                               "AttributeBegin\n"
+                               "  Translate 1 2 3\n  Rotate 90 0 0 1\n  Scale 2 2 2\n" TRI "AttributeEnd\n"
+                               "AttributeBegin\n"
+                               "  Transform [1 0 0 0  0 1 0 0  0 0 1 0  5 6 7 1]\n"
+                               "  ConcatTransform [2 0 0 0  0 2 0 0  0 0 2 0  0 0 0 1]\n" TRI
+                               "  Identity\n  Translate 0 0 -1\n" TRI "AttributeEnd\n"
+                               "TransformBegin\n  Translate 100 0 0\nTransformEnd\n" TRI);
     if (!s) return;
     CHECK(s->mesh_count == 4);
     if (s->mesh_count == 4) {
@@ -168,13 +166,13 @@ static void test_transform_composition(void) {
 }
 
 static void test_coordinate_systems(void) {
-    struct pn_scene_s *s = parse_ok("coordsys.pbrt",
-                                    "Translate 0 0 10\n"
-                                    "Camera \"perspective\"\n"
-                                    "WorldBegin\n"
-                                    "Translate 3 0 0\nCoordinateSystem \"here\"\nIdentity\n"
-                                    "AttributeBegin\n CoordSysTransform \"camera\"\n" TRI "AttributeEnd\n"
-                                    "AttributeBegin\n CoordSysTransform \"here\"\n" TRI "AttributeEnd\n");
+    struct pn_scene_s *s =
+        parse_ok("coordsys.pbrt", "Translate 0 0 10\n"
+                                  "Camera \"perspective\"\n"
+                                  "WorldBegin\n"
+                                  "Translate 3 0 0\nCoordinateSystem \"here\"\nIdentity\n"
+                                  "AttributeBegin\n CoordSysTransform \"camera\"\n" TRI "AttributeEnd\n"
+                                  "AttributeBegin\n CoordSysTransform \"here\"\n" TRI "AttributeEnd\n");
     if (!s) return;
     CHECK(s->mesh_count == 2);
     if (s->mesh_count == 2) {
@@ -188,14 +186,12 @@ static void test_coordinate_systems(void) {
 /* ---- graphics state ---------------------------------------------------------------------- */
 
 static void test_attribute_scoping(void) {
-    struct pn_scene_s *s = parse_ok("scope.pbrt",
-                                    "WorldBegin\n"
-                                    "Material \"diffuse\" \"rgb reflectance\" [0.1 0.2 0.3]\n"
-                                    "AttributeBegin\n"
-                                    "  Translate 10 0 0\n"
-                                    "  Material \"diffuse\" \"rgb reflectance\" [0.9 0.9 0.9]\n"
-                                    "  ReverseOrientation\n" TRI
-                                    "AttributeEnd\n" TRI);
+    struct pn_scene_s *s = parse_ok("scope.pbrt", "WorldBegin\n"
+                                                  "Material \"diffuse\" \"rgb reflectance\" [0.1 0.2 0.3]\n"
+                                                  "AttributeBegin\n"
+                                                  "  Translate 10 0 0\n"
+                                                  "  Material \"diffuse\" \"rgb reflectance\" [0.9 0.9 0.9]\n"
+                                                  "  ReverseOrientation\n" TRI "AttributeEnd\n" TRI);
     if (!s) return;
     CHECK(s->mesh_count == 2);
     if (s->mesh_count == 2) {
@@ -220,12 +216,12 @@ static void test_default_material(void) {
 }
 
 static void test_reverse_orientation_and_handedness(void) {
-    struct pn_scene_s *s = parse_ok("flip.pbrt",
-                                    "WorldBegin\n"
-                                    "AttributeBegin\n Scale -1 1 1\n" TRI "AttributeEnd\n"
-                                    "AttributeBegin\n Scale -1 1 1\n ReverseOrientation\n" TRI "AttributeEnd\n"
-                                    "AttributeBegin\n ReverseOrientation\n Shape \"sphere\"\nAttributeEnd\n"
-                                    "Shape \"sphere\" \"float radius\" 2\n");
+    struct pn_scene_s *s =
+        parse_ok("flip.pbrt", "WorldBegin\n"
+                              "AttributeBegin\n Scale -1 1 1\n" TRI "AttributeEnd\n"
+                              "AttributeBegin\n Scale -1 1 1\n ReverseOrientation\n" TRI "AttributeEnd\n"
+                              "AttributeBegin\n ReverseOrientation\n Shape \"sphere\"\nAttributeEnd\n"
+                              "Shape \"sphere\" \"float radius\" 2\n");
     if (!s) return;
     CHECK(s->mesh_count == 2 && s->sphere_count == 2);
     if (s->mesh_count == 2) {
@@ -241,14 +237,13 @@ static void test_reverse_orientation_and_handedness(void) {
 }
 
 static void test_attribute_defaults(void) {
-    struct pn_scene_s *s = parse_ok("attrdef.pbrt",
-                                    "WorldBegin\n"
-                                    "AttributeBegin\n"
-                                    "  Attribute \"shape\" \"float radius\" [ 3 ]\n"
-                                    "  Shape \"sphere\"\n"
-                                    "  Shape \"sphere\" \"float radius\" 0.5\n"
-                                    "AttributeEnd\n"
-                                    "Shape \"sphere\"\n");
+    struct pn_scene_s *s = parse_ok("attrdef.pbrt", "WorldBegin\n"
+                                                    "AttributeBegin\n"
+                                                    "  Attribute \"shape\" \"float radius\" [ 3 ]\n"
+                                                    "  Shape \"sphere\"\n"
+                                                    "  Shape \"sphere\" \"float radius\" 0.5\n"
+                                                    "AttributeEnd\n"
+                                                    "Shape \"sphere\"\n");
     if (!s) return;
     CHECK(s->sphere_count == 3);
     if (s->sphere_count == 3) {
@@ -266,7 +261,8 @@ static void test_include_relative(void) {
     write_file("inc/more.pbrt", "Translate 0 0 1\n" TRI);
     /* pbrt-v4 resolves an included file's paths against the main file's folder */
     write_file("inc/part.pbrt", "# included\nAttributeBegin\nInclude \"inc/more.pbrt\"\nAttributeEnd\n" TRI);
-    struct pn_scene_s *s = parse_ok("inc_main.pbrt", "WorldBegin\nInclude \"inc/part.pbrt\"\nImport \"inc/more.pbrt\"\n" TRI);
+    struct pn_scene_s *s =
+        parse_ok("inc_main.pbrt", "WorldBegin\nInclude \"inc/part.pbrt\"\nImport \"inc/more.pbrt\"\n" TRI);
     if (!s) return;
     CHECK(s->mesh_count == 4);
     if (s->mesh_count == 4) {
@@ -283,16 +279,15 @@ static void test_include_relative(void) {
 /* ---- instancing -------------------------------------------------------------------------- */
 
 static void test_object_instances(void) {
-    struct pn_scene_s *s = parse_ok("inst.pbrt",
-                                    "WorldBegin\n"
-                                    "ObjectInstance \"later\"\n" /* pbrt-v4 resolves names at the end */
-                                    "ObjectBegin \"a\"\n"
-                                    "  Translate 1 0 0\n" TRI
-                                    "  Shape \"sphere\" \"float radius\" 0.5\n"
-                                    "ObjectEnd\n"
-                                    "AttributeBegin\n Translate 0 10 0\n ObjectInstance \"a\"\nAttributeEnd\n"
-                                    "ObjectInstance \"a\"\n"
-                                    "ObjectBegin \"later\"\n" TRI "ObjectEnd\n" TRI);
+    struct pn_scene_s *s =
+        parse_ok("inst.pbrt", "WorldBegin\n"
+                              "ObjectInstance \"later\"\n" /* pbrt-v4 resolves names at the end */
+                              "ObjectBegin \"a\"\n"
+                              "  Translate 1 0 0\n" TRI "  Shape \"sphere\" \"float radius\" 0.5\n"
+                              "ObjectEnd\n"
+                              "AttributeBegin\n Translate 0 10 0\n ObjectInstance \"a\"\nAttributeEnd\n"
+                              "ObjectInstance \"a\"\n"
+                              "ObjectBegin \"later\"\n" TRI "ObjectEnd\n" TRI);
     if (!s) return;
     CHECK(s->object_count == 2);
     CHECK(s->instance_count == 3);
@@ -319,15 +314,14 @@ static void test_object_instances(void) {
 /* ---- shapes ------------------------------------------------------------------------------ */
 
 static void test_trianglemesh_contents(void) {
-    struct pn_scene_s *s = parse_ok("mesh.pbrt",
-                                    "WorldBegin\n"
-                                    "Translate 0 0 2\nScale 2 1 1\n"
-                                    "Shape \"trianglemesh\" \"integer indices\" [0 1 2  2 3 0]\n"
-                                    "  \"point P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n"
-                                    "  \"normal N\" [1 0 1  1 0 1  1 0 1  1 0 1]\n"
-                                    "  \"point2 uv\" [0 0 1 0 1 1 0 1]\n"
-                                    "  \"vector3 S\" [1 0 0 1 0 0 1 0 0 1 0 0]\n"
-                                    "  \"float alpha\" 0.5\n");
+    struct pn_scene_s *s = parse_ok("mesh.pbrt", "WorldBegin\n"
+                                                 "Translate 0 0 2\nScale 2 1 1\n"
+                                                 "Shape \"trianglemesh\" \"integer indices\" [0 1 2  2 3 0]\n"
+                                                 "  \"point P\" [0 0 0  1 0 0  1 1 0  0 1 0]\n"
+                                                 "  \"normal N\" [1 0 1  1 0 1  1 0 1  1 0 1]\n"
+                                                 "  \"point2 uv\" [0 0 1 0 1 1 0 1]\n"
+                                                 "  \"vector3 S\" [1 0 0 1 0 0 1 0 0 1 0 0]\n"
+                                                 "  \"float alpha\" 0.5\n");
     if (!s) return;
     CHECK(s->mesh_count == 1);
     if (s->mesh_count == 1) {
@@ -351,17 +345,17 @@ static void test_trianglemesh_contents(void) {
 }
 
 static void test_disk_and_sphere(void) {
-    struct pn_scene_s *s = parse_ok("quadrics.pbrt",
-                                    "WorldBegin\n"
-                                    "AttributeBegin\n"
-                                    "  Translate 1 2 3\n  Rotate 90 1 0 0\n"
-                                    "  Shape \"disk\" \"float height\" 1 \"float radius\" 3 \"float innerradius\" 1\n"
-                                    "AttributeEnd\n"
-                                    "AttributeBegin\n"
-                                    "  Translate 0 5 0\n  Scale 2 2 2\n"
-                                    "  Shape \"sphere\" \"float radius\" 1.5\n"
-                                    "AttributeEnd\n"
-                                    "AttributeBegin\n  Scale 1 2 4\n  Shape \"sphere\"\nAttributeEnd\n");
+    struct pn_scene_s *s =
+        parse_ok("quadrics.pbrt", "WorldBegin\n"
+                                  "AttributeBegin\n"
+                                  "  Translate 1 2 3\n  Rotate 90 1 0 0\n"
+                                  "  Shape \"disk\" \"float height\" 1 \"float radius\" 3 \"float innerradius\" 1\n"
+                                  "AttributeEnd\n"
+                                  "AttributeBegin\n"
+                                  "  Translate 0 5 0\n  Scale 2 2 2\n"
+                                  "  Shape \"sphere\" \"float radius\" 1.5\n"
+                                  "AttributeEnd\n"
+                                  "AttributeBegin\n  Scale 1 2 4\n  Shape \"sphere\"\nAttributeEnd\n");
     if (!s) return;
     CHECK(s->disk_count == 1 && s->sphere_count == 2 && s->mesh_count == 1);
     if (s->disk_count == 1 && s->mesh_count == 1) {
@@ -375,8 +369,7 @@ static void test_disk_and_sphere(void) {
         CHECK(s->meshes[0].triangle_count == 128);
         /* the tessellation faces the same way as the disk */
         const pn_mesh *m = &s->meshes[0];
-        vec3 p0 = mesh_vertex(m, m->indices[0]), p1 = mesh_vertex(m, m->indices[1]),
-             p2 = mesh_vertex(m, m->indices[2]);
+        vec3 p0 = mesh_vertex(m, m->indices[0]), p1 = mesh_vertex(m, m->indices[1]), p2 = mesh_vertex(m, m->indices[2]);
         vec3 n = v3_normalize(v3_cross(v3_sub(p1, p0), v3_sub(p2, p0)));
         if (m->flip_normals) n = v3_neg(n);
         CHECK(v3_dot(n, d->normal) > 0.99f);
@@ -394,10 +387,10 @@ static void test_disk_and_sphere(void) {
 /* Under a mirroring transform pbrt flips quadric normals (ReverseOrientation XOR handedness);
  * the disk record and its tessellation must agree. */
 static void test_mirrored_disk(void) {
-    struct pn_scene_s *s = parse_ok("mirror_disk.pbrt",
-                                    "WorldBegin\n"
-                                    "AttributeBegin\n Scale 1 1 -1\n Shape \"disk\"\nAttributeEnd\n"
-                                    "AttributeBegin\n Scale 1 1 -1\n ReverseOrientation\n Shape \"disk\"\nAttributeEnd\n");
+    struct pn_scene_s *s = parse_ok(
+        "mirror_disk.pbrt", "WorldBegin\n"
+                            "AttributeBegin\n Scale 1 1 -1\n Shape \"disk\"\nAttributeEnd\n"
+                            "AttributeBegin\n Scale 1 1 -1\n ReverseOrientation\n Shape \"disk\"\nAttributeEnd\n");
     if (!s) return;
     CHECK(s->disk_count == 2);
     for (int i = 0; i < s->disk_count; i++) {
@@ -416,14 +409,14 @@ static void test_mirrored_disk(void) {
 }
 
 static void test_other_shapes(void) {
-    struct pn_scene_s *s = parse_ok("shapes.pbrt",
-                                    "WorldBegin\n"
-                                    "Shape \"bilinearmesh\" \"point3 P\" [0 0 0  1 0 0  0 1 0  1 1 0]\n"
-                                    "Shape \"loopsubdiv\" \"integer levels\" 0 \"integer indices\" [0 1 2]\n"
-                                    "  \"point3 P\" [0 0 0 1 0 0 0 1 0]\n"
-                                    "Shape \"cylinder\" \"float radius\" 0.5\n"
-                                    "Shape \"curve\" \"point3 P\" [0 0 0 1 1 1 2 2 2 3 3 3]\n"
-                                    "Shape \"teapot\"\n");
+    struct pn_scene_s *s =
+        parse_ok("shapes.pbrt", "WorldBegin\n"
+                                "Shape \"bilinearmesh\" \"point3 P\" [0 0 0  1 0 0  0 1 0  1 1 0]\n"
+                                "Shape \"loopsubdiv\" \"integer levels\" 0 \"integer indices\" [0 1 2]\n"
+                                "  \"point3 P\" [0 0 0 1 0 0 0 1 0]\n"
+                                "Shape \"cylinder\" \"float radius\" 0.5\n"
+                                "Shape \"curve\" \"point3 P\" [0 0 0 1 1 1 2 2 2 3 3 3]\n"
+                                "Shape \"teapot\"\n");
     if (!s) return;
     CHECK(s->mesh_count == 3);
     if (s->mesh_count == 3) {
@@ -445,12 +438,12 @@ static void test_other_shapes(void) {
 
 static void test_loop_subdivision(void) {
     /* a closed tetrahedron, one level: 4 -> 16 triangles, 4 + 6 vertices */
-    struct pn_scene_s *s = parse_ok("loop.pbrt",
-                                    "WorldBegin\n"
-                                    "Shape \"loopsubdiv\" \"integer levels\" 1\n"
-                                    "  \"point3 P\" [0 0 0  1 0 0  0 1 0  0 0 1]\n"
-                                    "  \"integer indices\" [0 2 1  0 1 3  0 3 2  1 2 3]\n"
-                                    "Shape \"loopsubdiv\" \"integer levels\" 2 \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
+    struct pn_scene_s *s =
+        parse_ok("loop.pbrt", "WorldBegin\n"
+                              "Shape \"loopsubdiv\" \"integer levels\" 1\n"
+                              "  \"point3 P\" [0 0 0  1 0 0  0 1 0  0 0 1]\n"
+                              "  \"integer indices\" [0 2 1  0 1 3  0 3 2  1 2 3]\n"
+                              "Shape \"loopsubdiv\" \"integer levels\" 2 \"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
     if (!s) return;
     CHECK(s->mesh_count == 2);
     if (s->mesh_count == 2) {
@@ -478,14 +471,12 @@ static void test_loop_subdivision(void) {
 /* ---- lights and materials ---------------------------------------------------------------- */
 
 static void test_area_light(void) {
-    struct pn_scene_s *s = parse_ok("area.pbrt",
-                                    "WorldBegin\n"
-                                    "AttributeBegin\n"
-                                    "  AreaLightSource \"diffuse\" \"rgb L\" [1 2 3] \"float scale\" 2\n" TRI
-                                    "  Shape \"sphere\"\n"
-                                    "  ObjectBegin \"o\"\n" TRI "  ObjectEnd\n"
-                                    "AttributeEnd\n" TRI
-                                    "LightSource \"point\" \"point3 from\" [0 1 0] \"rgb I\" [1 1 1]\n");
+    struct pn_scene_s *s = parse_ok(
+        "area.pbrt", "WorldBegin\n"
+                     "AttributeBegin\n"
+                     "  AreaLightSource \"diffuse\" \"rgb L\" [1 2 3] \"float scale\" 2\n" TRI "  Shape \"sphere\"\n"
+                     "  ObjectBegin \"o\"\n" TRI "  ObjectEnd\n"
+                     "AttributeEnd\n" TRI "LightSource \"point\" \"point3 from\" [0 1 0] \"rgb I\" [1 1 1]\n");
     if (!s) return;
     CHECK(s->mesh_count == 3 && s->sphere_count == 1);
     CHECK(s->emission_count == 2);
@@ -504,14 +495,12 @@ static void test_area_light(void) {
 }
 
 static void test_named_materials(void) {
-    struct pn_scene_s *s = parse_ok("named.pbrt",
-                                    "WorldBegin\n"
-                                    "MakeNamedMaterial \"red\" \"string type\" \"diffuse\" \"rgb reflectance\" [1 0 0]\n"
-                                    "MakeNamedMaterial \"with \\\"quotes\\\"\" \"string type\" [\"diffuse\"]\n"
-                                    "NamedMaterial \"red\"\n" TRI
-                                    "NamedMaterial \"with \\\"quotes\\\"\"\n" TRI
-                                    "NamedMaterial \"later\"\n" TRI
-                                    "MakeNamedMaterial \"later\" \"string type\" \"diffuse\"\n");
+    struct pn_scene_s *s = parse_ok(
+        "named.pbrt", "WorldBegin\n"
+                      "MakeNamedMaterial \"red\" \"string type\" \"diffuse\" \"rgb reflectance\" [1 0 0]\n"
+                      "MakeNamedMaterial \"with \\\"quotes\\\"\" \"string type\" [\"diffuse\"]\n"
+                      "NamedMaterial \"red\"\n" TRI "NamedMaterial \"with \\\"quotes\\\"\"\n" TRI
+                      "NamedMaterial \"later\"\n" TRI "MakeNamedMaterial \"later\" \"string type\" \"diffuse\"\n");
     if (!s) return;
     CHECK(s->mesh_count == 3);
     int red = pn_scene_find_material(s, "red"), q = pn_scene_find_material(s, "with \"quotes\""),
@@ -526,11 +515,10 @@ static void test_named_materials(void) {
 }
 
 static void test_unused_parameter_warning(void) {
-    struct pn_scene_s *s = parse_ok("unused.pbrt",
-                                    "Option \"bool disablepixeljitter\" true\n"
-                                    "WorldBegin\n"
-                                    "Shape \"sphere\" \"float radius\" 1\n"
-                                    "   \"float foo\" [ 2 ] \"bool bar\" \"true\"\n");
+    struct pn_scene_s *s = parse_ok("unused.pbrt", "Option \"bool disablepixeljitter\" true\n"
+                                                   "WorldBegin\n"
+                                                   "Shape \"sphere\" \"float radius\" 1\n"
+                                                   "   \"float foo\" [ 2 ] \"bool bar\" \"true\"\n");
     if (!s) return;
     char expected[600];
     snprintf(expected, sizeof expected, "%s:4:4: unused parameter \"float foo\" for Shape \"sphere\"",
@@ -543,9 +531,9 @@ static void test_unused_parameter_warning(void) {
 }
 
 static void test_motion_blur_warning(void) {
-    struct pn_scene_s *s = parse_ok("motion.pbrt",
-                                    "WorldBegin\n"
-                                    "ActiveTransform EndTime\nTranslate 5 0 0\nActiveTransform All\n" TRI);
+    struct pn_scene_s *s =
+        parse_ok("motion.pbrt", "WorldBegin\n"
+                                "ActiveTransform EndTime\nTranslate 5 0 0\nActiveTransform All\n" TRI);
     if (!s) return;
     CHECK(s->mesh_count == 1 && s->meshes[0].positions[0] == 1.0f);
     CHECK(has_warning(s, "motion blur"));
@@ -596,8 +584,8 @@ static const bad_case bad_cases[] = {
     {"WorldBegin\nShape \"trianglemesh\" " TRI_P "\n \"point2 uv\" [0 0 1 1]\n", PN_ERROR_BAD_INPUT, 3, 2,
      "\"uv\" has 2 coordinate pairs"},
     {"WorldBegin\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n", PN_OK, 0, 0, NULL},
-    {"WorldBegin\nScale 1 1 0\nShape \"trianglemesh\" " TRI_P " \"normal N\" [0 0 1 0 0 1 0 0 1]\n",
-     PN_ERROR_BAD_INPUT, 3, 1, "singular"},
+    {"WorldBegin\nScale 1 1 0\nShape \"trianglemesh\" " TRI_P " \"normal N\" [0 0 1 0 0 1 0 0 1]\n", PN_ERROR_BAD_INPUT,
+     3, 1, "singular"},
     {"WorldBegin\n\nObjectInstance \"nope\"\n", PN_ERROR_BAD_INPUT, 3, 16, "undefined object \"nope\""},
     {"WorldBegin\nObjectBegin \"a\"\nObjectBegin \"b\"\n", PN_ERROR_BAD_INPUT, 3, 1, "cannot nest"},
     {"WorldBegin\nObjectEnd\n", PN_ERROR_BAD_INPUT, 2, 1, "ObjectEnd without"},
@@ -642,10 +630,11 @@ static void test_bad_input_table(void) {
         CHECK(s == NULL);
         char prefix[600];
         snprintf(prefix, sizeof prefix, "%s:%d:%d: ", tpath(rel), bc->line, bc->column);
-        CHECK_MSG(strncmp(err.message, prefix, strlen(prefix)) == 0, "case %zu: message \"%s\" does not start with \"%s\"",
-                  i, err.message, prefix);
-        if (bc->fragment) CHECK_MSG(strstr(err.message, bc->fragment) != NULL, "case %zu: \"%s\" lacks \"%s\"", i,
-                                    err.message, bc->fragment);
+        CHECK_MSG(strncmp(err.message, prefix, strlen(prefix)) == 0,
+                  "case %zu: message \"%s\" does not start with \"%s\"", i, err.message, prefix);
+        if (bc->fragment)
+            CHECK_MSG(strstr(err.message, bc->fragment) != NULL, "case %zu: \"%s\" lacks \"%s\"", i, err.message,
+                      bc->fragment);
     }
 }
 
@@ -690,8 +679,9 @@ static void test_truncated_prefixes(void) {
         pn_status st = pn_scene_parse(test_context(), tpath("trunc.pbrt"), &s, &err);
         CHECK(st == PN_OK || st == PN_ERROR_BAD_INPUT || st == PN_ERROR_UNSUPPORTED);
         CHECK((st == PN_OK) == (s != NULL));
-        if (st != PN_OK) CHECK_MSG(strncmp(err.message, tpath("trunc.pbrt"), strlen(tpath("trunc.pbrt"))) == 0,
-                                   "prefix %zu: %s", k, err.message);
+        if (st != PN_OK)
+            CHECK_MSG(strncmp(err.message, tpath("trunc.pbrt"), strlen(tpath("trunc.pbrt"))) == 0, "prefix %zu: %s", k,
+                      err.message);
         pn_scene_parse_free(s);
     }
     free(buf);
@@ -727,8 +717,8 @@ static void test_mutations(void) {
         pn_err_init(&err);
         struct pn_scene_s *s = NULL;
         pn_status st = pn_scene_parse(test_context(), tpath("mut.pbrt"), &s, &err);
-        CHECK_MSG(st == PN_OK || st == PN_ERROR_BAD_INPUT || st == PN_ERROR_UNSUPPORTED, "iteration %d: %d %s",
-                  iter, (int)st, err.message);
+        CHECK_MSG(st == PN_OK || st == PN_ERROR_BAD_INPUT || st == PN_ERROR_UNSUPPORTED, "iteration %d: %d %s", iter,
+                  (int)st, err.message);
         CHECK((st == PN_OK) == (s != NULL));
         pn_scene_parse_free(s);
     }
@@ -827,12 +817,15 @@ static int remove_entry(const char *path, const struct stat *st, int flag, struc
 }
 
 /* Last: removes the temporary folder the tests wrote. */
-static void test_cleanup(void) { CHECK(nftw(temp_dir(), remove_entry, 16, FTW_DEPTH | FTW_PHYS) == 0); }
+static void test_cleanup(void) {
+    CHECK(nftw(temp_dir(), remove_entry, 16, FTW_DEPTH | FTW_PHYS) == 0);
+}
 
 PN_TESTS(TEST(test_look_at_camera), TEST(test_transform_composition), TEST(test_coordinate_systems),
          TEST(test_attribute_scoping), TEST(test_default_material), TEST(test_reverse_orientation_and_handedness),
          TEST(test_attribute_defaults), TEST(test_include_relative), TEST(test_object_instances),
-         TEST(test_trianglemesh_contents), TEST(test_disk_and_sphere), TEST(test_mirrored_disk), TEST(test_other_shapes), TEST(test_loop_subdivision),
-         TEST(test_area_light), TEST(test_named_materials), TEST(test_unused_parameter_warning),
-         TEST(test_motion_blur_warning), TEST(test_bad_input_table), TEST(test_recursive_include),
-         TEST(test_missing_main_file), TEST(test_truncated_prefixes), TEST(test_mutations), TEST(test_real_scenes), TEST(test_cleanup))
+         TEST(test_trianglemesh_contents), TEST(test_disk_and_sphere), TEST(test_mirrored_disk),
+         TEST(test_other_shapes), TEST(test_loop_subdivision), TEST(test_area_light), TEST(test_named_materials),
+         TEST(test_unused_parameter_warning), TEST(test_motion_blur_warning), TEST(test_bad_input_table),
+         TEST(test_recursive_include), TEST(test_missing_main_file), TEST(test_truncated_prefixes),
+         TEST(test_mutations), TEST(test_real_scenes), TEST(test_cleanup))

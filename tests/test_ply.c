@@ -44,14 +44,30 @@ static void put_text(bytes *b, const char *s) {
     memcpy(b->data + b->len, s, n);
     b->len += n;
 }
-static void put_u8(bytes *b, uint8_t v) { put_raw(b, &v, 1); }
-static void put_i8(bytes *b, int8_t v) { put_raw(b, &v, 1); }
-static void put_i16(bytes *b, int16_t v) { put_raw(b, &v, 2); }
-static void put_u16(bytes *b, uint16_t v) { put_raw(b, &v, 2); }
-static void put_i32(bytes *b, int32_t v) { put_raw(b, &v, 4); }
-static void put_u32(bytes *b, uint32_t v) { put_raw(b, &v, 4); }
-static void put_f32(bytes *b, float v) { put_raw(b, &v, 4); }
-static void put_f64(bytes *b, double v) { put_raw(b, &v, 8); }
+static void put_u8(bytes *b, uint8_t v) {
+    put_raw(b, &v, 1);
+}
+static void put_i8(bytes *b, int8_t v) {
+    put_raw(b, &v, 1);
+}
+static void put_i16(bytes *b, int16_t v) {
+    put_raw(b, &v, 2);
+}
+static void put_u16(bytes *b, uint16_t v) {
+    put_raw(b, &v, 2);
+}
+static void put_i32(bytes *b, int32_t v) {
+    put_raw(b, &v, 4);
+}
+static void put_u32(bytes *b, uint32_t v) {
+    put_raw(b, &v, 4);
+}
+static void put_f32(bytes *b, float v) {
+    put_raw(b, &v, 4);
+}
+static void put_f64(bytes *b, double v) {
+    put_raw(b, &v, 8);
+}
 
 static const char *write_file(const char *name, const void *data, size_t len) {
     const char *path = scratch_path(name);
@@ -72,8 +88,7 @@ static void expect_failure(const char *path, pn_status status, const char *needl
     pn_err err;
     pn_err_init(&err);
     pn_status st = pn_ply_read(path, &m, &err);
-    CHECK_MSG(st == status, "%s: status %d, expected %d (%s)", path, (int)st, (int)status,
-              err.message);
+    CHECK_MSG(st == status, "%s: status %d, expected %d (%s)", path, (int)st, (int)status, err.message);
     CHECK(err.status == status);
     CHECK_STR_CONTAINS(err.message, path);
     if (needle != NULL) CHECK_STR_CONTAINS(err.message, needle);
@@ -93,29 +108,28 @@ static void check_tri(const pn_ply_mesh *m, uint32_t t, uint32_t a, uint32_t b, 
     CHECK(t < m->triangle_count);
     if (t >= m->triangle_count) return;
     CHECK_MSG(m->indices[3 * t] == a && m->indices[3 * t + 1] == b && m->indices[3 * t + 2] == c,
-              "triangle %u is (%u %u %u), expected (%u %u %u)", t, m->indices[3 * t],
-              m->indices[3 * t + 1], m->indices[3 * t + 2], a, b, c);
+              "triangle %u is (%u %u %u), expected (%u %u %u)", t, m->indices[3 * t], m->indices[3 * t + 1],
+              m->indices[3 * t + 2], a, b, c);
 }
 
 /* ---- well-formed files --------------------------------------------------------------- */
 
 static void test_ascii_quad_normals_uvs(void) {
-    const char *path =
-        write_text("ascii.ply", "ply\n"
-                                "format ascii 1.0\n"
-                                "comment a unit square made of one quad\n"
-                                "element vertex 4\n"
-                                "property float x\nproperty float y\nproperty float z\n"
-                                "property float nx\nproperty float ny\nproperty float nz\n"
-                                "property float u\nproperty float v\n"
-                                "element face 1\n"
-                                "property list uchar int vertex_indices\n"
-                                "end_header\n"
-                                "0 0 0  0 0 2  0 0\n"
-                                "1 0 0  0 0 1  1 0\n"
-                                "1 1 0  0 3 4  1 1\n"
-                                "0 1 -1.5e1  0 0 0.5  0 1\n"
-                                "4 0 1 2 3\n");
+    const char *path = write_text("ascii.ply", "ply\n"
+                                               "format ascii 1.0\n"
+                                               "comment a unit square made of one quad\n"
+                                               "element vertex 4\n"
+                                               "property float x\nproperty float y\nproperty float z\n"
+                                               "property float nx\nproperty float ny\nproperty float nz\n"
+                                               "property float u\nproperty float v\n"
+                                               "element face 1\n"
+                                               "property list uchar int vertex_indices\n"
+                                               "end_header\n"
+                                               "0 0 0  0 0 2  0 0\n"
+                                               "1 0 0  0 0 1  1 0\n"
+                                               "1 1 0  0 3 4  1 1\n"
+                                               "0 1 -1.5e1  0 0 0.5  0 1\n"
+                                               "4 0 1 2 3\n");
     pn_ply_mesh m;
     if (read_ok(path, &m) != PN_OK) return;
     CHECK(m.vertex_count == 4);
@@ -139,17 +153,16 @@ static void test_ascii_quad_normals_uvs(void) {
 static void test_ascii_crlf_polygons(void) {
     /* CRLF line ends, s/t texture names, a pentagon, a two-vertex face, values split oddly
      * across lines (records are a token stream), and no normals. */
-    const char *path =
-        write_text("crlf.ply", "ply\r\nformat ascii 1.0\r\n"
-                               "element vertex 5\r\n"
-                               "property double x\r\nproperty double y\r\nproperty double z\r\n"
-                               "property float s\r\nproperty float t\r\n"
-                               "element face 3\r\n"
-                               "property list int uint vertex_index\r\n"
-                               "end_header\r\n"
-                               "0 0 0 0 0\r\n1 0 0 1 0\r\n2 1 0 1 1\r\n1 2 0 0.5 1\r\n"
-                               "0 1 0\r\n0.25 0.75\r\n"
-                               "5 0 1 2 3 4\r\n2 0 1\r\n3 4 3 2\r\n");
+    const char *path = write_text("crlf.ply", "ply\r\nformat ascii 1.0\r\n"
+                                              "element vertex 5\r\n"
+                                              "property double x\r\nproperty double y\r\nproperty double z\r\n"
+                                              "property float s\r\nproperty float t\r\n"
+                                              "element face 3\r\n"
+                                              "property list int uint vertex_index\r\n"
+                                              "end_header\r\n"
+                                              "0 0 0 0 0\r\n1 0 0 1 0\r\n2 1 0 1 1\r\n1 2 0 0.5 1\r\n"
+                                              "0 1 0\r\n0.25 0.75\r\n"
+                                              "5 0 1 2 3 4\r\n2 0 1\r\n3 4 3 2\r\n");
     pn_ply_mesh m;
     if (read_ok(path, &m) != PN_OK) return;
     CHECK(m.vertex_count == 5);
@@ -172,8 +185,7 @@ static size_t build_extras(bytes *b, int big_endian) {
     b->len = 0;
     b->big_endian = big_endian;
     put_text(b, "ply\n");
-    put_text(b,
-             big_endian ? "format binary_big_endian 1.0\n" : "format binary_little_endian 1.0\n");
+    put_text(b, big_endian ? "format binary_big_endian 1.0\n" : "format binary_little_endian 1.0\n");
     put_text(b, "comment extras\n"
                 "element vertex 4\n"
                 "property double x\n"
@@ -263,8 +275,7 @@ static void test_binary_big_endian_extras(void) {
 static void test_all_scalar_types(void) {
     for (int be = 0; be < 2; be++) {
         bytes b = {.len = 0, .big_endian = be};
-        put_text(&b, be ? "ply\nformat binary_big_endian 1.0\n"
-                        : "ply\nformat binary_little_endian 1.0\n");
+        put_text(&b, be ? "ply\nformat binary_big_endian 1.0\n" : "ply\nformat binary_little_endian 1.0\n");
         put_text(&b, "element vertex 3\n"
                      "property char x\nproperty int16 y\nproperty ushort z\n"
                      "property uint8 nx\nproperty int ny\nproperty uint32 nz\n"
@@ -296,8 +307,7 @@ static void test_all_scalar_types(void) {
         put_i16(&b, 0);
         put_u32(&b, 0);
         pn_ply_mesh m;
-        if (read_ok(write_file(be ? "types_be.ply" : "types_le.ply", b.data, b.len), &m) != PN_OK)
-            continue;
+        if (read_ok(write_file(be ? "types_be.ply" : "types_le.ply", b.data, b.len), &m) != PN_OK) continue;
         CHECK(m.vertex_count == 3 && m.triangle_count == 1 && m.skipped_face_count == 1);
         for (int i = 0; i < 3 && m.vertex_count == 3; i++) {
             CHECK(m.positions[3 * i] == (float)xs[i]);
@@ -316,11 +326,11 @@ static void test_all_scalar_types(void) {
 }
 
 static void test_vertices_after_faces_and_no_faces(void) {
-    const char *path = write_text(
-        "order.ply", "ply\nformat ascii 1.0\n"
-                     "element face 1\nproperty list uchar uint vertex_indices\n"
-                     "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                     "end_header\n3 2 1 0\n0 0 0\n1 0 0\n0 1 0\n");
+    const char *path =
+        write_text("order.ply", "ply\nformat ascii 1.0\n"
+                                "element face 1\nproperty list uchar uint vertex_indices\n"
+                                "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                                "end_header\n3 2 1 0\n0 0 0\n1 0 0\n0 1 0\n");
     pn_ply_mesh m;
     if (read_ok(path, &m) == PN_OK) {
         CHECK(m.vertex_count == 3 && m.triangle_count == 1);
@@ -338,12 +348,11 @@ static void test_vertices_after_faces_and_no_faces(void) {
 }
 
 static void test_zero_normal_drops_normals(void) {
-    const char *path = write_text("zeronormal.ply",
-                                  "ply\nformat ascii 1.0\nelement vertex 3\n"
-                                  "property float x\nproperty float y\nproperty float z\n"
-                                  "property float nx\nproperty float ny\nproperty float nz\n"
-                                  "element face 1\nproperty list uchar int vertex_indices\n"
-                                  "end_header\n0 0 0 0 0 1\n1 0 0 0 0 0\n0 1 0 0 0 1\n3 0 1 2\n");
+    const char *path = write_text("zeronormal.ply", "ply\nformat ascii 1.0\nelement vertex 3\n"
+                                                    "property float x\nproperty float y\nproperty float z\n"
+                                                    "property float nx\nproperty float ny\nproperty float nz\n"
+                                                    "element face 1\nproperty list uchar int vertex_indices\n"
+                                                    "end_header\n0 0 0 0 0 1\n1 0 0 0 0 0\n0 1 0 0 0 1\n3 0 1 2\n");
     pn_ply_mesh m;
     if (read_ok(path, &m) != PN_OK) return;
     CHECK(m.normals == NULL);
@@ -393,35 +402,31 @@ static void test_truncated_faces_message(void) {
     put_i32(&b, 0);
     put_i32(&b, 1);
     put_u8(&b, 3);
-    expect_failure(write_file("cut_faces.ply", b.data, b.len), PN_ERROR_BAD_INPUT,
-                   "file ends after 1 of 3 faces");
+    expect_failure(write_file("cut_faces.ply", b.data, b.len), PN_ERROR_BAD_INPUT, "file ends after 1 of 3 faces");
 }
 
 static void test_truncated_ascii(void) {
-    const char *path =
-        write_text("cut_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 3\n"
-                                    "property float x\nproperty float y\nproperty float z\n"
-                                    "element face 2\nproperty list uchar int vertex_indices\n"
-                                    "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1\n");
+    const char *path = write_text("cut_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 3\n"
+                                                   "property float x\nproperty float y\nproperty float z\n"
+                                                   "element face 2\nproperty list uchar int vertex_indices\n"
+                                                   "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1\n");
     expect_failure(path, PN_ERROR_BAD_INPUT, "file ends after 1 of 2 faces");
     path = write_text("bad_number.ply", "ply\nformat ascii 1.0\nelement vertex 1\n"
                                         "property float x\nproperty float y\nproperty float z\n"
                                         "end_header\n0 zero 0\n");
     expect_failure(path, PN_ERROR_BAD_INPUT, "line 8: 'zero' is not a number");
-    path =
-        write_text("huge_ascii_list.ply", "ply\nformat ascii 1.0\nelement vertex 1\n"
-                                          "property float x\nproperty float y\nproperty float z\n"
-                                          "element face 1\nproperty list uint int vertex_indices\n"
-                                          "end_header\n0 0 0\n4000000000 0 0 0\n");
+    path = write_text("huge_ascii_list.ply", "ply\nformat ascii 1.0\nelement vertex 1\n"
+                                             "property float x\nproperty float y\nproperty float z\n"
+                                             "element face 1\nproperty list uint int vertex_indices\n"
+                                             "end_header\n0 0 0\n4000000000 0 0 0\n");
     expect_failure(path, PN_ERROR_BAD_INPUT, "file ends after 0 of 1 faces");
 }
 
 static void test_index_out_of_range(void) {
-    const char *path =
-        write_text("badindex.ply", "ply\nformat ascii 1.0\nelement vertex 4\n"
-                                   "property float x\nproperty float y\nproperty float z\n"
-                                   "element face 2\nproperty list uchar int vertex_indices\n"
-                                   "end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 0 7 2\n");
+    const char *path = write_text("badindex.ply", "ply\nformat ascii 1.0\nelement vertex 4\n"
+                                                  "property float x\nproperty float y\nproperty float z\n"
+                                                  "element face 2\nproperty list uchar int vertex_indices\n"
+                                                  "end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 0 7 2\n");
     expect_failure(path, PN_ERROR_BAD_INPUT, "face 1 refers to vertex 7 but there are 4 vertices");
 
     bytes b = {.len = 0, .big_endian = 0};
@@ -433,8 +438,7 @@ static void test_index_out_of_range(void) {
     put_i32(&b, 0);
     put_i32(&b, -1);
     put_i32(&b, 2);
-    expect_failure(write_file("negindex.ply", b.data, b.len), PN_ERROR_BAD_INPUT,
-                   "face 0 refers to vertex -1");
+    expect_failure(write_file("negindex.ply", b.data, b.len), PN_ERROR_BAD_INPUT, "face 0 refers to vertex -1");
 }
 
 static void test_missing_file(void) {
@@ -443,15 +447,13 @@ static void test_missing_file(void) {
 }
 
 static void test_garbage_and_bad_headers(void) {
-    expect_failure(write_text("garbage.ply", "this is not a mesh at all\n"), PN_ERROR_BAD_INPUT,
-                   "not a PLY file");
+    expect_failure(write_text("garbage.ply", "this is not a mesh at all\n"), PN_ERROR_BAD_INPUT, "not a PLY file");
     expect_failure(write_text("empty.ply", ""), PN_ERROR_BAD_INPUT, "not a PLY file");
     unsigned char gz[] = {0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 3};
     expect_failure(write_file("mesh.ply.gz", gz, sizeof gz), PN_ERROR_BAD_INPUT, "gzip");
     unsigned char noise[600];
     for (size_t i = 0; i < sizeof noise; i++) noise[i] = (unsigned char)(i * 131u + 7u);
-    expect_failure(write_file("noise.ply", noise, sizeof noise), PN_ERROR_BAD_INPUT,
-                   "not a PLY file");
+    expect_failure(write_file("noise.ply", noise, sizeof noise), PN_ERROR_BAD_INPUT, "not a PLY file");
 
     expect_failure(write_text("badtype.ply", "ply\nformat ascii 1.0\nelement vertex 1\n"
                                              "property float x\nproperty foo y\nend_header\n"),
@@ -462,18 +464,16 @@ static void test_garbage_and_bad_headers(void) {
     expect_failure(write_text("noformat.ply", "ply\nelement vertex 0\nproperty float x\n"
                                               "property float y\nproperty float z\nend_header\n"),
                    PN_ERROR_BAD_INPUT, "format");
-    expect_failure(
-        write_text("badformat.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n"),
-        PN_ERROR_BAD_INPUT, "unknown format");
+    expect_failure(write_text("badformat.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n"),
+                   PN_ERROR_BAD_INPUT, "unknown format");
     expect_failure(write_text("noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\n"
                                            "property float x\nproperty float y\nend_header\n0 0\n"),
                    PN_ERROR_BAD_INPUT, "x, y, z");
-    expect_failure(write_text("novertex.ply", "ply\nformat ascii 1.0\nend_header\n"),
-                   PN_ERROR_BAD_INPUT, "no vertex element");
-    expect_failure(write_text("floatcount.ply",
-                              "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
-                              "property float y\nproperty float z\nelement face 0\n"
-                              "property list float int vertex_indices\nend_header\n"),
+    expect_failure(write_text("novertex.ply", "ply\nformat ascii 1.0\nend_header\n"), PN_ERROR_BAD_INPUT,
+                   "no vertex element");
+    expect_failure(write_text("floatcount.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
+                                                "property float y\nproperty float z\nelement face 0\n"
+                                                "property list float int vertex_indices\nend_header\n"),
                    PN_ERROR_BAD_INPUT, "not an integer type");
     expect_failure(write_text("badcount.ply", "ply\nformat ascii 1.0\nelement vertex -3\n"
                                               "end_header\n"),
@@ -487,28 +487,24 @@ static void test_garbage_and_bad_headers(void) {
 
 static void test_forged_counts(void) {
     /* 2^31 vertices claimed by a file of a few hundred bytes. */
-    expect_failure(write_text("huge_vertices.ply",
-                              "ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\n"
-                              "property float x\nproperty float y\nproperty float z\n"
-                              "end_header\n\1\2\3\4\5\6\7\10\11\12\13\14"),
+    expect_failure(write_text("huge_vertices.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\n"
+                                                   "property float x\nproperty float y\nproperty float z\n"
+                                                   "end_header\n\1\2\3\4\5\6\7\10\11\12\13\14"),
                    PN_ERROR_BAD_INPUT, "2147483648");
-    expect_failure(write_text("huge_ascii.ply",
-                              "ply\nformat ascii 1.0\nelement vertex 2147483648\n"
-                              "property float x\nproperty float y\nproperty float z\n"
-                              "end_header\n0 0 0\n"),
+    expect_failure(write_text("huge_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 2147483648\n"
+                                                "property float x\nproperty float y\nproperty float z\n"
+                                                "end_header\n0 0 0\n"),
                    PN_ERROR_BAD_INPUT, "2147483648");
     expect_failure(write_text("too_many_vertices.ply",
                               "ply\nformat binary_little_endian 1.0\nelement vertex 4294967296\n"
                               "property float x\nproperty float y\nproperty float z\nend_header\n"),
                    PN_ERROR_BAD_INPUT, "vertices");
-    expect_failure(write_text("huge_other.ply",
-                              "ply\nformat binary_little_endian 1.0\nelement vertex 0\n"
-                              "property float x\nproperty float y\nproperty float z\n"
-                              "element junk 18446744073709551615\nproperty uchar a\nend_header\n"),
+    expect_failure(write_text("huge_other.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 0\n"
+                                                "property float x\nproperty float y\nproperty float z\n"
+                                                "element junk 18446744073709551615\nproperty uchar a\nend_header\n"),
                    PN_ERROR_BAD_INPUT, "junk");
-    expect_failure(write_text("overflow_count.ply",
-                              "ply\nformat ascii 1.0\nelement vertex 99999999999999999999999\n"
-                              "end_header\n"),
+    expect_failure(write_text("overflow_count.ply", "ply\nformat ascii 1.0\nelement vertex 99999999999999999999999\n"
+                                                    "end_header\n"),
                    PN_ERROR_BAD_INPUT, "bad element count");
 
     /* A face list whose length says four billion items. */
@@ -519,8 +515,7 @@ static void test_forged_counts(void) {
     for (int i = 0; i < 9; i++) put_f32(&b, (float)i);
     put_u32(&b, 0xFFFFFFFFu);
     put_i32(&b, 0);
-    expect_failure(write_file("huge_list.ply", b.data, b.len), PN_ERROR_BAD_INPUT,
-                   "file ends after 0 of 1 faces");
+    expect_failure(write_file("huge_list.ply", b.data, b.len), PN_ERROR_BAD_INPUT, "file ends after 0 of 1 faces");
 
     /* The same through a skipped list of an unknown element. */
     b.len = 0;
@@ -528,8 +523,7 @@ static void test_forged_counts(void) {
                  "property float x\nproperty float y\nproperty float z\n"
                  "element junk 1\nproperty list uint double stuff\nend_header\n");
     put_u32(&b, 0xFFFFFFFFu);
-    expect_failure(write_file("huge_skip.ply", b.data, b.len), PN_ERROR_BAD_INPUT,
-                   "file ends after 0 of 1 junks");
+    expect_failure(write_file("huge_skip.ply", b.data, b.len), PN_ERROR_BAD_INPUT, "file ends after 0 of 1 junks");
 
     /* Negative list lengths, binary and ascii. */
     b.len = 0;
@@ -542,19 +536,17 @@ static void test_forged_counts(void) {
     put_i32(&b, 1);
     put_i32(&b, 2);
     expect_failure(write_file("neg_list.ply", b.data, b.len), PN_ERROR_BAD_INPUT, "negative");
-    expect_failure(write_text("neg_list_ascii.ply",
-                              "ply\nformat ascii 1.0\nelement vertex 1\n"
-                              "property float x\nproperty float y\nproperty float z\n"
-                              "element face 1\nproperty list char int vertex_indices\n"
-                              "end_header\n0 0 0\n-1 0\n"),
+    expect_failure(write_text("neg_list_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 1\n"
+                                                    "property float x\nproperty float y\nproperty float z\n"
+                                                    "element face 1\nproperty list char int vertex_indices\n"
+                                                    "end_header\n0 0 0\n-1 0\n"),
                    PN_ERROR_BAD_INPUT, "negative");
 }
 
 static void test_non_finite_values(void) {
-    expect_failure(write_text("nan_ascii.ply",
-                              "ply\nformat ascii 1.0\nelement vertex 2\n"
-                              "property float x\nproperty float y\nproperty float z\n"
-                              "end_header\n0 0 0\n0 nan 0\n"),
+    expect_failure(write_text("nan_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 2\n"
+                                               "property float x\nproperty float y\nproperty float z\n"
+                                               "end_header\n0 0 0\n0 nan 0\n"),
                    PN_ERROR_BAD_INPUT, "vertex 1");
     bytes b = {.len = 0, .big_endian = 0};
     put_text(&b, "ply\nformat binary_little_endian 1.0\nelement vertex 1\n"
@@ -562,16 +554,14 @@ static void test_non_finite_values(void) {
     put_f32(&b, 0.0f);
     put_f32(&b, 0.0f);
     put_f32(&b, NAN);
-    expect_failure(write_file("nan_binary.ply", b.data, b.len), PN_ERROR_BAD_INPUT,
-                   "not a finite number");
+    expect_failure(write_file("nan_binary.ply", b.data, b.len), PN_ERROR_BAD_INPUT, "not a finite number");
     b.len = 0;
     put_text(&b, "ply\nformat binary_little_endian 1.0\nelement vertex 1\n"
                  "property double x\nproperty float y\nproperty float z\nend_header\n");
     put_f64(&b, 1e300); /* finite as a double, infinite as a float */
     put_f32(&b, 0.0f);
     put_f32(&b, 0.0f);
-    expect_failure(write_file("inf_binary.ply", b.data, b.len), PN_ERROR_BAD_INPUT,
-                   "not a finite number");
+    expect_failure(write_file("inf_binary.ply", b.data, b.len), PN_ERROR_BAD_INPUT, "not a finite number");
 }
 
 static void test_first_error_wins(void) {
@@ -608,8 +598,7 @@ static void test_mutated_files(void) {
         CHECK_MSG(st == PN_OK || st == PN_ERROR_BAD_INPUT, "round %d: %s", round, err.message);
         if (st == PN_OK) {
             int bad = 0;
-            for (size_t i = 0; i < 3 * (size_t)mesh.triangle_count; i++)
-                bad += mesh.indices[i] >= mesh.vertex_count;
+            for (size_t i = 0; i < 3 * (size_t)mesh.triangle_count; i++) bad += mesh.indices[i] >= mesh.vertex_count;
             CHECK(bad == 0);
         } else {
             CHECK_STR_CONTAINS(err.message, path);
@@ -691,11 +680,9 @@ static void test_cleanup(void) {
     CHECK(rmdir(scratch_dir) == 0);
 }
 
-PN_TESTS(TEST(test_ascii_quad_normals_uvs), TEST(test_ascii_crlf_polygons),
-         TEST(test_binary_little_endian_extras), TEST(test_binary_big_endian_extras),
-         TEST(test_all_scalar_types), TEST(test_vertices_after_faces_and_no_faces),
-         TEST(test_zero_normal_drops_normals), TEST(test_truncated_binary),
-         TEST(test_truncated_faces_message), TEST(test_truncated_ascii),
-         TEST(test_index_out_of_range), TEST(test_missing_file), TEST(test_garbage_and_bad_headers),
-         TEST(test_forged_counts), TEST(test_non_finite_values), TEST(test_first_error_wins),
-         TEST(test_mutated_files), TEST(test_real_scene_mesh), TEST(test_cleanup))
+PN_TESTS(TEST(test_ascii_quad_normals_uvs), TEST(test_ascii_crlf_polygons), TEST(test_binary_little_endian_extras),
+         TEST(test_binary_big_endian_extras), TEST(test_all_scalar_types), TEST(test_vertices_after_faces_and_no_faces),
+         TEST(test_zero_normal_drops_normals), TEST(test_truncated_binary), TEST(test_truncated_faces_message),
+         TEST(test_truncated_ascii), TEST(test_index_out_of_range), TEST(test_missing_file),
+         TEST(test_garbage_and_bad_headers), TEST(test_forged_counts), TEST(test_non_finite_values),
+         TEST(test_first_error_wins), TEST(test_mutated_files), TEST(test_real_scene_mesh), TEST(test_cleanup))

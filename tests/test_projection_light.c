@@ -67,7 +67,9 @@ static const pn_light *find_projection(pn_scene scene) {
     return NULL;
 }
 
-static double lum_d(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
+static double lum_d(double r, double g, double b) {
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b;
+}
 
 /* pbrt-v4's screen window: the shorter image side spans [-1, 1]. */
 static void window(int w, int h, double *sx, double *sy) {
@@ -137,7 +139,8 @@ static void check_constant(int w, int h, double fov, double scale, double power)
         pn_rng_seed(&rng, 1234, (uint64_t)(w * 100 + h));
         int inside = 0, wrong = 0;
         for (int k = 0; k < 4000; k++) {
-            double x = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 1.5 * X, y = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 1.5 * Y;
+            double x = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 1.5 * X,
+                   y = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 1.5 * Y;
             double ex = fabs(fabs(x) - X) / X, ey = fabs(fabs(y) - Y) / Y;
             if (ex < 1e-3 || ey < 1e-3) continue; /* within rounding of the frustum's side */
             bool in = fabs(x) < X && fabs(y) < Y;
@@ -199,7 +202,9 @@ static void test_irradiance_closed_form(void) {
 /* ---- which pixel a direction reads ----------------------------------------------------------- */
 
 /* 5 x 3: red where (x + 2 y) % 3 == 0, else blue; no symmetry in either axis. */
-static bool is_red(int x, int y) { return (x + 2 * y) % 3 == 0; }
+static bool is_red(int x, int y) {
+    return (x + 2 * y) % 3 == 0;
+}
 
 static void two_colour_image(float *rgb) {
     for (int y = 0; y < 3; y++)
@@ -235,7 +240,8 @@ static void test_two_colour_pixels(void) {
         int counted[2] = {0, 0}, wrong = 0;
         for (int k = 0; k < 6000; k++) {
             /* A point in front of the light: light-space direction in a cone, any distance. */
-            double lx = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 2.2 * t, ly = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 1.3 * t;
+            double lx = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 2.2 * t,
+                   ly = (2.0 * (double)pn_rng_float(&rng) - 1.0) * 1.3 * t;
             double dist = 0.5 + 4.0 * (double)pn_rng_float(&rng);
             /* world = o + R (lx, ly, 1) * dist (R: rotation about x by 60 degrees) */
             double wx = lx, wy = ly * ct - st, wz = ly * st + ct;
@@ -410,7 +416,8 @@ static void test_emission_sampling(void) {
                 continue;
             }
             /* Light space by hand (inverse rotation, then the flip). */
-            double qx = (double)w.x, qy = (double)w.y * ct + (double)w.z * st, qz = -(double)w.y * st + (double)w.z * ct;
+            double qx = (double)w.x, qy = (double)w.y * ct + (double)w.z * st,
+                   qz = -(double)w.y * st + (double)w.z * ct;
             qy = -qy;
             double u = (qx / (qz * t) + sx) / (2.0 * sx), v = (qy / (qz * t) + sy) / (2.0 * sy);
             int bx = (int)(u * EW * SUB), by = (int)(v * EH * SUB);
@@ -497,8 +504,8 @@ static void test_vpl_first_bounce(void) {
          * sum and whose variance is n sum(e^2) - sum^2. */
         double n = (double)set.paths, mean = sum;
         double se = sqrt(fmax(0.0, sum2 * n - sum * sum) / n);
-        CHECK_MSG(fabs(mean - kd * phi_exact) <= 5.0 * se + 1e-6, "first-bounce red power %.6g, kd * power %.6g (se %.2g)",
-                  mean, kd * phi_exact, se);
+        CHECK_MSG(fabs(mean - kd * phi_exact) <= 5.0 * se + 1e-6,
+                  "first-bounce red power %.6g, kd * power %.6g (se %.2g)", mean, kd * phi_exact, se);
         pn_vpl_set_free(&set);
     } else {
         CHECK(l != NULL);
@@ -516,14 +523,15 @@ static void test_vpl_bound_holds(void) {
     CHECK(write_pfm("emit.pfm", rgb, EW, EH));
     pn_context ctx = pn_context_new();
     pn_context_set_log(ctx, quiet_log, NULL);
-    pn_scene scene = load(ctx, "bound.pbrt",
-                          scene_text(8, 8, 40,
-                                     "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
-                                     "Shape \"trianglemesh\" \"point3 P\" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "
-                                     "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                                     "AttributeBegin\nTranslate 0 0 2\nRotate 180 1 0 0\n"
-                                     "LightSource \"projection\" \"string filename\" \"emit.pfm\" \"float fov\" [ 70 ]\n"
-                                     "AttributeEnd\n"));
+    pn_scene scene =
+        load(ctx, "bound.pbrt",
+             scene_text(8, 8, 40,
+                        "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+                        "Shape \"trianglemesh\" \"point3 P\" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "
+                        "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                        "AttributeBegin\nTranslate 0 0 2\nRotate 180 1 0 0\n"
+                        "LightSource \"projection\" \"string filename\" \"emit.pfm\" \"float fov\" [ 70 ]\n"
+                        "AttributeEnd\n"));
     CHECK_MSG(scene != NULL, "%s", pn_context_error_message(ctx));
     if (scene) {
         pn_vpl_settings s = {1, 1, 0.05f, 5};
@@ -725,10 +733,10 @@ static void test_bad_input(void) {
     CHECK(write_pfm("ok.pfm", rgb, 2, 2));
     /* The scene text puts the LightSource on line 6. */
     expect_bad("nofile.pbrt", "LightSource \"projection\" \"float fov\" [ 30 ]", "6:1:", "\"filename\"");
-    expect_bad("fov0.pbrt", "LightSource \"projection\" \"string filename\" \"ok.pfm\" \"float fov\" [ 0 ]", "6:",
-               "\"fov\" 0 is outside (0, 180)");
-    expect_bad("fov180.pbrt", "LightSource \"projection\" \"string filename\" \"ok.pfm\" \"float fov\" [ 180 ]", "6:",
-               "outside (0, 180)");
+    expect_bad("fov0.pbrt", "LightSource \"projection\" \"string filename\" \"ok.pfm\" \"float fov\" [ 0 ]",
+               "6:", "\"fov\" 0 is outside (0, 180)");
+    expect_bad("fov180.pbrt", "LightSource \"projection\" \"string filename\" \"ok.pfm\" \"float fov\" [ 180 ]",
+               "6:", "outside (0, 180)");
     expect_bad("missing.pbrt", "LightSource \"projection\" \"string filename\" \"nosuch.pfm\"", "6:", "nosuch.pfm");
     float nan_rgb[3 * 4] = {1, 1, 1, NAN, 1, 1, 1, 1, 1, 1, 1, 1};
     CHECK(write_pfm("nan.pfm", nan_rgb, 2, 2));
@@ -755,4 +763,5 @@ static void teardown(void) {
 }
 
 PN_TESTS(TEST(setup), TEST(test_irradiance_closed_form), TEST(test_two_colour_pixels), TEST(test_emission_sampling),
-         TEST(test_vpl_first_bounce), TEST(test_vpl_bound_holds), TEST(test_integrators_agree), TEST(test_bad_input), TEST(teardown))
+         TEST(test_vpl_first_bounce), TEST(test_vpl_bound_holds), TEST(test_integrators_agree), TEST(test_bad_input),
+         TEST(teardown))

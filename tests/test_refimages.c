@@ -85,8 +85,9 @@ static double render_relmse(const ref_case *rc, double scale, double *relmse_sca
     *lum_ratio = m.mean_luminance_reference > 0.0 ? m.mean_luminance_image / m.mean_luminance_reference : 0.0;
     /* The same image scaled: a 10% bias must exceed the bound. */
     *relmse_scaled = box_relmse(pr, pi, x1 - x0, y1 - y0, scale);
-    fprintf(stderr, "  %s: %dx%d crop, %u spp, %.1f shadow rays/px, %.2f s: box relMSE %.3g (bound %.3g, "
-                    "x%.1f: %.3g), pixel relMSE %.3g, mean luminance %.4g vs reference %.4g\n",
+    fprintf(stderr,
+            "  %s: %dx%d crop, %u spp, %.1f shadow rays/px, %.2f s: box relMSE %.3g (bound %.3g, "
+            "x%.1f: %.3g), pixel relMSE %.3g, mean luminance %.4g vs reference %.4g\n",
             rc->scene, x1 - x0, y1 - y0, rc->spp, stats.shadow_rays_per_pixel_mean, stats.render_seconds, result,
             rc->max_relmse, scale, *relmse_scaled, m.relmse, m.mean_luminance_image, m.mean_luminance_reference);
 done:
@@ -132,14 +133,14 @@ static void test_hall_many_matte(void) {
 }
 
 static void test_staircase_832_matte(void) {
-    ref_case rc = {"staircase-832/staircase-832-matte.pbrt", "staircase-832-matte.exr", {0.4f, 0.6f, 0.1f, 0.2f},
-                   64, 3e-3};
+    ref_case rc = {
+        "staircase-832/staircase-832-matte.pbrt", "staircase-832-matte.exr", {0.4f, 0.6f, 0.1f, 0.2f}, 64, 3e-3};
     run_case(&rc);
 }
 
 static void test_living_env_138_matte(void) {
-    ref_case rc = {"living-env-138/living-env-138-matte.pbrt", "living-env-138-matte.exr",
-                   {0.4f, 0.55f, 0.4f, 0.6f}, 64, 6e-3};
+    ref_case rc = {
+        "living-env-138/living-env-138-matte.pbrt", "living-env-138-matte.exr", {0.4f, 0.55f, 0.4f, 0.6f}, 64, 6e-3};
     run_case(&rc);
 }
 

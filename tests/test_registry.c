@@ -254,7 +254,8 @@ static void test_defaults_resolve_into_job(void) {
     const pn_method_entry *lc = pn_registry_method_kind(PN_METHOD_INTEGRATOR, PN_INTEGRATOR_LIGHTCUTS);
     const pn_method_entry *dcm = pn_registry_method_kind(PN_METHOD_DRIVER, PN_DRIVER_DCM);
     CHECK(pn_options_set(NULL, o, "vpls", "1234") == PN_OK && pn_options_set(NULL, o, "error", "0.015") == PN_OK &&
-          pn_options_set(NULL, o, "snapshots", "6,12.5") == PN_OK && pn_options_set(NULL, o, "raw-radiance", "1") == PN_OK);
+          pn_options_set(NULL, o, "snapshots", "6,12.5") == PN_OK &&
+          pn_options_set(NULL, o, "raw-radiance", "1") == PN_OK);
     CHECK(pn_registry_resolve(NULL, &s, lc, dcm, &job) == PN_OK);
     CHECK(job.vpls == 1234 && job.error_bound == 0.015f && job.raw_radiance);
     CHECK(job.snapshots.count == 2 && job.snapshots.values[0] == 6.0 && job.snapshots.values[1] == 12.5);
@@ -307,7 +308,8 @@ static int run_cli(char **out, char **err, const char *const *args) {
     pid_t pid = fork();
     if (pid == 0) {
         if (chdir(tmpdir) != 0) _exit(99);
-        int fo = open(out_path, O_WRONLY | O_CREAT | O_TRUNC, 0644), fe = open(err_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        int fo = open(out_path, O_WRONLY | O_CREAT | O_TRUNC, 0644),
+            fe = open(err_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
         if (fo < 0 || fe < 0) _exit(98);
         dup2(fo, 1);
         dup2(fe, 2);
@@ -352,13 +354,16 @@ static void test_cli_refuses_other_methods_options(void) {
             char flag[96], value[128];
             snprintf(flag, sizeof flag, "--%s", pn_option_get(i)->name);
             const char *v = valid_value(i, value, sizeof value);
-            const char *args[8] = {"render", "x.pbrt", is_driver ? "--driver" : "--integrator", mi->name, flag, v, NULL};
+            const char *args[8] = {"render", "x.pbrt", is_driver ? "--driver" : "--integrator", mi->name, flag,
+                                   v,        NULL};
             char *err = NULL;
             int code = run_cli(NULL, &err, args);
             CHECK_MSG(code == 2, "%s %s: exit %d", mi->name, flag, code);
             char expect[160];
-            const pn_method_info *integ = pn_method_get(is_driver ? other : m), *drv = pn_method_get(is_driver ? m : other);
-            snprintf(expect, sizeof expect, "%s does not apply to %s under the %s driver", flag, integ->name, drv->name);
+            const pn_method_info *integ = pn_method_get(is_driver ? other : m),
+                                 *drv = pn_method_get(is_driver ? m : other);
+            snprintf(expect, sizeof expect, "%s does not apply to %s under the %s driver", flag, integ->name,
+                     drv->name);
             CHECK_STR_CONTAINS(err, expect);
             free(err);
             refused++;
@@ -393,13 +398,16 @@ static void test_cli_enforces_declared_ranges(void) {
         snprintf(flag, sizeof flag, "--%s", info->name);
         if (info->type == PN_OPTION_INT || info->type == PN_OPTION_DOUBLE || info->type == PN_OPTION_LIST)
             snprintf(bad, sizeof bad, "%.17g", info->min - 1);
-        else snprintf(bad, sizeof bad, "bogus");
+        else
+            snprintf(bad, sizeof bad, "bogus");
         char arg[192];
-        if (info->type == PN_OPTION_FLAG) snprintf(arg, sizeof arg, "%s=2", flag);
-        else snprintf(arg, sizeof arg, "%s=%s", flag, bad);
+        if (info->type == PN_OPTION_FLAG)
+            snprintf(arg, sizeof arg, "%s=2", flag);
+        else
+            snprintf(arg, sizeof arg, "%s=%s", flag, bad);
         char *err = NULL;
-        const char *args[] = {"render", "x.pbrt", mi->role == PN_METHOD_DRIVER ? "--driver" : "--integrator", mi->name,
-                              arg, NULL};
+        const char *args[] = {"render", "x.pbrt", mi->role == PN_METHOD_DRIVER ? "--driver" : "--integrator",
+                              mi->name, arg,      NULL};
         CHECK_MSG(run_cli(NULL, &err, args) == 2, "%s", arg);
         CHECK_STR_CONTAINS(err, flag);
         free(err);
@@ -445,7 +453,8 @@ static const char *scene_text =
     "Shape \"sphere\" \"float radius\" [ 0.4 ]\n";
 
 /* Builds render arguments from a stats JSON: the settings and every option it records. */
-static int args_from_json(const char *json, const char *scene, const char *output, char store[][128], const char **args) {
+static int args_from_json(const char *json, const char *scene, const char *output, char store[][128],
+                          const char **args) {
     cJSON *root = cJSON_Parse(json);
     int n = 0;
     if (!root) return -1;
@@ -476,7 +485,8 @@ static int args_from_json(const char *json, const char *scene, const char *outpu
     const cJSON *res = cJSON_GetObjectItemCaseSensitive(set, "resolution");
     if (cJSON_IsArray(res)) {
         ADD("--resolution");
-        snprintf(v, sizeof v, "%.0fx%.0f", cJSON_GetArrayItem(res, 0)->valuedouble, cJSON_GetArrayItem(res, 1)->valuedouble);
+        snprintf(v, sizeof v, "%.0fx%.0f", cJSON_GetArrayItem(res, 0)->valuedouble,
+                 cJSON_GetArrayItem(res, 1)->valuedouble);
         ADD(v);
     }
     const cJSON *crop = cJSON_GetObjectItemCaseSensitive(set, "crop");
@@ -500,8 +510,10 @@ static int args_from_json(const char *json, const char *scene, const char *outpu
             continue;
         }
         if (cJSON_IsString(opt) && opt->valuestring[0] == '\0') continue; /* "": none */
-        if (cJSON_IsNumber(opt)) snprintf(v, sizeof v, "%.17g", opt->valuedouble);
-        else snprintf(v, sizeof v, "%s", opt->valuestring);
+        if (cJSON_IsNumber(opt))
+            snprintf(v, sizeof v, "%.17g", opt->valuedouble);
+        else
+            snprintf(v, sizeof v, "%s", opt->valuestring);
         /* an option at a default outside its range ("none", e.g. max-cut 0) is left out */
         const pn_option_info *info = pn_option_get(pn_option_find(opt->string));
         if (cJSON_IsNumber(opt) &&
@@ -532,7 +544,8 @@ static void test_json_round_trip(void) {
     const char *cases[][12] = {
         {"--spp", "3", "--light-sampler", "bvh", "--shadow-rays", "2", "--seed", "5", NULL},
         {"--integrator", "ias", "--threshold", "0.05", "--cluster-solid-angle", "0.03", "--block-size", "16", NULL},
-        {"--integrator", "lightcuts", "--vpls", "500", "--error", "0.02", "--vpl-depth", "3", "--crop", "0.1,0.9,0,1", NULL},
+        {"--integrator", "lightcuts", "--vpls", "500", "--error", "0.02", "--vpl-depth", "3", "--crop", "0.1,0.9,0,1",
+         NULL},
         {"--integrator", "illumcut", "--vpls", "400", "--visibility", "sampling", "--vpl-clamp", "0.07", NULL},
         {"--integrator", "contour", "--contour-off", "spans,scouts", "--contour-grid", "4", "--spp", "2", NULL},
         {"--integrator", "contour-mc", "--mc-threshold", "0.01", "--mc-max-rays", "64", NULL},

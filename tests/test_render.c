@@ -76,8 +76,10 @@ static void test_plane_under_rectangle_light(void) {
 
 static pn_image render_with_threads(pn_scene scene, pn_context ctx, int threads, int adaptive, const float *crop) {
     pn_render_settings s = {0};
-    if (adaptive) s.threshold = 0.02;
-    else s.spp = 4;
+    if (adaptive)
+        s.threshold = 0.02;
+    else
+        s.spp = 4;
     s.seed = 42;
     s.threads = threads;
     pn_options o = pn_options_new();
@@ -143,6 +145,8 @@ static void setup(void) {
     }
 }
 
-static void test_setup(void) { setup(); }
+static void test_setup(void) {
+    setup();
+}
 
 PN_TESTS(TEST(test_setup), TEST(test_plane_under_rectangle_light), TEST(test_thread_count_determinism))

@@ -29,8 +29,7 @@ static double chi2_critical(int dof) {
 
 /* Pearson statistic; bins with an expected count below 5 are pooled into one bin. Observed
  * counts in bins with zero expectation are reported through *impossible. */
-static double chi2_stat(const double *observed, const double *expected, int n, int *dof,
-                        int *impossible) {
+static double chi2_stat(const double *observed, const double *expected, int n, int *dof, int *impossible) {
     double stat = 0.0, pool_obs = 0.0, pool_exp = 0.0;
     int bins = 0;
     *impossible = 0;
@@ -57,18 +56,20 @@ static double chi2_stat(const double *observed, const double *expected, int n, i
     return stat;
 }
 
-#define CHECK_CHI2(observed, expected, n)                                                      \
-    do {                                                                                       \
-        int dof_, impossible_;                                                                 \
-        double stat_ = chi2_stat(observed, expected, n, &dof_, &impossible_);                 \
-        double crit_ = chi2_critical(dof_);                                                    \
-        CHECK_MSG(stat_ < crit_, "chi2 = %.2f, critical %.2f (dof %d)", stat_, crit_, dof_);  \
-        CHECK_MSG(impossible_ == 0, "%d samples in zero-probability bins", impossible_);      \
+#define CHECK_CHI2(observed, expected, n)                                                                              \
+    do {                                                                                                               \
+        int dof_, impossible_;                                                                                         \
+        double stat_ = chi2_stat(observed, expected, n, &dof_, &impossible_);                                          \
+        double crit_ = chi2_critical(dof_);                                                                            \
+        CHECK_MSG(stat_ < crit_, "chi2 = %.2f, critical %.2f (dof %d)", stat_, crit_, dof_);                           \
+        CHECK_MSG(impossible_ == 0, "%d samples in zero-probability bins", impossible_);                               \
     } while (0)
 
 /* ---- Sobol' ------------------------------------------------------------------------------ */
 
-static void test_sobol_tables(void) { CHECK(pn_sobol_tables_consistent()); }
+static void test_sobol_tables(void) {
+    CHECK(pn_sobol_tables_consistent());
+}
 
 static void test_sobol_raw_values(void) {
     static const double dim1[8] = {0.0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875};
@@ -146,13 +147,15 @@ static void test_sobol_1d_stratification(void) {
                     for (uint32_t i = 0; i < n; i++) {
                         float u = pn_sobol_sample(block * n + i, dim, scrambles[s]);
                         uint32_t cell = (uint32_t)(u * (float)n);
-                        if (cell >= n || seen[cell]) dup++;
-                        else seen[cell] = 1;
+                        if (cell >= n || seen[cell])
+                            dup++;
+                        else
+                            seen[cell] = 1;
                     }
                     if (dup) {
                         if (failures < 5)
-                            fprintf(stderr, "  dim %d, 2^%d points, block %u, scramble %u: %d collisions\n",
-                                    dim, k, block, scrambles[s], dup);
+                            fprintf(stderr, "  dim %d, 2^%d points, block %u, scramble %u: %d collisions\n", dim, k,
+                                    block, scrambles[s], dup);
                         failures++;
                     }
                 }
@@ -181,8 +184,10 @@ static void test_sobol_02_net(void) {
                         uint32_t cx = (uint32_t)(x * (float)(1u << a));
                         uint32_t cy = (uint32_t)(y * (float)(1u << b));
                         uint32_t cell = (cy << a) | cx;
-                        if (cell >= n || seen[cell]) dup++;
-                        else seen[cell] = 1;
+                        if (cell >= n || seen[cell])
+                            dup++;
+                        else
+                            seen[cell] = 1;
                     }
                     if (dup) failures++;
                 }
@@ -330,8 +335,7 @@ static void test_sphere_and_hemisphere(void) {
 
 static void test_rectangle_solid_angle_closed_form(void) {
     /* Square of side 2a centred on the axis at distance d: omega = 4 asin(a^2 / (a^2 + d^2)). */
-    static const double cases[][2] = {{1.0, 1.0}, {0.5, 2.0}, {3.0, 0.25}, {1.0, 1000.0},
-                                      {100.0, 0.01}, {0.01, 5.0}};
+    static const double cases[][2] = {{1.0, 1.0}, {0.5, 2.0}, {3.0, 0.25}, {1.0, 1000.0}, {100.0, 0.01}, {0.01, 5.0}};
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         double a = cases[c][0], d = cases[c][1];
         double omega = 4.0 * asin(a * a / (a * a + d * d));
@@ -480,8 +484,7 @@ static void check_sphere_cone(vec3 center, float radius, vec3 p, uint64_t seed) 
         if (fabsf(v3_length(rel) - radius) > 1e-4f * radius + 1e-6f * (float)dist) off_sphere++;
         /* The returned point is the near intersection: its normal faces p. */
         if (v3_dot(rel, v3_sub(p, y)) < -1e-3f * radius * (float)dist) far_side++;
-        double wx = (double)y.x - (double)p.x, wy = (double)y.y - (double)p.y,
-               wz = (double)y.z - (double)p.z;
+        double wx = (double)y.x - (double)p.x, wy = (double)y.y - (double)p.y, wz = (double)y.z - (double)p.z;
         double wl = sqrt(wx * wx + wy * wy + wz * wz);
         wx /= wl, wy /= wl, wz /= wl;
         double c = wx * (double)axis.x + wy * (double)axis.y + wz * (double)axis.z;
@@ -490,7 +493,8 @@ static void check_sphere_cone(vec3 center, float radius, vec3 p, uint64_t seed) 
         if (q > 1.0 + 1e-3) failures++;
         int ring = (int)fmin(fmax(q, 0.0) * RB, RB - 1);
         double phi = atan2(wx * (double)b.x + wy * (double)b.y + wz * (double)b.z,
-                           wx * (double)t.x + wy * (double)t.y + wz * (double)t.z) + PI_D;
+                           wx * (double)t.x + wy * (double)t.y + wz * (double)t.z) +
+                     PI_D;
         int sector = (int)fmin(phi / (2.0 * PI_D) * PB, PB - 1);
         counts[ring * PB + sector] += 1.0;
     }
@@ -505,7 +509,7 @@ static void check_sphere_cone(vec3 center, float radius, vec3 p, uint64_t seed) 
 static void test_sphere_from_point(void) {
     check_sphere_cone(v3(0.0f, 0.0f, 2.0f), 1.0f, v3(0.0f, 0.0f, 0.0f), 1);
     check_sphere_cone(v3(1.0f, -2.0f, 0.5f), 0.3f, v3(-0.5f, 0.4f, 0.1f), 2);
-    check_sphere_cone(v3(0.0f, 0.0f, 0.0f), 1.0f, v3(0.0f, 1.05f, 0.0f), 3); /* very close */
+    check_sphere_cone(v3(0.0f, 0.0f, 0.0f), 1.0f, v3(0.0f, 1.05f, 0.0f), 3);    /* very close */
     check_sphere_cone(v3(50.0f, 20.0f, -10.0f), 0.5f, v3(0.0f, 0.0f, 0.0f), 4); /* small cone */
     vec3 y;
     float pdf;
@@ -649,12 +653,12 @@ static void test_distribution2d(void) {
     /* Integral of the pdf over [0,1)^2 is 1. */
     double integral = 0.0;
     for (int r = 0; r < H; r++)
-        for (int c = 0; c < W; c++)
-            integral += (double)pn_distribution2d_pdf(d, (c + 0.5f) / W, (r + 0.5f) / H) / N;
+        for (int c = 0; c < W; c++) integral += (double)pn_distribution2d_pdf(d, (c + 0.5f) / W, (r + 0.5f) / H) / N;
     CHECK_NEAR(integral, 1.0, 1e-5);
     /* Extreme random numbers stay inside and on positive cells. */
     float u, v, pdf;
-    CHECK(pn_distribution2d_sample(d, 0x1.fffffep-1f, 0x1.fffffep-1f, &u, &v, &pdf) && u < 1.0f && v < 1.0f && pdf > 0.0f);
+    CHECK(pn_distribution2d_sample(d, 0x1.fffffep-1f, 0x1.fffffep-1f, &u, &v, &pdf) && u < 1.0f && v < 1.0f &&
+          pdf > 0.0f);
     CHECK(pn_distribution2d_sample(d, 0.0f, 0.0f, &u, &v, &pdf) && pdf > 0.0f);
     pn_distribution2d_free(d);
 
@@ -677,10 +681,10 @@ static void test_distribution2d(void) {
     }
 }
 
-PN_TESTS(TEST(test_sobol_tables), TEST(test_sobol_raw_values), TEST(test_sobol_byte_tables), TEST(test_sobol_range_and_determinism),
-         TEST(test_sobol_scrambling_changes_points), TEST(test_sobol_1d_stratification),
-         TEST(test_sobol_02_net), TEST(test_sobol_pairs_net), TEST(test_sobol_high_dims_fallback),
-         TEST(test_uniform_triangle), TEST(test_concentric_disk), TEST(test_sphere_and_hemisphere),
-         TEST(test_rectangle_solid_angle_closed_form), TEST(test_spherical_rectangle_distribution),
-         TEST(test_spherical_rectangle_estimator), TEST(test_sphere_from_point),
-         TEST(test_distribution1d), TEST(test_distribution2d))
+PN_TESTS(TEST(test_sobol_tables), TEST(test_sobol_raw_values), TEST(test_sobol_byte_tables),
+         TEST(test_sobol_range_and_determinism), TEST(test_sobol_scrambling_changes_points),
+         TEST(test_sobol_1d_stratification), TEST(test_sobol_02_net), TEST(test_sobol_pairs_net),
+         TEST(test_sobol_high_dims_fallback), TEST(test_uniform_triangle), TEST(test_concentric_disk),
+         TEST(test_sphere_and_hemisphere), TEST(test_rectangle_solid_angle_closed_form),
+         TEST(test_spherical_rectangle_distribution), TEST(test_spherical_rectangle_estimator),
+         TEST(test_sphere_from_point), TEST(test_distribution1d), TEST(test_distribution2d))

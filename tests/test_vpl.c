@@ -16,7 +16,6 @@
 #include <string.h>
 #include <unistd.h>
 
-
 static vec3 rand_dir(pn_rng *rng) {
     for (;;) {
         vec3 v = v3(2.0f * pn_rng_float(rng) - 1.0f, 2.0f * pn_rng_float(rng) - 1.0f, 2.0f * pn_rng_float(rng) - 1.0f);
@@ -32,8 +31,12 @@ static vec3 rand_dir(pn_rng *rng) {
 typedef struct dvec {
     double x, y, z;
 } dvec;
-static dvec D(vec3 v) { return (dvec){(double)v.x, (double)v.y, (double)v.z}; }
-static double ddot(dvec a, dvec b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static dvec D(vec3 v) {
+    return (dvec){(double)v.x, (double)v.y, (double)v.z};
+}
+static double ddot(dvec a, dvec b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 
 static double eq1(const pn_vpl *v, vec3 pf, vec3 nf, vec3 wof, double kd, double ks, double e, double I, double dmin2) {
     dvec p = D(pf), n = D(nf), wo = D(wof), vp = D(v->p), vn = D(v->n), l;
@@ -72,7 +75,9 @@ static void test_contribution_is_eq1(void) {
         memset(&v, 0, sizeof v);
         v.kind = (int32_t)(i % 3);
         v.light = -1;
-        v.p = v.kind == PN_VPL_DIRECTIONAL ? rand_dir(&rng) : v3(4 * pn_rng_float(&rng) - 2, 4 * pn_rng_float(&rng) - 2, 4 * pn_rng_float(&rng) - 2);
+        v.p = v.kind == PN_VPL_DIRECTIONAL
+                  ? rand_dir(&rng)
+                  : v3(4 * pn_rng_float(&rng) - 2, 4 * pn_rng_float(&rng) - 2, 4 * pn_rng_float(&rng) - 2);
         v.n = v.kind == PN_VPL_ORIENTED ? rand_dir(&rng) : v3(0, 0, 0);
         v.intensity = v3(pn_rng_float(&rng), 2 * pn_rng_float(&rng), 0.5f);
         pn_vpl_receiver r;
@@ -87,8 +92,10 @@ static void test_contribution_is_eq1(void) {
         vec3 wi;
         float dist;
         vec3 c = pn_vpl_contribution(&lights, &v, &r, dmin2, &wi, &dist);
-        double ex = eq1(&v, r.p, r.ns, r.wo, (double)r.kd.x, (double)r.ks.x, (double)r.exponent, (double)v.intensity.x, (double)dmin2);
-        double ey = eq1(&v, r.p, r.ns, r.wo, (double)r.kd.y, (double)r.ks.y, (double)r.exponent, (double)v.intensity.y, (double)dmin2);
+        double ex = eq1(&v, r.p, r.ns, r.wo, (double)r.kd.x, (double)r.ks.x, (double)r.exponent, (double)v.intensity.x,
+                        (double)dmin2);
+        double ey = eq1(&v, r.p, r.ns, r.wo, (double)r.kd.y, (double)r.ks.y, (double)r.exponent, (double)v.intensity.y,
+                        (double)dmin2);
         CHECK_NEAR(c.x, ex, 1e-4 * (1.0 + ex));
         CHECK_NEAR(c.y, ey, 1e-4 * (1.0 + ey));
         if (ex > 0.0) nonzero++;
@@ -136,7 +143,8 @@ static void test_first_bounce_energy(void) {
              "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 30 ]\n"
              "Film \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\nWorldBegin\n"
              "Material \"diffuse\" \"rgb reflectance\" [ %g %g %g ]\n"
-             "Shape \"trianglemesh\" \"point3 P\" [ -%g -%g 0  %g -%g 0  %g %g 0  -%g %g 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -%g -%g 0  %g -%g 0  %g %g 0  -%g %g 0 ] \"integer indices\" [ 0 1 "
+             "2  0 2 3 ]\n"
              "LightSource \"point\" \"point3 from\" [ 0 0 %g ] \"rgb I\" [ %g %g %g ]\n",
              kd, kd, kd, A, A, A, A, A, A, A, A, h, I, I, I);
     pn_scene scene = vpl_test_load(ctx, "floor.pbrt", text);
@@ -176,7 +184,8 @@ static void test_vpl_image_closed_form(void) {
              "LookAt 0 0 %g  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ %g ]\n"
              "Film \"rgb\" \"integer xresolution\" [ %d ] \"integer yresolution\" [ %d ]\nWorldBegin\n"
              "Material \"diffuse\" \"rgb reflectance\" [ %g %g %g ]\n"
-             "Shape \"trianglemesh\" \"point3 P\" [ -50 -50 0  50 -50 0  50 50 0  -50 50 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -50 -50 0  50 -50 0  50 50 0  -50 50 0 ] \"integer indices\" [ 0 1 "
+             "2  0 2 3 ]\n"
              "LightSource \"point\" \"point3 from\" [ 0 0 %g ] \"rgb I\" [ %g %g %g ]\n",
              H, fov, W, W, kd, kd, kd, h, I, I, I);
     pn_scene scene = vpl_test_load(ctx, "plane.pbrt", text);
@@ -224,10 +233,12 @@ static void test_vpl_image_closed_form(void) {
 /* A scene with no light renders black, without error. */
 static void test_no_lights(void) {
     pn_context ctx = pn_context_new();
-    pn_scene scene = vpl_test_load(ctx, "dark.pbrt",
-                          "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 30 ]\n"
-                          "Film \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\nWorldBegin\n"
-                          "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n");
+    pn_scene scene =
+        vpl_test_load(ctx, "dark.pbrt",
+                      "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 30 ]\n"
+                      "Film \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\nWorldBegin\n"
+                      "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ] \"integer indices\" [ 0 "
+                      "1 2  0 2 3 ]\n");
     if (!scene) {
         pn_context_free(ctx);
         return;
@@ -288,8 +299,10 @@ static void test_cli_bad_values(void) {
     CHECK_STR_CONTAINS(out, "'exact' or 'sampling'");
     snprintf(args, sizeof args, "render %s --integrator vpl --vpls 0", path);
     CHECK(run_cli(args, out, sizeof out) == 2);
-    snprintf(args, sizeof args, "render %s --integrator illumcut --vpls 500 --visibility sampling -o %s/cli.pfm --stats %s/cli.json --quiet",
-             path, tmpdir, tmpdir);
+    snprintf(
+        args, sizeof args,
+        "render %s --integrator illumcut --vpls 500 --visibility sampling -o %s/cli.pfm --stats %s/cli.json --quiet",
+        path, tmpdir, tmpdir);
     CHECK(run_cli(args, out, sizeof out) == 0);
     char json_path[512];
     snprintf(json_path, sizeof json_path, "%s/cli.json", tmpdir);
@@ -305,9 +318,13 @@ static void test_cli_bad_values(void) {
     }
 }
 
-static void setup(void) { vpl_test_setup("vpl"); }
+static void setup(void) {
+    vpl_test_setup("vpl");
+}
 
-static void teardown(void) { vpl_test_teardown(); }
+static void teardown(void) {
+    vpl_test_teardown();
+}
 
 PN_TESTS(TEST(setup), TEST(test_contribution_is_eq1), TEST(test_trace_is_deterministic), TEST(test_first_bounce_energy),
          TEST(test_vpl_image_closed_form), TEST(test_no_lights), TEST(test_cli_bad_values), TEST(teardown))

@@ -28,25 +28,27 @@
 #define AREA_SIDE 0.6
 static const char *scene_text(int size) {
     static char text[4096];
-    snprintf(text, sizeof text,
-             "LookAt 0 0 3.2  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 60 ]\n"
-             "Film \"rgb\" \"integer xresolution\" [ %d ] \"integer yresolution\" [ %d ]\nWorldBegin\n"
-             "LightSource \"infinite\" \"rgb L\" [ 0.01 0.01 0.012 ]\n"
-             "LightSource \"point\" \"point3 from\" [ -1.2 0.9 1.3 ] \"rgb I\" [ 1.5 1.4 1.2 ]\n"
-             "LightSource \"spot\" \"point3 from\" [ 0.2 -1.0 2.0 ] \"point3 to\" [ 0.2 -1.0 0 ]\n"
-             "    \"float coneangle\" [ 35 ] \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 4 4 3.5 ]\n"
-             "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [ %g %g %g ]\n"
-             "  Shape \"trianglemesh\" \"point3 P\" [ 1.0 -0.3 1.6  1.0 0.3 1.6  1.6 0.3 1.6  1.6 -0.3 1.6 ]\n"
-             "     \"integer indices\" [ 0 1 2  0 2 3 ]\nAttributeEnd\n"
-             "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
-             "Shape \"trianglemesh\" \"point3 P\" [ -3 -3 0  3 -3 0  3 3 0  -3 3 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
-             "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.4 0.3 ]\n"
-             "AttributeBegin\n  Translate -0.3 0.2 0.25\n"
-             "  Shape \"trianglemesh\" \"point3 P\" [ -0.25 -0.25 -0.25  0.25 -0.25 -0.25  0.25 0.25 -0.25  -0.25 0.25 -0.25\n"
-             "     -0.25 -0.25 0.25  0.25 -0.25 0.25  0.25 0.25 0.25  -0.25 0.25 0.25 ]\n"
-             "     \"integer indices\" [ 4 5 6  4 6 7  0 1 5  0 5 4  1 2 6  1 6 5  2 3 7  2 7 6  3 0 4  3 4 7 ]\n"
-             "AttributeEnd\n",
-             size, size, AREA_L, AREA_L, AREA_L);
+    snprintf(
+        text, sizeof text,
+        "LookAt 0 0 3.2  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 60 ]\n"
+        "Film \"rgb\" \"integer xresolution\" [ %d ] \"integer yresolution\" [ %d ]\nWorldBegin\n"
+        "LightSource \"infinite\" \"rgb L\" [ 0.01 0.01 0.012 ]\n"
+        "LightSource \"point\" \"point3 from\" [ -1.2 0.9 1.3 ] \"rgb I\" [ 1.5 1.4 1.2 ]\n"
+        "LightSource \"spot\" \"point3 from\" [ 0.2 -1.0 2.0 ] \"point3 to\" [ 0.2 -1.0 0 ]\n"
+        "    \"float coneangle\" [ 35 ] \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 4 4 3.5 ]\n"
+        "AttributeBegin\n  AreaLightSource \"diffuse\" \"rgb L\" [ %g %g %g ]\n"
+        "  Shape \"trianglemesh\" \"point3 P\" [ 1.0 -0.3 1.6  1.0 0.3 1.6  1.6 0.3 1.6  1.6 -0.3 1.6 ]\n"
+        "     \"integer indices\" [ 0 1 2  0 2 3 ]\nAttributeEnd\n"
+        "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
+        "Shape \"trianglemesh\" \"point3 P\" [ -3 -3 0  3 -3 0  3 3 0  -3 3 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+        "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.4 0.3 ]\n"
+        "AttributeBegin\n  Translate -0.3 0.2 0.25\n"
+        "  Shape \"trianglemesh\" \"point3 P\" [ -0.25 -0.25 -0.25  0.25 -0.25 -0.25  0.25 0.25 -0.25  -0.25 0.25 "
+        "-0.25\n"
+        "     -0.25 -0.25 0.25  0.25 -0.25 0.25  0.25 0.25 0.25  -0.25 0.25 0.25 ]\n"
+        "     \"integer indices\" [ 4 5 6  4 6 7  0 1 5  0 5 4  1 2 6  1 6 5  2 3 7  2 7 6  3 0 4  3 4 7 ]\n"
+        "AttributeEnd\n",
+        size, size, AREA_L, AREA_L, AREA_L);
     return text;
 }
 
@@ -73,7 +75,9 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
     return img;
 }
 
-static double pixel_lum(const float *px, int i) { return (double)v3_luminance(v3(px[3 * i], px[3 * i + 1], px[3 * i + 2])); }
+static double pixel_lum(const float *px, int i) {
+    return (double)v3_luminance(v3(px[3 * i], px[3 * i + 1], px[3 * i + 2]));
+}
 
 /* The direct-only VPL set: what it holds, and that the area light's VPLs carry its power. */
 static void test_direct_vpl_set(void) {
@@ -103,7 +107,8 @@ static void test_direct_vpl_set(void) {
     for (uint32_t i = 0; i < a.count; i++) {
         const pn_vpl *v = &a.vpls[i];
         if (v->kind == PN_VPL_OMNI) {
-            CHECK(v->light >= 0 && (L->lights[v->light].kind == PN_LIGHT_POINT || L->lights[v->light].kind == PN_LIGHT_SPOT));
+            CHECK(v->light >= 0 &&
+                  (L->lights[v->light].kind == PN_LIGHT_POINT || L->lights[v->light].kind == PN_LIGHT_SPOT));
         } else if (v->kind == PN_VPL_ORIENTED) {
             /* On the rectangle, facing down, with the rectangle's emission. */
             CHECK(fabsf(v->p.z - 1.6f) < 1e-4f && v->p.x >= 1.0f - 1e-4f && v->p.x <= 1.6f + 1e-4f &&
@@ -308,9 +313,13 @@ static void test_bad_combinations(void) {
     CHECK(access(cmd, F_OK) != 0);
 }
 
-static void setup(void) { vpl_test_setup("vpl_direct"); }
+static void setup(void) {
+    vpl_test_setup("vpl_direct");
+}
 
-static void teardown(void) { vpl_test_teardown(); }
+static void teardown(void) {
+    vpl_test_teardown();
+}
 
-PN_TESTS(TEST(setup), TEST(test_direct_vpl_set), TEST(test_vpl_matches_reference), TEST(test_lightcuts_within_bound_of_vpl),
-         TEST(test_bad_combinations), TEST(teardown))
+PN_TESTS(TEST(setup), TEST(test_direct_vpl_set), TEST(test_vpl_matches_reference),
+         TEST(test_lightcuts_within_bound_of_vpl), TEST(test_bad_combinations), TEST(teardown))

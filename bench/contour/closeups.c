@@ -32,7 +32,8 @@ int main(int argc, char **argv) {
                 int sx = x0 + x / k, sy = y0 + y / k;
                 if (sx < 0 || sy < 0 || sx >= iw || sy >= ih) continue;
                 for (int c = 0; c < 3; c++)
-                    canvas[3 * ((size_t)y * cw + (size_t)(i * (w * k + gap) + x)) + c] = d[3 * ((size_t)sy * iw + sx) + c];
+                    canvas[3 * ((size_t)y * cw + (size_t)(i * (w * k + gap) + x)) + c] =
+                        d[3 * ((size_t)sy * iw + sx) + c];
             }
         pn_image_free(img);
     }

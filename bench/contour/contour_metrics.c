@@ -42,7 +42,8 @@ int main(int argc, char **argv) {
     }
     for (int i = 3; i + 1 < argc; i += 2) {
         if (strcmp(argv[i], "--error-png") == 0) {
-            if (pn_image_write(ctx, err, argv[i + 1], 0.0f) != PN_OK) fprintf(stderr, "%s\n", pn_context_error_message(ctx));
+            if (pn_image_write(ctx, err, argv[i + 1], 0.0f) != PN_OK)
+                fprintf(stderr, "%s\n", pn_context_error_message(ctx));
         } else if (strcmp(argv[i], "--top") == 0) {
             /* The pixels with the largest luminance difference (for debugging a comparison). */
             int count = atoi(argv[i + 1]);

@@ -17,12 +17,11 @@
 
 enum { PHASES = 8, CLASSES = 4, WHYS = 5 };
 static const char *phase_name[PHASES] = {"pattern check", "first level", "side dichotomy", "validity (diagonals)",
-                                         "case-4 centre", "subdivision", "restart pass", "island probe"};
+                                         "case-4 centre", "subdivision", "restart pass",   "island probe"};
 static const char *class_name[CLASSES] = {"no candidate obstacle (culled)", "every ray visible", "every ray hidden",
                                           "penumbra (both)"};
 static const char *why_name[WHYS] = {"span start", "pattern changed / span end", "run middle", "uniform run",
                                      "every pixel (spans off)"};
-
 
 int main(int argc, char **argv) {
     if (argc < 6) {
@@ -90,7 +89,8 @@ int main(int argc, char **argv) {
         for (int p = 0; p < PHASES; p++) all[p] += rays[c][p];
     printf("| all counted | %ld | 100%% | %.3f | %+.3f | %ld |", counted,
            counted ? (diff[1] + diff[2] + diff[3]) / counted : 0.0,
-           counted ? (signed_diff[1] + signed_diff[2] + signed_diff[3]) / counted : 0.0, interp[1] + interp[2] + interp[3]);
+           counted ? (signed_diff[1] + signed_diff[2] + signed_diff[3]) / counted : 0.0,
+           interp[1] + interp[2] + interp[3]);
     for (int p = 0; p < PHASES; p++) printf(" %.2f |", counted ? all[p] / counted : 0.0);
     printf(" %.2f |\n\n", counted ? total_rays / counted : 0.0);
     printf("| class |");

@@ -96,9 +96,9 @@ typedef struct pn_scene_info {
     uint32_t textures;
     uint32_t warnings;
     float bounds_min[3], bounds_max[3];
-    int resolution[2];   /* film resolution from the scene file */
-    double parse_seconds; /* time spent parsing (PLY included) */
-    double bvh_seconds;   /* time spent building the Embree BVH */
+    int resolution[2];          /* film resolution from the scene file */
+    double parse_seconds;       /* time spent parsing (PLY included) */
+    double bvh_seconds;         /* time spent building the Embree BVH */
     uint32_t lights_projection; /* pbrt-v4 "projection" lights */
 } pn_scene_info;
 
@@ -146,20 +146,20 @@ typedef enum pn_method_role { PN_METHOD_INTEGRATOR = 0, PN_METHOD_DRIVER = 1 } p
 
 /* Capability bits of a method (pn_method_info.capabilities). */
 enum {
-    PN_CAP_PER_PIXEL = 1u << 0,    /* integrator: each pixel on its own (any batch gives the same pixel) */
-    PN_CAP_PER_BLOCK = 1u << 1,    /* integrator: statistics pooled over the batch's block */
-    PN_CAP_WHOLE_IMAGE = 1u << 2,  /* integrator: under the tiled driver, renders the window in one call */
-    PN_CAP_PROGRESSIVE = 1u << 3,  /* integrator: works under the progressive drivers; driver: is one */
-    PN_CAP_CROP = 1u << 4,         /* a crop renders exactly the pixels of the full image */
-    PN_CAP_SPP = 1u << 5,          /* integrator: takes a fixed eye-ray count (settings.spp) */
-    PN_CAP_THRESHOLD = 1u << 6,    /* integrator: takes a relative-variance target (settings.threshold) */
-    PN_CAP_EMITTED = 1u << 7,      /* integrator: reports the emitted part of each estimate */
-    PN_CAP_EYE_SAMPLES = 1u << 8,  /* integrator: at a fixed spp, traces pixel eye samples 0..spp-1 */
-    PN_CAP_OWN_AOVS = 1u << 9      /* driver: writes only its own AOVs, none of the integrator's */
+    PN_CAP_PER_PIXEL = 1u << 0,   /* integrator: each pixel on its own (any batch gives the same pixel) */
+    PN_CAP_PER_BLOCK = 1u << 1,   /* integrator: statistics pooled over the batch's block */
+    PN_CAP_WHOLE_IMAGE = 1u << 2, /* integrator: under the tiled driver, renders the window in one call */
+    PN_CAP_PROGRESSIVE = 1u << 3, /* integrator: works under the progressive drivers; driver: is one */
+    PN_CAP_CROP = 1u << 4,        /* a crop renders exactly the pixels of the full image */
+    PN_CAP_SPP = 1u << 5,         /* integrator: takes a fixed eye-ray count (settings.spp) */
+    PN_CAP_THRESHOLD = 1u << 6,   /* integrator: takes a relative-variance target (settings.threshold) */
+    PN_CAP_EMITTED = 1u << 7,     /* integrator: reports the emitted part of each estimate */
+    PN_CAP_EYE_SAMPLES = 1u << 8, /* integrator: at a fixed spp, traces pixel eye samples 0..spp-1 */
+    PN_CAP_OWN_AOVS = 1u << 9     /* driver: writes only its own AOVs, none of the integrator's */
 };
 
 typedef struct pn_method_info {
-    const char *name;        /* "reference", "ias", ..., "tiles", "dcm", ... */
+    const char *name; /* "reference", "ias", ..., "tiles", "dcm", ... */
     pn_method_role role;
     int kind;                /* the pn_integrator_kind or pn_driver_kind value */
     const char *description; /* one line */
@@ -190,14 +190,14 @@ typedef enum pn_option_type {
 } pn_option_type;
 
 typedef struct pn_option_info {
-    const char *name;          /* "vpls"; the CLI flag is "--" name */
+    const char *name; /* "vpls"; the CLI flag is "--" name */
     pn_option_type type;
     const char *default_value; /* as text, parsed like a set value; "" for none */
     double min, max;           /* range of INT, DOUBLE and LIST values */
     int min_exclusive, max_exclusive;
-    const char *unit;          /* "sr", "pixels", "" ... */
-    const char *choices;       /* CHOICE and SET: comma-separated names */
-    const char *help;          /* one sentence */
+    const char *unit;    /* "sr", "pixels", "" ... */
+    const char *choices; /* CHOICE and SET: comma-separated names */
+    const char *help;    /* one sentence */
 } pn_option_info;
 
 /* Number of declared options, and option i (NULL when out of range). */
@@ -244,17 +244,17 @@ PN_API pn_status pn_options_check(pn_context ctx, pn_options options, pn_integra
 /* AOV layers written beside the beauty image. The first six every integrator writes under the
  * tiled driver; pn_method_info.aovs tells which of the others a method writes. */
 enum {
-    PN_AOV_SHADOW_RAYS = 1u << 0,       /* shadow rays per pixel */
-    PN_AOV_EYE_RAYS = 1u << 1,          /* eye rays per pixel */
-    PN_AOV_RELATIVE_VARIANCE = 1u << 2, /* s^2 / L^2 of the pixel estimate */
-    PN_AOV_DEPTH = 1u << 3,             /* camera distance of the first hit */
-    PN_AOV_NORMAL = 1u << 4,            /* shading normal of the first hit, world space */
-    PN_AOV_ALBEDO = 1u << 5,            /* diffuse reflectance of the first hit */
-    PN_AOV_PASSES = 1u << 6,            /* ias: passes per pixel (the paper's Fig. 11) */
-    PN_AOV_AA_REGIONS = 1u << 7,        /* ias: antialiasing regions per pixel */
-    PN_AOV_CLUSTERS = 1u << 8,          /* ias: clusters per shading point (pixel mean) */
-    PN_AOV_VISIBLE_FRACTION = 1u << 9,  /* ias: fraction of shadow rays unoccluded (Fig. 9) */
-    PN_AOV_GRADIENT = 1u << 10,         /* contour: world-space gradient of the irradiance
+    PN_AOV_SHADOW_RAYS = 1u << 0,        /* shadow rays per pixel */
+    PN_AOV_EYE_RAYS = 1u << 1,           /* eye rays per pixel */
+    PN_AOV_RELATIVE_VARIANCE = 1u << 2,  /* s^2 / L^2 of the pixel estimate */
+    PN_AOV_DEPTH = 1u << 3,              /* camera distance of the first hit */
+    PN_AOV_NORMAL = 1u << 4,             /* shading normal of the first hit, world space */
+    PN_AOV_ALBEDO = 1u << 5,             /* diffuse reflectance of the first hit */
+    PN_AOV_PASSES = 1u << 6,             /* ias: passes per pixel (the paper's Fig. 11) */
+    PN_AOV_AA_REGIONS = 1u << 7,         /* ias: antialiasing regions per pixel */
+    PN_AOV_CLUSTERS = 1u << 8,           /* ias: clusters per shading point (pixel mean) */
+    PN_AOV_VISIBLE_FRACTION = 1u << 9,   /* ias: fraction of shadow rays unoccluded (Fig. 9) */
+    PN_AOV_GRADIENT = 1u << 10,          /* contour: world-space gradient of the irradiance
                                            luminance from contour lights (W/m^2 per unit length) */
     PN_AOV_BOUND_EVALUATIONS = 1u << 11, /* lightcuts / illumcut: L_UB evaluations per pixel
                                             (IlluminationCut Fig. 4; illumcut: amortised) */
@@ -275,22 +275,22 @@ PN_API const char *pn_aov_name(int index, uint32_t *bit);
  * percentage it was asked for (-1 for a timed or requested snapshot), the percentage of work
  * pixels evaluated so far and the seconds since the render started (progressive drivers). */
 struct pn_image_s;
-typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requested_percent,
-                               double evaluated_percent, double seconds);
+typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requested_percent, double evaluated_percent,
+                               double seconds);
 
 typedef struct pn_render_settings {
     pn_integrator_kind integrator;
     pn_driver_kind driver;
-    uint32_t spp;              /* fixed eye rays per pixel (integrators with PN_CAP_SPP); 0 = the
+    uint32_t spp;      /* fixed eye rays per pixel (integrators with PN_CAP_SPP); 0 = the
                                   method's default_spp, adaptive with threshold when that is 0 */
-    double threshold;          /* relative variance target s^2/L^2 (PN_CAP_THRESHOLD); default 0.01 */
-    int width, height;         /* 0 = the scene's film resolution */
-    int has_crop;              /* when non-zero, crop[] is used instead of the scene's */
-    float crop[4];             /* x0, x1, y0, y1 in fractions of the image, as pbrt's cropwindow */
-    int threads;               /* 0 = all cores */
+    double threshold;  /* relative variance target s^2/L^2 (PN_CAP_THRESHOLD); default 0.01 */
+    int width, height; /* 0 = the scene's film resolution */
+    int has_crop;      /* when non-zero, crop[] is used instead of the scene's */
+    float crop[4];     /* x0, x1, y0, y1 in fractions of the image, as pbrt's cropwindow */
+    int threads;       /* 0 = all cores */
     uint64_t seed;
     uint32_t max_specular_depth; /* perfect specular bounces of eye rays; default 8 */
-    uint32_t aovs;             /* PN_AOV_* bits */
+    uint32_t aovs;               /* PN_AOV_* bits */
     /* Options of the integrator and driver by name (NULL: all defaults). Not owned. */
     pn_options options;
     /* Progress: called from worker threads under a lock with the fraction done in [0,1],
@@ -352,22 +352,22 @@ typedef struct pn_render_stats {
     uint64_t contour_integrations, contour_interpolated, contour_restarts, contour_subdivisions;
     uint64_t contour_culled_spans;
     /* Progressive drivers (issue 6). */
-    uint64_t evaluated_pixels;        /* work pixels evaluated by the integrator */
-    double evaluated_percent;         /* of all work pixels of the window */
-    int work_width, work_height;      /* of the work window */
+    uint64_t evaluated_pixels;                      /* work pixels evaluated by the integrator */
+    double evaluated_percent;                       /* of all work pixels of the window */
+    int work_width, work_height;                    /* of the work window */
     uint32_t dcm_simple_blocks, dcm_complex_blocks; /* edge blocks that passed / failed the tests */
-    uint32_t dcm_lazy_blocks;         /* quads that kept their parent's elements (lazy evaluation) */
-    double primary_buffer_seconds;    /* the id/normal/depth buffer of primary rays */
-    uint64_t primary_grid_pixels;     /* work pixels whose albedo and emitted radiance came from a
+    uint32_t dcm_lazy_blocks;                       /* quads that kept their parent's elements (lazy evaluation) */
+    double primary_buffer_seconds;                  /* the id/normal/depth buffer of primary rays */
+    uint64_t primary_grid_pixels;                   /* work pixels whose albedo and emitted radiance came from a
                                          grid of primary rays (--primary-grid) */
-    double reconstruct_seconds_max;   /* longest reconstruction of an approximate image */
+    double reconstruct_seconds_max;                 /* longest reconstruction of an approximate image */
 } pn_render_stats;
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the
  * beauty and the requested AOVs; stats (may be NULL) is filled. If cancelled, the partial image
  * is still returned together with PN_ERROR_CANCELLED. */
-PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
-                           pn_image *out_image, pn_render_stats *stats);
+PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
+                           pn_render_stats *stats);
 
 /* Asks running renders of this context to stop after their current tiles, or during their
  * preparation (VPL tracing, light trees). A cancel issued while no render runs applies to the
@@ -431,8 +431,8 @@ typedef struct pn_image_metrics {
 
 /* Compares the beauty layers of two images of equal size. If error_image is not NULL it
  * receives a new image of |a-b| x 16 (free with pn_image_free). */
-PN_API pn_status pn_image_compare(pn_context ctx, pn_image reference, pn_image image,
-                                  pn_image_metrics *metrics, pn_image *error_image);
+PN_API pn_status pn_image_compare(pn_context ctx, pn_image reference, pn_image image, pn_image_metrics *metrics,
+                                  pn_image *error_image);
 
 #ifdef __cplusplus
 }

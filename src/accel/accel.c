@@ -13,8 +13,8 @@
 
 /* What an Embree geometry id stands for. */
 typedef struct geom_ref {
-    int kind; /* 0 = mesh, 1 = sphere set, 2 = instance */
-    int index; /* mesh index, or instance index */
+    int kind;         /* 0 = mesh, 1 = sphere set, 2 = instance */
+    int index;        /* mesh index, or instance index */
     int first_sphere; /* for sphere sets: scene sphere index of primitive 0 */
 } geom_ref;
 
@@ -94,18 +94,18 @@ static pn_status add_mesh(pn_accel *acc, scene_table *tab, int mesh_index, pn_er
     if (m->triangle_count == 0 || m->vertex_count == 0) return PN_OK;
     RTCGeometry g = rtcNewGeometry(acc->device, RTC_GEOMETRY_TYPE_TRIANGLE);
     if (!g) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "Embree could not create a geometry");
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                        3 * sizeof(float), m->vertex_count);
-    unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                           3 * sizeof(unsigned), m->triangle_count);
+    float *vb =
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m->vertex_count);
+    unsigned *ib =
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), m->triangle_count);
     if (!vb || !ib) {
         rtcReleaseGeometry(g);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for mesh %s", m->source ? m->source : "");
     }
     memcpy(vb, m->positions, (size_t)m->vertex_count * 3 * sizeof(float));
     memcpy(ib, m->indices, (size_t)m->triangle_count * 3 * sizeof(unsigned));
-    const pn_material *mat = (m->material >= 0 && m->material < scene->material_count)
-                                 ? &scene->materials[m->material] : NULL;
+    const pn_material *mat =
+        (m->material >= 0 && m->material < scene->material_count) ? &scene->materials[m->material] : NULL;
     bool has_alpha = m->alpha.texture >= 0 || m->alpha.value.x < 1.0f;
     alpha_user *au = NULL;
     if (has_alpha) {
@@ -138,8 +138,8 @@ static pn_status add_spheres(pn_accel *acc, scene_table *tab, int first, int cou
     const struct pn_scene_s *scene = acc->scene;
     RTCGeometry g = rtcNewGeometry(acc->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
     if (!g) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "Embree could not create a geometry");
-    float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
-                                        4 * sizeof(float), (size_t)count);
+    float *vb =
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), (size_t)count);
     if (!vb) {
         rtcReleaseGeometry(g);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for spheres");
@@ -201,8 +201,10 @@ pn_status pn_accel_build(struct pn_scene_s *scene, pn_accel **out, pn_err *err) 
     rtcSetSceneBuildQuality(acc->world.rtc, RTC_BUILD_QUALITY_HIGH);
     if (scene->object_count > 0) {
         acc->objects = calloc((size_t)scene->object_count, sizeof *acc->objects);
-        if (!acc->objects) st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
-        else acc->object_count = scene->object_count;
+        if (!acc->objects)
+            st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        else
+            acc->object_count = scene->object_count;
     }
     for (int i = 0; st == PN_OK && i < scene->mesh_count; i++) {
         int obj = scene->meshes[i].object;
@@ -263,8 +265,8 @@ float pn_accel_ray_epsilon(const pn_accel *acc, vec3 p) {
     return fmaxf(1e-5f * fminf(acc->epsilon_base, 1e6f), 4e-6f * m);
 }
 
-static void fill_triangle_hit(const struct pn_scene_s *scene, const pn_mesh *m, unsigned prim, float bu,
-                              float bv, const mat4 *xf, const mat4 *xf_inv, pn_hit *h) {
+static void fill_triangle_hit(const struct pn_scene_s *scene, const pn_mesh *m, unsigned prim, float bu, float bv,
+                              const mat4 *xf, const mat4 *xf_inv, pn_hit *h) {
     const uint32_t *idx = m->indices + 3 * (size_t)prim;
     vec3 p0 = v3(m->positions[3 * idx[0]], m->positions[3 * idx[0] + 1], m->positions[3 * idx[0] + 2]);
     vec3 p1 = v3(m->positions[3 * idx[1]], m->positions[3 * idx[1] + 1], m->positions[3 * idx[1] + 2]);
@@ -286,7 +288,8 @@ static void fill_triangle_hit(const struct pn_scene_s *scene, const pn_mesh *m, 
         }
     }
     if (m->uvs) {
-        const float *a = m->uvs + 2 * (size_t)idx[0], *b = m->uvs + 2 * (size_t)idx[1], *c = m->uvs + 2 * (size_t)idx[2];
+        const float *a = m->uvs + 2 * (size_t)idx[0], *b = m->uvs + 2 * (size_t)idx[1],
+                    *c = m->uvs + 2 * (size_t)idx[2];
         h->u = w * a[0] + bu * b[0] + bv * c[0];
         h->v = w * a[1] + bu * b[1] + bv * c[1];
     } else {
@@ -442,8 +445,11 @@ void pn_accel_occluded_packet(const pn_accel *acc, int count, const vec3 *o, con
         u[10 * width + i] = 0;      /* id */
         u[11 * width + i] = 0;      /* flags */
     }
-    if (width == 4) rtcOccluded4(valid, acc->world.rtc, &ictx, (struct RTCRay4 *)&ray);
-    else if (width == 8) rtcOccluded8(valid, acc->world.rtc, &ictx, (struct RTCRay8 *)&ray);
-    else rtcOccluded16(valid, acc->world.rtc, &ictx, &ray);
+    if (width == 4)
+        rtcOccluded4(valid, acc->world.rtc, &ictx, (struct RTCRay4 *)&ray);
+    else if (width == 8)
+        rtcOccluded8(valid, acc->world.rtc, &ictx, (struct RTCRay8 *)&ray);
+    else
+        rtcOccluded16(valid, acc->world.rtc, &ictx, &ray);
     for (int i = 0; i < count; i++) occluded[i] = f[8 * width + i] < 0.0f;
 }

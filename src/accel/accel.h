@@ -14,15 +14,15 @@ typedef struct pn_accel pn_accel;
 typedef struct pn_hit {
     float t;
     vec3 p;
-    vec3 ng;        /* unit geometric normal, oriented by pbrt's rules (not towards the ray) */
-    vec3 ns;        /* unit shading normal (interpolated when the mesh has normals; else ng) */
-    float u, v;     /* texture coordinates */
+    vec3 ng;    /* unit geometric normal, oriented by pbrt's rules (not towards the ray) */
+    vec3 ns;    /* unit shading normal (interpolated when the mesh has normals; else ng) */
+    float u, v; /* texture coordinates */
     int material;
-    int emission;   /* index into scene emissions, or -1 */
-    int mesh;       /* index into scene meshes, or -1 for a sphere */
-    int sphere;     /* index into scene spheres, or -1 */
-    unsigned prim;  /* triangle index within the mesh */
-    int instance;   /* -1 for world geometry */
+    int emission;  /* index into scene emissions, or -1 */
+    int mesh;      /* index into scene meshes, or -1 for a sphere */
+    int sphere;    /* index into scene spheres, or -1 */
+    unsigned prim; /* triangle index within the mesh */
+    int instance;  /* -1 for world geometry */
 } pn_hit;
 
 /* Builds the BVH over the scene's meshes, spheres and instances. */

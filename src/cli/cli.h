@@ -16,14 +16,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
-enum {
-    EXIT_OK = 0,
-    EXIT_USAGE = 2,
-    EXIT_BAD_INPUT = 3,
-    EXIT_SYSTEM = 4,
-    EXIT_INTERNAL = 70,
-    EXIT_INTERRUPTED = 130
-};
+enum { EXIT_OK = 0, EXIT_USAGE = 2, EXIT_BAD_INPUT = 3, EXIT_SYSTEM = 4, EXIT_INTERNAL = 70, EXIT_INTERRUPTED = 130 };
 
 /* util.c */
 /* Prints "penumbra COMMAND: message (see penumbra COMMAND --help)" and returns EXIT_USAGE. */
@@ -50,8 +43,8 @@ typedef struct arg_scanner {
     const char *command;
     int argc;
     char **argv;
-    int index;        /* of the current argument */
-    char name[64];    /* current option name without "=value" */
+    int index;     /* of the current argument */
+    char name[64]; /* current option name without "=value" */
     const char *inline_value;
     int options_done; /* after "--" everything is positional */
 } arg_scanner;
@@ -83,7 +76,7 @@ typedef struct render_options {
     int has_spp, has_threshold;
     int integrator, driver; /* method indices (pn_method_get) */
     pn_render_settings settings;
-    pn_options options;     /* owned; settings.options points to it */
+    pn_options options; /* owned; settings.options points to it */
 } render_options;
 /* Parses the arguments of `render` into o (o->options must be a fresh handle). Returns -1 to
  * continue, or an exit code. */

@@ -5,7 +5,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-
 /* ---------------------------------------------------------------------------------------- */
 /* diff */
 
@@ -17,19 +16,16 @@ int command_diff(int argc, char **argv) {
     arg_scanner s = {cmd, argc, argv, 0, {0}, NULL, 0};
     while ((kind = scanner_next(&s, &positional)) != 0) {
         if (kind == 2) {
-            if (count >= 2)
-                return usage_error(cmd, "unexpected argument '%s'", positional);
+            if (count >= 2) return usage_error(cmd, "unexpected argument '%s'", positional);
             paths[count++] = positional;
         } else if (strcmp(s.name, "-h") == 0 || strcmp(s.name, "--help") == 0) {
             fputs(diff_help, stdout);
             return EXIT_OK;
         } else if (strcmp(s.name, "--json") == 0) {
-            if (!scanner_no_value(&s))
-                return EXIT_USAGE;
+            if (!scanner_no_value(&s)) return EXIT_USAGE;
             json = 1;
         } else if (strcmp(s.name, "--error-image") == 0) {
-            if ((value = scanner_value(&s)) == NULL)
-                return EXIT_USAGE;
+            if ((value = scanner_value(&s)) == NULL) return EXIT_USAGE;
             if (!is_writable_image_name(value))
                 return bad_value(cmd, s.name, value, "a file name ending in .exr, .pfm or .png");
             error_path = value;
@@ -37,14 +33,10 @@ int command_diff(int argc, char **argv) {
             return usage_error(cmd, "unknown option '%s'", s.argv[s.index]);
         }
     }
-    if (count < 2)
-        return usage_error(cmd, "needs two images, REFERENCE and IMAGE");
+    if (count < 2) return usage_error(cmd, "needs two images, REFERENCE and IMAGE");
     int code;
-    if ((code = check_input_file(paths[0])) != EXIT_OK ||
-        (code = check_input_file(paths[1])) != EXIT_OK)
-        return code;
-    if (error_path && (code = check_output_folder(error_path)) != EXIT_OK)
-        return code;
+    if ((code = check_input_file(paths[0])) != EXIT_OK || (code = check_input_file(paths[1])) != EXIT_OK) return code;
+    if (error_path && (code = check_output_folder(error_path)) != EXIT_OK) return code;
 
     pn_context ctx = pn_context_new();
     if (ctx == NULL) {
@@ -57,8 +49,7 @@ int command_diff(int argc, char **argv) {
     pn_image_metrics m;
     memset(&m, 0, sizeof m);
     pn_status status = pn_image_read(ctx, paths[0], &reference);
-    if (status == PN_OK)
-        status = pn_image_read(ctx, paths[1], &image);
+    if (status == PN_OK) status = pn_image_read(ctx, paths[1], &image);
     if (status != PN_OK) {
         code = report_failure(ctx, status);
         goto done;
@@ -66,8 +57,8 @@ int command_diff(int argc, char **argv) {
     int rw = pn_image_width(reference), rh = pn_image_height(reference);
     int iw = pn_image_width(image), ih = pn_image_height(image);
     if (rw != iw || rh != ih) {
-        fprintf(stderr, "penumbra: image sizes differ: '%s' is %dx%d, '%s' is %dx%d\n", paths[0],
-                rw, rh, paths[1], iw, ih);
+        fprintf(stderr, "penumbra: image sizes differ: '%s' is %dx%d, '%s' is %dx%d\n", paths[0], rw, rh, paths[1], iw,
+                ih);
         code = EXIT_BAD_INPUT;
         goto done;
     }
@@ -94,8 +85,10 @@ int command_diff(int argc, char **argv) {
         cJSON_AddNumberToObject(root, "mae", m.mae);
         cJSON_AddNumberToObject(root, "mean_luminance_reference", m.mean_luminance_reference);
         cJSON_AddNumberToObject(root, "mean_luminance_image", m.mean_luminance_image);
-        if (error_path) cJSON_AddStringToObject(root, "error_image", error_path);
-        else cJSON_AddNullToObject(root, "error_image");
+        if (error_path)
+            cJSON_AddStringToObject(root, "error_image", error_path);
+        else
+            cJSON_AddNullToObject(root, "error_image");
         char *text = json_print(root);
         cJSON_Delete(root);
         if (text) fputs(text, stdout);
@@ -108,10 +101,8 @@ int command_diff(int argc, char **argv) {
         printf("rel L1         %.6g\n", m.rel_l1);
         printf("rel L2         %.6g\n", m.rel_l2);
         printf("MAE            %.6g\n", m.mae);
-        printf("mean luminance reference %.6g, image %.6g\n", m.mean_luminance_reference,
-               m.mean_luminance_image);
-        if (error_path)
-            printf("error image    %s (|image - reference| x 16)\n", error_path);
+        printf("mean luminance reference %.6g, image %.6g\n", m.mean_luminance_reference, m.mean_luminance_image);
+        if (error_path) printf("error image    %s (|image - reference| x 16)\n", error_path);
     }
     code = EXIT_OK;
 
@@ -133,8 +124,7 @@ int command_info(int argc, char **argv) {
     arg_scanner s = {cmd, argc, argv, 0, {0}, NULL, 0};
     while ((kind = scanner_next(&s, &positional)) != 0) {
         if (kind == 2) {
-            if (scene_path)
-                return usage_error(cmd, "unexpected argument '%s'", positional);
+            if (scene_path) return usage_error(cmd, "unexpected argument '%s'", positional);
             scene_path = positional;
         } else if (strcmp(s.name, "-h") == 0 || strcmp(s.name, "--help") == 0) {
             fputs(info_help, stdout);
@@ -143,8 +133,7 @@ int command_info(int argc, char **argv) {
             return usage_error(cmd, "unknown option '%s'", s.argv[s.index]);
         }
     }
-    if (scene_path == NULL)
-        return usage_error(cmd, "missing the scene file");
+    if (scene_path == NULL) return usage_error(cmd, "missing the scene file");
 
     pn_context ctx = pn_context_new();
     if (ctx == NULL) {
@@ -159,17 +148,16 @@ int command_info(int argc, char **argv) {
     memset(&info, 0, sizeof info);
     int code;
     pn_status status = pn_scene_load(ctx, scene_path, &scene);
-    if (status == PN_OK)
-        status = pn_scene_get_info(scene, &info);
+    if (status == PN_OK) status = pn_scene_get_info(scene, &info);
     if (status != PN_OK) {
         code = report_failure(ctx, status);
         goto done;
     }
 
-    uint64_t area = (uint64_t)info.lights_area_triangle + info.lights_area_rectangle +
-                    info.lights_area_disk + info.lights_area_sphere;
-    uint64_t lights = area + info.lights_point + info.lights_spot + info.lights_distant +
-                      info.lights_infinite + info.lights_goniometric + info.lights_projection;
+    uint64_t area = (uint64_t)info.lights_area_triangle + info.lights_area_rectangle + info.lights_area_disk +
+                    info.lights_area_sphere;
+    uint64_t lights = area + info.lights_point + info.lights_spot + info.lights_distant + info.lights_infinite +
+                      info.lights_goniometric + info.lights_projection;
     printf("scene          %s\n", scene_path);
     printf("film           %dx%d\n", info.resolution[0], info.resolution[1]);
     printf("triangles      %llu (%llu unique)\n", (unsigned long long)info.triangles,
@@ -184,9 +172,8 @@ int command_info(int argc, char **argv) {
     printf("  infinite     %u\n", info.lights_infinite);
     printf("  goniometric  %u\n", info.lights_goniometric);
     printf("  projection   %u\n", info.lights_projection);
-    printf("  area         %llu (triangle %u, rectangle %u, disk %u, sphere %u)\n",
-           (unsigned long long)area, info.lights_area_triangle, info.lights_area_rectangle,
-           info.lights_area_disk, info.lights_area_sphere);
+    printf("  area         %llu (triangle %u, rectangle %u, disk %u, sphere %u)\n", (unsigned long long)area,
+           info.lights_area_triangle, info.lights_area_rectangle, info.lights_area_disk, info.lights_area_sphere);
     uint32_t material_count = pn_scene_material_count(scene);
     printf("materials      %u\n", info.materials);
     for (uint32_t i = 0; i < material_count; i++) {
@@ -194,9 +181,9 @@ int command_info(int argc, char **argv) {
         printf("  %s\n", line ? line : "");
     }
     printf("textures       %u\n", info.textures);
-    printf("bounds         (%g, %g, %g) to (%g, %g, %g)\n", (double)info.bounds_min[0],
-           (double)info.bounds_min[1], (double)info.bounds_min[2], (double)info.bounds_max[0],
-           (double)info.bounds_max[1], (double)info.bounds_max[2]);
+    printf("bounds         (%g, %g, %g) to (%g, %g, %g)\n", (double)info.bounds_min[0], (double)info.bounds_min[1],
+           (double)info.bounds_min[2], (double)info.bounds_max[0], (double)info.bounds_max[1],
+           (double)info.bounds_max[2]);
     printf("load time      parse %.3f s, BVH %.3f s\n", info.parse_seconds, info.bvh_seconds);
     uint32_t warning_count = pn_scene_warning_count(scene);
     printf("warnings       %u\n", warning_count);
@@ -211,4 +198,3 @@ done:
     pn_context_free(ctx);
     return code;
 }
-

@@ -62,14 +62,10 @@ int main(int argc, char **argv) {
         return EXIT_USAGE;
     }
     const char *command = argv[1];
-    if (strcmp(command, "render") == 0)
-        return command_render(argc - 1, argv + 1);
-    if (strcmp(command, "methods") == 0)
-        return command_methods(argc - 1, argv + 1);
-    if (strcmp(command, "diff") == 0)
-        return command_diff(argc - 1, argv + 1);
-    if (strcmp(command, "info") == 0)
-        return command_info(argc - 1, argv + 1);
+    if (strcmp(command, "render") == 0) return command_render(argc - 1, argv + 1);
+    if (strcmp(command, "methods") == 0) return command_methods(argc - 1, argv + 1);
+    if (strcmp(command, "diff") == 0) return command_diff(argc - 1, argv + 1);
+    if (strcmp(command, "info") == 0) return command_info(argc - 1, argv + 1);
     if (strcmp(command, "--help") == 0 || strcmp(command, "-h") == 0 || strcmp(command, "help") == 0) {
         if (argc >= 3 && strcmp(command, "help") == 0) {
             if (strcmp(argv[2], "render") == 0)
@@ -91,7 +87,6 @@ int main(int argc, char **argv) {
         print_version();
         return EXIT_OK;
     }
-    if (command[0] == '-')
-        return usage_error(NULL, "unknown option '%s'", command);
+    if (command[0] == '-') return usage_error(NULL, "unknown option '%s'", command);
     return usage_error(NULL, "unknown command '%s'", command);
 }

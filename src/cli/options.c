@@ -117,7 +117,11 @@ static int not_applicable(const render_options *o, const char *flag, uint64_t wh
     const pn_method_info *mi = pn_method_get(o->integrator), *md = pn_method_get(o->driver);
     /* "--spp does not apply to ias under the tiles driver: it applies to the reference ... integrators" */
     appendf(msg, sizeof msg, "%s does not apply to %s under the %s driver: it applies to the %s %s%s", flag, mi->name,
-            md->name, list, roles == 2 ? "driver" : roles == 1 ? "integrator" : "method", count == 1 ? " only" : "s");
+            md->name, list,
+            roles == 2   ? "driver"
+            : roles == 1 ? "integrator"
+                         : "method",
+            count == 1 ? " only" : "s");
     appendf(msg, sizeof msg, "; %s accepts ", mi->name);
     if (mi->capabilities & PN_CAP_SPP) appendf(msg, sizeof msg, "--spp, ");
     if (mi->capabilities & PN_CAP_THRESHOLD) appendf(msg, sizeof msg, "--threshold, ");
@@ -146,8 +150,10 @@ static int scan_method(int argc, char **argv, const char *flag, pn_method_role r
     size_t n = strlen(flag);
     for (int i = 1; i < argc; i++) {
         const char *value = NULL;
-        if (strcmp(argv[i], flag) == 0 && i + 1 < argc) value = argv[i + 1];
-        else if (strncmp(argv[i], flag, n) == 0 && argv[i][n] == '=') value = argv[i] + n + 1;
+        if (strcmp(argv[i], flag) == 0 && i + 1 < argc)
+            value = argv[i + 1];
+        else if (strncmp(argv[i], flag, n) == 0 && argv[i][n] == '=')
+            value = argv[i] + n + 1;
         if (value) return pn_method_find(role, value);
     }
     return -1;
@@ -219,8 +225,10 @@ int parse_render_args(int argc, char **argv, render_options *o) {
                 method_names(role, names, sizeof names);
                 FAIL(bad_value(cmd, name, value, names));
             }
-            if (role == PN_METHOD_INTEGRATOR) o->integrator = m;
-            else o->driver = m;
+            if (role == PN_METHOD_INTEGRATOR)
+                o->integrator = m;
+            else
+                o->driver = m;
         } else if (strcmp(name, "--spp") == 0) {
             long n;
             NEED_VALUE();
@@ -462,7 +470,8 @@ static void print_markdown(void) {
             if (pn_option_applies(i, m)) appendf(opts, sizeof opts, "%s`%s`", n++ ? ", " : "", pn_option_get(i)->name);
         if (mi->role == PN_METHOD_INTEGRATOR) {
             if (mi->capabilities & PN_CAP_SPP)
-                appendf(sampling, sizeof sampling, "spp (default %u%s)", mi->default_spp, mi->default_spp ? "" : ": adaptive");
+                appendf(sampling, sizeof sampling, "spp (default %u%s)", mi->default_spp,
+                        mi->default_spp ? "" : ": adaptive");
             if (mi->capabilities & PN_CAP_THRESHOLD)
                 appendf(sampling, sizeof sampling, "%sthreshold", sampling[0] ? ", " : "");
         }
@@ -479,7 +488,8 @@ static void print_markdown(void) {
         pn_options_get(NULL, i, NULL, def, sizeof def);
         int n = 0;
         for (int m = 0; m < pn_method_count(); m++)
-            if (pn_option_applies(i, m)) appendf(where, sizeof where, "%s`%s`", n++ ? ", " : "", pn_method_get(m)->name);
+            if (pn_option_applies(i, m))
+                appendf(where, sizeof where, "%s`%s`", n++ ? ", " : "", pn_method_get(m)->name);
         printf("| `--%s` | %s | %s | %s | %s | %s | %s |\n", info->name, types[info->type], def[0] ? def : "none",
                expected, info->unit[0] ? info->unit : "-", where, info->help);
     }
@@ -501,8 +511,10 @@ int command_methods(int argc, char **argv) {
             print_markdown();
             return EXIT_OK;
         } else if (strcmp(s.name, "-h") == 0 || strcmp(s.name, "--help") == 0) {
-            fputs("usage: penumbra methods [NAME] [--markdown]\n\nLists every integrator and driver of penumbra: what it computes, "
-                  "its paper,\nits capabilities, AOVs and options (or only the method NAME); --markdown prints the\ntables of docs/options.md.\n",
+            fputs("usage: penumbra methods [NAME] [--markdown]\n\nLists every integrator and driver of penumbra: what "
+                  "it computes, "
+                  "its paper,\nits capabilities, AOVs and options (or only the method NAME); --markdown prints "
+                  "the\ntables of docs/options.md.\n",
                   stdout);
             return EXIT_OK;
         } else {
@@ -512,19 +524,24 @@ int command_methods(int argc, char **argv) {
     int shown = 0;
     for (int m = 0; m < pn_method_count(); m++) {
         if (only && strcmp(pn_method_get(m)->name, only) != 0) continue;
-        if (!shown && !only) printf("penumbra's methods: integrators estimate the light at pixels, drivers choose "
-                                    "the pixels.\n");
+        if (!shown && !only)
+            printf("penumbra's methods: integrators estimate the light at pixels, drivers choose "
+                   "the pixels.\n");
         print_method_options(stdout, m);
         const pn_method_info *mi = pn_method_get(m);
         char caps[256] = "";
         static const struct {
             uint32_t bit;
             const char *name;
-        } cap_names[] = {{PN_CAP_PER_PIXEL, "per pixel"},      {PN_CAP_PER_BLOCK, "per block"},
-                         {PN_CAP_WHOLE_IMAGE, "whole image"},  {PN_CAP_PROGRESSIVE, "progressive drivers"},
-                         {PN_CAP_CROP, "crops"},               {PN_CAP_OWN_AOVS, "own AOVs only"}};
+        } cap_names[] = {{PN_CAP_PER_PIXEL, "per pixel"},
+                         {PN_CAP_PER_BLOCK, "per block"},
+                         {PN_CAP_WHOLE_IMAGE, "whole image"},
+                         {PN_CAP_PROGRESSIVE, "progressive drivers"},
+                         {PN_CAP_CROP, "crops"},
+                         {PN_CAP_OWN_AOVS, "own AOVs only"}};
         for (size_t i = 0; i < sizeof cap_names / sizeof cap_names[0]; i++)
-            if (mi->capabilities & cap_names[i].bit) appendf(caps, sizeof caps, "%s%s", caps[0] ? ", " : "", cap_names[i].name);
+            if (mi->capabilities & cap_names[i].bit)
+                appendf(caps, sizeof caps, "%s%s", caps[0] ? ", " : "", cap_names[i].name);
         if (caps[0]) print_wrapped(stdout, "  works: ", 14, caps);
         if (mi->stats[0]) print_wrapped(stdout, "  statistics: ", 14, mi->stats);
         shown++;

@@ -8,7 +8,6 @@
 #include <string.h>
 #include <unistd.h>
 
-
 /* ---------------------------------------------------------------------------------------- */
 /* Progress bar */
 
@@ -33,13 +32,10 @@ static void format_duration(double seconds, char *out, size_t size) {
 static void draw_progress(progress_state *state, double fraction, double now) {
     enum { BAR_WIDTH = 30 };
     char bar[BAR_WIDTH + 1], elapsed_text[32], eta_text[32];
-    if (fraction < 0.0)
-        fraction = 0.0;
-    if (fraction > 1.0)
-        fraction = 1.0;
+    if (fraction < 0.0) fraction = 0.0;
+    if (fraction > 1.0) fraction = 1.0;
     int filled = (int)(fraction * BAR_WIDTH);
-    for (int i = 0; i < BAR_WIDTH; i++)
-        bar[i] = i < filled ? '#' : '.';
+    for (int i = 0; i < BAR_WIDTH; i++) bar[i] = i < filled ? '#' : '.';
     bar[BAR_WIDTH] = '\0';
     double elapsed = now - state->start;
     format_duration(elapsed, elapsed_text, sizeof elapsed_text);
@@ -47,8 +43,7 @@ static void draw_progress(progress_state *state, double fraction, double now) {
         format_duration(elapsed * (1.0 - fraction) / fraction, eta_text, sizeof eta_text);
     else
         snprintf(eta_text, sizeof eta_text, "--:--");
-    fprintf(stderr, "\r[%s] %5.1f%%  elapsed %s  ETA %s ", bar, 100.0 * fraction, elapsed_text,
-            eta_text);
+    fprintf(stderr, "\r[%s] %5.1f%%  elapsed %s  ETA %s ", bar, 100.0 * fraction, elapsed_text, eta_text);
     fflush(stderr);
     state->drawn = 1;
     state->last_draw = now;
@@ -58,16 +53,13 @@ static void draw_progress(progress_state *state, double fraction, double now) {
 static void on_progress(void *user, double fraction) {
     progress_state *state = user;
     double now = monotonic_seconds();
-    if (state->drawn && now - state->last_draw < 0.1 && fraction < 1.0)
-        return;
+    if (state->drawn && now - state->last_draw < 0.1 && fraction < 1.0) return;
     draw_progress(state, fraction, now);
 }
 
 static void finish_progress(progress_state *state, int complete) {
-    if (!state->drawn)
-        return;
-    if (complete)
-        draw_progress(state, 1.0, monotonic_seconds());
+    if (!state->drawn) return;
+    if (complete) draw_progress(state, 1.0, monotonic_seconds());
     fputc('\n', stderr);
 }
 
@@ -79,8 +71,7 @@ static void on_sigint(int signo) {
                                "(press Ctrl-C again to quit at once)\n";
     (void)signo;
     interrupted = 1;
-    if (interrupt_context)
-        pn_render_cancel(interrupt_context);
+    if (interrupt_context) pn_render_cancel(interrupt_context);
     ssize_t ignored = write(STDERR_FILENO, note, sizeof note - 1);
     (void)ignored;
 }
@@ -121,8 +112,7 @@ static void on_snapshot(void *user, pn_image image, double requested, double eva
 
 static void on_sigusr1(int signo) {
     (void)signo;
-    if (interrupt_context)
-        pn_render_request_snapshot(interrupt_context);
+    if (interrupt_context) pn_render_request_snapshot(interrupt_context);
 }
 
 /* --aov-png: every single-channel AOV layer as a false-colour PNG with a colour bar, named
@@ -233,8 +223,7 @@ int command_render(int argc, char **argv) {
         sigaction(SIGUSR1, &usr1, &previous_usr1);
     }
     status = pn_render(ctx, scene, st, &image, &stats);
-    if (progressive)
-        sigaction(SIGUSR1, &previous_usr1, NULL);
+    if (progressive) sigaction(SIGUSR1, &previous_usr1, NULL);
     sigaction(SIGINT, &previous, NULL);
     interrupt_context = NULL;
     finish_progress(&progress, status == PN_OK);
@@ -242,18 +231,15 @@ int command_render(int argc, char **argv) {
     if (status == PN_ERROR_CANCELLED || (status == PN_OK && interrupted)) {
         /* The user asked to stop: keep what was rendered, but never under the requested name,
          * where it could be mistaken for a finished image. */
-        fprintf(stderr, "penumbra: interrupted; the partial image was not written to '%s'\n",
-                image_path);
+        fprintf(stderr, "penumbra: interrupted; the partial image was not written to '%s'\n", image_path);
         char *partial_path = image ? partial_output_name(image_path) : NULL;
         int partial_written = 0;
         if (partial_path) {
             pn_context_clear_error(ctx);
             partial_written = pn_image_write(ctx, image, partial_path, (float)o.exposure) == PN_OK;
-            if (partial_written)
-                fprintf(stderr, "penumbra: what was rendered is in '%s'\n", partial_path);
+            if (partial_written) fprintf(stderr, "penumbra: what was rendered is in '%s'\n", partial_path);
         }
-        if (o.stats_path)
-            write_stats_json(&o, partial_written ? partial_path : NULL, scene, &info, &stats, 1);
+        if (o.stats_path) write_stats_json(&o, partial_written ? partial_path : NULL, scene, &info, &stats, 1);
         free(partial_path);
         code = EXIT_INTERRUPTED;
         goto done;
@@ -268,18 +254,13 @@ int command_render(int argc, char **argv) {
         code = report_failure(ctx, status);
         goto done;
     }
-    if (o.png_path && (status = pn_image_write(ctx, image, o.png_path, (float)o.exposure)) !=
-                          PN_OK) {
+    if (o.png_path && (status = pn_image_write(ctx, image, o.png_path, (float)o.exposure)) != PN_OK) {
         code = report_failure(ctx, status);
         goto done;
     }
-    if (o.aov_png && (code = write_aov_pngs(ctx, image, image_path)) != EXIT_OK)
-        goto done;
-    if (o.stats_path &&
-        (code = write_stats_json(&o, image_path, scene, &info, &stats, 0)) != EXIT_OK)
-        goto done;
-    if (!o.quiet)
-        print_render_summary(&o, &info, &stats, image_path);
+    if (o.aov_png && (code = write_aov_pngs(ctx, image, image_path)) != EXIT_OK) goto done;
+    if (o.stats_path && (code = write_stats_json(&o, image_path, scene, &info, &stats, 0)) != EXIT_OK) goto done;
+    if (!o.quiet) print_render_summary(&o, &info, &stats, image_path);
     code = EXIT_OK;
 
 done:

@@ -20,34 +20,63 @@ typedef struct stat_field {
     stat_type type;
     size_t offset;
 } stat_field;
-#define S(group, type, field) {group, #field, type, offsetof(pn_render_stats, field)}
+#define S(group, type, field)                                                                                          \
+    { group, #field, type, offsetof(pn_render_stats, field) }
 static const stat_field stat_fields[] = {
-    S("", ST_INT, width), S("", ST_INT, height), S("", ST_INT, threads),
-    S("", ST_DOUBLE, render_seconds), S("", ST_DOUBLE, embree_seconds_estimate), S("", ST_U64, eye_rays),
-    S("", ST_U64, shadow_rays), S("", ST_U64, specular_rays), S("", ST_DOUBLE, eye_rays_per_pixel_mean),
-    S("", ST_U64, eye_rays_per_pixel_max), S("", ST_DOUBLE, shadow_rays_per_pixel_mean),
-    S("", ST_U64, shadow_rays_per_pixel_max), S("", ST_DOUBLE, mrays_per_second), S("", ST_U64, peak_memory_bytes),
+    S("", ST_INT, width),
+    S("", ST_INT, height),
+    S("", ST_INT, threads),
+    S("", ST_DOUBLE, render_seconds),
+    S("", ST_DOUBLE, embree_seconds_estimate),
+    S("", ST_U64, eye_rays),
+    S("", ST_U64, shadow_rays),
+    S("", ST_U64, specular_rays),
+    S("", ST_DOUBLE, eye_rays_per_pixel_mean),
+    S("", ST_U64, eye_rays_per_pixel_max),
+    S("", ST_DOUBLE, shadow_rays_per_pixel_mean),
+    S("", ST_U64, shadow_rays_per_pixel_max),
+    S("", ST_DOUBLE, mrays_per_second),
+    S("", ST_U64, peak_memory_bytes),
     /* progressive drivers */
-    S("progressive", ST_INT, work_width), S("progressive", ST_INT, work_height),
-    S("progressive", ST_U64, evaluated_pixels), S("progressive", ST_DOUBLE, evaluated_percent),
-    S("progressive", ST_U32, dcm_simple_blocks), S("progressive", ST_U32, dcm_complex_blocks),
-    S("progressive", ST_U32, dcm_lazy_blocks), S("progressive", ST_DOUBLE, primary_buffer_seconds),
-    S("progressive", ST_U64, primary_grid_pixels), S("progressive", ST_DOUBLE, reconstruct_seconds_max),
+    S("progressive", ST_INT, work_width),
+    S("progressive", ST_INT, work_height),
+    S("progressive", ST_U64, evaluated_pixels),
+    S("progressive", ST_DOUBLE, evaluated_percent),
+    S("progressive", ST_U32, dcm_simple_blocks),
+    S("progressive", ST_U32, dcm_complex_blocks),
+    S("progressive", ST_U32, dcm_lazy_blocks),
+    S("progressive", ST_DOUBLE, primary_buffer_seconds),
+    S("progressive", ST_U64, primary_grid_pixels),
+    S("progressive", ST_DOUBLE, reconstruct_seconds_max),
     /* ias: the paper's Tables 4-6 */
-    S("ias_tables", ST_DOUBLE, passes_per_pixel_mean), S("ias_tables", ST_DOUBLE, aa_regions_per_pixel_mean),
-    S("ias_tables", ST_DOUBLE, clusters_per_point_mean), S("ias_tables", ST_DOUBLE, visible_fraction_mean),
-    S("ias_tables", ST_U32, lights_visible_viewpoint), S("ias_tables", ST_U32, env_regions_visible_viewpoint),
-    S("ias_tables", ST_DOUBLE, visible_lights_per_pixel_mean), S("ias_tables", ST_DOUBLE, cut_seconds_estimate),
+    S("ias_tables", ST_DOUBLE, passes_per_pixel_mean),
+    S("ias_tables", ST_DOUBLE, aa_regions_per_pixel_mean),
+    S("ias_tables", ST_DOUBLE, clusters_per_point_mean),
+    S("ias_tables", ST_DOUBLE, visible_fraction_mean),
+    S("ias_tables", ST_U32, lights_visible_viewpoint),
+    S("ias_tables", ST_U32, env_regions_visible_viewpoint),
+    S("ias_tables", ST_DOUBLE, visible_lights_per_pixel_mean),
+    S("ias_tables", ST_DOUBLE, cut_seconds_estimate),
     S("ias_tables", ST_DOUBLE, pdf_seconds_estimate),
     /* VPL integrators: IlluminationCut Table 1's rows */
-    S("vpl_cuts", ST_DOUBLE, preprocess_seconds), S("vpl_cuts", ST_DOUBLE, vpl_seconds), S("vpl_cuts", ST_DOUBLE, light_tree_seconds),
-    S("vpl_cuts", ST_U64, vpl_count), S("vpl_cuts", ST_U64, vpl_paths), S("vpl_cuts", ST_DOUBLE, bound_evaluations_per_pixel_mean),
-    S("vpl_cuts", ST_DOUBLE, cut_size_mean), S("vpl_cuts", ST_DOUBLE, point_tree_seconds), S("vpl_cuts", ST_DOUBLE, phase1_seconds),
-    S("vpl_cuts", ST_DOUBLE, phase2_seconds), S("vpl_cuts", ST_U64, illumcut_pairs),
+    S("vpl_cuts", ST_DOUBLE, preprocess_seconds),
+    S("vpl_cuts", ST_DOUBLE, vpl_seconds),
+    S("vpl_cuts", ST_DOUBLE, light_tree_seconds),
+    S("vpl_cuts", ST_U64, vpl_count),
+    S("vpl_cuts", ST_U64, vpl_paths),
+    S("vpl_cuts", ST_DOUBLE, bound_evaluations_per_pixel_mean),
+    S("vpl_cuts", ST_DOUBLE, cut_size_mean),
+    S("vpl_cuts", ST_DOUBLE, point_tree_seconds),
+    S("vpl_cuts", ST_DOUBLE, phase1_seconds),
+    S("vpl_cuts", ST_DOUBLE, phase2_seconds),
+    S("vpl_cuts", ST_U64, illumcut_pairs),
     /* contour, contour-mc: Vedel 1993, Table 1 */
-    S("contour_rays", ST_U64, contour_viewing_rays), S("contour_rays", ST_U64, contour_shadow_rays),
-    S("contour_rays", ST_U64, contour_integrations), S("contour_rays", ST_U64, contour_interpolated),
-    S("contour_rays", ST_U64, contour_restarts), S("contour_rays", ST_U64, contour_subdivisions),
+    S("contour_rays", ST_U64, contour_viewing_rays),
+    S("contour_rays", ST_U64, contour_shadow_rays),
+    S("contour_rays", ST_U64, contour_integrations),
+    S("contour_rays", ST_U64, contour_interpolated),
+    S("contour_rays", ST_U64, contour_restarts),
+    S("contour_rays", ST_U64, contour_subdivisions),
     S("contour_rays", ST_U64, contour_culled_spans),
 };
 #undef S
@@ -107,8 +136,10 @@ char *json_print(const void *tree) {
     }
     size_t j = 0;
     for (size_t i = 0; i < n; i++) {
-        if (text[i] != '\t') out[j++] = text[i];
-        else if (i > 0 && text[i - 1] == ':') out[j++] = ' ';
+        if (text[i] != '\t')
+            out[j++] = text[i];
+        else if (i > 0 && text[i - 1] == ':')
+            out[j++] = ' ';
         else {
             out[j++] = ' ';
             out[j++] = ' ';
@@ -139,7 +170,9 @@ static cJSON *options_json(const render_options *o) {
     return obj;
 }
 
-static cJSON *number_array(const double *v, int n) { return cJSON_CreateDoubleArray(v, n); }
+static cJSON *number_array(const double *v, int n) {
+    return cJSON_CreateDoubleArray(v, n);
+}
 
 static cJSON *scene_info_json(const pn_scene_info *info, pn_scene scene) {
     cJSON *si = cJSON_CreateObject();
@@ -180,8 +213,10 @@ static cJSON *scene_info_json(const pn_scene_info *info, pn_scene scene) {
 }
 
 static void add_string_or_null(cJSON *obj, const char *key, const char *value) {
-    if (value) cJSON_AddStringToObject(obj, key, value);
-    else cJSON_AddNullToObject(obj, key);
+    if (value)
+        cJSON_AddStringToObject(obj, key, value);
+    else
+        cJSON_AddNullToObject(obj, key);
 }
 
 int write_stats_json(const render_options *o, const char *image_path, pn_scene scene, const pn_scene_info *info,
@@ -202,10 +237,14 @@ int write_stats_json(const render_options *o, const char *image_path, pn_scene s
     cJSON_AddStringToObject(set, "computes", mi->computes);
     uint32_t spp = resolved_spp(o);
     double threshold = resolved_threshold(o);
-    if (spp) cJSON_AddNumberToObject(set, "spp", spp);
-    else cJSON_AddNullToObject(set, "spp");
-    if (threshold > 0.0) cJSON_AddNumberToObject(set, "threshold", threshold);
-    else cJSON_AddNullToObject(set, "threshold");
+    if (spp)
+        cJSON_AddNumberToObject(set, "spp", spp);
+    else
+        cJSON_AddNullToObject(set, "spp");
+    if (threshold > 0.0)
+        cJSON_AddNumberToObject(set, "threshold", threshold);
+    else
+        cJSON_AddNullToObject(set, "threshold");
     if (st->width) {
         double res[2] = {st->width, st->height};
         cJSON_AddItemToObject(set, "resolution", number_array(res, 2));
@@ -264,7 +303,9 @@ int write_stats_json(const render_options *o, const char *image_path, pn_scene s
     return code;
 }
 
-static void print_count(const char *label, uint64_t value) { printf("%-14s %llu\n", label, (unsigned long long)value); }
+static void print_count(const char *label, uint64_t value) {
+    printf("%-14s %llu\n", label, (unsigned long long)value);
+}
 
 /* "name value, name value, ..." of the resolved options of method m. */
 static void print_options_line(const render_options *o, int m) {
@@ -292,8 +333,10 @@ void print_render_summary(const render_options *o, const pn_scene_info *info, co
     printf("\n");
     uint32_t spp = resolved_spp(o);
     double threshold = resolved_threshold(o);
-    if (spp) printf("sampling       %u eye rays/pixel\n", spp);
-    else if (threshold > 0.0) printf("sampling       adaptive, threshold %g\n", threshold);
+    if (spp)
+        printf("sampling       %u eye rays/pixel\n", spp);
+    else if (threshold > 0.0)
+        printf("sampling       adaptive, threshold %g\n", threshold);
     printf("time           parse %.2f s, BVH %.2f s, render %.2f s (%d threads)\n", info->parse_seconds,
            info->bvh_seconds, stats->render_seconds, stats->threads);
     print_count("eye rays", stats->eye_rays);

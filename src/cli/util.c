@@ -29,31 +29,25 @@ int usage_error(const char *command, const char *fmt, ...) {
 
 int exit_code_for(pn_status status) {
     switch (status) {
-    case PN_OK:
-        return EXIT_OK;
+    case PN_OK: return EXIT_OK;
     case PN_ERROR_BAD_INPUT:
-    case PN_ERROR_UNSUPPORTED:
-        return EXIT_BAD_INPUT;
+    case PN_ERROR_UNSUPPORTED: return EXIT_BAD_INPUT;
     case PN_ERROR_IO:
-    case PN_ERROR_OUT_OF_MEMORY:
-        return EXIT_SYSTEM;
-    case PN_ERROR_CANCELLED:
-        return EXIT_INTERRUPTED;
+    case PN_ERROR_OUT_OF_MEMORY: return EXIT_SYSTEM;
+    case PN_ERROR_CANCELLED: return EXIT_INTERRUPTED;
     case PN_ERROR_INVALID_ARGUMENT:
         /* The CLI passes the user's values on: a combination the library refuses (e.g.
          * --vpl-direct-only with --vpl-depth, a contour grid too fine for its steps) is a usage
          * error, not a bug. */
         return EXIT_USAGE;
-    default:
-        return EXIT_INTERNAL;
+    default: return EXIT_INTERNAL;
     }
 }
 
 /* Reports a failed library call and returns the matching exit code. */
 int report_failure(pn_context ctx, pn_status status) {
     const char *message = ctx ? pn_context_error_message(ctx) : "";
-    if (message == NULL || message[0] == '\0')
-        message = pn_status_string(status);
+    if (message == NULL || message[0] == '\0') message = pn_status_string(status);
     fprintf(stderr, "penumbra: %s\n", message);
     return exit_code_for(status);
 }
@@ -66,14 +60,11 @@ double monotonic_seconds(void) {
 
 int ends_with(const char *s, const char *suffix) {
     size_t n = strlen(s), m = strlen(suffix);
-    if (m > n)
-        return 0;
+    if (m > n) return 0;
     for (size_t i = 0; i < m; i++) {
         char a = s[n - m + i], b = suffix[i];
-        if (a >= 'A' && a <= 'Z')
-            a = (char)(a - 'A' + 'a');
-        if (a != b)
-            return 0;
+        if (a >= 'A' && a <= 'Z') a = (char)(a - 'A' + 'a');
+        if (a != b) return 0;
     }
     return 1;
 }
@@ -121,15 +112,13 @@ char *default_output_name(const char *scene_path) {
     const char *base = strrchr(scene_path, '/');
     base = base ? base + 1 : scene_path;
     size_t n = strlen(base);
-    if (ends_with(base, ".pbrt"))
-        n -= 5;
+    if (ends_with(base, ".pbrt")) n -= 5;
     if (n == 0) {
         base = "out";
         n = 3;
     }
     char *name = malloc(n + 5);
-    if (name == NULL)
-        return NULL;
+    if (name == NULL) return NULL;
     memcpy(name, base, n);
     memcpy(name + n, ".exr", 5);
     return name;
@@ -139,13 +128,11 @@ char *default_output_name(const char *scene_path) {
 char *partial_output_name(const char *path) {
     const char *slash = strrchr(path, '/');
     const char *dot = strrchr(path, '.');
-    if (dot == NULL || (slash && dot < slash))
-        dot = path + strlen(path);
+    if (dot == NULL || (slash && dot < slash)) dot = path + strlen(path);
     size_t stem = (size_t)(dot - path);
     size_t total = strlen(path) + sizeof ".partial";
     char *name = malloc(total);
-    if (name == NULL)
-        return NULL;
+    if (name == NULL) return NULL;
     memcpy(name, path, stem);
     snprintf(name + stem, total - stem, ".partial%s", dot);
     return name;
@@ -157,36 +144,30 @@ char *partial_output_name(const char *path) {
 
 int parse_long(const char *text, long min, long max, long *out) {
     char *end = NULL;
-    if (text[0] == '\0' || text[0] == ' ' || text[0] == '\t' || text[0] == '+')
-        return 0;
+    if (text[0] == '\0' || text[0] == ' ' || text[0] == '\t' || text[0] == '+') return 0;
     errno = 0;
     long value = strtol(text, &end, 10);
-    if (errno != 0 || end == text || *end != '\0' || value < min || value > max)
-        return 0;
+    if (errno != 0 || end == text || *end != '\0' || value < min || value > max) return 0;
     *out = value;
     return 1;
 }
 
 int parse_u64(const char *text, uint64_t *out) {
     char *end = NULL;
-    if (text[0] < '0' || text[0] > '9')
-        return 0;
+    if (text[0] < '0' || text[0] > '9') return 0;
     errno = 0;
     unsigned long long value = strtoull(text, &end, 10);
-    if (errno != 0 || *end != '\0')
-        return 0;
+    if (errno != 0 || *end != '\0') return 0;
     *out = (uint64_t)value;
     return 1;
 }
 
 int parse_double(const char *text, double *out) {
     char *end = NULL;
-    if (text[0] == '\0' || text[0] == ' ' || text[0] == '\t')
-        return 0;
+    if (text[0] == '\0' || text[0] == ' ' || text[0] == '\t') return 0;
     errno = 0;
     double value = strtod(text, &end);
-    if (errno != 0 || end == text || *end != '\0' || !isfinite(value))
-        return 0;
+    if (errno != 0 || end == text || *end != '\0' || !isfinite(value)) return 0;
     *out = value;
     return 1;
 }
@@ -196,12 +177,10 @@ int parse_resolution(const char *text, int *width, int *height) {
     const char *x = strchr(text, 'x');
     char left[32];
     long w, h;
-    if (x == NULL || (size_t)(x - text) >= sizeof left)
-        return 0;
+    if (x == NULL || (size_t)(x - text) >= sizeof left) return 0;
     memcpy(left, text, (size_t)(x - text));
     left[x - text] = '\0';
-    if (!parse_long(left, 1, 65536, &w) || !parse_long(x + 1, 1, 65536, &h))
-        return 0;
+    if (!parse_long(left, 1, 65536, &w) || !parse_long(x + 1, 1, 65536, &h)) return 0;
     *width = (int)w;
     *height = (int)h;
     return 1;
@@ -211,24 +190,18 @@ int parse_resolution(const char *text, int *width, int *height) {
 int parse_crop(const char *text, float crop[4]) {
     char buffer[256];
     double v[4];
-    if (strlen(text) >= sizeof buffer)
-        return 0;
+    if (strlen(text) >= sizeof buffer) return 0;
     strcpy(buffer, text);
     char *cursor = buffer;
     for (int i = 0; i < 4; i++) {
         char *comma = strchr(cursor, ',');
-        if ((i < 3) != (comma != NULL))
-            return 0;
-        if (comma)
-            *comma = '\0';
-        if (!parse_double(cursor, &v[i]) || v[i] < 0.0 || v[i] > 1.0)
-            return 0;
+        if ((i < 3) != (comma != NULL)) return 0;
+        if (comma) *comma = '\0';
+        if (!parse_double(cursor, &v[i]) || v[i] < 0.0 || v[i] > 1.0) return 0;
         cursor = comma ? comma + 1 : cursor;
     }
-    if (!(v[0] < v[1]) || !(v[2] < v[3]))
-        return 0;
-    for (int i = 0; i < 4; i++)
-        crop[i] = (float)v[i];
+    if (!(v[0] < v[1]) || !(v[2] < v[3])) return 0;
+    for (int i = 0; i < 4; i++) crop[i] = (float)v[i];
     return 1;
 }
 
@@ -236,8 +209,7 @@ int parse_crop(const char *text, float crop[4]) {
  * positional argument. */
 int scanner_next(arg_scanner *s, const char **positional) {
     s->index++;
-    if (s->index >= s->argc)
-        return 0;
+    if (s->index >= s->argc) return 0;
     const char *arg = s->argv[s->index];
     s->inline_value = NULL;
     if (!s->options_done && strcmp(arg, "--") == 0) {
@@ -250,8 +222,7 @@ int scanner_next(arg_scanner *s, const char **positional) {
     }
     const char *equals = arg[1] == '-' ? strchr(arg, '=') : NULL;
     size_t n = equals ? (size_t)(equals - arg) : strlen(arg);
-    if (n >= sizeof s->name)
-        n = sizeof s->name - 1;
+    if (n >= sizeof s->name) n = sizeof s->name - 1;
     memcpy(s->name, arg, n);
     s->name[n] = '\0';
     s->inline_value = equals ? equals + 1 : NULL;
@@ -260,8 +231,7 @@ int scanner_next(arg_scanner *s, const char **positional) {
 
 /* The value of the current option, or NULL after printing a usage error. */
 const char *scanner_value(arg_scanner *s) {
-    if (s->inline_value)
-        return s->inline_value;
+    if (s->inline_value) return s->inline_value;
     if (s->index + 1 >= s->argc) {
         usage_error(s->command, "option '%s' needs a value", s->name);
         return NULL;
@@ -279,8 +249,7 @@ int scanner_no_value(arg_scanner *s) {
     return 1;
 }
 
-int bad_value(const char *command, const char *option, const char *value,
-                     const char *expected) {
+int bad_value(const char *command, const char *option, const char *value, const char *expected) {
     return usage_error(command, "invalid value '%s' for %s: expected %s", value, option, expected);
 }
 
@@ -291,17 +260,13 @@ int bad_value(const char *command, const char *option, const char *value,
 /* ---------------------------------------------------------------------------------------- */
 /* Logging and Ctrl-C */
 
-
 /* Warnings go to stderr; errors are reported once, by the caller, from the context message. */
 void on_log(void *user, pn_log_level level, const char *message) {
     const log_options *options = user;
-    if (level == PN_LOG_ERROR)
-        return;
+    if (level == PN_LOG_ERROR) return;
     if (level == PN_LOG_WARNING) {
-        if (options->show_warnings)
-            fprintf(stderr, "penumbra: warning: %s\n", message);
+        if (options->show_warnings) fprintf(stderr, "penumbra: warning: %s\n", message);
         return;
     }
-    if (!options->quiet)
-        fprintf(stderr, "penumbra: %s\n", message);
+    if (!options->quiet) fprintf(stderr, "penumbra: %s\n", message);
 }

@@ -20,7 +20,9 @@ pn_context pn_context_new(void) {
     return ctx;
 }
 
-void pn_context_free(pn_context ctx) { free(ctx); }
+void pn_context_free(pn_context ctx) {
+    free(ctx);
+}
 
 void pn_context_set_log(pn_context ctx, pn_log_fn fn, void *user) {
     if (!ctx) return;
@@ -28,7 +30,9 @@ void pn_context_set_log(pn_context ctx, pn_log_fn fn, void *user) {
     ctx->log_user = fn ? user : NULL;
 }
 
-const char *pn_context_error_message(pn_context ctx) { return ctx ? ctx->err.message : ""; }
+const char *pn_context_error_message(pn_context ctx) {
+    return ctx ? ctx->err.message : "";
+}
 
 void pn_context_clear_error(pn_context ctx) {
     if (ctx) pn_err_init(&ctx->err);

@@ -16,10 +16,8 @@ struct pn_context_s {
 /* Copies a failure recorded in `err` into the context (first error wins) and returns its status. */
 pn_status pn_context_fail_from(pn_context ctx, const pn_err *err);
 /* Records a failure on the context directly. */
-pn_status pn_context_fail(pn_context ctx, pn_status status, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+pn_status pn_context_fail(pn_context ctx, pn_status status, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 /* Sends a message to the log callback. */
-void pn_context_log(pn_context ctx, pn_log_level level, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+void pn_context_log(pn_context ctx, pn_log_level level, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
 #endif

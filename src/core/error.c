@@ -39,4 +39,6 @@ const char *pn_status_string(pn_status status) {
     return "unknown status";
 }
 
-const char *pn_version_string(void) { return PN_VERSION_STRING; }
+const char *pn_version_string(void) {
+    return PN_VERSION_STRING;
+}

@@ -14,8 +14,7 @@ typedef struct pn_err {
 
 void pn_err_init(pn_err *err);
 /* Records status and a printf-style message (if err has no failure yet) and returns status. */
-pn_status pn_err_set(pn_err *err, pn_status status, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+pn_status pn_err_set(pn_err *err, pn_status status, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 pn_status pn_err_setv(pn_err *err, pn_status status, const char *fmt, va_list ap);
 
 #endif

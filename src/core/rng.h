@@ -30,7 +30,9 @@ static inline uint64_t pn_hash3(uint64_t a, uint64_t b, uint64_t c) {
 }
 
 /* A uniform float in [0, 1) from a hash value (its top 24 bits). */
-static inline float pn_hash_unit(uint64_t h) { return (float)(h >> 40) * 0x1p-24f; }
+static inline float pn_hash_unit(uint64_t h) {
+    return (float)(h >> 40) * 0x1p-24f;
+}
 
 /* PCG32 state. Seed with pn_rng_seed before use. */
 typedef struct pn_rng {

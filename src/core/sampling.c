@@ -20,15 +20,27 @@ typedef struct dvec3 {
     double x, y, z;
 } dvec3;
 
-static inline dvec3 d3(double x, double y, double z) { return (dvec3){x, y, z}; }
-static inline dvec3 d3_from(vec3 a) { return d3((double)a.x, (double)a.y, (double)a.z); }
-static inline dvec3 d3_sub(dvec3 a, dvec3 b) { return d3(a.x - b.x, a.y - b.y, a.z - b.z); }
-static inline dvec3 d3_scale(dvec3 a, double s) { return d3(a.x * s, a.y * s, a.z * s); }
-static inline double d3_dot(dvec3 a, dvec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static inline dvec3 d3(double x, double y, double z) {
+    return (dvec3){x, y, z};
+}
+static inline dvec3 d3_from(vec3 a) {
+    return d3((double)a.x, (double)a.y, (double)a.z);
+}
+static inline dvec3 d3_sub(dvec3 a, dvec3 b) {
+    return d3(a.x - b.x, a.y - b.y, a.z - b.z);
+}
+static inline dvec3 d3_scale(dvec3 a, double s) {
+    return d3(a.x * s, a.y * s, a.z * s);
+}
+static inline double d3_dot(dvec3 a, dvec3 b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 static inline dvec3 d3_cross(dvec3 a, dvec3 b) {
     return d3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
-static inline double d3_length(dvec3 a) { return sqrt(d3_dot(a, a)); }
+static inline double d3_length(dvec3 a) {
+    return sqrt(d3_dot(a, a));
+}
 
 static inline double clampd(double x, double lo, double hi) {
     return x < lo ? lo : (x > hi ? hi : x);
@@ -92,8 +104,7 @@ vec3 pn_sample_cosine_hemisphere(float u1, float u2) {
 
 /* ---- spherical rectangles ---------------------------------------------------------------- */
 
-bool pn_spherical_rectangle_init(pn_spherical_rectangle *sr, vec3 p, vec3 corner, vec3 e1,
-                                 vec3 e2) {
+bool pn_spherical_rectangle_init(pn_spherical_rectangle *sr, vec3 p, vec3 corner, vec3 e1, vec3 e2) {
     sr->solid_angle = 0.0f;
     sr->s = 0.0;
     dvec3 ex = d3_from(e1), ey = d3_from(e2);
@@ -149,8 +160,8 @@ bool pn_spherical_rectangle_init(pn_spherical_rectangle *sr, vec3 p, vec3 corner
     return sr->solid_angle > 0.0f;
 }
 
-vec3 pn_spherical_rectangle_sample_ab(const pn_spherical_rectangle *sr, float u1, float u2,
-                                      float *a_out, float *b_out) {
+vec3 pn_spherical_rectangle_sample_ab(const pn_spherical_rectangle *sr, float u1, float u2, float *a_out,
+                                      float *b_out) {
     double u = (double)clamp_unit(u1), v = (double)clamp_unit(u2);
     /* Invert the area of the sub-quad left of x = xu: a spherical-triangle relation gives the
      * cosine of the angle of the boundary plane, from which xu follows. */
@@ -226,8 +237,7 @@ float pn_sphere_cone_pdf(vec3 center, float radius, vec3 p) {
     return isfinite(pdf) ? pdf : 0.0f;
 }
 
-bool pn_sample_sphere_from_point(vec3 center, float radius, vec3 p, float u1, float u2, vec3 *y,
-                                 float *pdf) {
+bool pn_sample_sphere_from_point(vec3 center, float radius, vec3 p, float u1, float u2, vec3 *y, float *pdf) {
     if (!(radius > 0.0f)) return false;
     dvec3 c = d3_from(center), o = d3_from(p);
     dvec3 dc = d3_sub(c, o);
@@ -277,7 +287,9 @@ struct pn_distribution1d {
     double cdf[]; /* n + 1 entries, cdf[0] = 0, cdf[n] = 1, constant across zero weights */
 };
 
-static inline double clean_weight(float w) { return (isfinite(w) && w > 0.0f) ? (double)w : 0.0; }
+static inline double clean_weight(float w) {
+    return (isfinite(w) && w > 0.0f) ? (double)w : 0.0;
+}
 
 pn_distribution1d *pn_distribution1d_create(const float *weights, int n) {
     if (n <= 0 || !weights) return NULL;
@@ -328,8 +340,7 @@ static int find_interval_f(const float *cdf, int n, float u) {
     return lo;
 }
 
-int pn_distribution1d_sample_discrete(const pn_distribution1d *d, float u, float *pmf,
-                                      float *u_remapped) {
+int pn_distribution1d_sample_discrete(const pn_distribution1d *d, float u, float *pmf, float *u_remapped) {
     double uu = (double)clamp_unit(u);
     int i = find_interval_d(d->cdf, d->n, uu);
     double width = d->cdf[i + 1] - d->cdf[i];
@@ -341,8 +352,7 @@ int pn_distribution1d_sample_discrete(const pn_distribution1d *d, float u, float
     return i;
 }
 
-float pn_distribution1d_sample_continuous(const pn_distribution1d *d, float u, float *pdf,
-                                          int *index) {
+float pn_distribution1d_sample_continuous(const pn_distribution1d *d, float u, float *pdf, int *index) {
     float pmf, r;
     int i = pn_distribution1d_sample_discrete(d, u, &pmf, &r);
     if (index) *index = i;
@@ -356,11 +366,17 @@ float pn_distribution1d_pdf(const pn_distribution1d *d, int index) {
     return (float)(d->cdf[index + 1] - d->cdf[index]);
 }
 
-int pn_distribution1d_count(const pn_distribution1d *d) { return d ? d->n : 0; }
+int pn_distribution1d_count(const pn_distribution1d *d) {
+    return d ? d->n : 0;
+}
 
-double pn_distribution1d_total(const pn_distribution1d *d) { return d ? d->total : 0.0; }
+double pn_distribution1d_total(const pn_distribution1d *d) {
+    return d ? d->total : 0.0;
+}
 
-void pn_distribution1d_free(pn_distribution1d *d) { free(d); }
+void pn_distribution1d_free(pn_distribution1d *d) {
+    free(d);
+}
 
 /* ---- 2-D piecewise-constant distribution ------------------------------------------------- */
 
@@ -421,8 +437,7 @@ pn_distribution2d *pn_distribution2d_create(const float *weights, int w, int h) 
     return d;
 }
 
-bool pn_distribution2d_sample(const pn_distribution2d *d, float u1, float u2, float *u, float *v,
-                              float *pdf) {
+bool pn_distribution2d_sample(const pn_distribution2d *d, float u1, float u2, float *u, float *v, float *pdf) {
     if (!d) return false;
     double uv = (double)clamp_unit(u2);
     int r = find_interval_d(d->marginal, d->h, uv);
@@ -460,4 +475,6 @@ float pn_distribution2d_pdf(const pn_distribution2d *d, float u, float v) {
     return (float)(pr * pc * (double)d->w * (double)d->h);
 }
 
-void pn_distribution2d_free(pn_distribution2d *d) { free(d); }
+void pn_distribution2d_free(pn_distribution2d *d) {
+    free(d);
+}

@@ -32,19 +32,18 @@ vec3 pn_sample_cosine_hemisphere(float u1, float u2);
  * King 2013, "An Area-Preserving Parametrization for Spherical Rectangles"). Fields other than
  * solid_angle are private to sampling.c. */
 typedef struct pn_spherical_rectangle {
-    vec3 corner, e1, e2;           /* the rectangle: corner + a e1 + b e2, a, b in [0, 1] */
-    double len1, len2;             /* |e1|, |e2| */
-    double x0, y0, x1, y1, z0;     /* rectangle bounds in the local frame around p (z0 < 0) */
-    double b0, b1, k, s;           /* parametrisation constants; s = solid angle */
+    vec3 corner, e1, e2;       /* the rectangle: corner + a e1 + b e2, a, b in [0, 1] */
+    double len1, len2;         /* |e1|, |e2| */
+    double x0, y0, x1, y1, z0; /* rectangle bounds in the local frame around p (z0 < 0) */
+    double b0, b1, k, s;       /* parametrisation constants; s = solid angle */
     double z0sq, b0sq;
-    float solid_angle;             /* steradians; the sampling pdf is 1 / solid_angle */
+    float solid_angle; /* steradians; the sampling pdf is 1 / solid_angle */
 } pn_spherical_rectangle;
 
 /* Prepares sampling of the rectangle corner + a e1 + b e2 (e1 perpendicular to e2) seen from
  * p. Returns false if the rectangle is degenerate, p lies in its plane, or the solid angle is
  * not a positive finite number. */
-bool pn_spherical_rectangle_init(pn_spherical_rectangle *sr, vec3 p, vec3 corner, vec3 e1,
-                                 vec3 e2);
+bool pn_spherical_rectangle_init(pn_spherical_rectangle *sr, vec3 p, vec3 corner, vec3 e1, vec3 e2);
 
 /* The point on the rectangle hit by a direction drawn uniformly from its solid angle
  * (pdf = 1/solid_angle per steradian). (u1, u2) map to the e1 and e2 directions resp. */
@@ -52,8 +51,7 @@ vec3 pn_spherical_rectangle_sample(const pn_spherical_rectangle *sr, float u1, f
 
 /* Like pn_spherical_rectangle_sample but also reports the rectangle parameters (a, b) of the
  * sampled point (either pointer may be NULL). */
-vec3 pn_spherical_rectangle_sample_ab(const pn_spherical_rectangle *sr, float u1, float u2,
-                                      float *a, float *b);
+vec3 pn_spherical_rectangle_sample_ab(const pn_spherical_rectangle *sr, float u1, float u2, float *a, float *b);
 
 /* Exact solid angle (steradians) of the rectangle corner + a e1 + b e2 seen from p, or 0 for
  * degenerate configurations. Computed in double precision. */
@@ -64,8 +62,7 @@ double pn_rectangle_solid_angle(vec3 p, vec3 corner, vec3 e1, vec3 e2);
 /* Samples a direction uniformly inside the cone subtended by the sphere (center, radius) as
  * seen from p, and returns in *y the nearest point of the sphere along it; *pdf is per unit
  * solid angle (1 / cone solid angle). Returns false if p is inside or on the sphere. */
-bool pn_sample_sphere_from_point(vec3 center, float radius, vec3 p, float u1, float u2, vec3 *y,
-                                 float *pdf);
+bool pn_sample_sphere_from_point(vec3 center, float radius, vec3 p, float u1, float u2, vec3 *y, float *pdf);
 
 /* Solid-angle pdf of pn_sample_sphere_from_point for any direction inside the cone (0 if p is
  * inside the sphere). */
@@ -82,13 +79,11 @@ pn_distribution1d *pn_distribution1d_create(const float *weights, int n);
 /* Picks index i with probability *pmf (proportional to its weight; zero-weight entries are
  * never chosen). If u_remapped is not NULL it receives u rescaled to [0, 1) within the chosen
  * entry's interval, i.e. a fresh uniform number for further use. */
-int pn_distribution1d_sample_discrete(const pn_distribution1d *d, float u, float *pmf,
-                                      float *u_remapped);
+int pn_distribution1d_sample_discrete(const pn_distribution1d *d, float u, float *pmf, float *u_remapped);
 
 /* Continuous sample in [0, 1) with density *pdf (= weight of the cell / mean weight); the cell
  * index is stored in *index if not NULL. */
-float pn_distribution1d_sample_continuous(const pn_distribution1d *d, float u, float *pdf,
-                                          int *index);
+float pn_distribution1d_sample_continuous(const pn_distribution1d *d, float u, float *pdf, int *index);
 
 /* Probability of choosing index (0 outside [0, n)). */
 float pn_distribution1d_pdf(const pn_distribution1d *d, int index);
@@ -111,8 +106,7 @@ pn_distribution2d *pn_distribution2d_create(const float *weights, int w, int h);
 
 /* Samples (u, v) in [0, 1)^2; *pdf is the density with respect to area in uv space, i.e.
  * weight(cell) / mean weight. Returns false only if d is NULL or the pdf is not positive. */
-bool pn_distribution2d_sample(const pn_distribution2d *d, float u1, float u2, float *u, float *v,
-                              float *pdf);
+bool pn_distribution2d_sample(const pn_distribution2d *d, float u1, float u2, float *u, float *v, float *pdf);
 
 /* Density at (u, v); coordinates outside [0,1) are clamped to the border cells, NaN gives 0,
  * and zero-weight cells give 0. */

@@ -130,10 +130,12 @@ pn_threadpool *pn_threadpool_create(int threads) {
     return pool;
 }
 
-int pn_threadpool_size(const pn_threadpool *pool) { return pool ? pool->size : 1; }
+int pn_threadpool_size(const pn_threadpool *pool) {
+    return pool ? pool->size : 1;
+}
 
-void pn_threadpool_run(pn_threadpool *pool, size_t job_count,
-                       void (*fn)(void *user, size_t job, int worker), void *user) {
+void pn_threadpool_run(pn_threadpool *pool, size_t job_count, void (*fn)(void *user, size_t job, int worker),
+                       void *user) {
     if (job_count == 0 || !fn) return;
     if (!pool || pool->helpers == 0 || job_count == 1) {
         for (size_t i = 0; i < job_count; i++) fn(user, i, 0);

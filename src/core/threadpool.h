@@ -24,8 +24,8 @@ pn_threadpool *pn_threadpool_create(int threads);
  * 1 for a NULL pool. */
 int pn_threadpool_size(const pn_threadpool *pool);
 
-void pn_threadpool_run(pn_threadpool *pool, size_t job_count,
-                       void (*fn)(void *user, size_t job, int worker), void *user);
+void pn_threadpool_run(pn_threadpool *pool, size_t job_count, void (*fn)(void *user, size_t job, int worker),
+                       void *user);
 
 /* Stops and joins the threads; NULL is ignored. */
 void pn_threadpool_destroy(pn_threadpool *pool);

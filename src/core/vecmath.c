@@ -106,8 +106,8 @@ mat4 mat4_rotate(double angle_deg, double ax, double ay, double az) {
     return r;
 }
 
-bool mat4_look_at(double ex, double ey, double ez, double lx, double ly, double lz, double ux,
-                  double uy, double uz, mat4 *out) {
+bool mat4_look_at(double ex, double ey, double ez, double lx, double ly, double lz, double ux, double uy, double uz,
+                  mat4 *out) {
     double dx = lx - ex, dy = ly - ey, dz = lz - ez;
     double dl = sqrt(dx * dx + dy * dy + dz * dz);
     double ul = sqrt(ux * ux + uy * uy + uz * uz);
@@ -172,7 +172,6 @@ vec3 mat4_apply_normal(const mat4 *inv, vec3 n) {
 
 double mat4_det3(const mat4 *m) {
     const double(*a)[4] = m->m;
-    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
-           a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
            a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
 }

@@ -20,8 +20,7 @@ typedef struct pn_warning_list {
 /* Formats the warning, appends a copy to `list` (when not NULL) and logs it at PN_LOG_WARNING
  * through `ctx` (when not NULL). With no list the message only goes to the log. */
 void pn_warn(pn_context ctx, pn_warning_list *list, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-void pn_warnv(pn_context ctx, pn_warning_list *list, const char *fmt, va_list ap)
-    __attribute__((format(printf, 3, 0)));
+void pn_warnv(pn_context ctx, pn_warning_list *list, const char *fmt, va_list ap) __attribute__((format(printf, 3, 0)));
 
 /* Frees the kept texts (the list is left empty). */
 void pn_warning_list_free(pn_warning_list *list);

@@ -101,7 +101,9 @@
 /* ---------------------------------------------------------------------------------------- */
 /* Block-level pieces (dcm.h) */
 
-int pn_dcm_loop_length(int w, int h) { return (w > 0 && h > 0) ? 2 * (w + h) : 0; }
+int pn_dcm_loop_length(int w, int h) {
+    return (w > 0 && h > 0) ? 2 * (w + h) : 0;
+}
 
 void pn_dcm_loop_pixel(int w, int h, int i, int *x, int *y) {
     if (i < w) {
@@ -123,10 +125,14 @@ float pn_dcm_boundary_value(const float *loop, int channels, int c, int w, int h
     int n = pn_dcm_loop_length(w, h);
     float dt = y, db = (float)h - y, dl = x, dr = (float)w - x;
     float s;
-    if (dt <= db && dt <= dl && dt <= dr) s = x;
-    else if (dr <= db && dr <= dl) s = (float)w + y;
-    else if (db <= dl) s = (float)(w + h) + ((float)w - x);
-    else s = (float)(2 * w + h) + ((float)h - y);
+    if (dt <= db && dt <= dl && dt <= dr)
+        s = x;
+    else if (dr <= db && dr <= dl)
+        s = (float)w + y;
+    else if (db <= dl)
+        s = (float)(w + h) + ((float)w - x);
+    else
+        s = (float)(2 * w + h) + ((float)h - y);
     if (s < 0.0f) s = 0.0f;
     if (s > (float)n) s = (float)n;
     int i0 = (int)floorf(s);
@@ -152,7 +158,9 @@ static void slab(int w, int h, float x, float y, float nx, float ny, float *tmin
     *tmax = hi;
 }
 
-static float clampf(float v, float lo, float hi) { return v < lo ? lo : v > hi ? hi : v; }
+static float clampf(float v, float lo, float hi) {
+    return v < lo ? lo : v > hi ? hi : v;
+}
 
 /* n_i = (cos theta_i, sin theta_i), theta_i = i pi / 8 */
 static const float dcm_dir[PN_DCM_DIRECTIONS][2] = {
@@ -274,8 +282,8 @@ static bool tangent_at(int w, int h, const pn_dcm_zero_order *z, int j, pn_dcm_i
     int x1, y1, x0, y0;
     pn_dcm_loop_pixel(w, h, z->one_pixel[j], &x1, &y1);
     pn_dcm_loop_pixel(w, h, z->zero_pixel[j], &x0, &y0);
-    bool horizontal = y1 == y0; /* the pair lies on the top or bottom side */
-    int len = horizontal ? w - 1 : h - 1;             /* inner pixels 1 .. len along the side */
+    bool horizontal = y1 == y0;           /* the pair lies on the top or bottom side */
+    int len = horizontal ? w - 1 : h - 1; /* inner pixels 1 .. len along the side */
     int layer = horizontal ? (y1 == 0 ? 1 : h - 1) : (x1 == 0 ? 1 : w - 1);
     int a0 = horizontal ? x1 : y1;
     int start = a0 < 1 ? 1 : a0 > len ? len : a0;
@@ -284,11 +292,16 @@ static bool tangent_at(int w, int h, const pn_dcm_zero_order *z, int j, pn_dcm_i
     int lo = start, hi = start;
     for (int step = 0;; step++) {
         int pos;
-        if (step == 0) pos = start;
-        else if ((step & 1) && lo > 1) pos = --lo;
-        else if (hi < len) pos = ++hi;
-        else if (lo > 1) pos = --lo;
-        else return false;
+        if (step == 0)
+            pos = start;
+        else if ((step & 1) && lo > 1)
+            pos = --lo;
+        else if (hi < len)
+            pos = ++hi;
+        else if (lo > 1)
+            pos = --lo;
+        else
+            return false;
         v[pos] = horizontal ? inner(user, pos, layer) : inner(user, layer, pos);
         for (int q = lo; q <= hi; q++) bin[q] = v[q] > z->tb;
         /* median filter of length 3 inside the walked segment, then the transition nearest to
@@ -433,7 +446,9 @@ static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rg
 
 /* Blocks share their boundary pixels; each draws [x0, x1) x [y0, y1) (closed at the image's last
  * row and column), so that blocks can be drawn in parallel and in any order. */
-static int draw_end(int v1, int last) { return v1 == last ? v1 + 1 : v1; }
+static int draw_end(int v1, int last) {
+    return v1 == last ? v1 + 1 : v1;
+}
 
 /* A corner of a smooth block of size k, as drawn (a departure for Monte Carlo pixels, see the
  * header): the mean of its value and those of its 8 lattice neighbours at distance k that agree
@@ -449,7 +464,8 @@ static void lattice_mean(const pn_prog *p, int x, int y, int k, float *out) {
     for (int dy = -k; dy <= k; dy += k)
         for (int dx = -k; dx <= k; dx += k) {
             int xx = x + dx, yy = y + dy;
-            if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= p->W || yy >= p->H || !pn_prog_known(p, xx, yy)) continue;
+            if ((dx == 0 && dy == 0) || xx < 0 || yy < 0 || xx >= p->W || yy >= p->H || !pn_prog_known(p, xx, yy))
+                continue;
             float ln = pn_prog_lum(p, xx, yy), sn = pn_prog_lum_sigma(p, xx, yy);
             if (!(fabsf(ln - lc) <= PN_DCM_NOISE * sqrtf(sc * sc + sn * sn))) continue;
             if (pn_prog_visible_line(p, x < xx ? x : xx, y < yy ? y : yy, x < xx ? xx : x, y < yy ? yy : y)) continue;
@@ -547,8 +563,8 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
     unsigned char near[DCM_SEG_SIDE * DCM_SEG_SIDE]; /* next to a visible line: a mixed pixel */
     for (int i = 0; i < n; i++) {
         int gx = wx0 + i % ww, gy = wy0 + i / ww;
-        near[i] = pn_prog_line_right(p, gx, gy) || pn_prog_line_down(p, gx, gy) || (gx > 0 && pn_prog_line_right(p, gx - 1, gy)) ||
-                  (gy > 0 && pn_prog_line_down(p, gx, gy - 1));
+        near[i] = pn_prog_line_right(p, gx, gy) || pn_prog_line_down(p, gx, gy) ||
+                  (gx > 0 && pn_prog_line_right(p, gx - 1, gy)) || (gy > 0 && pn_prog_line_down(p, gx, gy - 1));
         if (pn_prog_known(p, gx, gy)) known[nk++] = (int16_t)i;
     }
     int w = x1 - b->x0, h = y1 - b->y0;
@@ -600,8 +616,8 @@ typedef struct draw_run {
     pn_prog *p;
     dcm_state *d;
     float *img, *cls, *dir;
-    int spacing, cells_x;          /* regular stage: lattice cells per row */
-    int32_t (*chunks)[2];          /* DCM: (level, first block) of each job */
+    int spacing, cells_x; /* regular stage: lattice cells per row */
+    int32_t (*chunks)[2]; /* DCM: (level, first block) of each job */
 } draw_run;
 
 #define DCM_DRAW_CHUNK 1024
@@ -627,8 +643,10 @@ static void draw_chunk(void *user, size_t job, int worker) {
         if (!b->final || b->replaced) continue;
         int x1, y1;
         block_extent(p, b, &x1, &y1);
-        if (b->kind == DCM_SMOOTH) draw_bilinear(p, r->img, b->x0, b->y0, x1, y1);
-        else draw_elements(p, r->img, b);
+        if (b->kind == DCM_SMOOTH)
+            draw_bilinear(p, r->img, b->x0, b->y0, x1, y1);
+        else
+            draw_elements(p, r->img, b);
         if (r->cls) {
             int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
             for (int y = b->y0; y < ye; y++)
@@ -1035,4 +1053,3 @@ pn_status pn_dcm_run(pn_prog *p, bool uniform_only) {
     /* The state stays alive for the final image: progressive.c draws after we return. */
     return st;
 }
-

@@ -13,11 +13,12 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#define PN_DCM_DIRECTIONS 8        /* h: directions theta_i = i pi / h */
-#define PN_DCM_CONTRAST 0.05f      /* t_c */
+#define PN_DCM_DIRECTIONS 8         /* h: directions theta_i = i pi / h */
+#define PN_DCM_CONTRAST 0.05f       /* t_c */
 #define PN_DCM_LAZY_TOLERANCE 0.01f /* lazy boundary evaluation: 1% relative */
-#define PN_DCM_TANGENT 0.05f       /* t_m = 0.05 pi ||x1 - x0|| */
-#define PN_DCM_NOISE 2.0f          /* departure: differences within 2 sigma of the pixels' noise
+#define PN_DCM_TANGENT 0.05f        /* t_m = 0.05 pi ||x1 - x0|| */
+#define PN_DCM_NOISE                                                                                                   \
+    2.0f /* departure: differences within 2 sigma of the pixels' noise
                                       are not edges (contrast) and not deviations (lazy test) */
 
 int pn_dcm_loop_length(int w, int h);
@@ -41,10 +42,10 @@ float pn_dcm_contrast(const float g[4]);
 
 /* Zero-order test (§4.3). */
 typedef struct pn_dcm_zero_order {
-    int transitions;    /* after the Bartlett and median filters */
-    int one_pixel[2];   /* loop indices of the transition points (1-pixels next to a 0-pixel) */
-    int zero_pixel[2];  /* their 0-pixel neighbours */
-    float tb;           /* the luminance threshold (b1 + d1) / 2 */
+    int transitions;   /* after the Bartlett and median filters */
+    int one_pixel[2];  /* loop indices of the transition points (1-pixels next to a 0-pixel) */
+    int zero_pixel[2]; /* their 0-pixel neighbours */
+    float tb;          /* the luminance threshold (b1 + d1) / 2 */
 } pn_dcm_zero_order;
 bool pn_dcm_zero_order_test(const float *lum, int w, int h, pn_dcm_zero_order *z);
 

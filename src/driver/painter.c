@@ -32,8 +32,8 @@ typedef struct pnode {
     int32_t x0, y0, x1, y1; /* [x0, x1) x [y0, y1) */
     int32_t *samples;       /* pixel indices */
     int ns, cap;
-    int32_t pending;        /* a requested sample not yet added, or -1 */
-    float contrast;         /* of the samples (or inherited) */
+    int32_t pending; /* a requested sample not yet added, or -1 */
+    float contrast;  /* of the samples (or inherited) */
     double mean[3];
     double priority;
     bool alive;
@@ -143,7 +143,7 @@ static void node_stats(painter_state *s, pnode *d, float inherited) {
 static int32_t random_pixel(const painter_state *s, const pnode *d) {
     const pn_prog *p = s->p;
     uint64_t h = pn_hash3(p->job.seed ^ 0x7061696e746572ull, ((uint64_t)(uint32_t)d->x0 << 32) | (uint32_t)d->y0,
-                           ((uint64_t)(uint32_t)d->x1 << 32) | (uint32_t)d->y1);
+                          ((uint64_t)(uint32_t)d->x1 << 32) | (uint32_t)d->y1);
     int w = d->x1 - d->x0, hh = d->y1 - d->y0;
     int x = d->x0 + (int)(h % (uint64_t)w), y = d->y0 + (int)((h >> 32) % (uint64_t)hh);
     return (int32_t)pn_prog_index(p, x, y);

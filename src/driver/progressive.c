@@ -317,9 +317,11 @@ static pn_status make_image(pn_prog *p, pn_image *out) {
         memset(work, 0, 3 * n * sizeof *work);
         if (p->draw) p->draw(p, p->driver, work, cls, dir);
         for (size_t i = 0; i < n; i++) {
-            if ((p->state[i] & 3) == PN_PX_EVALUATED) memcpy(work + 3 * i, p->orig + 3 * i, 3 * sizeof *work);
+            if ((p->state[i] & 3) == PN_PX_EVALUATED)
+                memcpy(work + 3 * i, p->orig + 3 * i, 3 * sizeof *work);
             else if (p->demod)
-                for (int c = 0; c < 3; c++) work[3 * i + c] = work[3 * i + c] * p->demod[3 * i + c] + p->emit[3 * i + c];
+                for (int c = 0; c < 3; c++)
+                    work[3 * i + c] = work[3 * i + c] * p->demod[3 * i + c] + p->emit[3 * i + c];
         }
         ok = pn_gauss_downsample(work, p->W, p->H, 3, p->scale, (float *)pn_image_layer_data(img, 0), p->out_w,
                                  p->out_h, p->pool, p->filter_tmp);
@@ -419,7 +421,8 @@ static void primary_row(void *user, size_t row, int worker) {
             r->normal[i] = v3(0, 0, 0);
         }
         if (!p->demod) continue;
-        if (r->guide) r->guide[i] = (x % GUIDE_ANCHOR == 0 && y % GUIDE_ANCHOR == 0) ? guide_at(r, worker, &path) : 0.0f;
+        if (r->guide)
+            r->guide[i] = (x % GUIDE_ANCHOR == 0 && y % GUIDE_ANCHOR == 0) ? guide_at(r, worker, &path) : 0.0f;
         vec3 f = demod_factor(&path), e = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
         float *fd = p->demod + 3 * i, *fe = p->emit + 3 * i;
         fd[0] = f.x, fd[1] = f.y, fd[2] = f.z;
@@ -582,23 +585,23 @@ static void primary_refine_row(void *user, size_t row, int worker) {
                 wsum += (double)fw;
             }
         } else
-        for (int j = 0; j < g; j++)
-            for (int k = 0; k < g; k++) {
-                /* Stratified over the camera's pixel filter, weighted as the integrators weight
+            for (int j = 0; j < g; j++)
+                for (int k = 0; k < g; k++) {
+                    /* Stratified over the camera's pixel filter, weighted as the integrators weight
                  * their eye rays. */
-                uint64_t h = pn_hash3(key, (uint64_t)(j * g + k), 0x9e1a);
-                float u1 = ((float)k + pn_hash_unit(h)) / (float)g;
-                float u2 = ((float)j + pn_hash_unit(pn_hash64(h))) / (float)g;
-                float rx, ry, fw;
-                pn_camera_filter_sample(&p->job.camera, x + p->wx0, y + p->wy0, u1, u2, &rx, &ry, &fw);
-                vec3 o, d;
-                pn_camera_ray(&p->job.camera, rx, ry, 0.5f, 0.5f, &o, &d);
-                pn_eye_path sub;
-                pn_trace_eye_path(&p->job, o, d, pn_hash_unit(h ^ 0x51f7u), &sub);
-                f = v3_madd(f, demod_factor(&sub), fw);
-                if (v3_is_finite(sub.emitted)) e = v3_madd(e, sub.emitted, fw);
-                wsum += (double)fw;
-            }
+                    uint64_t h = pn_hash3(key, (uint64_t)(j * g + k), 0x9e1a);
+                    float u1 = ((float)k + pn_hash_unit(h)) / (float)g;
+                    float u2 = ((float)j + pn_hash_unit(pn_hash64(h))) / (float)g;
+                    float rx, ry, fw;
+                    pn_camera_filter_sample(&p->job.camera, x + p->wx0, y + p->wy0, u1, u2, &rx, &ry, &fw);
+                    vec3 o, d;
+                    pn_camera_ray(&p->job.camera, rx, ry, 0.5f, 0.5f, &o, &d);
+                    pn_eye_path sub;
+                    pn_trace_eye_path(&p->job, o, d, pn_hash_unit(h ^ 0x51f7u), &sub);
+                    f = v3_madd(f, demod_factor(&sub), fw);
+                    if (v3_is_finite(sub.emitted)) e = v3_madd(e, sub.emitted, fw);
+                    wsum += (double)fw;
+                }
         if (wsum == 0.0) continue; /* keep the filtered centre values */
         f = v3_scale(f, (float)(1.0 / wsum));
         if (r->guide) f = v3_scale(f, r->guide[i]); /* the centre rays' filtered guide */
@@ -812,14 +815,18 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)s->driver);
     int scale = job->work_scale > 0 ? job->work_scale : 3;
     if (job->work_scale < 0 || scale > 16)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)", job->work_scale);
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)",
+                               job->work_scale);
     if (job->primary_grid < 0 || job->primary_grid > 8)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "primary grid %d is out of range (1..8)", job->primary_grid);
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "primary grid %d is out of range (1..8)",
+                               job->primary_grid);
     if (s->aovs & ~(uint32_t)(PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION))
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "progressive drivers write only the sampling_pattern, block_map and block_direction AOVs");
+        return pn_context_fail(
+            ctx, PN_ERROR_INVALID_ARGUMENT,
+            "progressive drivers write only the sampling_pattern, block_map and block_direction AOVs");
     if (!(job->stop_percent >= 0.0 && job->stop_percent <= 100.0) || !(job->snapshot_every_seconds >= 0.0))
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "stop percentage must lie in [0, 100] and the snapshot interval be >= 0");
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "stop percentage must lie in [0, 100] and the snapshot interval be >= 0");
     for (int i = 0; i < job->snapshots.count; i++)
         if (!(job->snapshots.values[i] > 0.0 && job->snapshots.values[i] <= 100.0))
             return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "snapshot percentages must lie in (0, 100]");
@@ -862,7 +869,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->percent_count = job->snapshots.count;
     p->percents = p->percent_count ? malloc((size_t)p->percent_count * sizeof *p->percents) : NULL;
     pn_status st = PN_OK;
-    if (!p->rad || !p->orig || !p->relvar || !p->state || !p->pool || !p->scratch || !p->counters || (p->percent_count && !p->percents)) {
+    if (!p->rad || !p->orig || !p->relvar || !p->state || !p->pool || !p->scratch || !p->counters ||
+        (p->percent_count && !p->percents)) {
         st = pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d work image", p->W, p->H);
     } else {
         if (p->percent_count) {
@@ -891,12 +899,12 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             pn_progress_phase(p->job.progress, PN_PROG_PRIMARY_SHARE, 1.0);
         }
         if (st == PN_OK) switch (s->driver) {
-        case PN_DRIVER_FULL: st = full_run(p); break;
-        case PN_DRIVER_DCM: st = pn_dcm_run(p, false); break;
-        case PN_DRIVER_UNIFORM: st = pn_dcm_run(p, true); break;
-        case PN_DRIVER_PAINTER: st = pn_painter_run(p); break;
-        default: st = PN_ERROR_INVALID_ARGUMENT; break;
-        }
+            case PN_DRIVER_FULL: st = full_run(p); break;
+            case PN_DRIVER_DCM: st = pn_dcm_run(p, false); break;
+            case PN_DRIVER_UNIFORM: st = pn_dcm_run(p, true); break;
+            case PN_DRIVER_PAINTER: st = pn_painter_run(p); break;
+            default: st = PN_ERROR_INVALID_ARGUMENT; break;
+            }
         double t1 = pn_clock_seconds();
         if (st == PN_OK) {
             pn_progress_phase(p->job.progress, 0.0, 1.0);
@@ -930,8 +938,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             stats->shadow_rays_per_pixel_mean = evaluated ? (double)shadow / (double)evaluated : 0.0;
             stats->eye_rays_per_pixel_max = max_eye;
             stats->shadow_rays_per_pixel_max = max_shadow;
-            stats->mrays_per_second = stats->render_seconds > 0.0
-                                          ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
+            stats->mrays_per_second =
+                stats->render_seconds > 0.0 ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
             stats->partial = st == PN_ERROR_CANCELLED;
             stats->peak_memory_bytes = pn_peak_memory_bytes();
             if (integ->report) integ->report(&p->job, stats);
@@ -946,9 +954,12 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             stats->primary_grid_pixels = p->primary_refined;
             stats->reconstruct_seconds_max = p->reconstruct_seconds_max;
         }
-        if (img_st != PN_OK) st = pn_context_fail(ctx, img_st, "out of memory for the output image");
-        else if (st == PN_ERROR_CANCELLED) pn_context_fail(ctx, st, "render cancelled; the image is approximate");
-        else if (st != PN_OK) pn_context_fail(ctx, st, "render failed: %s", pn_status_string(st));
+        if (img_st != PN_OK)
+            st = pn_context_fail(ctx, img_st, "out of memory for the output image");
+        else if (st == PN_ERROR_CANCELLED)
+            pn_context_fail(ctx, st, "render cancelled; the image is approximate");
+        else if (st != PN_OK)
+            pn_context_fail(ctx, st, "render failed: %s", pn_status_string(st));
     }
     for (int w = 0; p->scratch && w <= p->workers; w++)
         if (p->scratch[w] && integ->scratch_free) integ->scratch_free(p->scratch[w]);

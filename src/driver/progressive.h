@@ -36,21 +36,21 @@ struct pn_prog {
     const pn_integrator *integ;
     pn_render_job job; /* the camera at the work resolution */
     int scale;
-    int W, H;          /* work window */
-    int out_w, out_h;  /* output window */
-    int wx0, wy0;      /* full-image coordinates of the work window's corner */
-    float *rad;        /* W*H*3: what the drivers interpolate: evaluated or predicted radiance,
+    int W, H;               /* work window */
+    int out_w, out_h;       /* output window */
+    int wx0, wy0;           /* full-image coordinates of the work window's corner */
+    float *rad;             /* W*H*3: what the drivers interpolate: evaluated or predicted radiance,
                           less the emitted part, divided by the demodulation factor */
-    float *orig;       /* W*H*3: evaluated radiance as the integrator returned it */
-    float *demod;      /* W*H*3: first-hit albedo factor (NULL: no demodulation) */
-    float *emit;       /* W*H*3: radiance the primary rays saw emitted (with demod) */
-    int primary_grid;  /* g: g x g primary rays per work pixel for demod and emit where the
+    float *orig;            /* W*H*3: evaluated radiance as the integrator returned it */
+    float *demod;           /* W*H*3: first-hit albedo factor (NULL: no demodulation) */
+    float *emit;            /* W*H*3: radiance the primary rays saw emitted (with demod) */
+    int primary_grid;       /* g: g x g primary rays per work pixel for demod and emit where the
                           pixel centres' values change */
     size_t primary_refined; /* pixels that got the g x g grid */
     bool integ_emitted;     /* the integrator reports each estimate's emitted part */
     uint32_t pixel_samples; /* the integrator's eye rays per pixel in pn_pixel_eye_sample's
                                convention (0: unknown); they replace the g x g grid */
-    float *relvar;     /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
+    float *relvar;          /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
     unsigned char *state;
     size_t evaluated;
     int32_t (*queue)[2];
@@ -63,9 +63,9 @@ struct pn_prog {
         uint64_t eye, shadow, spec, max_eye, max_shadow;
         double embree;
         uint64_t extra; /* pixels evaluated by pn_prog_eval_now, not yet in `evaluated` */
-    } *counters;
+    } * counters;
     atomic_int failed;
-    bool stopped;      /* stop_percent reached or cancelled */
+    bool stopped; /* stop_percent reached or cancelled */
     size_t stop_pixels;
     /* snapshots */
     double t0, next_time;
@@ -85,7 +85,9 @@ struct pn_prog {
     pn_render_stats *driver_stats; /* drivers add their counters here */
 };
 
-static inline size_t pn_prog_index(const pn_prog *p, int x, int y) { return (size_t)y * (size_t)p->W + (size_t)x; }
+static inline size_t pn_prog_index(const pn_prog *p, int x, int y) {
+    return (size_t)y * (size_t)p->W + (size_t)x;
+}
 static inline bool pn_prog_known(const pn_prog *p, int x, int y) {
     return (p->state[pn_prog_index(p, x, y)] & 3) == PN_PX_EVALUATED;
 }

@@ -24,16 +24,16 @@ typedef struct render_shared {
     const pn_integrator *integrator;
     pn_pixel_estimate *pixels; /* width * height of the window */
     int width, height, blocks_x, blocks_y;
-    void **scratch;            /* per worker */
+    void **scratch; /* per worker */
     atomic_int failed;
     atomic_long blocks_done;
     long block_count;
     const pn_render_settings *settings;
     unsigned char *block_finished;
-    int32_t (**batch_pixels)[2];          /* per worker: block_size^2 pixel coordinates */
-    pn_pixel_estimate **batch_estimates;  /* per worker: block_size^2 estimates */
-    uint32_t points_per_pixel;            /* integrator->batch_points, 0 when it traces its own */
-    pn_batch_point **batch_points;        /* per worker: block_size^2 * points_per_pixel points */
+    int32_t (**batch_pixels)[2];         /* per worker: block_size^2 pixel coordinates */
+    pn_pixel_estimate **batch_estimates; /* per worker: block_size^2 estimates */
+    uint32_t points_per_pixel;           /* integrator->batch_points, 0 when it traces its own */
+    pn_batch_point **batch_points;       /* per worker: block_size^2 * points_per_pixel points */
 } render_shared;
 
 static void render_block(void *user, size_t job_index, int worker) {
@@ -43,7 +43,7 @@ static void render_block(void *user, size_t job_index, int worker) {
     int bx = (int)(job_index % (size_t)rs->blocks_x), by = (int)(job_index / (size_t)rs->blocks_x);
     const pn_camera *cam = &job->camera;
     const int B = (int)job->block_size;
-    int32_t (*pixels)[2] = rs->batch_pixels[worker];
+    int32_t(*pixels)[2] = rs->batch_pixels[worker];
     pn_pixel_estimate *est = rs->batch_estimates[worker];
     int count = 0;
     /* Blocks are aligned to the full image so that a crop renders the same pixels as the whole
@@ -109,10 +109,13 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
     int w = s->width > 0 ? s->width : scene->camera.width;
     int h = s->height > 0 ? s->height : scene->camera.height;
     if (s->width < 0 || s->height < 0 || w <= 0 || h <= 0 || w > 65536 || h > 65536)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "image resolution %dx%d is out of range (1..65536)", w, h);
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "image resolution %dx%d is out of range (1..65536)", w,
+                               h);
     float crop[4];
-    if (s->has_crop) memcpy(crop, s->crop, sizeof crop);
-    else memcpy(crop, scene->camera.crop, sizeof crop);
+    if (s->has_crop)
+        memcpy(crop, s->crop, sizeof crop);
+    else
+        memcpy(crop, scene->camera.crop, sizeof crop);
     for (int i = 0; i < 4; i++)
         if (!(crop[i] >= 0.0f && crop[i] <= 1.0f))
             return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop window values must lie in [0, 1]");
@@ -141,8 +144,9 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
      * so maxdepth - 1 bounces), else the declared default. */
     bool depth_given = pn_options_is_set(s->options, pn_option_find("vpl-depth"));
     if (job->vpl_direct_only && depth_given)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "vpl-direct-only and vpl-depth exclude each other: direct light has no light path bounces");
+        return pn_context_fail(
+            ctx, PN_ERROR_INVALID_ARGUMENT,
+            "vpl-direct-only and vpl-depth exclude each other: direct light has no light path bounces");
     if (!depth_given) job->vpl_max_depth = pn_scene_vpl_depth(scene, job->vpl_max_depth);
     /* A scene whose Integrator "maxdepth" is 1 asks for direct lighting (pbrt-v4's meaning): the
      * VPL integrators then render the direct-light-only VPL set, the quantity of reference. */
@@ -173,7 +177,8 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     /* The chosen methods are entries of the one table (integrators/registry.c). */
     const pn_method_entry *ientry = pn_registry_method_kind(PN_METHOD_INTEGRATOR, (int)settings->integrator);
     const pn_method_entry *dentry = pn_registry_method_kind(PN_METHOD_DRIVER, (int)settings->driver);
-    if (!ientry) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown integrator %d", (int)settings->integrator);
+    if (!ientry)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown integrator %d", (int)settings->integrator);
     if (!dentry) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)settings->driver);
     const pn_integrator *integ = ientry->integrator;
     pn_render_job job;
@@ -269,8 +274,10 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     pn_render_image_fn whole_image = integ->render_image;
     if (whole_image) {
         pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
-        if (ws != PN_OK) atomic_store(&rs.failed, (int)ws);
-        else memset(rs.block_finished, 1, (size_t)rs.block_count);
+        if (ws != PN_OK)
+            atomic_store(&rs.failed, (int)ws);
+        else
+            memset(rs.block_finished, 1, (size_t)rs.block_count);
         if (ws == PN_OK && !atomic_load(&ctx->cancel)) {
             pn_progress_phase(job.progress, 0.0, 1.0);
             pn_progress_report(job.progress, 1.0);
@@ -336,8 +343,8 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         stats->shadow_rays_per_pixel_mean = (double)shadow / (double)n;
         stats->eye_rays_per_pixel_max = max_eye;
         stats->shadow_rays_per_pixel_max = max_shadow;
-        stats->mrays_per_second = stats->render_seconds > 0.0
-                                      ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
+        stats->mrays_per_second =
+            stats->render_seconds > 0.0 ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
         stats->peak_memory_bytes = pn_peak_memory_bytes();
         stats->partial = cancelled ? 1 : 0;
         stats->passes_per_pixel_mean = passes / (double)n;

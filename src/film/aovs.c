@@ -35,9 +35,13 @@ static const pn_aov_layer layers[] = {
 
 #define LAYER_COUNT ((int)(sizeof layers / sizeof layers[0]))
 
-int pn_aov_layer_count(void) { return LAYER_COUNT; }
+int pn_aov_layer_count(void) {
+    return LAYER_COUNT;
+}
 
-const pn_aov_layer *pn_aov_layer_at(int index) { return index >= 0 && index < LAYER_COUNT ? &layers[index] : NULL; }
+const pn_aov_layer *pn_aov_layer_at(int index) {
+    return index >= 0 && index < LAYER_COUNT ? &layers[index] : NULL;
+}
 
 const pn_aov_layer *pn_aov_layer_of(uint32_t bit) {
     for (int i = 0; i < LAYER_COUNT; i++)
@@ -81,9 +85,7 @@ static void fill_layer(const pn_aov_layer *l, const pn_pixel_estimate *pixels, s
             dst[i] = (float)v;
             break;
         }
-        case PN_AOV_FROM_FLOAT:
-            memcpy(&dst[i], field, sizeof(float));
-            break;
+        case PN_AOV_FROM_FLOAT: memcpy(&dst[i], field, sizeof(float)); break;
         case PN_AOV_FROM_LOG10P1: {
             float v;
             memcpy(&v, field, sizeof v);
@@ -98,8 +100,7 @@ static void fill_layer(const pn_aov_layer *l, const pn_pixel_estimate *pixels, s
             dst[3 * i + 2] = v.z;
             break;
         }
-        case PN_AOV_FROM_DRIVER:
-            break;
+        case PN_AOV_FROM_DRIVER: break;
         }
     }
 }

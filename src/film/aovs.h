@@ -20,15 +20,15 @@ typedef struct pn_pixel_estimate {
                                 (filled where pn_integrator_reports_emitted says so) */
     float relative_variance; /* s^2 / L^2 of the estimate (luminance), 0 when L = 0 */
     uint32_t eye_rays, shadow_rays, specular_rays;
-    float depth;  /* first-hit distance of the first eye ray (INFINITY on a miss) */
-    vec3 normal;  /* first-hit shading normal */
-    vec3 albedo;  /* first-hit diffuse reflectance */
+    float depth;          /* first-hit distance of the first eye ray (INFINITY on a miss) */
+    vec3 normal;          /* first-hit shading normal */
+    vec3 albedo;          /* first-hit diffuse reflectance */
     float embree_seconds; /* estimated time inside Embree calls for this pixel (sampled) */
     /* ias statistics (zero for other integrators) */
     uint32_t passes, aa_regions;
-    uint32_t visible_lights;  /* distinct lights (and environment regions) seen unoccluded */
-    float clusters;          /* clusters per shading point, mean over the pixel's regions */
-    float visible_fraction;  /* unoccluded shadow rays / shadow rays */
+    uint32_t visible_lights;        /* distinct lights (and environment regions) seen unoccluded */
+    float clusters;                 /* clusters per shading point, mean over the pixel's regions */
+    float visible_fraction;         /* unoccluded shadow rays / shadow rays */
     float cut_seconds, pdf_seconds; /* time in cluster cuts and in PDF upkeep (estimates) */
     /* VPL integrators (issue 5; zero otherwise): L_UB evaluations for the pixel's points, cut
      * size per point (lightcuts) or pairs touching the pixel (illumcut), Phase I radiance */
@@ -49,12 +49,12 @@ typedef enum pn_aov_source {
 
 /* One layer of the output image besides the beauty. Layers are written in table order. */
 typedef struct pn_aov_layer {
-    const char *name;  /* the EXR layer name; for selectable layers also the --aov name */
-    uint32_t bit;      /* the PN_AOV_* bit that requests it */
-    int channels;      /* 1 or 3 */
+    const char *name; /* the EXR layer name; for selectable layers also the --aov name */
+    uint32_t bit;     /* the PN_AOV_* bit that requests it */
+    int channels;     /* 1 or 3 */
     pn_aov_source source;
-    size_t offset;     /* offsetof the field in pn_pixel_estimate (unused for PN_AOV_FROM_DRIVER) */
-    bool derived;      /* written with another layer of the same bit, not selectable by name */
+    size_t offset; /* offsetof the field in pn_pixel_estimate (unused for PN_AOV_FROM_DRIVER) */
+    bool derived;  /* written with another layer of the same bit, not selectable by name */
 } pn_aov_layer;
 
 /* The table, in write order, and its length. */

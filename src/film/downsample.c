@@ -43,7 +43,8 @@ static void row_job(void *user, size_t job, int worker) {
         int count = axis_taps(g, x, g->sw, w, &first);
         for (int c = 0; c < ch; c++) {
             float acc = 0.0f;
-            for (int i = 0; i < count; i++) acc += w[i] * g->src[((size_t)y * (size_t)g->sw + (size_t)(first + i)) * (size_t)ch + (size_t)c];
+            for (int i = 0; i < count; i++)
+                acc += w[i] * g->src[((size_t)y * (size_t)g->sw + (size_t)(first + i)) * (size_t)ch + (size_t)c];
             g->tmp[((size_t)y * (size_t)g->dw + (size_t)x) * (size_t)ch + (size_t)c] = acc;
         }
     }
@@ -60,7 +61,8 @@ static void column_job(void *user, size_t job, int worker) {
     for (int x = 0; x < g->dw; x++)
         for (int c = 0; c < ch; c++) {
             float acc = 0.0f;
-            for (int i = 0; i < count; i++) acc += w[i] * g->tmp[((size_t)(first + i) * (size_t)g->dw + (size_t)x) * (size_t)ch + (size_t)c];
+            for (int i = 0; i < count; i++)
+                acc += w[i] * g->tmp[((size_t)(first + i) * (size_t)g->dw + (size_t)x) * (size_t)ch + (size_t)c];
             g->dst[((size_t)y * (size_t)g->dw + (size_t)x) * (size_t)ch + (size_t)c] = acc;
         }
 }

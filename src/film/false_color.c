@@ -10,8 +10,8 @@
 
 /* Blue (low) - cyan - green - yellow - red (high), linear between five stops, in linear RGB. */
 static void color_of(double t, float rgb[3]) {
-    static const float stops[5][3] = {{0.0f, 0.0f, 0.8f}, {0.0f, 0.7f, 0.9f}, {0.0f, 0.8f, 0.0f}, {0.9f, 0.9f, 0.0f},
-                                      {0.9f, 0.0f, 0.0f}};
+    static const float stops[5][3] = {
+        {0.0f, 0.0f, 0.8f}, {0.0f, 0.7f, 0.9f}, {0.0f, 0.8f, 0.0f}, {0.9f, 0.9f, 0.0f}, {0.9f, 0.0f, 0.0f}};
     if (!(t >= 0.0)) t = 0.0; /* NaN too */
     if (t > 1.0) t = 1.0;
     double x = t * 4.0;

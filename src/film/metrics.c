@@ -18,8 +18,8 @@ static double pn_luminance(const float *p, int channels) {
     return 0.2126 * (double)p[0] + 0.7152 * (double)p[1] + 0.0722 * (double)p[2];
 }
 
-pn_status pn_metrics_compute_ex(const float *ref, const float *img, int w, int h, int channels,
-                                pn_image_metrics *m, uint64_t *non_finite) {
+pn_status pn_metrics_compute_ex(const float *ref, const float *img, int w, int h, int channels, pn_image_metrics *m,
+                                uint64_t *non_finite) {
     if (non_finite) *non_finite = 0;
     if (!ref || !img || !m || w <= 0 || h <= 0 || channels < 1 || channels > 4) {
         return PN_ERROR_INVALID_ARGUMENT;
@@ -83,28 +83,25 @@ pn_status pn_metrics_compute_ex(const float *ref, const float *img, int w, int h
     return PN_OK;
 }
 
-pn_status pn_metrics_compute(const float *ref, const float *img, int w, int h, int channels,
-                             pn_image_metrics *m) {
+pn_status pn_metrics_compute(const float *ref, const float *img, int w, int h, int channels, pn_image_metrics *m) {
     return pn_metrics_compute_ex(ref, img, w, h, channels, m, NULL);
 }
 
-pn_status pn_image_compare(pn_context ctx, pn_image reference, pn_image image,
-                           pn_image_metrics *metrics, pn_image *error_image) {
+pn_status pn_image_compare(pn_context ctx, pn_image reference, pn_image image, pn_image_metrics *metrics,
+                           pn_image *error_image) {
     if (error_image) *error_image = NULL;
     if (!reference || !image || !metrics) {
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "pn_image_compare: %s is NULL",
-                               !reference ? "reference" : !image ? "image" : "metrics"); /* not-a-method-name: the reference image */
+        const char *which = !image ? "image" : !metrics ? "metrics" : NULL;
+        if (!reference) which = "reference"; /* not-a-method-name: the reference image */
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_image_compare: %s is NULL", which);
     }
     if (reference->layer_count < 1 || image->layer_count < 1 ||
         reference->layers[0].channels != image->layers[0].channels) {
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "images have different beauty layers");
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "images have different beauty layers");
     }
     if (reference->width != image->width || reference->height != image->height) {
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "images differ in size: %dx%d vs %dx%d", reference->width,
-                               reference->height, image->width, image->height);
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "images differ in size: %dx%d vs %dx%d",
+                               reference->width, reference->height, image->width, image->height);
     }
 
     const int w = image->width, h = image->height, channels = image->layers[0].channels;
@@ -112,20 +109,17 @@ pn_status pn_image_compare(pn_context ctx, pn_image reference, pn_image image,
     uint64_t non_finite = 0;
     pn_status status = pn_metrics_compute_ex(ref, img, w, h, channels, metrics, &non_finite);
     if (status != PN_OK) {
-        return pn_context_fail(ctx, status, "cannot compare images of %dx%d with %d channels", w,
-                               h, channels);
+        return pn_context_fail(ctx, status, "cannot compare images of %dx%d with %d channels", w, h, channels);
     }
     if (non_finite > 0 && ctx) {
-        pn_context_log(ctx, PN_LOG_WARNING,
-                       "%llu samples are NaN or infinite and were left out of the metrics",
+        pn_context_log(ctx, PN_LOG_WARNING, "%llu samples are NaN or infinite and were left out of the metrics",
                        (unsigned long long)non_finite);
     }
 
     if (error_image) {
         pn_image diff = pn_image_create(w, h);
         if (!diff) {
-            return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY,
-                                   "out of memory for a %dx%d error image", w, h);
+            return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d error image", w, h);
         }
         float *out = diff->layers[0].data;
         const size_t pixels = (size_t)w * (size_t)h;

@@ -19,11 +19,10 @@
  * Samples where either image holds NaN or infinity are left out of every sum and mean (the
  * means divide by the number of samples kept); their count is stored in *non_finite when that
  * pointer is not NULL. Returns PN_ERROR_INVALID_ARGUMENT for NULL pointers or bad sizes. */
-pn_status pn_metrics_compute_ex(const float *ref, const float *img, int w, int h, int channels,
-                                pn_image_metrics *m, uint64_t *non_finite);
+pn_status pn_metrics_compute_ex(const float *ref, const float *img, int w, int h, int channels, pn_image_metrics *m,
+                                uint64_t *non_finite);
 
 /* pn_metrics_compute_ex without the count of skipped samples. */
-pn_status pn_metrics_compute(const float *ref, const float *img, int w, int h, int channels,
-                             pn_image_metrics *m);
+pn_status pn_metrics_compute(const float *ref, const float *img, int w, int h, int channels, pn_image_metrics *m);
 
 #endif

@@ -146,7 +146,9 @@ enum { VIS_UNKNOWN = 0, VIS_VISIBLE = 1, VIS_HIDDEN = 2 };
 /* How far inside the border (in (u, v)) the rays to border samples aim. */
 #define PN_CONTOUR_BORDER_INSET 1e-3
 
-static inline size_t sample_index(const pn_contour_eval *c, int i, int j) { return (size_t)j * (size_t)(c->N + 1) + (size_t)i; }
+static inline size_t sample_index(const pn_contour_eval *c, int i, int j) {
+    return (size_t)j * (size_t)(c->N + 1) + (size_t)i;
+}
 
 /* The sample lattice is warped by a fixed monotone map of [0, 1] onto itself, separately in u
  * and v (so lines of constant u or v stay straight on the source): a regular lattice at
@@ -155,7 +157,9 @@ static inline size_t sample_index(const pn_contour_eval *c, int i, int j) { retu
  * the window went dark while random samples saw through it). */
 #define PN_CONTOUR_LATTICE_WARP 0.0618
 
-static inline double lattice_warp(double t) { return t + PN_CONTOUR_LATTICE_WARP * t * (1.0 - t); }
+static inline double lattice_warp(double t) {
+    return t + PN_CONTOUR_LATTICE_WARP * t * (1.0 - t);
+}
 
 static inline pn_dvec3 lattice_point(const pn_contour_eval *c, double u, double v) {
     return pn_contour_source_point(c->src, lattice_warp(u), lattice_warp(v));
@@ -234,10 +238,12 @@ static cvert dichotomy(pn_contour_eval *c, int ia, int ja, int ib, int jb, int s
             bool v0 = pn_contour_sample_visible(c, ia + t * di, ja + t * dj);
             bool v1 = pn_contour_sample_visible(c, ia + (t + 1) * di, ja + (t + 1) * dj);
             int found = -1;
-            if (v0 == va && v1 != va) found = t;
+            if (v0 == va && v1 != va)
+                found = t;
             else if (v0 != va && t > 0 && pn_contour_sample_visible(c, ia + (t - 1) * di, ja + (t - 1) * dj) == va)
                 found = t - 1;
-            else if (v0 == va && v1 == va && t + 2 <= n && pn_contour_sample_visible(c, ia + (t + 2) * di, ja + (t + 2) * dj) != va)
+            else if (v0 == va && v1 == va && t + 2 <= n &&
+                     pn_contour_sample_visible(c, ia + (t + 2) * di, ja + (t + 2) * dj) != va)
                 found = t + 1;
             if (found >= 0) {
                 ia += found * di;
@@ -299,10 +305,14 @@ static void add_polygon(pn_contour_eval *c, const cvert *v, int count) {
         moving[i] = false;
         if (!v[i].border || v[i].hi < 0) continue;
         int next = (i + 1) % count, prev = (i + count - 1) % count, nb = -1;
-        if (v[next].hi >= 0 && !v[next].border) nb = next;
-        else if (v[prev].hi >= 0 && !v[prev].border) nb = prev;
-        else if (v[next].hi >= 0) nb = next;
-        else if (v[prev].hi >= 0) nb = prev;
+        if (v[next].hi >= 0 && !v[next].border)
+            nb = next;
+        else if (v[prev].hi >= 0 && !v[prev].border)
+            nb = prev;
+        else if (v[next].hi >= 0)
+            nb = next;
+        else if (v[prev].hi >= 0)
+            nb = prev;
         if (nb < 0) continue;
         pn_dvec3 src_rel = pn_dv3_sub(lattice_point(c, v[i].u, v[i].v), c->m);
         pn_dvec3 ds = pn_dv3_sub(p[nb], p[i]);
@@ -312,8 +322,8 @@ static void add_polygon(pn_contour_eval *c, const cvert *v, int count) {
                                       : pn_dv3_add(s->e2, pn_dv3_scale(s->k, lattice_warp(v[i].u)));
         double tl = pn_dv3_length(t);
         if (!(tl > 0.0)) continue;
-        pn_contour_border_velocity(pn_dv3_add(src_rel, c->m), pn_dv3_scale(t, 1.0 / tl), pn_dv3_add(p[i], c->m), ds, c->m,
-                                   vel[i]);
+        pn_contour_border_velocity(pn_dv3_add(src_rel, c->m), pn_dv3_scale(t, 1.0 / tl), pn_dv3_add(p[i], c->m), ds,
+                                   c->m, vel[i]);
         moving[i] = true;
         p[i] = src_rel;
     }
@@ -400,7 +410,8 @@ static bool probe_misplaced(const pn_contour_eval *c, int i0, int j0, int s, cve
         uint8_t x = c->vis[sample_index(c, i, j)];
         if (x == VIS_UNKNOWN) continue;
         bool in = false;
-        for (int p = 0; p < polys && !in; p++) in = inside_polygon(poly[p], counts[p], (double)i / c->N, (double)j / c->N);
+        for (int p = 0; p < polys && !in; p++)
+            in = inside_polygon(poly[p], counts[p], (double)i / c->N, (double)j / c->N);
         if (in != (x == VIS_VISIBLE)) return true;
     }
     return false;
@@ -453,8 +464,8 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         int k1 = (k + 1) & 3;
         if (v[k] != v[k1]) {
             x[k] = dichotomy(c, ci[k], cj[k], ci[k1], cj[k1], d);
-            bool on_border = (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) ||
-                             (k == 3 && i0 == 0);
+            bool on_border =
+                (k == 0 && j0 == 0) || (k == 1 && i0 + s == c->N) || (k == 2 && j0 + s == c->N) || (k == 3 && i0 == 0);
             if (on_border) x[k].border = (k & 1) ? 2 : 1;
         }
     }
@@ -472,7 +483,8 @@ static void process_square(pn_contour_eval *c, int i0, int j0, int d, int depth)
         int k1 = (k + 1) & 3;
         if (!(v[k] && !v[k1])) continue;
         exits[pieces] = k;
-        if (case4 && !centre_visible) entries[pieces] = (k + 3) & 3; /* around visible corner k */
+        if (case4 && !centre_visible)
+            entries[pieces] = (k + 3) & 3; /* around visible corner k */
         else {
             int e = k1;
             while (!(!v[e] && v[(e + 1) & 3])) e = (e + 1) & 3;
@@ -602,52 +614,52 @@ void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
     if (s < 4) return; /* the probes sit on the square's 4 x 4 sub-lattice */
     const int q = s / 4;
     if (hint && !(c->flags & PN_CONTOUR_NO_ISLANDS))
-    for (int b = 0; b < p; b++)
-        for (int a = 0; a < p; a++) {
-            const int i0 = a * s, j0 = b * s;
-            uint8_t corners = VIS_UNKNOWN;
-            bool agree = true;
-            for (int k = 0; k < 4 && agree; k++) {
-                uint8_t x = hint[sample_index(c, i0 + (k & 1) * s, j0 + (k >> 1) * s)];
-                if (x == VIS_UNKNOWN) continue;
-                if (corners == VIS_UNKNOWN) corners = x;
-                agree = x == corners;
-            }
-            if (!agree || corners == VIS_UNKNOWN) continue;
-            /* The hint's samples of the other visibility inside the square (sides included,
+        for (int b = 0; b < p; b++)
+            for (int a = 0; a < p; a++) {
+                const int i0 = a * s, j0 = b * s;
+                uint8_t corners = VIS_UNKNOWN;
+                bool agree = true;
+                for (int k = 0; k < 4 && agree; k++) {
+                    uint8_t x = hint[sample_index(c, i0 + (k & 1) * s, j0 + (k >> 1) * s)];
+                    if (x == VIS_UNKNOWN) continue;
+                    if (corners == VIS_UNKNOWN) corners = x;
+                    agree = x == corners;
+                }
+                if (!agree || corners == VIS_UNKNOWN) continue;
+                /* The hint's samples of the other visibility inside the square (sides included,
              * corners not): the island. */
-            const uint8_t other = corners == VIS_VISIBLE ? VIS_HIDDEN : VIS_VISIBLE;
-            double si = 0.0, sj = 0.0;
-            int count = 0;
-            for (int j = j0; j <= j0 + s; j++)
-                for (int i = i0; i <= i0 + s; i++)
-                    if (hint[sample_index(c, i, j)] == other) {
-                        si += i;
-                        sj += j;
-                        count++;
-                    }
-            if (count == 0) continue;
-            const double ci = si / count, cj = sj / count;
-            int oi = (int)floor((ci - i0) / q + 0.5), oj = (int)floor((cj - j0) / q + 0.5);
-            oi = oi < 1 ? 1 : oi > 3 ? 3 : oi;
-            oj = oj < 1 ? 1 : oj > 3 ? 3 : oj;
-            add_probe(c, i0 + oi * q, j0 + oj * q);
-            if (c->vis[sample_index(c, i0 + oi * q, j0 + oj * q)] == other) continue;
-            /* Not there: the hint's island sample nearest the centroid, if strictly inside. */
-            int bi = -1, bj = -1;
-            double best = INFINITY;
-            for (int j = j0 + 1; j < j0 + s; j++)
-                for (int i = i0 + 1; i < i0 + s; i++)
-                    if (hint[sample_index(c, i, j)] == other) {
-                        double d2 = (i - ci) * (i - ci) + (j - cj) * (j - cj);
-                        if (d2 < best) {
-                            best = d2;
-                            bi = i;
-                            bj = j;
+                const uint8_t other = corners == VIS_VISIBLE ? VIS_HIDDEN : VIS_VISIBLE;
+                double si = 0.0, sj = 0.0;
+                int count = 0;
+                for (int j = j0; j <= j0 + s; j++)
+                    for (int i = i0; i <= i0 + s; i++)
+                        if (hint[sample_index(c, i, j)] == other) {
+                            si += i;
+                            sj += j;
+                            count++;
                         }
-                    }
-            if (bi >= 0 && !(bi == i0 + oi * q && bj == j0 + oj * q)) add_probe(c, bi, bj);
-        }
+                if (count == 0) continue;
+                const double ci = si / count, cj = sj / count;
+                int oi = (int)floor((ci - i0) / q + 0.5), oj = (int)floor((cj - j0) / q + 0.5);
+                oi = oi < 1 ? 1 : oi > 3 ? 3 : oi;
+                oj = oj < 1 ? 1 : oj > 3 ? 3 : oj;
+                add_probe(c, i0 + oi * q, j0 + oj * q);
+                if (c->vis[sample_index(c, i0 + oi * q, j0 + oj * q)] == other) continue;
+                /* Not there: the hint's island sample nearest the centroid, if strictly inside. */
+                int bi = -1, bj = -1;
+                double best = INFINITY;
+                for (int j = j0 + 1; j < j0 + s; j++)
+                    for (int i = i0 + 1; i < i0 + s; i++)
+                        if (hint[sample_index(c, i, j)] == other) {
+                            double d2 = (i - ci) * (i - ci) + (j - cj) * (j - cj);
+                            if (d2 < best) {
+                                best = d2;
+                                bi = i;
+                                bj = j;
+                            }
+                        }
+                if (bi >= 0 && !(bi == i0 + oi * q && bj == j0 + oj * q)) add_probe(c, bi, bj);
+            }
     /* Scouts: probes on a lattice of the whole source, the same for any grid: the points
      * (k N / 4, l N / 4) for odd k, l (scout 1: 4 points, the centres of the paper's 3 x 3
      * grid's squares), (k N / 8, l N / 8) for odd k, l (scout 2: 16) or for 0 < k, l < 8
@@ -690,8 +702,8 @@ void pn_contour_integrate(pn_contour_eval *c, int p) {
     c->p_used = p;
 }
 
-bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const pn_contour_source *src, vec3 p,
-                           vec3 ns, vec3 ng, int N, uint8_t *vis, float *thit, bool gradient, uint64_t hash) {
+bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const pn_contour_source *src, vec3 p, vec3 ns,
+                           vec3 ng, int N, uint8_t *vis, float *thit, bool gradient, uint64_t hash) {
     memset(c, 0, sizeof *c);
     c->src = src;
     c->accel = job->accel;

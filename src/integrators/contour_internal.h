@@ -33,47 +33,47 @@ enum {
 typedef struct pn_contour_eval {
     const pn_contour_source *src;
     const pn_accel *accel;
-    pn_dvec3 m, ns, ng;  /* receiver and its shading / geometric normals */
-    vec3 origin;         /* shadow-ray origin (M offset along ng) */
+    pn_dvec3 m, ns, ng; /* receiver and its shading / geometric normals */
+    vec3 origin;        /* shadow-ray origin (M offset along ng) */
     float eps;
-    double sign;         /* pn_contour_source_sign: 0 when M cannot see the emitting side */
-    int N;               /* the sample array has (N+1)^2 points: N = p 2^steps (§3.3) */
-    uint8_t *vis;        /* 0 unknown, 1 visible, 2 hidden */
-    float *thit;         /* gradients: hit distance / sample distance of hidden samples */
+    double sign;  /* pn_contour_source_sign: 0 when M cannot see the emitting side */
+    int N;        /* the sample array has (N+1)^2 points: N = p 2^steps (§3.3) */
+    uint8_t *vis; /* 0 unknown, 1 visible, 2 hidden */
+    float *thit;  /* gradients: hit distance / sample distance of hidden samples */
     bool gradient;
-    uint64_t hash;       /* for the random diagonal of case 3 */
-    uint32_t flags;      /* PN_CONTOUR_* */
-    int max_restarts;    /* restarts one level finer allowed (§3.2) */
-    double eps_length;   /* strip width: the length of the smallest dichotomy interval */
+    uint64_t hash;     /* for the random diagonal of case 3 */
+    uint32_t flags;    /* PN_CONTOUR_* */
+    int max_restarts;  /* restarts one level finer allowed (§3.2) */
+    double eps_length; /* strip width: the length of the smallest dichotomy interval */
     /* results */
     pn_contour_g acc;
     uint32_t rays;
-    int phase;                          /* PN_CPH_*: where the next rays are counted */
-    uint32_t rays_by[PN_CPH_COUNT];     /* rays by phase */
-    uint32_t visible_rays;              /* of `rays`, those that reached the source */
-    int why;                            /* render: why the pixel was integrated (bits; 0: it was not) */
-    const uint8_t *hint; /* the sample array of a nearby pixel already integrated, or NULL */
-    int max_depth;       /* deepest quadtree subdivision in the last pass */
+    int phase;                      /* PN_CPH_*: where the next rays are counted */
+    uint32_t rays_by[PN_CPH_COUNT]; /* rays by phase */
+    uint32_t visible_rays;          /* of `rays`, those that reached the source */
+    int why;                        /* render: why the pixel was integrated (bits; 0: it was not) */
+    const uint8_t *hint;            /* the sample array of a nearby pixel already integrated, or NULL */
+    int max_depth;                  /* deepest quadtree subdivision in the last pass */
     bool restart, restarted;
     uint32_t restarts, subdivisions;
-    uint32_t forced;     /* subdivisions forced by a contradiction already on a side (§3.2) */
-    int leaf_count;      /* leaves[]: (i0, j0, size) of the squares treated in this pass */
+    uint32_t forced; /* subdivisions forced by a contradiction already on a side (§3.2) */
+    int leaf_count;  /* leaves[]: (i0, j0, size) of the squares treated in this pass */
     int16_t leaves[PN_CONTOUR_MAX_LEAVES][3];
-    int p_used;          /* first-level squares per side at the end (after restarts) */
+    int p_used; /* first-level squares per side at the end (after restarts) */
     /* Island probes (pn_contour_probe_islands): samples traced before the marching; a square whose
      * corners all have one visibility and that holds a probe of the other is subdivided. */
     int probe_count;
     int16_t probe[PN_CONTOUR_MAX_PROBES][2];
-    int scout;           /* scout probes (pn_contour_probe_islands): 0-3 */
-    bool partial;        /* render: only half of its first-level samples were checked (uniform run) */
-    int island_nest;     /* > 0 inside a subdivision forced by a probe (not counted in max_depth) */
+    int scout;       /* scout probes (pn_contour_probe_islands): 0-3 */
+    bool partial;    /* render: only half of its first-level samples were checked (uniform run) */
+    int island_nest; /* > 0 inside a subdivision forced by a probe (not counted in max_depth) */
     uint32_t islands_probed, islands_found; /* probes traced; probes that contradicted their square */
 } pn_contour_eval;
 
 /* Prepares an evaluation; the caller owns vis (zeroed, (N+1)^2) and thit (same size, only read
  * with gradients). Returns false when M does not see the emitting side. */
-bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const pn_contour_source *src, vec3 p,
-                           vec3 ns, vec3 ng, int N, uint8_t *vis, float *thit, bool gradient, uint64_t hash);
+bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const pn_contour_source *src, vec3 p, vec3 ns,
+                           vec3 ng, int N, uint8_t *vis, float *thit, bool gradient, uint64_t hash);
 
 /* vis_M of sample (i, j) of the array (0 <= i, j <= N), tracing its ray the first time. */
 bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j);

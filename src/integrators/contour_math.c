@@ -19,8 +19,8 @@
 
 #define PN_TWO_PI 6.28318530717958647692
 
-void pn_contour_add_segment_moving(pn_contour_g *acc, pn_dvec3 a, pn_dvec3 b, const pn_dvec3 *va,
-                                   const pn_dvec3 *vb, bool derivatives) {
+void pn_contour_add_segment_moving(pn_contour_g *acc, pn_dvec3 a, pn_dvec3 b, const pn_dvec3 *va, const pn_dvec3 *vb,
+                                   bool derivatives) {
     pn_dvec3 w = pn_dv3_cross(a, b);
     double s = pn_dv3_length(w);
     double c = pn_dv3_dot(a, b);
@@ -161,8 +161,8 @@ double pn_contour_source_sign(const pn_contour_source *s, pn_dvec3 m) {
     return 0.0;
 }
 
-void pn_contour_source_unoccluded(const pn_contour_source *s, pn_dvec3 m, pn_dvec3 ns, pn_dvec3 ng,
-                                  bool derivatives, pn_contour_g *out) {
+void pn_contour_source_unoccluded(const pn_contour_source *s, pn_dvec3 m, pn_dvec3 ns, pn_dvec3 ng, bool derivatives,
+                                  pn_contour_g *out) {
     *out = (pn_contour_g){{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
     double sign = pn_contour_source_sign(s, m);
     if (sign == 0.0) return;

@@ -14,17 +14,33 @@ typedef struct pn_dvec3 {
     double x, y, z;
 } pn_dvec3;
 
-static inline pn_dvec3 pn_dv3(double x, double y, double z) { return (pn_dvec3){x, y, z}; }
-static inline pn_dvec3 pn_dv3_from(vec3 a) { return pn_dv3((double)a.x, (double)a.y, (double)a.z); }
-static inline vec3 pn_dv3_to(pn_dvec3 a) { return v3((float)a.x, (float)a.y, (float)a.z); }
-static inline pn_dvec3 pn_dv3_add(pn_dvec3 a, pn_dvec3 b) { return pn_dv3(a.x + b.x, a.y + b.y, a.z + b.z); }
-static inline pn_dvec3 pn_dv3_sub(pn_dvec3 a, pn_dvec3 b) { return pn_dv3(a.x - b.x, a.y - b.y, a.z - b.z); }
-static inline pn_dvec3 pn_dv3_scale(pn_dvec3 a, double s) { return pn_dv3(a.x * s, a.y * s, a.z * s); }
-static inline double pn_dv3_dot(pn_dvec3 a, pn_dvec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static inline pn_dvec3 pn_dv3(double x, double y, double z) {
+    return (pn_dvec3){x, y, z};
+}
+static inline pn_dvec3 pn_dv3_from(vec3 a) {
+    return pn_dv3((double)a.x, (double)a.y, (double)a.z);
+}
+static inline vec3 pn_dv3_to(pn_dvec3 a) {
+    return v3((float)a.x, (float)a.y, (float)a.z);
+}
+static inline pn_dvec3 pn_dv3_add(pn_dvec3 a, pn_dvec3 b) {
+    return pn_dv3(a.x + b.x, a.y + b.y, a.z + b.z);
+}
+static inline pn_dvec3 pn_dv3_sub(pn_dvec3 a, pn_dvec3 b) {
+    return pn_dv3(a.x - b.x, a.y - b.y, a.z - b.z);
+}
+static inline pn_dvec3 pn_dv3_scale(pn_dvec3 a, double s) {
+    return pn_dv3(a.x * s, a.y * s, a.z * s);
+}
+static inline double pn_dv3_dot(pn_dvec3 a, pn_dvec3 b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 static inline pn_dvec3 pn_dv3_cross(pn_dvec3 a, pn_dvec3 b) {
     return pn_dv3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
-static inline double pn_dv3_length(pn_dvec3 a) { return sqrt(pn_dv3_dot(a, a)); }
+static inline double pn_dv3_length(pn_dvec3 a) {
+    return sqrt(pn_dv3_dot(a, a));
+}
 
 /* The vector G of eq. 5 for a set of contour segments, with its translational derivatives:
  * F = g . n, and dF/dM_k = dg[k] . n for a receiver moved along axis k with its normal fixed.
@@ -42,8 +58,8 @@ typedef struct pn_contour_g {
 void pn_contour_add_segment(pn_contour_g *acc, pn_dvec3 a, pn_dvec3 b, bool derivatives);
 
 /* The same with moving endpoints: va[k] = dA/dM_k, vb[k] = dB/dM_k (NULL: fixed points). */
-void pn_contour_add_segment_moving(pn_contour_g *acc, pn_dvec3 a, pn_dvec3 b, const pn_dvec3 *va,
-                                   const pn_dvec3 *vb, bool derivatives);
+void pn_contour_add_segment_moving(pn_contour_g *acc, pn_dvec3 a, pn_dvec3 b, const pn_dvec3 *va, const pn_dvec3 *vb,
+                                   bool derivatives);
 
 /* Velocity dP/dM_k (k = x, y, z) of the point P where the source border line (through P, unit
  * direction t) meets the plane through M and a silhouette line (through the obstacle point i,
@@ -76,8 +92,8 @@ double pn_contour_strip_threshold(pn_dvec3 a, pn_dvec3 b, double eps, pn_dvec3 n
  * positive form factor for receivers in front of the emitting normal (pn_contour_source_sign). */
 typedef struct pn_contour_source {
     pn_dvec3 p0, e1, e2, k;
-    pn_dvec3 normal;   /* unit emitting normal */
-    double eps_scale;  /* a typical length of the source (for the strip width eps) */
+    pn_dvec3 normal;  /* unit emitting normal */
+    double eps_scale; /* a typical length of the source (for the strip width eps) */
     double uv_sign;
     bool two_sided;
 } pn_contour_source;
@@ -98,8 +114,8 @@ static inline pn_dvec3 pn_contour_source_point(const pn_contour_source *s, doubl
 /* The unoccluded form factor of the whole source seen from M with normals (ns, ng): eq. 4 on
  * the source's outline, clipped to both horizons; zero behind a one-sided source. With
  * derivatives, the gradient terms too. */
-void pn_contour_source_unoccluded(const pn_contour_source *s, pn_dvec3 m, pn_dvec3 ns, pn_dvec3 ng,
-                                  bool derivatives, pn_contour_g *out);
+void pn_contour_source_unoccluded(const pn_contour_source *s, pn_dvec3 m, pn_dvec3 ns, pn_dvec3 ng, bool derivatives,
+                                  pn_contour_g *out);
 
 /* The sign for counter-clockwise (u, v) polygons seen from M, or 0 when M does not see the
  * emitting side (or lies in the source's plane). */

@@ -50,9 +50,9 @@ static double cell_form_factor(const pn_contour_eval *c, const mc_cell *cell) {
     static const double corner[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
     pn_dvec3 v[4];
     for (int k = 0; k < 4; k++)
-        v[k] = pn_dv3_sub(pn_contour_source_point(c->src, cell->u0 + corner[k][0] * cell->size,
-                                                  cell->v0 + corner[k][1] * cell->size),
-                          c->m);
+        v[k] = pn_dv3_sub(
+            pn_contour_source_point(c->src, cell->u0 + corner[k][0] * cell->size, cell->v0 + corner[k][1] * cell->size),
+            c->m);
     pn_contour_g g = {{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
     pn_contour_add_polygon(&g, v, 4, c->ns, c->ng, c->sign, false);
     return fmax(0.0, pn_dv3_dot(g.g, c->ns));
@@ -107,8 +107,8 @@ double pn_contour_mc_form_factor(pn_contour_eval *c, int cells, double threshold
         }
         double h = cell.size * 0.5;
         for (int k = 0; k < 4; k++) {
-            mc_cell child = {cell.u0 + (k & 1) * h, cell.v0 + ((k >> 1) & 1) * h, h, cell.depth + 1, cell.id * 4 + (uint64_t)k,
-                             {{0, 0, false, false}}};
+            mc_cell child = {cell.u0 + (k & 1) * h, cell.v0 + ((k >> 1) & 1) * h, h,
+                             cell.depth + 1,        cell.id * 4 + (uint64_t)k,    {{0, 0, false, false}}};
             /* The parent's sample in this quarter stays, in the child's quarter it falls in. */
             mc_sample kept = cell.s[k];
             int kk = (kept.u >= child.u0 + h * 0.5 ? 1 : 0) + (kept.v >= child.v0 + h * 0.5 ? 2 : 0);

@@ -25,7 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PN_CONTOUR_MAX_P 32   /* first-level squares per side, at most */
+#define PN_CONTOUR_MAX_P 32     /* first-level squares per side, at most */
 #define PN_CONTOUR_DISK_QUADS 5 /* a disk is a 12-gon of equal area: 5 quadrilaterals */
 
 /* Our departure (shade_span): a run whose unoccluded form factor at its middle pixel is within
@@ -58,11 +58,11 @@ typedef struct contour_data {
     int obstacle_count;
     float tol;
     int N, p0;
-    FILE *trace; /* option contour-trace: one line per counted pixel (bench/contour/ray_breakdown.c) */
+    FILE *trace;       /* option contour-trace: one line per counted pixel (bench/contour/ray_breakdown.c) */
     int scout;         /* option contour-scout: the scout lattice, 0-3 (contour.c) */
     int penumbra_part; /* option contour-part: runs with a contour check 1/part of their samples */
     double linear_tol; /* option contour-linear-tol */
-    uint32_t off; /* the PN_CONTOUR_NO_ISLANDS / NO_HALF_CHECK bits of contour_flags, for every evaluation */
+    uint32_t off;      /* the PN_CONTOUR_NO_ISLANDS / NO_HALF_CHECK bits of contour_flags, for every evaluation */
     atomic_uint_fast64_t viewing, rays, integrations, interpolated, restarts, subdivisions, culled;
 } contour_data;
 
@@ -137,7 +137,8 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
             /* §6: a disk as a regular polygon of 2 + 2 PN_CONTOUR_DISK_QUADS sides and the disk's
              * area, cut into a fan of convex quadrilaterals that share the first vertex. */
             const int sides = 2 + 2 * PN_CONTOUR_DISK_QUADS;
-            double r = (double)l->radius * sqrt(2.0 * 3.14159265358979323846 / (sides * sin(2.0 * 3.14159265358979323846 / sides)));
+            double r = (double)l->radius *
+                       sqrt(2.0 * 3.14159265358979323846 / (sides * sin(2.0 * 3.14159265358979323846 / sides)));
             vec3 t, b, poly[2 + 2 * PN_CONTOUR_DISK_QUADS];
             v3_basis(l->n, &t, &b);
             for (int k = 0; k < sides; k++) {
@@ -241,7 +242,9 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
      * for a small gain); contour-part 1, 2 or 4: runs with a contour check 1 / part of their
      * samples from their third pixel on; contour-linear-tol: the tolerance of run_is_linear. */
     cd->off = job->contour_flags & (PN_CONTOUR_NO_ISLANDS | PN_CONTOUR_NO_HALF_CHECK);
-    cd->scout = (job->contour_flags & PN_CONTOUR_NO_SCOUTS) ? 0 : (job->contour_flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY) ? 3 : 1;
+    cd->scout = (job->contour_flags & PN_CONTOUR_NO_SCOUTS)             ? 0
+                : (job->contour_flags & PN_CONTOUR_NO_ADAPTIVE_DENSITY) ? 3
+                                                                        : 1;
     if (job->contour_scout >= 0 && !(job->contour_flags & PN_CONTOUR_NO_SCOUTS)) cd->scout = job->contour_scout;
     cd->penumbra_part = job->contour_part == 1 || job->contour_part == 4 ? job->contour_part : 2;
     cd->linear_tol = (job->contour_flags & PN_CONTOUR_NO_LINEAR_RUNS) ? 0.0 : job->contour_linear_tol;
@@ -249,8 +252,12 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     return PN_OK;
 }
 
-static pn_status contour_prepare(pn_render_job *job, pn_err *err) { return contour_prepare_common(job, err, false); }
-static pn_status contour_mc_prepare(pn_render_job *job, pn_err *err) { return contour_prepare_common(job, err, true); }
+static pn_status contour_prepare(pn_render_job *job, pn_err *err) {
+    return contour_prepare_common(job, err, false);
+}
+static pn_status contour_mc_prepare(pn_render_job *job, pn_err *err) {
+    return contour_prepare_common(job, err, true);
+}
 
 static void contour_release(pn_render_job *job) {
     contour_data *cd = job->integrator_data;
@@ -277,12 +284,15 @@ static void contour_report(const pn_render_job *job, pn_render_stats *stats) {
 
 /* ---- shaft culling (Haines & Wallace 1991) -------------------------------------------------- */
 
-static float coord(vec3 v, int a) { return v3_get(v, a); }
+static float coord(vec3 v, int a) {
+    return v3_get(v, a);
+}
 
 /* 2D convex hull (monotone chain) of n <= 8 points, counter-clockwise; returns its size. */
 static int hull2d(float (*pt)[2], int n, float (*out)[2]) {
     for (int i = 1; i < n; i++) /* insertion sort by x, then y */
-        for (int j = i; j > 0 && (pt[j][0] < pt[j - 1][0] || (pt[j][0] == pt[j - 1][0] && pt[j][1] < pt[j - 1][1])); j--) {
+        for (int j = i; j > 0 && (pt[j][0] < pt[j - 1][0] || (pt[j][0] == pt[j - 1][0] && pt[j][1] < pt[j - 1][1]));
+             j--) {
             float t0 = pt[j][0], t1 = pt[j][1];
             pt[j][0] = pt[j - 1][0];
             pt[j][1] = pt[j - 1][1];
@@ -371,14 +381,14 @@ typedef struct shade_point {
     pn_hit hit;
     vec3 wo, throughput;
     pn_bsdf b;
-    vec3 value;      /* this eye ray's radiance so far */
-    vec3 gradient;   /* this eye ray's irradiance-luminance gradient from contour lights */
+    vec3 value;    /* this eye ray's radiance so far */
+    vec3 gradient; /* this eye ray's irradiance-luminance gradient from contour lights */
     uint32_t contour_rays;
     uint32_t rays_by[PN_CPH_COUNT], visible_rays; /* trace: rays by phase, visible ones */
-    unsigned why;    /* trace: bit r set when integrated for reason r (WHY_*) */
-    bool culled;     /* trace: a span of this pixel had no candidate obstacle */
+    unsigned why;                                 /* trace: bit r set when integrated for reason r (WHY_*) */
+    bool culled;                                  /* trace: a span of this pixel had no candidate obstacle */
     float fw;
-    int64_t object;  /* what a span must stay on */
+    int64_t object; /* what a span must stay on */
 } shade_point;
 
 typedef struct pixel_acc {
@@ -393,18 +403,18 @@ typedef struct contour_scratch {
     shade_point *sp;
     pixel_acc *acc;
     uint32_t *scramble;
-    size_t array_size;      /* (N+1)^2 */
-    int span_capacity;      /* pixels of the longest span the arrays below hold */
-    uint8_t *vis;           /* one sample array per pixel of the span */
+    size_t array_size; /* (N+1)^2 */
+    int span_capacity; /* pixels of the longest span the arrays below hold */
+    uint8_t *vis;      /* one sample array per pixel of the span */
     float *thit;
     pn_contour_eval *ev;
     pn_contour_g *g;
-    int *span;              /* batch indices of the current span */
+    int *span; /* batch indices of the current span */
     /* Along the row, for the contour light being shaded (lights are shaded one after another,
      * each over the whole row): */
-    int density;            /* first-level squares per side where the last span ended */
-    uint8_t *carry;         /* the sample array of the last pixel integrated */
-    int carry_x;            /* its image x (INT32_MIN: none) */
+    int density;    /* first-level squares per side where the last span ended */
+    uint8_t *carry; /* the sample array of the last pixel integrated */
+    int carry_x;    /* its image x (INT32_MIN: none) */
 } contour_scratch;
 
 static void contour_scratch_free(void *p) {
@@ -473,7 +483,9 @@ static bool ensure_capacity(contour_scratch *s, int count) {
 
 /* ---- §5: spans ------------------------------------------------------------------------------- */
 
-static void zero_g(pn_contour_g *g) { *g = (pn_contour_g){{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}}; }
+static void zero_g(pn_contour_g *g) {
+    *g = (pn_contour_g){{0, 0, 0}, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}};
+}
 
 static pn_dvec3 lagrange3(pn_dvec3 a, pn_dvec3 b, pn_dvec3 c, double wa, double wb, double wc) {
     return pn_dv3_add(pn_dv3_add(pn_dv3_scale(a, wa), pn_dv3_scale(b, wb)), pn_dv3_scale(c, wc));
@@ -519,7 +531,8 @@ static void full_integration(span_ctx *sc, int q, int p, int why) {
     int best = -1;
     for (int k = 0; k < sc->n; k++)
         if (k != q && sc->s->ev[k].why && (best < 0 || abs(k - q) < abs(best - q))) best = k;
-    if (best >= 0 && abs(best - q) <= PN_CONTOUR_HINT_DISTANCE) ev->hint = sc->s->vis + (size_t)best * sc->s->array_size;
+    if (best >= 0 && abs(best - q) <= PN_CONTOUR_HINT_DISTANCE)
+        ev->hint = sc->s->vis + (size_t)best * sc->s->array_size;
     int cx = *sc->carry_x;
     if (cx != INT32_MIN && sc->x0 + q - cx <= PN_CONTOUR_HINT_DISTANCE && (best < 0 || sc->x0 + q - cx < abs(best - q)))
         ev->hint = sc->carry;
@@ -596,7 +609,8 @@ bool pn_contour_run_is_linear(const pn_contour_source *src, const pn_contour_eva
 /* Whether pixel j's first-level samples (those of mask; with part = 2 or 4 only the samples (a, b)
  * with a + (part / 2) b = x modulo part: a checkerboard or a quarter that moves with the pixel's
  * x) match the pattern at density p; traces what it checks. */
-static bool check_pattern(contour_scratch *s, int j, int p, const uint8_t *pattern, const uint8_t *mask, int part, int x) {
+static bool check_pattern(contour_scratch *s, int j, int p, const uint8_t *pattern, const uint8_t *mask, int part,
+                          int x) {
     pn_contour_eval *ej = &s->ev[j];
     const int step = ej->N / p, np = (p + 1) * (p + 1);
     ej->phase = PN_CPH_PATTERN;
@@ -657,8 +671,10 @@ static void shade_span(span_ctx *sc) {
          * pattern (where a moving contour changes the pattern first) are checked, unless the
          * pattern is uniform (then all are). */
         uint8_t mask[(PN_CONTOUR_MAX_P + 1) * (PN_CONTOUR_MAX_P + 1)];
-        if (!uniform) pn_contour_pattern_boundary(key_pattern, p, mask);
-        else memset(mask, 1, (size_t)np);
+        if (!uniform)
+            pn_contour_pattern_boundary(key_pattern, p, mask);
+        else
+            memset(mask, 1, (size_t)np);
         for (; j < n; j++) {
             /* Our departure: from a run's third pixel on, each pixel checks part of the samples
              * (half, moving with x; in a uniform run a quarter from its sixth pixel); where the
@@ -666,7 +682,9 @@ static void shade_span(span_ctx *sc) {
              * last that matches, so the run ends where a full check would end it. */
             int part = 1;
             if (uniform && !(sc->cd->off & PN_CONTOUR_NO_HALF_CHECK))
-                part = j - key >= PN_CONTOUR_UNIFORM_QUARTER_AFTER ? 4 : j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER ? 2 : 1;
+                part = j - key >= PN_CONTOUR_UNIFORM_QUARTER_AFTER ? 4
+                       : j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER  ? 2
+                                                                   : 1;
             else if (!uniform && sc->cd->penumbra_part > 1 && j - key >= PN_CONTOUR_UNIFORM_HALF_AFTER)
                 part = sc->cd->penumbra_part;
             bool same = check_pattern(s, j, p, key_pattern, mask, part, sc->x0 + j);
@@ -693,8 +711,8 @@ static void shade_span(span_ctx *sc) {
                     full_integration(sc, q, p, WHY_UNIFORM);
                 } else if (key_pattern[0]) {
                     const pn_contour_eval *eq = &s->ev[q];
-                    pn_contour_source_unoccluded(&sc->cl->src, eq->m, eq->ns, eq->ng, (sc->job->aovs & PN_AOV_GRADIENT) != 0,
-                                                 &s->g[q]);
+                    pn_contour_source_unoccluded(&sc->cl->src, eq->m, eq->ns, eq->ng,
+                                                 (sc->job->aovs & PN_AOV_GRADIENT) != 0, &s->g[q]);
                     sc->t.interpolated++;
                 } else {
                     zero_g(&s->g[q]);
@@ -714,15 +732,17 @@ static void shade_span(span_ctx *sc) {
         /* Our departure: when the unoccluded form factor is linear along the run to within
          * contour-linear-tol at its middle, the run is interpolated linearly between its ends
          * without the middle integration (run_is_linear()). */
-        const bool linear = end - key >= 2 && sc->cd->linear_tol > 0.0 &&
-                            pn_contour_run_is_linear(&sc->cl->src, &s->ev[key], &s->ev[(key + end) / 2], &s->ev[end],
-                                                     (double)((key + end) / 2 - key) / (double)(end - key), sc->cd->linear_tol);
+        const bool linear =
+            end - key >= 2 && sc->cd->linear_tol > 0.0 &&
+            pn_contour_run_is_linear(&sc->cl->src, &s->ev[key], &s->ev[(key + end) / 2], &s->ev[end],
+                                     (double)((key + end) / 2 - key) / (double)(end - key), sc->cd->linear_tol);
         if (linear) {
             for (int q = key + 1; q < end; q++) {
                 double w = (double)(q - key) / (double)(end - key);
                 s->g[q].g = pn_dv3_add(pn_dv3_scale(s->g[key].g, 1.0 - w), pn_dv3_scale(s->g[end].g, w));
                 for (int k = 0; k < 3; k++)
-                    s->g[q].dg[k] = pn_dv3_add(pn_dv3_scale(s->g[key].dg[k], 1.0 - w), pn_dv3_scale(s->g[end].dg[k], w));
+                    s->g[q].dg[k] =
+                        pn_dv3_add(pn_dv3_scale(s->g[key].dg[k], 1.0 - w), pn_dv3_scale(s->g[end].dg[k], w));
                 sc->t.interpolated++;
             }
         } else if (end - key >= 2) {
@@ -780,8 +800,9 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     int pq = s->span[n - 1];
                     /* Spans also end at multiples of the maximum length in full-image x, so that
                      * they do not depend on where a crop window or a batch begins. */
-                    if (batch->pixels[q][1] != batch->pixels[pq][1] || batch->pixels[q][0] != batch->pixels[pq][0] + 1 ||
-                        sp->object != prev->object || batch->pixels[q][0] % span_max == 0 ||
+                    if (batch->pixels[q][1] != batch->pixels[pq][1] ||
+                        batch->pixels[q][0] != batch->pixels[pq][0] + 1 || sp->object != prev->object ||
+                        batch->pixels[q][0] % span_max == 0 ||
                         v3_dot(sp->b.ns, prev->b.ns) < PN_CONTOUR_SPAN_CREASE_COS)
                         break;
                 }
@@ -789,8 +810,9 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 uint8_t *vis = s->vis + (size_t)n * s->array_size;
                 memset(vis, 0, s->array_size);
                 float *thit = s->thit ? s->thit + (size_t)n * s->array_size : NULL;
-                uint64_t hash = pn_hash3(job->seed ^ (uint64_t)li, ((uint64_t)(uint32_t)batch->pixels[q][0] << 32) |
-                                                                      (uint32_t)batch->pixels[q][1], eye_index);
+                uint64_t hash = pn_hash3(
+                    job->seed ^ (uint64_t)li,
+                    ((uint64_t)(uint32_t)batch->pixels[q][0] << 32) | (uint32_t)batch->pixels[q][1], eye_index);
                 if (!pn_contour_eval_setup(ev, job, &cl->src, sp->hit.p, sp->b.ns, sp->b.ng, cd->N, vis, thit, gradient,
                                            hash)) {
                     if (n > 0) {
@@ -805,8 +827,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
             }
             if (n == 0) continue;
-            span_ctx sc = {job, cd, cl, s, n, {0, 0, 0, 0, 0}, &s->density, batch->pixels[s->span[0]][0], s->carry,
-                           &s->carry_x};
+            span_ctx sc = {job,      cd,         cl, s, n, {0, 0, 0, 0, 0}, &s->density, batch->pixels[s->span[0]][0],
+                           s->carry, &s->carry_x};
             if (!(job->contour_flags & PN_CONTOUR_NO_SHAFT_CULLING) && !shaft_has_candidates(cd, cl, smin, smax)) {
                 /* Empty candidate list: the unoccluded closed form, no shadow rays. */
                 for (int k = 0; k < n; k++) {
@@ -920,10 +942,14 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             if (cd->trace && i == 0 && px >= count_x0 && px < count_x1 && (sp->contour_rays > 0 || sp->culled)) {
                 /* x y class why rays-by-phase...: class 0 culled, 1 every ray visible, 2 every ray
                  * hidden, 3 both (penumbra). */
-                int cls = sp->contour_rays == 0 ? 0 : sp->visible_rays == sp->contour_rays ? 1 : sp->visible_rays == 0 ? 2 : 3;
+                int cls = sp->contour_rays == 0                  ? 0
+                          : sp->visible_rays == sp->contour_rays ? 1
+                          : sp->visible_rays == 0                ? 2
+                                                                 : 3;
                 char line[160];
                 int len = snprintf(line, sizeof line, "%d %d %d %u", px, batch->pixels[q][1], cls, sp->why);
-                for (int r = 0; r < PN_CPH_COUNT; r++) len += snprintf(line + len, sizeof line - (size_t)len, " %u", sp->rays_by[r]);
+                for (int r = 0; r < PN_CPH_COUNT; r++)
+                    len += snprintf(line + len, sizeof line - (size_t)len, " %u", sp->rays_by[r]);
                 snprintf(line + len, sizeof line - (size_t)len, "\n");
                 fputs(line, cd->trace);
             }
@@ -975,7 +1001,7 @@ typedef struct scanline_jobs {
     contour_scratch **scratch; /* per worker */
     int32_t (**row_pixels)[2]; /* per worker: the pixels of one scanline job */
     pn_pixel_estimate **row_out;
-    int row_x0, row_count;     /* the pixels a scanline job renders (the same for every row) */
+    int row_x0, row_count; /* the pixels a scanline job renders (the same for every row) */
     atomic_int failed;
     atomic_long rows_done; /* for the render's progress (rows finish in any order) */
 } scanline_jobs;
@@ -1017,8 +1043,8 @@ static void scanline_job(void *user, size_t index, int worker) {
     pn_progress_report(job->progress, (double)done / (double)(cam->y1 - cam->y0));
 }
 
-static pn_status contour_render_image(const pn_render_job *job, struct pn_threadpool *pool,
-                                      pn_pixel_estimate *pixels, int width, int height) {
+static pn_status contour_render_image(const pn_render_job *job, struct pn_threadpool *pool, pn_pixel_estimate *pixels,
+                                      int width, int height) {
     const pn_camera *cam = &job->camera;
     const int S = (int)job->contour_span;
     int workers = pn_threadpool_size(pool);
@@ -1037,8 +1063,10 @@ static pn_status contour_render_image(const pn_render_job *job, struct pn_thread
     sj.row_out = calloc((size_t)workers, sizeof *sj.row_out);
     atomic_init(&sj.failed, 0);
     atomic_init(&sj.rows_done, 0);
-    if (sj.scratch && sj.row_pixels && sj.row_out) pn_threadpool_run(pool, (size_t)height, scanline_job, &sj);
-    else atomic_store(&sj.failed, PN_ERROR_OUT_OF_MEMORY);
+    if (sj.scratch && sj.row_pixels && sj.row_out)
+        pn_threadpool_run(pool, (size_t)height, scanline_job, &sj);
+    else
+        atomic_store(&sj.failed, PN_ERROR_OUT_OF_MEMORY);
     for (int w = 0; w < workers; w++) {
         if (sj.scratch) contour_scratch_free(sj.scratch[w]);
         if (sj.row_pixels) free(sj.row_pixels[w]);

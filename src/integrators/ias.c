@@ -77,12 +77,12 @@
 typedef struct ias_shared {
     pn_cluster_forest forest;
     int env_count;
-    pn_env_regions *env;  /* one partition per environment light */
-    int *env_light;       /* the pn_lights index of each environment light */
-    int *env_base;        /* first cluster id of each partition */
-    int id_count;         /* cluster ids: forest nodes (distant lights are one-light nodes), then
+    pn_env_regions *env; /* one partition per environment light */
+    int *env_light;      /* the pn_lights index of each environment light */
+    int *env_base;       /* first cluster id of each partition */
+    int id_count;        /* cluster ids: forest nodes (distant lights are one-light nodes), then
                              environment regions */
-    int max_cut;          /* capacity for one point's cut */
+    int max_cut;         /* capacity for one point's cut */
     /* Table 5: which lights (indices 0 .. light_count) and environment regions (then, by id
      * offset) were seen unoccluded anywhere in the image; bytes set by any thread. */
     int light_count, visible_slots;
@@ -214,14 +214,14 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
 /* ---- per worker ---------------------------------------------------------------------------- */
 
 typedef struct ias_region {
-    int pixel;          /* index in the batch */
+    int pixel; /* index in the batch */
     pn_hit hit;
     vec3 wo, throughput, origin;
     float eps, radius;
     float raster_x, raster_y; /* where the representative eye ray crossed the image */
     pn_bsdf bsdf;
-    int cls;            /* normal class */
-    double weight;      /* its share of the pixel's eye rays (summed filter weights) */
+    int cls;                  /* normal class */
+    double weight;            /* its share of the pixel's eye rays (summed filter weights) */
     int cut_first, cut_count; /* ids in scratch->cut */
     /* This pass's samples of the region: sums of the luminance and RGB of v / (P(cluster)
      * P(light)), of the squared luminance, and their number. */
@@ -231,27 +231,27 @@ typedef struct ias_region {
 } ias_region;
 
 typedef struct ias_pass {
-    double lum, s2;     /* luminance estimate and the variance of that estimate */
+    double lum, s2; /* luminance estimate and the variance of that estimate */
     vec3 rgb;
     unsigned n;
 } ias_pass;
 
 typedef struct ias_pixel {
     int first_region, region_count;
-    vec3 emitted;       /* filter-weighted mean of what the eye rays saw directly */
-    double weight_sum;  /* filter weights of all eye rays */
+    vec3 emitted;      /* filter-weighted mean of what the eye rays saw directly */
+    double weight_sum; /* filter weights of all eye rays */
     ias_pass passes[IAS_MAX_PASSES_STORED];
     int pass_count;
     uint32_t shadow_rays, visible;
     bool done;
     vec3 result;
-    double clusters;    /* N_C: clusters per point, weighted by region area */
-    double region_weight; /* sum of the regions' weights (the share of rays that hit a surface) */
-    double embree_seconds; /* sampled estimate of the time inside Embree */
-    double cut_seconds;    /* time computing the cluster cuts of its regions */
-    double pdf_seconds;    /* time keeping PDFs: feedback weights, eq. 6, choosing clusters and
+    double clusters;                  /* N_C: clusters per point, weighted by region area */
+    double region_weight;             /* sum of the regions' weights (the share of rays that hit a surface) */
+    double embree_seconds;            /* sampled estimate of the time inside Embree */
+    double cut_seconds;               /* time computing the cluster cuts of its regions */
+    double pdf_seconds;               /* time keeping PDFs: feedback weights, eq. 6, choosing clusters and
                               lights, recording samples (the per-sample part sampled) */
-    uint32_t visible_lights; /* distinct lights / environment regions seen unoccluded */
+    uint32_t visible_lights;          /* distinct lights / environment regions seen unoccluded */
     pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
 } ias_pixel;
 
@@ -261,25 +261,25 @@ typedef struct ias_scratch {
     int region_cap, region_count;
     int *cut;
     int cut_cap, cut_used;
-    pn_ias_stats *block_stats;   /* IAS_CLASSES x id_count */
+    pn_ias_stats *block_stats; /* IAS_CLASSES x id_count */
     bool block_class_used[IAS_CLASSES];
-    int max_pixels;              /* pixels a batch may hold: at least 64, block_size^2 */
-    pn_ias_stats *pixel_pool;    /* max_pixels * IAS_CLASSES slots of id_count */
+    int max_pixels;           /* pixels a batch may hold: at least 64, block_size^2 */
+    pn_ias_stats *pixel_pool; /* max_pixels * IAS_CLASSES slots of id_count */
     int pool_used;
-    ias_pixel *pixels;           /* max_pixels */
+    ias_pixel *pixels; /* max_pixels */
     int pixel_count;
-    unsigned char *pixel_seen;   /* max_pixels x visible_slots flags (Table 5) */
+    unsigned char *pixel_seen; /* max_pixels x visible_slots flags (Table 5) */
     int visible_slots;
-    unsigned *n_of;              /* samples per region of one pixel (aa_rays entries) */
-    double *pdf;                 /* per cut entry */
+    unsigned *n_of; /* samples per region of one pixel (aa_rays entries) */
+    double *pdf;    /* per cut entry */
     double *cdf;
     double *fpix;
     /* Feedback weights F = C / sqrt(u) (eq. 4) computed once instead of per region and pass:
      * the block's for every cluster of every class at the start of each pass (from the previous
      * passes' data, as §4.1 says), the current pixel's for the clusters of its regions' cuts at
      * the start of its pass (kept for the 25-ray steps, which continue "with the current PDFs"). */
-    double *fb_cache;            /* IAS_CLASSES x id_count */
-    double *fp_cache;            /* IAS_CLASSES x id_count, valid where fp_stamp == fp_now */
+    double *fb_cache; /* IAS_CLASSES x id_count */
+    double *fp_cache; /* IAS_CLASSES x id_count, valid where fp_stamp == fp_now */
     uint32_t *fp_stamp;
     uint32_t fp_now;
 } ias_scratch;
@@ -327,8 +327,8 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->n_of = malloc(((size_t)job->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
     s->pixel_seen = calloc((size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
-    if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix ||
-        !s->fb_cache || !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen || !s->pixels) {
+    if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix || !s->fb_cache ||
+        !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen || !s->pixels) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -521,8 +521,10 @@ static int choose(const double *cdf, int n, double u) {
     int lo = 0, hi = n;
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;
-        if (cdf[mid] <= u) lo = mid;
-        else hi = mid;
+        if (cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid;
     }
     while (lo < n - 1 && !(cdf[lo + 1] > cdf[lo])) lo++; /* never a zero-probability entry */
     return lo;
@@ -628,8 +630,10 @@ static bool pixel_rho(const ias_scratch *sc, const ias_pixel *px, double *rho) {
     double last = -1.0;
     for (int j = 0; j < px->pass_count; j++) {
         rho[j] = block_rho_loo(sc, j, px);
-        if (rho[j] >= 0.0) last = rho[j];
-        else rho[j] = last;
+        if (rho[j] >= 0.0)
+            last = rho[j];
+        else
+            rho[j] = last;
     }
     int first = 0;
     while (first < px->pass_count && rho[first] < 0.0) first++;
@@ -749,8 +753,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             float pdf, dist;
             bool ok;
             float pl = 1.0f;
-            if (id < sh->forest.node_count)
-                light = pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
+            if (id < sh->forest.node_count) light = pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
             if (id < sh->forest.node_count) {
                 p_light = (double)pl;
@@ -859,8 +862,8 @@ static uint32_t cross_black_rays(const pn_render_job *job) {
 
 /* The end of a pass under the cross rule: the §5.8 extension and the §5.9 tests, decided from
  * the block's other pixels (pixel_estimate_cross). */
-static void ias_pass_end_cross(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px,
-                               int pass, uint32_t scramble, uint32_t *counter) {
+static void ias_pass_end_cross(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px, int pass,
+                               uint32_t scramble, uint32_t *counter) {
     double L, relvar, rho_last;
     vec3 rgb;
     pixel_estimate_cross(s, px, &L, &relvar, &rgb, &rho_last);
@@ -891,8 +894,8 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                                   void *scratch) {
     const ias_shared *sh = job->integrator_data;
     ias_scratch *s = scratch;
-    const uint32_t scramble =
-        (uint32_t)pn_hash3(job->seed ^ 0x1a5ull, (uint64_t)(uint32_t)batch->block_x, (uint64_t)(uint32_t)batch->block_y);
+    const uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ 0x1a5ull, (uint64_t)(uint32_t)batch->block_x,
+                                                 (uint64_t)(uint32_t)batch->block_y);
     s->region_count = 0;
     s->cut_used = 0;
     s->pool_used = 0;
@@ -900,9 +903,9 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     if (batch->count > s->max_pixels) return PN_ERROR_INTERNAL; /* larger than any block */
     const int np = batch->count;
     s->pixel_count = np;
-    const float pixel_angle = 2.0f * job->camera.tan_half_fov /
-                              (float)(job->camera.full_width < job->camera.full_height ? job->camera.full_width
-                                                                                       : job->camera.full_height);
+    const float pixel_angle =
+        2.0f * job->camera.tan_half_fov /
+        (float)(job->camera.full_width < job->camera.full_height ? job->camera.full_width : job->camera.full_height);
     uint32_t eye_index = 0;
 
     /* Points and antialiasing regions (§4.4). */
@@ -918,8 +921,8 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         for (uint32_t r = 0; r < job->aa_rays; r++) {
             uint32_t i = eye_index++;
             float rx, ry, fw;
-            pn_camera_filter_sample(&job->camera, x, y, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble),
-                                    &rx, &ry, &fw);
+            pn_camera_filter_sample(&job->camera, x, y, pn_sobol_sample(i, 0, scramble),
+                                    pn_sobol_sample(i, 1, scramble), &rx, &ry, &fw);
             vec3 ro, rd;
             pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro,
                           &rd);
@@ -1092,8 +1095,10 @@ static void ias_report(const pn_render_job *job, pn_render_stats *stats) {
     uint32_t lights = 0, regions = 0;
     for (int i = 0; i < sh->visible_slots; i++) {
         if (!atomic_load_explicit(&sh->seen[i], memory_order_relaxed)) continue;
-        if (i < sh->light_count) lights++;
-        else regions++;
+        if (i < sh->light_count)
+            lights++;
+        else
+            regions++;
     }
     stats->lights_visible_viewpoint = lights;
     stats->env_regions_visible_viewpoint = regions;

@@ -92,8 +92,8 @@
 #include <string.h>
 
 #define IC_LEAF_SIZE 1
-#define IC_MAX_SPLITS 96          /* binary splits along a root-to-leaf path (then a leaf) */
-#define IC_PHASE1_RATIO 0.1f      /* max(r(R), r(Q)) < 0.1 d(R, Q) */
+#define IC_MAX_SPLITS 96               /* binary splits along a root-to-leaf path (then a leaf) */
+#define IC_PHASE1_RATIO 0.1f           /* max(r(R), r(Q)) < 0.1 d(R, Q) */
 #define IC_PHASE1_APERTURE 0.34906585f /* 20 degrees */
 
 typedef struct ic_point {
@@ -162,7 +162,8 @@ typedef struct ic_cell {
 
 /* Partitions [first, first+count) at the cell's next midplane; returns the size of the low
  * side. */
-static int32_t partition(ic_point *pts, int32_t first, int32_t count, ic_cell *cell, ic_cell *lo_cell, ic_cell *hi_cell) {
+static int32_t partition(ic_point *pts, int32_t first, int32_t count, ic_cell *cell, ic_cell *lo_cell,
+                         ic_cell *hi_cell) {
     int normal_space = cell->split < 9;
     int axis = cell->split % 3;
     vec3 *clo = normal_space ? &cell->nlo : &cell->plo, *chi = normal_space ? &cell->nhi : &cell->phi;
@@ -183,9 +184,12 @@ static int32_t partition(ic_point *pts, int32_t first, int32_t count, ic_cell *c
     lo_cell->split = hi_cell->split = cell->split + 1;
     vec3 *l_hi = normal_space ? &lo_cell->nhi : &lo_cell->phi;
     vec3 *h_lo = normal_space ? &hi_cell->nlo : &hi_cell->plo;
-    if (axis == 0) l_hi->x = h_lo->x = mid;
-    else if (axis == 1) l_hi->y = h_lo->y = mid;
-    else l_hi->z = h_lo->z = mid;
+    if (axis == 0)
+        l_hi->x = h_lo->x = mid;
+    else if (axis == 1)
+        l_hi->y = h_lo->y = mid;
+    else
+        l_hi->z = h_lo->z = mid;
     return i - first;
 }
 
@@ -281,8 +285,8 @@ static pn_status build_point_tree(ic_tree *t, uint64_t seed) {
     if (build_node(t, 0, t->point_count, cell, seed) < 0) return PN_ERROR_OUT_OF_MEMORY;
     for (int32_t i = 0; i < t->node_count; i++) {
         ic_node *n = &t->nodes[i];
-        pn_receiver_bounds b = {n->lo, n->hi, n->n_axis, n->n_half, n->r_axis, n->r_half, n->kd_max, n->ks_max, n->n_min,
-                                n->n_max, 0.0f, 0.0f, 0.0f, 0.0f};
+        pn_receiver_bounds b = {n->lo,     n->hi,    n->n_axis, n->n_half, n->r_axis, n->r_half, n->kd_max,
+                                n->ks_max, n->n_min, n->n_max,  0.0f,      0.0f,      0.0f,      0.0f};
         pn_receiver_bounds_set_cones(&b);
         n->n_cos = b.n_cos, n->n_sin = b.n_sin, n->r_cos = b.r_cos, n->r_sin = b.r_sin;
     }
@@ -290,12 +294,14 @@ static pn_status build_point_tree(ic_tree *t, uint64_t seed) {
 }
 
 static pn_receiver_bounds node_bounds(const ic_node *n) {
-    pn_receiver_bounds b = {n->lo, n->hi, n->n_axis, n->n_half, n->r_axis, n->r_half, n->kd_max, n->ks_max, n->n_min, n->n_max,
-                            n->n_cos, n->n_sin, n->r_cos, n->r_sin};
+    pn_receiver_bounds b = {n->lo,     n->hi,    n->n_axis, n->n_half, n->r_axis, n->r_half, n->kd_max,
+                            n->ks_max, n->n_min, n->n_max,  n->n_cos,  n->n_sin,  n->r_cos,  n->r_sin};
     return b;
 }
 
-static float node_radius(const ic_node *n) { return 0.5f * v3_length(v3_sub(n->hi, n->lo)); }
+static float node_radius(const ic_node *n) {
+    return 0.5f * v3_length(v3_sub(n->hi, n->lo));
+}
 
 /* ---- shared state of one render ------------------------------------------------------------- */
 
@@ -343,7 +349,9 @@ static void ic_step(ic_render *ir) {
     pn_progress_report(ir->progress, (double)done / (double)ir->progress_items);
 }
 
-static bool ic_cancelled(const ic_render *ir) { return atomic_load(ir->job->cancel) != 0; }
+static bool ic_cancelled(const ic_render *ir) {
+    return atomic_load(ir->job->cancel) != 0;
+}
 
 static float light_radius(const ic_render *ir, const pn_light_node *q, int kind) {
     float r = pn_light_node_radius(q);
@@ -410,10 +418,10 @@ typedef struct ic_item {
 } ic_item;
 
 typedef struct ic_group {
-    int32_t root;    /* point-tree node */
+    int32_t root; /* point-tree node */
     ic_item *items;
     size_t n, cap;
-    pair_stack pending; /* pairs below the group root, descended by the group's worker */
+    pair_stack pending;  /* pairs below the group root, descended by the group's worker */
     pair_stack pending1; /* the same for Phase I */
 } ic_group;
 
@@ -448,10 +456,12 @@ static bool phase1_descend(ic_render *ir, pair_stack *st, int32_t group) {
         }
         bool refine_q = pn_illumcut_phase1_refines_light(rR, rQ, narrow, r_leaf, q_leaf);
         if (refine_q) {
-            if (!stack_push(st, (ic_pair){pr.r, Q->left, pr.kind}) || !stack_push(st, (ic_pair){pr.r, Q->right, pr.kind}))
+            if (!stack_push(st, (ic_pair){pr.r, Q->left, pr.kind}) ||
+                !stack_push(st, (ic_pair){pr.r, Q->right, pr.kind}))
                 return false;
         } else {
-            if (!stack_push(st, (ic_pair){R->left, pr.q, pr.kind}) || !stack_push(st, (ic_pair){R->right, pr.q, pr.kind}))
+            if (!stack_push(st, (ic_pair){R->left, pr.q, pr.kind}) ||
+                !stack_push(st, (ic_pair){R->right, pr.q, pr.kind}))
                 return false;
         }
     }
@@ -508,7 +518,8 @@ static pn_status phase1(ic_render *ir, pn_threadpool *pool) {
             n->color = fminf(t->nodes[n->left].color, t->nodes[n->right].color);
         } else {
             float m = INFINITY;
-            for (int32_t j = n->first; j < n->first + n->count; j++) m = fminf(m, fmaxf(0.0f, v3_luminance(t->points[j].approx)));
+            for (int32_t j = n->first; j < n->first + n->count; j++)
+                m = fminf(m, fmaxf(0.0f, v3_luminance(t->points[j].approx)));
             n->color = m;
         }
     }
@@ -533,10 +544,10 @@ static pn_status phase1(ic_render *ir, pn_threadpool *pool) {
  * is added in the same order as without the queue. */
 #define IC_QUEUE 256
 typedef struct ic_rays {
-    int n, nr;                  /* entries, rays among them */
+    int n, nr; /* entries, rays among them */
     int32_t point[IC_QUEUE];
     vec3 c[IC_QUEUE];
-    signed char ray[IC_QUEUE];  /* index into the rays, or -1 */
+    signed char ray[IC_QUEUE]; /* index into the rays, or -1 */
     vec3 o[IC_PACKET], d[IC_PACKET];
     float tmin[IC_PACKET], tmax[IC_PACKET];
 } ic_rays;
@@ -645,8 +656,10 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
     for (int i = 0; i < nr; i++) vis[slot[i]] = occ[i] ? 0 : 1;
     int visible = 0, occluded = 0;
     for (int32_t k = 0; k < vs; k++) {
-        if (vis[k] == 1) visible++;
-        else if (vis[k] == 0) occluded++;
+        if (vis[k] == 1)
+            visible++;
+        else if (vis[k] == 0)
+            occluded++;
     }
     if (visible > 0 && occluded == 0) {
         for (int32_t i = a; i < b; i++) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1));
@@ -715,10 +728,12 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, ic_rays *que
             float ub = pn_bound_error(&rb, &lb, Q->intensity, min_dist2);
             n_bounds++;
             R->bound_acc += 1.0f / (float)R->count;
-            if (ub <= 0.0f) continue; /* nothing of Q reaches R */
+            if (ub <= 0.0f) continue;            /* nothing of Q reaches R */
             bool passes = delta * R->color > ub; /* IsIllumAwarePair, eq. 4-5 */
-            if (q_leaf) leaf_ok = passes;
-            else shade = passes;
+            if (q_leaf)
+                leaf_ok = passes;
+            else
+                shade = passes;
         }
         if (shade) {
             n_pairs++;
@@ -731,8 +746,10 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, ic_rays *que
                 int32_t lo = 0, hi = ir->group_count;
                 while (hi - lo > 1) {
                     int32_t mid = (lo + hi) / 2;
-                    if (t->nodes[ir->groups[mid].root].first <= R->first) lo = mid;
-                    else hi = mid;
+                    if (t->nodes[ir->groups[mid].root].first <= R->first)
+                        lo = mid;
+                    else
+                        hi = mid;
                 }
                 for (int32_t g = lo; g < ir->group_count; g++) {
                     const ic_node *G = &t->nodes[ir->groups[g].root];
@@ -750,12 +767,14 @@ static bool algorithm1(ic_render *ir, pair_stack *W, int32_t group, ic_rays *que
         }
         bool refine_q = r_leaf || (light_radius(ir, Q, pr.kind) > node_radius(R));
         if (refine_q) {
-            if (!stack_push(W, (ic_pair){pr.r, Q->left, pr.kind}) || !stack_push(W, (ic_pair){pr.r, Q->right, pr.kind})) {
+            if (!stack_push(W, (ic_pair){pr.r, Q->left, pr.kind}) ||
+                !stack_push(W, (ic_pair){pr.r, Q->right, pr.kind})) {
                 ok = false;
                 break;
             }
         } else {
-            if (!stack_push(W, (ic_pair){R->left, pr.q, pr.kind}) || !stack_push(W, (ic_pair){R->right, pr.q, pr.kind})) {
+            if (!stack_push(W, (ic_pair){R->left, pr.q, pr.kind}) ||
+                !stack_push(W, (ic_pair){R->right, pr.q, pr.kind})) {
                 ok = false;
                 break;
             }
@@ -1073,7 +1092,9 @@ static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *
     return illumcut_render_pixels(job, pool, NULL, NULL, (int32_t)width * height, width, pixels);
 }
 
-static pn_status illumcut_prepare(pn_render_job *job, pn_err *err) { return pn_vpl_prepare(job, true, err); }
+static pn_status illumcut_prepare(pn_render_job *job, pn_err *err) {
+    return pn_vpl_prepare(job, true, err);
+}
 
 /* For drivers that hand out batches (the default driver uses the whole-image hook instead): the
  * point tree spans the batch, on the calling thread. */
@@ -1118,7 +1139,8 @@ int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, ui
         if (n->first < 0 || n->count <= 0 || n->first + n->count > count) bad = why = 1;
         if (n->left >= 0) {
             const ic_node *a = &t.nodes[n->left], *b = &t.nodes[n->right];
-            if (a->first != n->first || b->first != a->first + a->count || a->count + b->count != n->count) bad = why = 2;
+            if (a->first != n->first || b->first != a->first + a->count || a->count + b->count != n->count)
+                bad = why = 2;
             if (n->left <= i || n->right <= i) bad = why = 3;
         } else {
             for (int32_t j = n->first; j < n->first + n->count; j++) seen[t.points[j].sample]++;
@@ -1127,12 +1149,16 @@ int pn_illumcut_check_point_tree(const pn_vpl_receiver *receivers, int count, ui
         for (int32_t j = n->first; j < n->first + n->count && !bad; j++) {
             const pn_vpl_receiver *r = &t.points[j].r;
             vec3 p = r->p;
-            if (p.x < n->lo.x || p.y < n->lo.y || p.z < n->lo.z || p.x > n->hi.x || p.y > n->hi.y || p.z > n->hi.z) bad = why = 5;
-            if (atan2f(v3_length(v3_cross(r->ns, n->n_axis)), v3_dot(r->ns, n->n_axis)) > n->n_half + 1e-4f) bad = why = 6;
+            if (p.x < n->lo.x || p.y < n->lo.y || p.z < n->lo.z || p.x > n->hi.x || p.y > n->hi.y || p.z > n->hi.z)
+                bad = why = 5;
+            if (atan2f(v3_length(v3_cross(r->ns, n->n_axis)), v3_dot(r->ns, n->n_axis)) > n->n_half + 1e-4f)
+                bad = why = 6;
             vec3 refl = pn_reflect(r->wo, r->ns);
-            if (atan2f(v3_length(v3_cross(refl, n->r_axis)), v3_dot(refl, n->r_axis)) > n->r_half + 1e-4f) bad = why = 7;
+            if (atan2f(v3_length(v3_cross(refl, n->r_axis)), v3_dot(refl, n->r_axis)) > n->r_half + 1e-4f)
+                bad = why = 7;
             bool glossy = !v3_is_zero(r->ks);
-            if (r->kd.x > n->kd_max.x || r->ks.y > n->ks_max.y || (glossy && (r->exponent < n->n_min || r->exponent > n->n_max)))
+            if (r->kd.x > n->kd_max.x || r->ks.y > n->ks_max.y ||
+                (glossy && (r->exponent < n->n_min || r->exponent > n->n_max)))
                 bad = why = 8;
         }
     }

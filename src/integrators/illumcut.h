@@ -28,13 +28,14 @@ void pn_vpl_release(pn_render_job *job);
 void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats);
 
 /* Eye samples per pixel of the VPL integrators: spp, or 1 when spp is 0 (adaptive). */
-static inline uint32_t pn_vpl_spp(const pn_render_job *job) { return job->spp > 0 ? job->spp : 1u; }
+static inline uint32_t pn_vpl_spp(const pn_render_job *job) {
+    return job->spp > 0 ? job->spp : 1u;
+}
 /* The same, as pn_integrator.batch_points: vpl and lightcuts take their points from the batch. */
 uint32_t pn_vpl_batch_points(const pn_render_job *job);
 
 /* pn_shading_point, one eye sample of a pixel followed through specular chains, is render/'s
  * (render/batch.h): the tiled driver traces them for the VPL integrators. */
-
 
 /* Lightcuts for one receiver outside a render (lightcuts.c; used by the tests): the estimate, the
  * sum of the final cut's error bounds (the guarantee: |estimate - exact| <= that sum), the cut

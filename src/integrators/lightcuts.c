@@ -99,8 +99,9 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
                            uint32_t *shadow_rays, uint64_t *bounds, uint64_t *cut_size, float *bound_sum) {
     const pn_light_tree *t = cx->tree;
     const pn_vpl_set *set = cx->set;
-    pn_receiver_bounds rb = {r->p, r->p, r->ns, 0.0f, pn_reflect(r->wo, r->ns), 0.0f, r->kd, r->ks, r->exponent, r->exponent,
-                             1.0f, 0.0f, 1.0f, 0.0f};
+    pn_receiver_bounds rb = {r->p, r->p,  r->ns, 0.0f,        pn_reflect(r->wo, r->ns),
+                             0.0f, r->kd, r->ks, r->exponent, r->exponent,
+                             1.0f, 0.0f,  1.0f,  0.0f};
     size_t n = 0;
     vec3 total = v3(0, 0, 0);
     uint64_t finished = 0; /* clusters of the cut outside the heap (exact leaves, zero bounds) */
@@ -156,7 +157,9 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
     return true;
 }
 
-static pn_status lc_prepare(pn_render_job *job, pn_err *err) { return pn_vpl_prepare(job, true, err); }
+static pn_status lc_prepare(pn_render_job *job, pn_err *err) {
+    return pn_vpl_prepare(job, true, err);
+}
 
 static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                  void *scratch) {
@@ -179,7 +182,8 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
             vec3 value = sp.emitted;
             if (sp.has_point) {
                 vec3 L;
-                if (!lightcut_point(&cx, s, &sp.r, &L, &o->shadow_rays, &bounds, &cut, NULL)) return PN_ERROR_OUT_OF_MEMORY;
+                if (!lightcut_point(&cx, s, &sp.r, &L, &o->shadow_rays, &bounds, &cut, NULL))
+                    return PN_ERROR_OUT_OF_MEMORY;
                 pts++;
                 value = v3_add(value, v3_mul(sp.throughput, L));
             }

@@ -64,8 +64,10 @@ static int choose_light(const pn_reference_direct_scratch *s, int m, float total
     int lo = 0, hi = m; /* find k with cdf[k] <= target < cdf[k+1] */
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;
-        if (s->cdf[mid] <= target) lo = mid;
-        else hi = mid;
+        if (s->cdf[mid] <= target)
+            lo = mid;
+        else
+            hi = mid;
     }
     *prob = (s->cdf[lo + 1] - s->cdf[lo]) / total;
     return lo;

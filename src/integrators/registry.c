@@ -40,19 +40,23 @@ enum {
 #define CONTOUR_FAMILY (BIT(M_CONTOUR) | BIT(M_CONTOUR_MC))
 #define PROGRESSIVE_DRIVERS (BIT(M_FULL) | BIT(M_DCM) | BIT(M_PAINTER) | BIT(M_UNIFORM))
 
-#define DIRECT "direct light only: the emitters' light reflected once, and emitters seen directly or through specular chains"
-#define GLOBAL "global illumination through VPLs (light paths of --vpl-depth bounces), direct light included; direct light only with --vpl-direct-only or a scene of maxdepth 1"
+#define DIRECT                                                                                                         \
+    "direct light only: the emitters' light reflected once, and emitters seen directly or through specular chains"
+#define GLOBAL                                                                                                         \
+    "global illumination through VPLs (light paths of --vpl-depth bounces), direct light included; direct light only " \
+    "with --vpl-direct-only or a scene of maxdepth 1"
 #define PROG_AOVS (PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION)
 #define PROG_CAPS (PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_OWN_AOVS)
 
 static const pn_method_entry methods[M_COUNT] = {
-    [M_REFERENCE] = {{"reference", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_REFERENCE,
-                      "Monte Carlo reference: shadow rays to lights chosen by unoccluded irradiance (or pbrt-v4's light BVH)",
-                      "Donikian et al. 2006, section 5.1", DIRECT,
-                      PN_CAP_PER_PIXEL | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP | PN_CAP_THRESHOLD |
-                          PN_CAP_EMITTED | PN_CAP_EYE_SAMPLES,
-                      0, "", 64},
-                     &pn_integrator_reference},
+    [M_REFERENCE] =
+        {{"reference", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_REFERENCE,
+          "Monte Carlo reference: shadow rays to lights chosen by unoccluded irradiance (or pbrt-v4's light BVH)",
+          "Donikian et al. 2006, section 5.1", DIRECT,
+          PN_CAP_PER_PIXEL | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP | PN_CAP_THRESHOLD | PN_CAP_EMITTED |
+              PN_CAP_EYE_SAMPLES,
+          0, "", 64},
+         &pn_integrator_reference},
     [M_IAS] = {{"ias", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_IAS,
                 "Iterative Adaptive Sampling: per-block PDFs over light clusters, refined pass by pass",
                 "Donikian et al. 2006, Accurate Direct Illumination Using Iterative Adaptive Sampling", DIRECT,
@@ -69,8 +73,8 @@ static const pn_method_entry methods[M_COUNT] = {
     [M_CONTOUR_MC] = {{"contour-mc", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_CONTOUR_MC,
                        "contour's comparison: adaptive Monte Carlo sampling of the same area lights",
                        "Kok & Jansen 1992, Adaptive Sampling of Area Light Sources in Ray Tracing", DIRECT,
-                       PN_CAP_PER_BLOCK | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP, PN_AOV_GRADIENT, "contour_rays",
-                       1},
+                       PN_CAP_PER_BLOCK | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP, PN_AOV_GRADIENT,
+                       "contour_rays", 1},
                       &pn_integrator_contour_mc},
     [M_VPL] = {{"vpl", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_VPL,
                 "every shading point against every virtual point light (the reference of IlluminationCut)",
@@ -85,8 +89,7 @@ static const pn_method_entry methods[M_COUNT] = {
                      &pn_integrator_lightcuts},
     [M_ILLUMCUT] = {{"illumcut", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_ILLUMCUT,
                      "IlluminationCut: cuts of the product of a point tree and the VPL tree, over the whole image",
-                     "Bus et al. 2015, IlluminationCut", GLOBAL,
-                     PN_CAP_WHOLE_IMAGE | PN_CAP_PROGRESSIVE | PN_CAP_SPP,
+                     "Bus et al. 2015, IlluminationCut", GLOBAL, PN_CAP_WHOLE_IMAGE | PN_CAP_PROGRESSIVE | PN_CAP_SPP,
                      PN_AOV_BOUND_EVALUATIONS | PN_AOV_CUT_SIZE | PN_AOV_PHASE1, "vpl_cuts", 1},
                     &pn_integrator_illumcut},
     [M_TILES] = {{"tiles", PN_METHOD_DRIVER, PN_DRIVER_DEFAULT,
@@ -96,8 +99,7 @@ static const pn_method_entry methods[M_COUNT] = {
     [M_FULL] = {{"full", PN_METHOD_DRIVER, PN_DRIVER_FULL,
                  "every pixel of the work image (work-scale x the resolution), then the Gaussian filter: the "
                  "baseline of the progressive drivers",
-                 "Guo 1998 (its full-evaluation baseline)", "every work pixel", PROG_CAPS, PROG_AOVS,
-                 "progressive", 0},
+                 "Guo 1998 (its full-evaluation baseline)", "every work pixel", PROG_CAPS, PROG_AOVS, "progressive", 0},
                 NULL},
     [M_DCM] = {{"dcm", PN_METHOD_DRIVER, PN_DRIVER_DCM,
                 "Directional Coherence Maps: a few percent of the work pixels, edges found and interpolated along "
@@ -112,8 +114,8 @@ static const pn_method_entry methods[M_COUNT] = {
                    NULL},
     [M_UNIFORM] = {{"uniform", PN_METHOD_DRIVER, PN_DRIVER_UNIFORM,
                     "regular subdivision only: uniform subsampling and bilinear interpolation", "",
-                    "a regular subset of the work pixels, the rest interpolated", PROG_CAPS, PROG_AOVS,
-                    "progressive", 0},
+                    "a regular subset of the work pixels, the rest interpolated", PROG_CAPS, PROG_AOVS, "progressive",
+                    0},
                    NULL},
 };
 
@@ -127,119 +129,229 @@ static const pn_option_decl options[] = {
     {{"light-sampler", PN_OPTION_CHOICE, "irradiance", 0, 0, 0, 0, "", "irradiance,bvh",
       "how a light is chosen for each shadow ray: a PDF over all lights by unoccluded irradiance (section 5.1) "
       "or pbrt-v4's light BVH"},
-     BIT(M_REFERENCE), F(light_sampler), PN_FIELD_INT, PN_LIGHT_SAMPLER_IRRADIANCE},
+     BIT(M_REFERENCE),
+     F(light_sampler),
+     PN_FIELD_INT,
+     PN_LIGHT_SAMPLER_IRRADIANCE},
     {{"shadow-rays", PN_OPTION_INT, "4", 1, 65536, 0, 0, "rays", "",
       "shadow rays per eye ray (contour, contour-mc: for the lights they do not integrate themselves)"},
-     BIT(M_REFERENCE) | CONTOUR_FAMILY, F(shadow_rays), PN_FIELD_U32, 0},
-    {{"max-samples", PN_OPTION_INT, "20000", 1, UINT32_TOP, 0, 0, "rays",
-      "", "at most this many shadow rays per pixel (section 5.9)"},
-     BIT(M_REFERENCE), F(max_shadow_rays), PN_FIELD_U32, 0},
+     BIT(M_REFERENCE) | CONTOUR_FAMILY,
+     F(shadow_rays),
+     PN_FIELD_U32,
+     0},
+    {{"max-samples", PN_OPTION_INT, "20000", 1, UINT32_TOP, 0, 0, "rays", "",
+      "at most this many shadow rays per pixel (section 5.9)"},
+     BIT(M_REFERENCE),
+     F(max_shadow_rays),
+     PN_FIELD_U32,
+     0},
     {{"min-shadow-rays-black", PN_OPTION_INT, "2500", 1, UINT32_TOP, 0, 0, "rays", "",
       "shadow rays before an adaptive pixel may be declared black (section 5.9)"},
-     BIT(M_REFERENCE), F(min_shadow_rays_black), PN_FIELD_U32, 0},
+     BIT(M_REFERENCE),
+     F(min_shadow_rays_black),
+     PN_FIELD_U32,
+     0},
     {{"min-eye-rays", PN_OPTION_INT, "4", 1, 1048576, 0, 0, "rays", "",
       "eye rays per pixel before the adaptive threshold test"},
-     BIT(M_REFERENCE), F(min_eye_rays), PN_FIELD_U32, 0},
+     BIT(M_REFERENCE),
+     F(min_eye_rays),
+     PN_FIELD_U32,
+     0},
     {{"adaptive-rule", PN_OPTION_CHOICE, "auto", 0, 0, 0, 0, "", "auto,paper,cross",
       "with a threshold, when a pixel stops taking eye rays: 'cross' (two independent eye-ray streams, each "
       "sized by the other's pilot: unbiased; ias: the test on the block's other pixels), 'paper' (s^2/L^2 of "
       "the kept samples, sections 5.1 and 5.9: biased) or 'auto' (cross for reference, paper for ias, the "
       "faster of the two on the bench scenes: docs/adaptive-sampling.md)"},
-     BIT(M_REFERENCE) | BIT(M_IAS), F(adaptive_rule), PN_FIELD_INT, PN_ADAPTIVE_AUTO},
+     BIT(M_REFERENCE) | BIT(M_IAS),
+     F(adaptive_rule),
+     PN_FIELD_INT,
+     PN_ADAPTIVE_AUTO},
     /* ias */
     {{"cluster-solid-angle", PN_OPTION_DOUBLE, "0.02", 0, 12.6, 1, 0, "sr", "",
       "largest solid angle of a light cluster seen from a point"},
-     BIT(M_IAS), F(cluster_solid_angle), PN_FIELD_F32, 0},
-    {{"aa-rays", PN_OPTION_INT, "32", 1, 4096, 0, 0, "rays", "", "eye rays per pixel grouped into antialiasing regions"},
-     BIT(M_IAS), F(aa_rays), PN_FIELD_U32, 0},
+     BIT(M_IAS),
+     F(cluster_solid_angle),
+     PN_FIELD_F32,
+     0},
+    {{"aa-rays", PN_OPTION_INT, "32", 1, 4096, 0, 0, "rays", "",
+      "eye rays per pixel grouped into antialiasing regions"},
+     BIT(M_IAS),
+     F(aa_rays),
+     PN_FIELD_U32,
+     0},
     {{"env-regions", PN_OPTION_INT, "300", 1, 100000, 0, 0, "regions", "", "regions of an environment map"},
-     BIT(M_IAS), F(env_regions), PN_FIELD_U32, 0},
+     BIT(M_IAS),
+     F(env_regions),
+     PN_FIELD_U32,
+     0},
     {{"max-passes", PN_OPTION_INT, "15", 1, 64, 0, 0, "passes", "", "passes per block"},
-     BIT(M_IAS), F(max_passes), PN_FIELD_U32, 0},
+     BIT(M_IAS),
+     F(max_passes),
+     PN_FIELD_U32,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},
-     BIT(M_TILES), F(block_size), PN_FIELD_U32, 0},
+     BIT(M_TILES),
+     F(block_size),
+     PN_FIELD_U32,
+     0},
     /* vpl, lightcuts, illumcut */
     {{"vpls", PN_OPTION_INT, "600000", 1, 100000000, 0, 0, "VPLs", "", "virtual point lights to trace"},
-     VPL_FAMILY, F(vpls), PN_FIELD_U32, 0},
+     VPL_FAMILY,
+     F(vpls),
+     PN_FIELD_U32,
+     0},
     {{"vpl-depth", PN_OPTION_INT, "10", 1, 1000, 0, 0, "bounces", "",
       "light path bounces that leave VPLs (not given: the scene's Integrator maxdepth - 1, and maxdepth 1 means "
       "vpl-direct-only; without maxdepth 10)"},
-     VPL_FAMILY, F(vpl_max_depth), PN_FIELD_U32, 0},
+     VPL_FAMILY,
+     F(vpl_max_depth),
+     PN_FIELD_U32,
+     0},
     {{"vpl-direct-only", PN_OPTION_FLAG, "0", 0, 0, 0, 0, "", "",
       "direct light only, the quantity reference, ias and contour compute: the lights themselves as VPLs (points "
       "sampled on area lights and environment maps by their emission), no bounces; excludes vpl-depth, and no "
       "clamp unless vpl-clamp is given"},
-     VPL_FAMILY, F(vpl_direct_only), PN_FIELD_BOOL, 0},
+     VPL_FAMILY,
+     F(vpl_direct_only),
+     PN_FIELD_BOOL,
+     0},
     {{"vpl-clamp", PN_OPTION_DOUBLE, "0.05", 0, 1, 1, 1, "scene radius", "",
       "minimum distance between a point and a VPL, as a fraction of the scene radius"},
-     VPL_FAMILY, F(vpl_clamp_fraction), PN_FIELD_F32, 0},
+     VPL_FAMILY,
+     F(vpl_clamp_fraction),
+     PN_FIELD_F32,
+     0},
     {{"error", PN_OPTION_DOUBLE, "0.01", 0, 1, 1, 1, "", "", "relative error bound of a cut"},
-     BIT(M_LIGHTCUTS) | BIT(M_ILLUMCUT), F(error_bound), PN_FIELD_F32, 0},
+     BIT(M_LIGHTCUTS) | BIT(M_ILLUMCUT),
+     F(error_bound),
+     PN_FIELD_F32,
+     0},
     {{"max-cut", PN_OPTION_INT, "0", 1, 100000000, 0, 0, "clusters", "",
       "at most this many clusters per point (default 0: no limit)"},
-     BIT(M_LIGHTCUTS), F(max_cut), PN_FIELD_U32, 0},
+     BIT(M_LIGHTCUTS),
+     F(max_cut),
+     PN_FIELD_U32,
+     0},
     {{"visibility", PN_OPTION_CHOICE, "exact", 0, 0, 0, 0, "", "exact,sampling",
       "a shadow ray per point and pair, or adaptive visibility sampling (Algorithm 2)"},
-     BIT(M_ILLUMCUT), F(visibility_sampling), PN_FIELD_BOOL, 0},
+     BIT(M_ILLUMCUT),
+     F(visibility_sampling),
+     PN_FIELD_BOOL,
+     0},
     /* contour, contour-mc */
     {{"contour-grid", PN_OPTION_INT, "3", 2, 65, 0, 0, "samples", "",
       "first-level samples per side of a source (3: a 3x3 grid of 9)"},
-     CONTOUR_FAMILY, F(contour_grid), PN_FIELD_U32, 0},
+     CONTOUR_FAMILY,
+     F(contour_grid),
+     PN_FIELD_U32,
+     0},
     {{"contour-steps", PN_OPTION_INT, "5", 1, 12, 0, 0, "steps", "", "dichotomy steps"},
-     CONTOUR_FAMILY, F(contour_steps), PN_FIELD_U32, 0},
+     CONTOUR_FAMILY,
+     F(contour_steps),
+     PN_FIELD_U32,
+     0},
     {{"contour-span", PN_OPTION_INT, "8", 1, 64, 0, 0, "pixels", "", "longest span of pixels sharing first-level rays"},
-     CONTOUR_FAMILY, F(contour_span), PN_FIELD_U32, 0},
-    {{"contour-off", PN_OPTION_SET, "", 0, 0, 0, 0, "", "shaft,spans,validity,adaptive,restarts,islands,half,scouts,linear",
+     CONTOUR_FAMILY,
+     F(contour_span),
+     PN_FIELD_U32,
+     0},
+    {{"contour-off", PN_OPTION_SET, "", 0, 0, 0, 0, "",
+      "shaft,spans,validity,adaptive,restarts,islands,half,scouts,linear",
       "parts switched off for comparisons: shaft culling, spans, the validity test (Fig. 6's failure), the adaptive "
       "first-level density, restarts; our departures: island probes, half checks, scout probes, linear runs"},
-     CONTOUR_FAMILY, F(contour_flags), PN_FIELD_U32, 0},
+     CONTOUR_FAMILY,
+     F(contour_flags),
+     PN_FIELD_U32,
+     0},
     {{"contour-scout", PN_OPTION_INT, "-1", 0, 3, 0, 0, "", "",
       "scout probes inside agreeing first-level squares: 0 none, 1 4 points, 2 16, 3 49 (default -1: 3 with a "
       "fixed first-level density, else 1)"},
-     BIT(M_CONTOUR), F(contour_scout), PN_FIELD_INT, 0},
+     BIT(M_CONTOUR),
+     F(contour_scout),
+     PN_FIELD_INT,
+     0},
     {{"contour-part", PN_OPTION_CHOICE, "2", 0, 0, 0, 0, "", "1,2,4",
       "runs check 1/part of their first-level samples from their third pixel on"},
-     BIT(M_CONTOUR), F(contour_part), PN_FIELD_INT, 0},
+     BIT(M_CONTOUR),
+     F(contour_part),
+     PN_FIELD_INT,
+     0},
     {{"contour-linear-tol", PN_OPTION_DOUBLE, "0.003", 0, 1, 0, 0, "", "",
       "tolerance of the test that interpolates a run linearly"},
-     BIT(M_CONTOUR), F(contour_linear_tol), PN_FIELD_F64, 0},
+     BIT(M_CONTOUR),
+     F(contour_linear_tol),
+     PN_FIELD_F64,
+     0},
     {{"contour-trace", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
       "bench instrumentation: write one line per pixel on where its shadow rays went to this file"},
-     BIT(M_CONTOUR), F(contour_trace), PN_FIELD_STRING, 0},
+     BIT(M_CONTOUR),
+     F(contour_trace),
+     PN_FIELD_STRING,
+     0},
     {{"mc-threshold", PN_OPTION_DOUBLE, "0.002", 0, INFINITY, 1, 0, "", "",
       "refine a cell while its standard error exceeds this times the source's unoccluded form factor"},
-     BIT(M_CONTOUR_MC), F(contour_mc_threshold), PN_FIELD_F64, 0},
+     BIT(M_CONTOUR_MC),
+     F(contour_mc_threshold),
+     PN_FIELD_F64,
+     0},
     {{"mc-max-rays", PN_OPTION_INT, "256", 4, 1048576, 0, 0, "rays", "", "shadow rays per source and point, at most"},
-     BIT(M_CONTOUR_MC), F(contour_mc_max_rays), PN_FIELD_U32, 0},
+     BIT(M_CONTOUR_MC),
+     F(contour_mc_max_rays),
+     PN_FIELD_U32,
+     0},
     /* progressive drivers */
-    {{"work-scale", PN_OPTION_INT, "3", 1, 16, 0, 0, "", "", "the work image is this many times the output resolution per side"},
-     PROGRESSIVE_DRIVERS, F(work_scale), PN_FIELD_INT, 0},
+    {{"work-scale", PN_OPTION_INT, "3", 1, 16, 0, 0, "", "",
+      "the work image is this many times the output resolution per side"},
+     PROGRESSIVE_DRIVERS,
+     F(work_scale),
+     PN_FIELD_INT,
+     0},
     {{"snapshots", PN_OPTION_LIST, "", 0, 100, 1, 0, "%", "",
       "approximate images when these percentages of the work pixels are evaluated"},
-     PROGRESSIVE_DRIVERS, F(snapshots), PN_FIELD_LIST, 0},
+     PROGRESSIVE_DRIVERS,
+     F(snapshots),
+     PN_FIELD_LIST,
+     0},
     {{"snapshot-every", PN_OPTION_DOUBLE, "0", 0, INFINITY, 1, 0, "s", "",
       "and an approximate image every so many seconds (default 0: never)"},
-     PROGRESSIVE_DRIVERS, F(snapshot_every_seconds), PN_FIELD_F64, 0},
+     PROGRESSIVE_DRIVERS,
+     F(snapshot_every_seconds),
+     PN_FIELD_F64,
+     0},
     {{"stop-at", PN_OPTION_DOUBLE, "0", 0, 100, 1, 0, "%", "",
       "stop after this percentage of the work pixels (default 0: run to the end)"},
-     PROGRESSIVE_DRIVERS, F(stop_percent), PN_FIELD_F64, 0},
+     PROGRESSIVE_DRIVERS,
+     F(stop_percent),
+     PN_FIELD_F64,
+     0},
     {{"raw-radiance", PN_OPTION_FLAG, "0", 0, 0, 0, 0, "", "",
       "interpolate radiance itself, not (radiance - emitted) / albedo"},
-     PROGRESSIVE_DRIVERS, F(raw_radiance), PN_FIELD_BOOL, 0},
+     PROGRESSIVE_DRIVERS,
+     F(raw_radiance),
+     PN_FIELD_BOOL,
+     0},
     {{"no-light-guide", PN_OPTION_FLAG, "0", 0, 0, 0, 0, "", "",
       "divide by the albedo only, not also by the lights' unshadowed irradiance"},
-     PROGRESSIVE_DRIVERS, F(no_light_guide), PN_FIELD_BOOL, 0},
+     PROGRESSIVE_DRIVERS,
+     F(no_light_guide),
+     PN_FIELD_BOOL,
+     0},
     {{"primary-grid", PN_OPTION_INT, "3", 1, 8, 0, 0, "rays per side", "",
       "g x g primary rays per work pixel measure its albedo and emitted radiance where they change"},
-     PROGRESSIVE_DRIVERS, F(primary_grid), PN_FIELD_INT, 0},
+     PROGRESSIVE_DRIVERS,
+     F(primary_grid),
+     PN_FIELD_INT,
+     0},
 };
 #define OPTION_COUNT ((int)(sizeof options / sizeof options[0]))
 
 /* ---- methods --------------------------------------------------------------------------- */
 
-int pn_method_count(void) { return M_COUNT; }
+int pn_method_count(void) {
+    return M_COUNT;
+}
 
 const pn_method_info *pn_method_get(int index) {
     return index >= 0 && index < M_COUNT ? &methods[index].info : NULL;
@@ -259,7 +371,9 @@ int pn_method_find_kind(pn_method_role role, int kind) {
     return -1;
 }
 
-const pn_method_entry *pn_registry_method(int index) { return index >= 0 && index < M_COUNT ? &methods[index] : NULL; }
+const pn_method_entry *pn_registry_method(int index) {
+    return index >= 0 && index < M_COUNT ? &methods[index] : NULL;
+}
 
 const pn_method_entry *pn_registry_method_kind(pn_method_role role, int kind) {
     return pn_registry_method(pn_method_find_kind(role, kind));
@@ -291,7 +405,9 @@ const pn_integrator *pn_integrator_find(pn_integrator_kind kind) {
 
 /* ---- options: declarations ------------------------------------------------------------- */
 
-int pn_option_count(void) { return OPTION_COUNT; }
+int pn_option_count(void) {
+    return OPTION_COUNT;
+}
 
 const pn_option_info *pn_option_get(int index) {
     return index >= 0 && index < OPTION_COUNT ? &options[index].info : NULL;
@@ -356,14 +472,14 @@ void pn_option_describe(int option, char *buf, size_t size) {
     const char *lo = o->min_exclusive ? "> " : ">= ", *hi = o->max_exclusive ? "< " : "<= ";
     char name[64];
     switch (o->type) {
-    case PN_OPTION_INT:
-        append(buf, size, "an integer from %.0f to %.0f", o->min, o->max);
-        break;
+    case PN_OPTION_INT: append(buf, size, "an integer from %.0f to %.0f", o->min, o->max); break;
     case PN_OPTION_DOUBLE:
     case PN_OPTION_LIST:
         append(buf, size, o->type == PN_OPTION_LIST ? "a comma-separated list of numbers, each " : "a number ");
-        if (isfinite(o->max)) append(buf, size, "%s%g and %s%g", lo, o->min, hi, o->max);
-        else append(buf, size, "%s%g", lo, o->min);
+        if (isfinite(o->max))
+            append(buf, size, "%s%g and %s%g", lo, o->min, hi, o->max);
+        else
+            append(buf, size, "%s%g", lo, o->min);
         break;
     case PN_OPTION_FLAG: append(buf, size, "on or off (1 or 0)"); break;
     case PN_OPTION_CHOICE:
@@ -372,7 +488,11 @@ void pn_option_describe(int option, char *buf, size_t size) {
         for (int k = 0; choice_at(o->choices, k, name, sizeof name); k++) {
             bool last = !choice_at(o->choices, k + 1, name, sizeof name);
             choice_at(o->choices, k, name, sizeof name);
-            append(buf, size, "%s'%s'", k == 0 ? "" : last ? (o->type == PN_OPTION_SET ? " and " : " or ") : ", ", name);
+            append(buf, size, "%s'%s'",
+                   k == 0 ? ""
+                   : last ? (o->type == PN_OPTION_SET ? " and " : " or ")
+                          : ", ",
+                   name);
         }
         break;
     case PN_OPTION_STRING: append(buf, size, "a text (e.g. a file name)"); break;
@@ -391,7 +511,9 @@ struct pn_options_s {
     option_value values[OPTION_COUNT];
 };
 
-pn_options pn_options_new(void) { return calloc(1, sizeof(struct pn_options_s)); }
+pn_options pn_options_new(void) {
+    return calloc(1, sizeof(struct pn_options_s));
+}
 
 void pn_options_free(pn_options o) {
     if (!o) return;
@@ -446,13 +568,18 @@ static bool parse_value(const pn_option_decl *d, const char *text, bool check_ra
     case PN_OPTION_DOUBLE:
         if (!parse_number(text, len, o->type == PN_OPTION_INT, number)) return false;
         if (check_range && !in_range(o, *number)) return false;
-        if (o->type == PN_OPTION_INT) snprintf(buf, sizeof buf, "%.0f", *number);
-        else format_double(*number, buf, sizeof buf);
+        if (o->type == PN_OPTION_INT)
+            snprintf(buf, sizeof buf, "%.0f", *number);
+        else
+            format_double(*number, buf, sizeof buf);
         break;
     case PN_OPTION_FLAG:
-        if (!strcmp(text, "1") || !strcmp(text, "true") || !strcmp(text, "on")) *number = 1.0;
-        else if (!strcmp(text, "0") || !strcmp(text, "false") || !strcmp(text, "off")) *number = 0.0;
-        else return false;
+        if (!strcmp(text, "1") || !strcmp(text, "true") || !strcmp(text, "on"))
+            *number = 1.0;
+        else if (!strcmp(text, "0") || !strcmp(text, "false") || !strcmp(text, "off"))
+            *number = 0.0;
+        else
+            return false;
         snprintf(buf, sizeof buf, "%d", (int)*number);
         break;
     case PN_OPTION_CHOICE: {
@@ -557,9 +684,12 @@ pn_status pn_options_set_double(pn_context ctx, pn_options o, const char *name, 
     if (t != PN_OPTION_DOUBLE && t != PN_OPTION_INT)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "option '%s' takes no number", name);
     char text[64];
-    if (!isfinite(value)) snprintf(text, sizeof text, "%g", value);
-    else if (t == PN_OPTION_INT && value == floor(value) && fabs(value) < 9e15) snprintf(text, sizeof text, "%.0f", value);
-    else format_double(value, text, sizeof text);
+    if (!isfinite(value))
+        snprintf(text, sizeof text, "%g", value);
+    else if (t == PN_OPTION_INT && value == floor(value) && fabs(value) < 9e15)
+        snprintf(text, sizeof text, "%.0f", value);
+    else
+        format_double(value, text, sizeof text);
     return pn_options_set(ctx, o, name, text);
 }
 
@@ -652,8 +782,8 @@ static uint32_t cap_mask(uint32_t cap) {
 
 pn_status pn_registry_resolve(pn_context ctx, const pn_render_settings *s, const pn_method_entry *integ,
                               const pn_method_entry *driver, pn_render_job *job) {
-    pn_status st = pn_options_check(ctx, s->options, (pn_integrator_kind)integ->info.kind,
-                                    (pn_driver_kind)driver->info.kind);
+    pn_status st =
+        pn_options_check(ctx, s->options, (pn_integrator_kind)integ->info.kind, (pn_driver_kind)driver->info.kind);
     if (st != PN_OK) return st;
     int mi = (int)(integ - methods), md = (int)(driver - methods);
     if (s->spp && !(integ->info.capabilities & PN_CAP_SPP))

@@ -13,21 +13,21 @@
 
 /* How an option's value is stored in the pn_render_job. */
 typedef enum pn_field_kind {
-    PN_FIELD_U32,    /* uint32_t */
-    PN_FIELD_INT,    /* int (CHOICE codes, signed integers) */
-    PN_FIELD_F32,    /* float (a DOUBLE option rounded to float) */
-    PN_FIELD_F64,    /* double */
-    PN_FIELD_BOOL,   /* bool */
-    PN_FIELD_LIST,   /* pn_job_list */
-    PN_FIELD_STRING  /* const char *, pointing into the pn_options (valid during pn_render) */
+    PN_FIELD_U32,   /* uint32_t */
+    PN_FIELD_INT,   /* int (CHOICE codes, signed integers) */
+    PN_FIELD_F32,   /* float (a DOUBLE option rounded to float) */
+    PN_FIELD_F64,   /* double */
+    PN_FIELD_BOOL,  /* bool */
+    PN_FIELD_LIST,  /* pn_job_list */
+    PN_FIELD_STRING /* const char *, pointing into the pn_options (valid during pn_render) */
 } pn_field_kind;
 
 typedef struct pn_option_decl {
     pn_option_info info;
-    uint32_t methods;   /* bit i: applies to method i of the method table */
-    size_t offset;      /* of the field in pn_render_job */
+    uint32_t methods; /* bit i: applies to method i of the method table */
+    size_t offset;    /* of the field in pn_render_job */
     pn_field_kind field;
-    int choice_base;    /* CHOICE: the code of choice k is choice_base + k (numeric names: the number) */
+    int choice_base; /* CHOICE: the code of choice k is choice_base + k (numeric names: the number) */
 } pn_option_decl;
 
 typedef struct pn_method_entry {

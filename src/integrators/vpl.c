@@ -5,7 +5,9 @@
 
 #include <string.h>
 
-static pn_status vpl_prepare(pn_render_job *job, pn_err *err) { return pn_vpl_prepare(job, false, err); }
+static pn_status vpl_prepare(pn_render_job *job, pn_err *err) {
+    return pn_vpl_prepare(job, false, err);
+}
 
 static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                   void *scratch) {

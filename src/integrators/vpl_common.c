@@ -94,4 +94,6 @@ void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats) {
     stats->illumcut_pairs = d->pairs;
 }
 
-uint32_t pn_vpl_batch_points(const pn_render_job *job) { return pn_vpl_spp(job); }
+uint32_t pn_vpl_batch_points(const pn_render_job *job) {
+    return pn_vpl_spp(job);
+}

@@ -29,8 +29,8 @@
 /* State shared with the library callbacks through the context's user data. */
 typedef struct pn_exr_stream {
     int fd;
-    int64_t size;     /* file size for reading, -1 if unknown */
-    int io_errno;     /* first errno seen by the read or write callback */
+    int64_t size;      /* file size for reading, -1 if unknown */
+    int io_errno;      /* first errno seen by the read or write callback */
     char message[256]; /* first message reported by the library */
 } pn_exr_stream;
 
@@ -62,15 +62,14 @@ static exr_result_t pn_exr_compress_guarded(exr_encode_pipeline_t *encode) {
 /* ---------------------------------------------------------------------------------------- */
 /* Stream callbacks */
 
-static int64_t pn_exr_read_fn(exr_const_context_t ctxt, void *user, void *buffer, uint64_t size,
-                              uint64_t offset, exr_stream_error_func_ptr_t error_cb) {
+static int64_t pn_exr_read_fn(exr_const_context_t ctxt, void *user, void *buffer, uint64_t size, uint64_t offset,
+                              exr_stream_error_func_ptr_t error_cb) {
     (void)ctxt;
     (void)error_cb;
     pn_exr_stream *s = user;
     uint64_t done = 0;
     while (done < size) {
-        ssize_t n = pread(s->fd, (char *)buffer + done, (size_t)(size - done),
-                          (off_t)(offset + done));
+        ssize_t n = pread(s->fd, (char *)buffer + done, (size_t)(size - done), (off_t)(offset + done));
         if (n < 0) {
             if (errno == EINTR) continue;
             if (!s->io_errno) s->io_errno = errno;
@@ -87,16 +86,14 @@ static int64_t pn_exr_size_fn(exr_const_context_t ctxt, void *user) {
     return ((pn_exr_stream *)user)->size;
 }
 
-static int64_t pn_exr_write_fn(exr_const_context_t ctxt, void *user, const void *buffer,
-                               uint64_t size, uint64_t offset,
+static int64_t pn_exr_write_fn(exr_const_context_t ctxt, void *user, const void *buffer, uint64_t size, uint64_t offset,
                                exr_stream_error_func_ptr_t error_cb) {
     (void)ctxt;
     (void)error_cb;
     pn_exr_stream *s = user;
     uint64_t done = 0;
     while (done < size) {
-        ssize_t n = pwrite(s->fd, (const char *)buffer + done, (size_t)(size - done),
-                           (off_t)(offset + done));
+        ssize_t n = pwrite(s->fd, (const char *)buffer + done, (size_t)(size - done), (off_t)(offset + done));
         if (n < 0) {
             if (errno == EINTR) continue;
             if (!s->io_errno) s->io_errno = errno;
@@ -163,21 +160,19 @@ static pn_status pn_exr_fail(pn_exr_reader *r, exr_result_t rv, const char *what
         return pn_err_set(r->err, PN_ERROR_IO, "%s: %s", r->name, strerror(r->stream->io_errno));
     }
     if (rv == EXR_ERR_OUT_OF_MEMORY) {
-        return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory while %s", r->name,
-                          what);
+        return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory while %s", r->name, what);
     }
     return pn_err_set(r->err, PN_ERROR_BAD_INPUT, "%s: not a valid EXR file: %s (%s)", r->name,
                       pn_exr_reason(r->stream, rv), what);
 }
 
 /* Decodes one chunk whose top-left pixel is (x0, y0) in data-window coordinates. */
-static pn_status pn_exr_decode_chunk(pn_exr_reader *r, const exr_chunk_info_t *cinfo, int64_t x0,
-                                     int64_t y0) {
+static pn_status pn_exr_decode_chunk(pn_exr_reader *r, const exr_chunk_info_t *cinfo, int64_t x0, int64_t y0) {
     int64_t ox = x0 - r->min_x, oy = y0 - r->min_y;
-    if (cinfo->width <= 0 || cinfo->height <= 0 || ox < 0 || oy < 0 ||
-        ox + cinfo->width > r->width || oy + cinfo->height > r->height) {
-        return pn_err_set(r->err, PN_ERROR_BAD_INPUT,
-                          "%s: not a valid EXR file: chunk outside the data window", r->name);
+    if (cinfo->width <= 0 || cinfo->height <= 0 || ox < 0 || oy < 0 || ox + cinfo->width > r->width ||
+        oy + cinfo->height > r->height) {
+        return pn_err_set(r->err, PN_ERROR_BAD_INPUT, "%s: not a valid EXR file: chunk outside the data window",
+                          r->name);
     }
     exr_result_t rv = r->decode_ready ? exr_decoding_update(r->ex, r->part, cinfo, &r->decode)
                                       : exr_decoding_initialize(r->ex, r->part, cinfo, &r->decode);
@@ -235,8 +230,7 @@ static pn_status pn_exr_read_pixels(pn_exr_reader *r, exr_storage_t storage) {
             exr_chunk_info_t cinfo;
             rv = exr_read_tile_chunk_info(r->ex, r->part, (int)tx, (int)ty, 0, 0, &cinfo);
             if (rv != EXR_ERR_SUCCESS) return pn_exr_fail(r, rv, "locating tiles");
-            pn_status st = pn_exr_decode_chunk(r, &cinfo, r->min_x + tx * tile_w,
-                                               r->min_y + ty * tile_h);
+            pn_status st = pn_exr_decode_chunk(r, &cinfo, r->min_x + tx * tile_w, r->min_y + ty * tile_h);
             if (st != PN_OK) return st;
         }
     }
@@ -244,8 +238,7 @@ static pn_status pn_exr_read_pixels(pn_exr_reader *r, exr_storage_t storage) {
 }
 
 /* Picks R, G, B (or Y as grey) from the channel list; fills r->source. */
-static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_t *list,
-                                        int *grey) {
+static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_t *list, int *grey) {
     static const char *const rgb_names[3] = {"R", "G", "B"};
     int found = 0;
     *grey = 0;
@@ -258,8 +251,7 @@ static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_
         int i = pn_exr_find_channel(list, "Y");
         if (i < 0 && list->num_channels == 1) i = 0; /* a lone channel of any name is grey */
         if (i < 0) {
-            return pn_err_set(r->err, PN_ERROR_BAD_INPUT,
-                              "%s: EXR file has no R, G, B or Y channel", r->name);
+            return pn_err_set(r->err, PN_ERROR_BAD_INPUT, "%s: EXR file has no R, G, B or Y channel", r->name);
         }
         r->source[0] = list->entries[i].name.str;
         *grey = 1;
@@ -268,15 +260,12 @@ static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_
         if (!r->source[c]) continue;
         const exr_attr_chlist_entry_t *e = &list->entries[pn_exr_find_channel(list, r->source[c])];
         if (e->x_sampling != 1 || e->y_sampling != 1) {
-            return pn_err_set(r->err, PN_ERROR_BAD_INPUT,
-                              "%s: EXR channel '%s' is subsampled, which is not supported",
+            return pn_err_set(r->err, PN_ERROR_BAD_INPUT, "%s: EXR channel '%s' is subsampled, which is not supported",
                               r->name, r->source[c]);
         }
-        if (e->pixel_type != EXR_PIXEL_HALF && e->pixel_type != EXR_PIXEL_FLOAT &&
-            e->pixel_type != EXR_PIXEL_UINT) {
+        if (e->pixel_type != EXR_PIXEL_HALF && e->pixel_type != EXR_PIXEL_FLOAT && e->pixel_type != EXR_PIXEL_UINT) {
             return pn_err_set(r->err, PN_ERROR_BAD_INPUT,
-                              "%s: not a valid EXR file: channel '%s' has unknown pixel type",
-                              r->name, r->source[c]);
+                              "%s: not a valid EXR file: channel '%s' has unknown pixel type", r->name, r->source[c]);
         }
     }
     return PN_OK;
@@ -341,8 +330,7 @@ pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
         if (rv != EXR_ERR_SUCCESS) {
             status = pn_exr_fail(&r, rv, "reading the storage type");
         } else if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
-            status = pn_err_set(err, PN_ERROR_BAD_INPUT,
-                                "%s: deep EXR images are not supported", name);
+            status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: deep EXR images are not supported", name);
         }
     }
     if (status == PN_OK) {
@@ -351,10 +339,8 @@ pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
     }
     if (status == PN_OK) {
         int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
-        if (w <= 0 || h <= 0 || w > PN_EXR_MAX_DIMENSION || h > PN_EXR_MAX_DIMENSION ||
-            w * h > PN_EXR_MAX_PIXELS) {
-            status = pn_err_set(err, PN_ERROR_BAD_INPUT,
-                                "%s: not a valid EXR file: unsupported data window %lldx%lld",
+        if (w <= 0 || h <= 0 || w > PN_EXR_MAX_DIMENSION || h > PN_EXR_MAX_DIMENSION || w * h > PN_EXR_MAX_PIXELS) {
+            status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid EXR file: unsupported data window %lldx%lld",
                                 name, (long long)w, (long long)h);
         } else {
             r.width = (int)w;
@@ -371,8 +357,8 @@ pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
     if (status == PN_OK) {
         image = pn_image_create(r.width, r.height);
         if (!image) {
-            status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image",
-                                name, r.width, r.height);
+            status =
+                pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name, r.width, r.height);
         } else {
             r.rgb = image->layers[0].data;
         }
@@ -412,8 +398,8 @@ static void pn_exr_free_channels(pn_exr_out_channel *chans, int count) {
 }
 
 /* Lists the channels of every layer; names follow the layer rules in the file comment. */
-static pn_status pn_exr_list_channels(pn_image image, const char *name, pn_exr_out_channel **out,
-                                      int *out_count, pn_err *err) {
+static pn_status pn_exr_list_channels(pn_image image, const char *name, pn_exr_out_channel **out, int *out_count,
+                                      pn_err *err) {
     static const char *const suffix[3] = {"R", "G", "B"};
     int total = 0;
     for (int l = 0; l < image->layer_count; l++) total += image->layers[l].channels;
@@ -427,13 +413,11 @@ static pn_status pn_exr_list_channels(pn_image image, const char *name, pn_exr_o
         if (layer->channels != 1 && layer->channels != 3) {
             pn_exr_free_channels(chans, n);
             return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
-                              "%s: layer '%s' has %d channels (EXR output takes 1 or 3)", name,
-                              lname, layer->channels);
+                              "%s: layer '%s' has %d channels (EXR output takes 1 or 3)", name, lname, layer->channels);
         }
         if (lname[0] == '\0' && (l != 0 || layer->channels != 3)) {
             pn_exr_free_channels(chans, n);
-            return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "%s: layer %d has no name", name,
-                              l);
+            return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "%s: layer %d has no name", name, l);
         }
         for (int c = 0; c < layer->channels; c++) {
             size_t size = strlen(lname) + 4;
@@ -459,9 +443,8 @@ static pn_status pn_exr_list_channels(pn_image image, const char *name, pn_exr_o
     for (int i = 0; i < n; i++) {
         for (int j = i + 1; j < n; j++) {
             if (strcmp(chans[i].name, chans[j].name) == 0) {
-                pn_status st = pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
-                                          "%s: two layers produce the EXR channel '%s'", name,
-                                          chans[i].name);
+                pn_status st = pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "%s: two layers produce the EXR channel '%s'",
+                                          name, chans[i].name);
                 pn_exr_free_channels(chans, n);
                 return st;
             }
@@ -472,14 +455,13 @@ static pn_status pn_exr_list_channels(pn_image image, const char *name, pn_exr_o
     return PN_OK;
 }
 
-static pn_status pn_exr_write_fail(const pn_exr_stream *s, exr_result_t rv, const char *name,
-                                   const char *what, pn_err *err) {
+static pn_status pn_exr_write_fail(const pn_exr_stream *s, exr_result_t rv, const char *name, const char *what,
+                                   pn_err *err) {
     if (s->io_errno) return pn_err_set(err, PN_ERROR_IO, "%s: %s", name, strerror(s->io_errno));
     if (rv == EXR_ERR_OUT_OF_MEMORY) {
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory while %s", name, what);
     }
-    return pn_err_set(err, PN_ERROR_IO, "%s: EXR writing failed while %s: %s", name, what,
-                      pn_exr_reason(s, rv));
+    return pn_err_set(err, PN_ERROR_IO, "%s: EXR writing failed while %s: %s", name, what, pn_exr_reason(s, rv));
 }
 
 pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err) {
@@ -521,12 +503,10 @@ pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err
         }
     }
     for (int i = 0; i < count; i++) {
-        rv = exr_add_channel(ex, part, chans[i].name, EXR_PIXEL_FLOAT,
-                             EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+        rv = exr_add_channel(ex, part, chans[i].name, EXR_PIXEL_FLOAT, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
         if (rv != EXR_ERR_SUCCESS) {
-            status = pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
-                                "%s: cannot add EXR channel '%s': %s", name, chans[i].name,
-                                pn_exr_reason(&stream, rv));
+            status = pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "%s: cannot add EXR channel '%s': %s", name,
+                                chans[i].name, pn_exr_reason(&stream, rv));
             goto done;
         }
     }
@@ -569,12 +549,11 @@ pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err
                 }
             }
             if (!src) {
-                status = pn_err_set(err, PN_ERROR_INTERNAL, "%s: EXR channel '%s' has no source",
-                                    name, ch->channel_name ? ch->channel_name : "?");
+                status = pn_err_set(err, PN_ERROR_INTERNAL, "%s: EXR channel '%s' has no source", name,
+                                    ch->channel_name ? ch->channel_name : "?");
                 break;
             }
-            ch->encode_from_ptr =
-                (const uint8_t *)(src->data + (size_t)y * (size_t)width * (size_t)src->stride);
+            ch->encode_from_ptr = (const uint8_t *)(src->data + (size_t)y * (size_t)width * (size_t)src->stride);
             ch->user_pixel_stride = (int32_t)((size_t)src->stride * sizeof(float));
             ch->user_line_stride = (int32_t)((size_t)src->stride * sizeof(float) * (size_t)width);
             ch->user_data_type = (uint16_t)EXR_PIXEL_FLOAT;

@@ -39,8 +39,7 @@ float *pn_image_add_layer(pn_image image, const char *name, int channels) {
     size_t name_len = strlen(name);
     char *name_copy = malloc(name_len + 1);
     float *data = calloc(pixels * (size_t)channels, sizeof(float));
-    pn_image_layer *layers =
-        realloc(image->layers, ((size_t)image->layer_count + 1) * sizeof *layers);
+    pn_image_layer *layers = realloc(image->layers, ((size_t)image->layer_count + 1) * sizeof *layers);
     if (layers) image->layers = layers;
     if (!name_copy || !data || !layers) {
         free(name_copy);
@@ -66,11 +65,17 @@ void pn_image_free(pn_image image) {
     free(image);
 }
 
-int pn_image_width(pn_image image) { return image ? image->width : 0; }
+int pn_image_width(pn_image image) {
+    return image ? image->width : 0;
+}
 
-int pn_image_height(pn_image image) { return image ? image->height : 0; }
+int pn_image_height(pn_image image) {
+    return image ? image->height : 0;
+}
 
-int pn_image_layer_count(pn_image image) { return image ? image->layer_count : 0; }
+int pn_image_layer_count(pn_image image) {
+    return image ? image->layer_count : 0;
+}
 
 /* The layer at `index`, or NULL when the image is NULL or the index is out of range. */
 static const pn_image_layer *pn_image_layer_at(pn_image image, int index) {
@@ -98,8 +103,7 @@ pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image) {
     pn_err_init(&err);
     if (out_image) *out_image = NULL;
     if (!path || !out_image) {
-        pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read: %s is NULL",
-                   path ? "out_image" : "path");
+        pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read: %s is NULL", path ? "out_image" : "path");
         return pn_context_fail_from(ctx, &err);
     }
     pn_status status = pn_image_read_file(path, 0.0f, out_image, &err);
@@ -115,8 +119,7 @@ pn_status pn_image_write(pn_context ctx, pn_image image, const char *path, float
     pn_err err;
     pn_err_init(&err);
     if (!image || !path) {
-        pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_image_write: %s is NULL",
-                   image ? "path" : "image");
+        pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_image_write: %s is NULL", image ? "path" : "image");
         return pn_context_fail_from(ctx, &err);
     }
     pn_status status = pn_image_write_file(image, path, exposure, &err);

@@ -4,15 +4,12 @@
 
 #include <string.h>
 
-pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, int width, int height,
-                        pn_image *out_image) {
+pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, int width, int height, pn_image *out_image) {
     if (out_image) *out_image = NULL;
     if (!ctx || !image || !out_image) return PN_ERROR_INVALID_ARGUMENT;
-    if (x0 < 0 || y0 < 0 || width <= 0 || height <= 0 || x0 > image->width - width ||
-        y0 > image->height - height)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "crop %dx%d at (%d, %d) does not fit in a %dx%d image", width, height, x0,
-                               y0, image->width, image->height);
+    if (x0 < 0 || y0 < 0 || width <= 0 || height <= 0 || x0 > image->width - width || y0 > image->height - height)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop %dx%d at (%d, %d) does not fit in a %dx%d image",
+                               width, height, x0, y0, image->width, image->height);
     pn_image out = pn_image_create(width, height);
     if (!out) return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d image", width, height);
     for (int l = 0; l < image->layer_count; l++) {

@@ -68,8 +68,7 @@ static const char *pn_ldr_kind(FILE *file) {
 /* Moves interleaved samples with `comp` channels into the RGB beauty layer: 1 or 2 channels
  * are grey (plus alpha), 3 or 4 are RGB (plus alpha). `kind` is the sample type: 8 or 16-bit
  * integers (converted with `gamma`) or 32 for linear floats. */
-static void pn_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind,
-                        float gamma) {
+static void pn_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind, float gamma) {
     /* 8-bit files use a table of all 256 values. */
     float table[256];
     if (kind == 8) {
@@ -110,8 +109,7 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, 
         const char *reason = stbi_failure_reason();
         if (!reason || !reason[0]) reason = "corrupt or truncated data";
         if (kind_name) {
-            return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid %s file: %s", name,
-                              kind_name, reason);
+            return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid %s file: %s", name, kind_name, reason);
         }
         return pn_err_set(err, PN_ERROR_BAD_INPUT,
                           "%s: not a supported image file (%s; use EXR, PFM, PNG, JPEG, TGA, BMP "
@@ -120,14 +118,12 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, 
     }
     if (width <= 0 || height <= 0 || comp < 1 || comp > 4) {
         stbi_image_free(data);
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid image file: bad layout",
-                          name);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid image file: bad layout", name);
     }
     pn_image image = pn_image_create(width, height);
     if (!image) {
         stbi_image_free(data);
-        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name,
-                          width, height);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name, width, height);
     }
     pn_fill_rgb(image->layers[0].data, (size_t)width * (size_t)height, comp, data, kind, gamma);
     stbi_image_free(data);
@@ -173,8 +169,7 @@ pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *n
     for (size_t i = 0; i < count; i++) pixels[i] = pn_encode_8bit(rgb[i] * scale);
 
     pn_png_sink sink = {file, 0, 0};
-    int ok = stbi_write_png_to_func(pn_png_sink_write, &sink, width, height, 3, pixels,
-                                    width * 3);
+    int ok = stbi_write_png_to_func(pn_png_sink_write, &sink, width, height, 3, pixels, width * 3);
     free(pixels);
     if (sink.failed) return pn_err_set(err, PN_ERROR_IO, "%s: %s", name, strerror(sink.error));
     if (!ok) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: PNG encoding failed", name);

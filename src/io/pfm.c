@@ -72,8 +72,7 @@ pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
     char magic[8], wtext[32], htext[32], stext[64];
     if (!pn_pfm_token(file, magic, sizeof magic) || !pn_pfm_token(file, wtext, sizeof wtext) ||
         !pn_pfm_token(file, htext, sizeof htext) || !pn_pfm_token(file, stext, sizeof stext)) {
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: truncated header",
-                          name);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: truncated header", name);
     }
     int channels;
     if (strcmp(magic, "PF") == 0) {
@@ -81,19 +80,17 @@ pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
     } else if (strcmp(magic, "Pf") == 0) {
         channels = 1;
     } else {
-        return pn_err_set(err, PN_ERROR_BAD_INPUT,
-                          "%s: not a valid PFM file: header does not start with PF or Pf", name);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: header does not start with PF or Pf",
+                          name);
     }
     int width, height;
     if (!pn_parse_dimension(wtext, &width) || !pn_parse_dimension(htext, &height)) {
-        return pn_err_set(err, PN_ERROR_BAD_INPUT,
-                          "%s: not a valid PFM file: bad size '%s x %s'", name, wtext, htext);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: bad size '%s x %s'", name, wtext, htext);
     }
     char *end = NULL;
     double scale = strtod(stext, &end);
     if (end == stext || *end != '\0' || !isfinite(scale) || scale == 0.0) {
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: bad scale '%s'",
-                          name, stext);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: bad scale '%s'", name, stext);
     }
 
     size_t row_values = (size_t)width * (size_t)channels;
@@ -103,12 +100,11 @@ pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
     struct stat st;
     long pos = ftell(file);
     if (pos >= 0 && fstat(fileno(file), &st) == 0 && S_ISREG(st.st_mode)) {
-        uint64_t left = (uint64_t)st.st_size > (uint64_t)pos ? (uint64_t)st.st_size - (uint64_t)pos
-                                                             : 0;
+        uint64_t left = (uint64_t)st.st_size > (uint64_t)pos ? (uint64_t)st.st_size - (uint64_t)pos : 0;
         if (left < total_bytes) {
             return pn_err_set(err, PN_ERROR_BAD_INPUT,
-                              "%s: not a valid PFM file: truncated pixel data (%llu of %llu bytes)",
-                              name, (unsigned long long)left, (unsigned long long)total_bytes);
+                              "%s: not a valid PFM file: truncated pixel data (%llu of %llu bytes)", name,
+                              (unsigned long long)left, (unsigned long long)total_bytes);
         }
     }
 
@@ -117,8 +113,7 @@ pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
     if (!image || !row) {
         pn_image_free(image);
         free(row);
-        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name,
-                          width, height);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name, width, height);
     }
 
     int swap = (scale < 0.0) != pn_host_is_little_endian();
@@ -130,8 +125,7 @@ pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
             free(row);
             pn_image_free(image);
             if (io_error) return pn_err_set(err, PN_ERROR_IO, "%s: read error", name);
-            return pn_err_set(err, PN_ERROR_BAD_INPUT,
-                              "%s: not a valid PFM file: truncated pixel data", name);
+            return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: truncated pixel data", name);
         }
         if (swap) pn_swap_floats(row, row_values);
         /* File rows go from the bottom of the image to the top. */

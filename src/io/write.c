@@ -19,12 +19,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-typedef enum pn_image_format {
-    PN_FORMAT_UNKNOWN = 0,
-    PN_FORMAT_EXR,
-    PN_FORMAT_PFM,
-    PN_FORMAT_PNG
-} pn_image_format;
+typedef enum pn_image_format { PN_FORMAT_UNKNOWN = 0, PN_FORMAT_EXR, PN_FORMAT_PFM, PN_FORMAT_PNG } pn_image_format;
 
 /* Copies the lower-cased extension of the last path component (".exr", ...) into `ext`; an
  * empty string when there is none or it is implausibly long. */
@@ -52,8 +47,7 @@ static pn_image_format pn_format_from_extension(const char *ext) {
 pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_err *err) {
     if (out) *out = NULL;
     if (!path || !out) {
-        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read_file: %s is NULL",
-                          path ? "out" : "path");
+        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read_file: %s is NULL", path ? "out" : "path");
     }
     if (path[0] == '\0') {
         return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "image path is empty");
@@ -95,26 +89,21 @@ pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_er
     pn_path_extension(path, ext, sizeof ext);
     pn_image_format by_name = pn_format_from_extension(ext);
 
-    int is_exr = got >= 4 && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 &&
-                 magic[3] == 0x01;
-    int is_pfm = got >= 3 && magic[0] == 'P' && (magic[1] == 'F' || magic[1] == 'f') &&
-                 isspace(magic[2]);
+    int is_exr = got >= 4 && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01;
+    int is_pfm = got >= 3 && magic[0] == 'P' && (magic[1] == 'F' || magic[1] == 'f') && isspace(magic[2]);
 
     pn_status status;
     if (got == 0) {
-        status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid image file: file is empty",
-                            path);
+        status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid image file: file is empty", path);
     } else if (is_exr) {
         status = pn_exr_read(file, path, out, err);
     } else if (is_pfm) {
         status = pn_pfm_read(file, path, out, err);
     } else if (by_name == PN_FORMAT_EXR) {
-        status = pn_err_set(err, PN_ERROR_BAD_INPUT,
-                            "%s: not a valid EXR file: wrong magic number", path);
+        status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid EXR file: wrong magic number", path);
     } else if (by_name == PN_FORMAT_PFM) {
-        status = pn_err_set(err, PN_ERROR_BAD_INPUT,
-                            "%s: not a valid PFM file: header does not start with PF or Pf",
-                            path);
+        status =
+            pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: header does not start with PF or Pf", path);
     } else {
         status = pn_ldr_read(file, path, gamma, out, err);
     }
@@ -189,16 +178,13 @@ static pn_status write_image_to(void *user, FILE *file, const char *path, pn_err
 
 pn_status pn_image_write_file(pn_image image, const char *path, float exposure, pn_err *err) {
     if (!image || !path) {
-        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "pn_image_write_file: %s is NULL",
-                          path ? "image" : "path");
+        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "pn_image_write_file: %s is NULL", path ? "image" : "path");
     }
     if (path[0] == '\0') {
         return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "image path is empty");
     }
-    if (image->layer_count < 1 || image->layers[0].channels != 3 || image->width <= 0 ||
-        image->height <= 0) {
-        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
-                          "%s: image has no 3-channel beauty layer", path);
+    if (image->layer_count < 1 || image->layers[0].channels != 3 || image->width <= 0 || image->height <= 0) {
+        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "%s: image has no 3-channel beauty layer", path);
     }
 
     char ext[16];
@@ -208,11 +194,10 @@ pn_status pn_image_write_file(pn_image image, const char *path, float exposure, 
         const char *slash = strrchr(path, '/');
         const char *dot = strrchr(slash ? slash + 1 : path, '.');
         if (!dot) {
-            return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
-                              "%s: no file extension (use .exr, .pfm or .png)", path);
+            return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "%s: no file extension (use .exr, .pfm or .png)", path);
         }
-        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT,
-                          "%s: unknown image format '%s' (use .exr, .pfm or .png)", path, dot);
+        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "%s: unknown image format '%s' (use .exr, .pfm or .png)",
+                          path, dot);
     }
 
     image_write_job job = {image, format, exposure};
@@ -241,8 +226,7 @@ pn_status pn_write_atomic(const char *path, pn_write_fn write_to, void *user, pn
     /* Flush, sync and close even after a failure so the descriptor is released. */
     int io_errno = 0;
     if (fflush(file) != 0 || ferror(file)) io_errno = errno ? errno : EIO;
-    if (status == PN_OK && io_errno == 0 && fsync(fileno(file)) != 0 && errno != EINVAL &&
-        errno != EROFS) {
+    if (status == PN_OK && io_errno == 0 && fsync(fileno(file)) != 0 && errno != EINVAL && errno != EROFS) {
         io_errno = errno;
     }
     if (fclose(file) != 0 && io_errno == 0) io_errno = errno ? errno : EIO;

@@ -44,24 +44,18 @@ float pn_cluster_light_power(const pn_light *l) {
     float lum = fmaxf(v3_luminance(l->emit), 0.0f); /* fmaxf also turns NaN into 0 */
     switch (l->kind) {
     case PN_LIGHT_POINT:
-    case PN_LIGHT_GONIOMETRIC:
-        return 4.0f * PN_PI * lum;
+    case PN_LIGHT_GONIOMETRIC: return 4.0f * PN_PI * lum;
     case PN_LIGHT_SPOT: {
         float f = 1.0f - 0.5f * (l->cos_falloff_start + l->cos_total_width);
         return 2.0f * PN_PI * lum * fmaxf(f, 0.0f);
     }
     case PN_LIGHT_TRIANGLE:
     case PN_LIGHT_RECTANGLE:
-    case PN_LIGHT_DISK:
-        return PN_PI * lum * fmaxf(l->area, 0.0f) * (l->two_sided ? 2.0f : 1.0f);
-    case PN_LIGHT_SPHERE:
-        return PN_PI * lum * 4.0f * PN_PI * l->radius * l->radius;
-    case PN_LIGHT_DISTANT:
-        return lum;
-    case PN_LIGHT_PROJECTION:
-        return fmaxf(l->power, 0.0f); /* luminance(emit * phi), exact (lights/projection.c) */
-    default:
-        return 0.0f;
+    case PN_LIGHT_DISK: return PN_PI * lum * fmaxf(l->area, 0.0f) * (l->two_sided ? 2.0f : 1.0f);
+    case PN_LIGHT_SPHERE: return PN_PI * lum * 4.0f * PN_PI * l->radius * l->radius;
+    case PN_LIGHT_DISTANT: return lum;
+    case PN_LIGHT_PROJECTION: return fmaxf(l->power, 0.0f); /* luminance(emit * phi), exact (lights/projection.c) */
+    default: return 0.0f;
     }
 }
 
@@ -76,19 +70,14 @@ int pn_cluster_light_tree(const pn_light *l) {
     switch (l->kind) {
     case PN_LIGHT_POINT:
     case PN_LIGHT_SPHERE:
-    case PN_LIGHT_GONIOMETRIC:
-        return PN_TREE_OMNI;
+    case PN_LIGHT_GONIOMETRIC: return PN_TREE_OMNI;
     case PN_LIGHT_SPOT:
-    case PN_LIGHT_PROJECTION:
-        return dominant_tree(l->n);
+    case PN_LIGHT_PROJECTION: return dominant_tree(l->n);
     case PN_LIGHT_TRIANGLE:
     case PN_LIGHT_RECTANGLE:
-    case PN_LIGHT_DISK:
-        return l->two_sided ? PN_TREE_OMNI : dominant_tree(l->n);
-    case PN_LIGHT_DISTANT:
-        return PN_CLUSTER_SINGLE;
-    default:
-        return PN_CLUSTER_EXCLUDED;
+    case PN_LIGHT_DISK: return l->two_sided ? PN_TREE_OMNI : dominant_tree(l->n);
+    case PN_LIGHT_DISTANT: return PN_CLUSTER_SINGLE;
+    default: return PN_CLUSTER_EXCLUDED;
     }
 }
 
@@ -178,9 +167,7 @@ void pn_cluster_light_box(const pn_light *l, vec3 *lo, vec3 *hi) {
         *hi = v3_add(l->p, e);
         return;
     }
-    default:
-        *lo = *hi = l->p;
-        return;
+    default: *lo = *hi = l->p; return;
     }
 }
 
@@ -236,8 +223,7 @@ bool pn_cluster_light_culled(const pn_light *l, vec3 p, vec3 n) {
     bool horizon = !v3_is_zero(n);
     switch (l->kind) {
     case PN_LIGHT_POINT:
-    case PN_LIGHT_GONIOMETRIC:
-        return horizon && v3_dot(v3_sub(l->p, p), n) <= 0.0f;
+    case PN_LIGHT_GONIOMETRIC: return horizon && v3_dot(v3_sub(l->p, p), n) <= 0.0f;
     case PN_LIGHT_SPOT: {
         vec3 d = v3_sub(p, l->p);
         float d2 = v3_length2(d);
@@ -262,10 +248,8 @@ bool pn_cluster_light_culled(const pn_light *l, vec3 p, vec3 n) {
         float ext = l->radius * sqrtf(fmaxf(0.0f, 1.0f - c * c));
         return v3_dot(v3_sub(l->p, p), n) + ext <= 0.0f;
     }
-    case PN_LIGHT_SPHERE:
-        return horizon && v3_dot(v3_sub(l->p, p), n) + l->radius <= 0.0f;
-    case PN_LIGHT_DISTANT:
-        return horizon && v3_dot(l->n, n) <= 0.0f;
+    case PN_LIGHT_SPHERE: return horizon && v3_dot(v3_sub(l->p, p), n) + l->radius <= 0.0f;
+    case PN_LIGHT_DISTANT: return horizon && v3_dot(l->n, n) <= 0.0f;
     case PN_LIGHT_PROJECTION: {
         /* The cone around the axis that holds the frustum (lights/projection.c): conservative,
          * a point inside the cone but outside the frustum is not culled. */
@@ -275,14 +259,15 @@ bool pn_cluster_light_culled(const pn_light *l, vec3 p, vec3 n) {
         if (horizon && v3_dot(d, n) >= 0.0f) return true;
         return v3_dot(d, l->n) <= l->cos_total_width * sqrtf(d2);
     }
-    default:
-        return false;
+    default: return false;
     }
 }
 
 /* ---------------------------------------------------------------- normal cones */
 
-static float clamp_unit(float x) { return fminf(1.0f, fmaxf(-1.0f, x)); }
+static float clamp_unit(float x) {
+    return fminf(1.0f, fmaxf(-1.0f, x));
+}
 
 static float angle_between(vec3 a, vec3 b) {
     return atan2f(v3_length(v3_cross(a, b)), v3_dot(a, b));
@@ -330,18 +315,22 @@ void pn_cluster_merge_cones(vec3 wa, float ca, vec3 wb, float cb, vec3 *w, float
 /* ---------------------------------------------------------------- greedy construction */
 
 /* Plain max/min (no NaN rules, so they compile to single instructions in the hot loops). */
-static inline float max_f(float a, float b) { return a > b ? a : b; }
-static inline float min_f(float a, float b) { return a < b ? a : b; }
+static inline float max_f(float a, float b) {
+    return a > b ? a : b;
+}
+static inline float min_f(float a, float b) {
+    return a < b ? a : b;
+}
 
 typedef struct pn_kd_node {
-    vec3 lo, hi;       /* box of the centres below (grows with insertions) */
-    float rmin;        /* smallest radius ever below */
-    int left, right;   /* -1 for a k-d leaf */
+    vec3 lo, hi;     /* box of the centres below (grows with insertions) */
+    float rmin;      /* smallest radius ever below */
+    int left, right; /* -1 for a k-d leaf */
     int parent;
-    int alive;         /* live clusters below */
-    int axis;          /* split: left when centre[axis] < split */
+    int alive; /* live clusters below */
+    int axis;  /* split: left when centre[axis] < split */
     float split;
-    int head;          /* leaf: first cluster of its list */
+    int head; /* leaf: first cluster of its list */
 } pn_kd_node;
 
 typedef struct pn_heap_entry {
@@ -352,13 +341,13 @@ typedef struct pn_heap_entry {
 
 typedef struct pn_builder {
     pn_cluster_node *nodes;
-    unsigned char *alive;  /* per forest node */
-    int *slot;             /* per forest node: its k-d leaf, or -1 */
+    unsigned char *alive;       /* per forest node */
+    int *slot;                  /* per forest node: its k-d leaf, or -1 */
     int *next_item, *prev_item; /* per forest node: the doubly linked list of its k-d leaf */
-    unsigned *stamp;       /* per forest node: bumped when its heap entry is replaced */
+    unsigned *stamp;            /* per forest node: bumped when its heap entry is replaced */
     pn_kd_node *kd;
     int kd_count, kd_root;
-    int *items;            /* scratch for building the k-d tree */
+    int *items; /* scratch for building the k-d tree */
     int alive_count, rebuild_below;
     pn_heap_entry *heap;
     int heap_count, heap_cap;
@@ -430,9 +419,12 @@ static void select_kth(int *items, int n, int k, const pn_cluster_node *nodes, i
                 i++;
             }
         }
-        if (k < lt) hi = lt - 1;
-        else if (k > gt) lo = gt + 1;
-        else return;
+        if (k < lt)
+            hi = lt - 1;
+        else if (k > gt)
+            lo = gt + 1;
+        else
+            return;
     }
 }
 
@@ -460,8 +452,10 @@ static int kd_build(pn_builder *b, int begin, int end, int parent) {
             b->slot[c] = id;
             b->prev_item[c] = prev;
             b->next_item[c] = -1;
-            if (prev >= 0) b->next_item[prev] = c;
-            else kn->head = c;
+            if (prev >= 0)
+                b->next_item[prev] = c;
+            else
+                kn->head = c;
             prev = c;
         }
         return id;
@@ -516,8 +510,10 @@ static void kd_insert(pn_builder *b, int c) {
 static void kd_remove(pn_builder *b, int c) {
     int s = b->slot[c];
     int prev = b->prev_item[c], next = b->next_item[c];
-    if (prev >= 0) b->next_item[prev] = next;
-    else b->kd[s].head = next;
+    if (prev >= 0)
+        b->next_item[prev] = next;
+    else
+        b->kd[s].head = next;
     if (next >= 0) b->prev_item[next] = prev;
     for (int k = s; k >= 0; k = b->kd[k].parent) b->kd[k].alive--;
     b->slot[c] = -1;
@@ -666,8 +662,7 @@ static void init_leaf(pn_cluster_node *nd, const pn_light *l, int light, int tre
 pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *out, pn_err *err) {
     memset(out, 0, sizeof *out);
     for (int t = 0; t < PN_TREE_COUNT; t++) out->roots[t] = -1;
-    if (!lights || lights->count < 0)
-        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "cluster forest: no lights");
+    if (!lights || lights->count < 0) return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "cluster forest: no lights");
     int n = lights->count;
     int tree_size[PN_TREE_COUNT] = {0};
     int singles = 0, max_m = 0;
@@ -717,8 +712,8 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
     b.prev_item = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.prev_item);
     b.kd = malloc((size_t)(2 * max_m + 1) * sizeof *b.kd);
     pn_status status = PN_OK;
-    if (!out->nodes || !out->light_order || !out->leaf_of_light || !out->singles || !out->power_prefix ||
-        !b.alive || !b.slot || !b.stamp || !b.items || !b.next_item || !b.prev_item || !b.kd) {
+    if (!out->nodes || !out->light_order || !out->leaf_of_light || !out->singles || !out->power_prefix || !b.alive ||
+        !b.slot || !b.stamp || !b.items || !b.next_item || !b.prev_item || !b.kd) {
         status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
         goto done;
     }
@@ -902,8 +897,7 @@ static cut_limit make_cut_limit(float max_solid_angle) {
 
 static int classify(const pn_lights *lights, const pn_cluster_node *nd, vec3 p, vec3 n, bool horizon,
                     const cut_limit *lim) {
-    if (nd->left < 0)
-        return pn_cluster_light_culled(&lights->lights[nd->light], p, n) ? PN_CUT_CULL : PN_CUT_TAKE;
+    if (nd->left < 0) return pn_cluster_light_culled(&lights->lights[nd->light], p, n) ? PN_CUT_CULL : PN_CUT_TAKE;
     if (node_culled(nd, p, n, horizon)) return PN_CUT_CULL;
     float d2 = v3_length2(v3_sub(nd->center, p)), r2 = nd->radius * nd->radius;
     if (r2 < lim->x_low * d2) return PN_CUT_TAKE;
@@ -954,8 +948,8 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
     return count;
 }
 
-int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
-                   int *out, int capacity) {
+int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle, int *out,
+                   int capacity) {
     return pn_cluster_cut_ex(f, lights, p, n, max_solid_angle, out, capacity, NULL, 0, NULL);
 }
 
@@ -982,8 +976,10 @@ int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int nod
     int lo = first, hi = first + count - 1;
     while (lo < hi) {
         int mid = lo + (hi - lo) / 2;
-        if (pre[mid + 1] > target) hi = mid;
-        else lo = mid + 1;
+        if (pre[mid + 1] > target)
+            hi = mid;
+        else
+            lo = mid + 1;
     }
     while (lo > first && !(pre[lo + 1] > pre[lo])) lo--; /* rounding at the top end */
     int light = f->light_order[lo];

@@ -22,23 +22,25 @@
 #include <stdbool.h>
 
 typedef struct pn_cluster_node {
-    int left, right;           /* children, -1 for a leaf */
-    int parent;                /* -1 for a root (and for a single's node) */
-    int light;                 /* leaf: index into pn_lights.lights; interior: -1 */
-    vec3 center; float radius; /* bounding sphere of all the lights' geometry below (area lights:
+    int left, right; /* children, -1 for a leaf */
+    int parent;      /* -1 for a root (and for a single's node) */
+    int light;       /* leaf: index into pn_lights.lights; interior: -1 */
+    vec3 center;
+    float radius;     /* bounding sphere of all the lights' geometry below (area lights:
                                   their extent); singles: center = direction towards the light,
                                   radius 0 */
-    float power;               /* sum of the lights' luminous power (pn_cluster_light_power) */
-    int first, count;          /* the node's lights are light_order[first .. first+count) */
-    vec3 axis; float cos_spread; /* oriented trees: a cone bounding the emitting normals (axis,
+    float power;      /* sum of the lights' luminous power (pn_cluster_light_power) */
+    int first, count; /* the node's lights are light_order[first .. first+count) */
+    vec3 axis;
+    float cos_spread;       /* oriented trees: a cone bounding the emitting normals (axis,
                                     cos of half-angle); omni: axis 0, cos_spread -1 */
-    float cos_emit;            /* cos of the widest emission half-angle around any of those
+    float cos_emit;         /* cos of the widest emission half-angle around any of those
                                   normals: 0 for one-sided planar lights (a hemisphere),
                                   cos_total_width for spots, -1 in the omni tree */
-    vec3 bmin, bmax;           /* axis-aligned box of the lights' geometry below */
-    int tree;                  /* pn_tree_kind of the node's tree, or -1 for a single */
-    float cone_angle;          /* acos(cos_spread) + acos(cos_emit) */
-    float cut_cos, cut_sin;    /* cos and sin of cone_angle plus a safety margin, for the cut's
+    vec3 bmin, bmax;        /* axis-aligned box of the lights' geometry below */
+    int tree;               /* pn_tree_kind of the node's tree, or -1 for a single */
+    float cone_angle;       /* acos(cos_spread) + acos(cos_emit) */
+    float cut_cos, cut_sin; /* cos and sin of cone_angle plus a safety margin, for the cut's
                                   facing-away test without inverse trigonometry; cut_cos = -2
                                   when that angle reaches pi (the test can never cull) */
 } pn_cluster_node;
@@ -59,18 +61,20 @@ typedef enum pn_tree_kind {
 #define PN_CLUSTER_EXCLUDED (-2) /* environment lights: handled by env-map regions */
 
 typedef struct pn_cluster_forest {
-    pn_cluster_node *nodes; int node_count;
-    int roots[PN_TREE_COUNT];  /* -1 where a tree is empty */
-    int *light_order;          /* lights in leaf order (each subtree contiguous); the trees'
+    pn_cluster_node *nodes;
+    int node_count;
+    int roots[PN_TREE_COUNT]; /* -1 where a tree is empty */
+    int *light_order;         /* lights in leaf order (each subtree contiguous); the trees'
                                   lights first, then the singles' lights */
-    int order_count;           /* entries of light_order */
-    int *leaf_of_light;        /* node index of each light's leaf (singles included: their
+    int order_count;          /* entries of light_order */
+    int *leaf_of_light;       /* node index of each light's leaf (singles included: their
                                   one-light node), -1 for environment lights */
-    int *singles; int single_count; /* node indices of the distant lights' one-light nodes: never
+    int *singles;
+    int single_count;     /* node indices of the distant lights' one-light nodes: never
                                        clustered, always their own cluster */
-    double *power_prefix;      /* order_count + 1 running sums of the lights' power in
+    double *power_prefix; /* order_count + 1 running sums of the lights' power in
                                   light_order, for pn_cluster_pick */
-    int light_count;           /* pn_lights.count at build time */
+    int light_count;      /* pn_lights.count at build time */
 } pn_cluster_forest;
 
 /* Builds the seven trees and the singles. On failure *out is left zeroed. */
@@ -88,8 +92,8 @@ void pn_cluster_forest_free(pn_cluster_forest *f);
  * Output encoding: out[] holds node indices into f->nodes, nothing else — singles are nodes too
  * (f->nodes[i].tree == -1). The first `capacity` node indices are written to out[] and the total
  * count is returned (more than capacity: call again with a larger buffer). */
-int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
-                   int *out, int capacity);
+int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle, int *out,
+                   int capacity);
 
 /* pn_cluster_cut that also reports the culled nodes (whose lights give p nothing): the first
  * culled_capacity of them go to culled[] (may be NULL with capacity 0), their total count to

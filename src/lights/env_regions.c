@@ -279,8 +279,7 @@ pn_status pn_env_regions_build(const pn_env *env, int target_count, pn_env_regio
     r->height = r->virtual_grid ? PN_ENV_VIRTUAL_RES : env->height;
     r->equal_area = r->virtual_grid ? true : env->equal_area;
     if (r->width <= 0 || r->height <= 0 || r->width > (1 << 16) || r->height > (1 << 16))
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "environment regions: bad map size %dx%d", r->width,
-                          r->height);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "environment regions: bad map size %dx%d", r->width, r->height);
     int w = r->width, h = r->height;
     size_t n = (size_t)w * (size_t)h;
     int cap = (size_t)target_count < n ? target_count : (int)n;
@@ -295,8 +294,8 @@ pn_status pn_env_regions_build(const pn_env *env, int target_count, pn_env_regio
     int *heap = malloc((size_t)cap * sizeof *heap);
     double *scratch = malloc((size_t)(w > h ? w : h) * sizeof *scratch);
     pn_status st = PN_OK;
-    if (!r->regions || !r->texel_region || !r->texel_lum || !r->row_solid_angle || !r->col_cum ||
-        !r->row_offset || !energy || !heap || !scratch) {
+    if (!r->regions || !r->texel_region || !r->texel_lum || !r->row_solid_angle || !r->col_cum || !r->row_offset ||
+        !energy || !heap || !scratch) {
         st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for environment regions");
         goto done;
     }
@@ -389,8 +388,8 @@ static vec3 texel_point(const pn_env_regions *r, int x, int y, double fx, double
     return v3((float)(st * cos(phi)), (float)(st * sin(phi)), (float)ct);
 }
 
-bool pn_env_region_sample(const pn_env_regions *r, const pn_env *env, int k, float u1, float u2,
-                          vec3 *wi, vec3 *radiance, float *pdf) {
+bool pn_env_region_sample(const pn_env_regions *r, const pn_env *env, int k, float u1, float u2, vec3 *wi,
+                          vec3 *radiance, float *pdf) {
     if (!r || !env || k < 0 || k >= r->count) return false;
     const pn_env_region *g = &r->regions[k];
     if (!(g->power > 0.0f)) return false;

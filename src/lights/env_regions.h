@@ -41,7 +41,7 @@ typedef struct pn_env_regions {
     int width, height;
     bool equal_area;
     bool virtual_grid;
-    double total_power;  /* sum of the regions' power */
+    double total_power; /* sum of the regions' power */
     /* Private to env_regions.c: per-texel region index and clamped luminance, per-row solid
      * angle, and the per-region sampling tables (row cumulative weights at row_offset[k], and
      * per-texel cumulative weights along each row of a region). */
@@ -66,8 +66,8 @@ void pn_env_regions_free(pn_env_regions *r);
  * the radiance pn_env_lookup gives for it, and the solid-angle pdf conditional on the region,
  * both taken from the texel the direction maps back to. False if the region has no energy or
  * the sample carries nothing. */
-bool pn_env_region_sample(const pn_env_regions *r, const pn_env *env, int k, float u1, float u2,
-                          vec3 *wi, vec3 *radiance, float *pdf);
+bool pn_env_region_sample(const pn_env_regions *r, const pn_env *env, int k, float u1, float u2, vec3 *wi,
+                          vec3 *radiance, float *pdf);
 
 /* Solid-angle pdf of pn_env_region_sample(k) for world direction w (0 outside region k). */
 float pn_env_region_pdf(const pn_env_regions *r, const pn_env *env, int k, vec3 w);

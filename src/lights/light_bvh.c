@@ -10,8 +10,12 @@
 
 #define BVH_BUCKETS 12
 
-static float safe_sqrt(float x) { return sqrtf(fmaxf(0.0f, x)); }
-static float safe_acos(float x) { return acosf(fminf(1.0f, fmaxf(-1.0f, x))); }
+static float safe_sqrt(float x) {
+    return sqrtf(fmaxf(0.0f, x));
+}
+static float safe_acos(float x) {
+    return acosf(fminf(1.0f, fmaxf(-1.0f, x)));
+}
 
 static pn_light_bvh_bounds bounds_union(const pn_light_bvh_bounds *a, const pn_light_bvh_bounds *b) {
     if (a->phi == 0.0f) return *b;
@@ -85,8 +89,7 @@ bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bvh
     }
     case PN_LIGHT_DISTANT:
     case PN_LIGHT_ENVIRONMENT:
-    case PN_LIGHT_KIND_COUNT:
-        return false;
+    case PN_LIGHT_KIND_COUNT: return false;
     }
     return b->phi > 0.0f && isfinite(b->phi);
 }
@@ -238,7 +241,8 @@ static int build_range(bvh_builder *bb, bvh_item *items, int start, int end, int
             int k = (int)((float)BVH_BUCKETS * (c - lo) / (hi - lo));
             if (k >= BVH_BUCKETS) k = BVH_BUCKETS - 1;
             if (k < 0) k = 0;
-            if (k <= best_bucket) i++;
+            if (k <= best_bucket)
+                i++;
             else {
                 bvh_item tmp = items[i];
                 items[i] = items[j];

@@ -17,27 +17,27 @@
 #include "lights/lights.h"
 
 typedef struct pn_light_bvh_bounds {
-    vec3 bmin, bmax;  /* box of the emitting geometry */
-    vec3 w;           /* principal emitting normal */
-    float phi;        /* power */
-    float cos_o;      /* cos theta_o: normals lie within theta_o of w (-1: any direction) */
-    float cos_e;      /* cos theta_e: emission reaches theta_e beyond the normals */
-    bool two_sided;   /* emits around -w as well */
+    vec3 bmin, bmax; /* box of the emitting geometry */
+    vec3 w;          /* principal emitting normal */
+    float phi;       /* power */
+    float cos_o;     /* cos theta_o: normals lie within theta_o of w (-1: any direction) */
+    float cos_e;     /* cos theta_e: emission reaches theta_e beyond the normals */
+    bool two_sided;  /* emits around -w as well */
 } pn_light_bvh_bounds;
 
 typedef struct pn_light_bvh_node {
     pn_light_bvh_bounds b;
-    int second;       /* interior: index of the second child (the first is this index + 1);
+    int second; /* interior: index of the second child (the first is this index + 1);
                          leaf: the light's index in pn_lights */
-    int parent;       /* -1 at the root */
+    int parent; /* -1 at the root */
     bool leaf;
 } pn_light_bvh_node;
 
 typedef struct pn_light_bvh {
     pn_light_bvh_node *nodes; /* depth first; the root is node 0 */
     int node_count;
-    int *node_of_light;       /* leaf of each light, -1 for lights outside the tree */
-    int *infinite;            /* distant and environment lights */
+    int *node_of_light; /* leaf of each light, -1 for lights outside the tree */
+    int *infinite;      /* distant and environment lights */
     int infinite_count;
     int light_count;
 } pn_light_bvh;

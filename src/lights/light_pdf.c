@@ -70,8 +70,8 @@ pn_status pn_lights_build_soa(pn_lights *L, pn_err *err) {
             power = lum * l->area;
             if (l->kind == PN_LIGHT_TRIANGLE) {
                 c = v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 1.0f / 3.0f));
-                r2 = fmaxf(v3_length2(v3_sub(l->p, c)),
-                           fmaxf(v3_length2(v3_sub(v3_add(l->p, l->e1), c)), v3_length2(v3_sub(v3_add(l->p, l->e2), c))));
+                r2 = fmaxf(v3_length2(v3_sub(l->p, c)), fmaxf(v3_length2(v3_sub(v3_add(l->p, l->e1), c)),
+                                                              v3_length2(v3_sub(v3_add(l->p, l->e2), c))));
             } else if (l->kind == PN_LIGHT_RECTANGLE) {
                 c = v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 0.5f));
                 r2 = 0.25f * v3_length2(v3_add(l->e1, l->e2));
@@ -80,8 +80,7 @@ pn_status pn_lights_build_soa(pn_lights *L, pn_err *err) {
             }
             break;
         }
-        default:
-            break;
+        default: break;
         }
         s->cx[i] = c.x;
         s->cy[i] = c.y;
@@ -107,7 +106,9 @@ void pn_lights_free_soa(pn_lights *L) {
     memset(&L->soa, 0, sizeof L->soa);
 }
 
-static inline float max0(float x) { return x > 0.0f ? x : 0.0f; }
+static inline float max0(float x) {
+    return x > 0.0f ? x : 0.0f;
+}
 
 /* Pass 1: far-field values, and a flag where they do not apply. No branches, and restrict
  * parameters, so that the compiler vectorises it. */
@@ -120,7 +121,7 @@ static void far_field(int count, const float *restrict cx, const float *restrict
     for (int i = 0; i < count; i++) {
         float dx = cx[i] - px, dy = cy[i] - py, dz = cz[i] - pz;
         float d2 = dx * dx + dy * dy + dz * dz;
-        float above = dx * nx + dy * ny + dz * nz;               /* d * cos_r */
+        float above = dx * nx + dy * ny + dz * nz;                /* d * cos_r */
         float plane = -(dx * lnx[i] + dy * lny[i] + dz * lnz[i]); /* d * cos_l, > 0 in front */
         float inv_d2 = 1.0f / (d2 + 1e-30f);                      /* the offset only matters at d = 0 */
         float inv_d = sqrtf(inv_d2);

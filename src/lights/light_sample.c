@@ -33,8 +33,7 @@ static bool finish_area_sample(const pn_light *l, vec3 p, vec3 y, float area_pdf
     return isfinite(s->pdf) && s->pdf > 0.0f;
 }
 
-bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
-                           pn_light_sample *s) {
+bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2, pn_light_sample *s) {
     return pn_light_sample_point_cached(lights, l, p, u1, u2, NULL, s);
 }
 
@@ -170,10 +169,8 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
         s->delta = false;
         return pdf > 0.0f && isfinite(pdf);
     }
-    case PN_LIGHT_PROJECTION:
-        return pn_projection_sample_li(lights, l, p, s);
-    case PN_LIGHT_KIND_COUNT:
-        break;
+    case PN_LIGHT_PROJECTION: return pn_projection_sample_li(lights, l, p, s);
+    case PN_LIGHT_KIND_COUNT: break;
     }
     return false;
 }

@@ -78,7 +78,8 @@ static int32_t build_kind(pn_light_tree *t, int kind, int32_t first, int32_t cou
             hi = v3_max(hi, m);
         }
         vec3 ext = v3_sub(hi, lo);
-        vec3 inv = v3(ext.x > 0 ? 1.0f / ext.x : 0.0f, ext.y > 0 ? 1.0f / ext.y : 0.0f, ext.z > 0 ? 1.0f / ext.z : 0.0f);
+        vec3 inv =
+            v3(ext.x > 0 ? 1.0f / ext.x : 0.0f, ext.y > 0 ? 1.0f / ext.y : 0.0f, ext.z > 0 ? 1.0f / ext.z : 0.0f);
         for (int32_t i = 0; i < n; i++) {
             const pn_light_node *c = &t->nodes[list[i].node];
             uint64_t key = morton(v3_scale(v3_add(c->lo, c->hi), 0.5f), lo, inv);

@@ -37,14 +37,14 @@
 #define PN_LIGHT_TREE_WINDOW 8
 
 typedef struct pn_light_node {
-    vec3 lo, hi;      /* box of positions (directional: of unit directions) */
-    vec3 axis;        /* oriented: cone of emitting normals */
-    float half;       /* its half-angle in radians (0 for omni and directional) */
-    vec3 intensity;   /* summed RGB intensity */
-    float weight;     /* luminance of intensity */
-    int32_t left, right; /* children, -1 for a leaf */
-    int32_t rep;      /* representative VPL (index into the set) */
-    int32_t count;    /* VPLs below */
+    vec3 lo, hi;              /* box of positions (directional: of unit directions) */
+    vec3 axis;                /* oriented: cone of emitting normals */
+    float half;               /* its half-angle in radians (0 for omni and directional) */
+    vec3 intensity;           /* summed RGB intensity */
+    float weight;             /* luminance of intensity */
+    int32_t left, right;      /* children, -1 for a leaf */
+    int32_t rep;              /* representative VPL (index into the set) */
+    int32_t count;            /* VPLs below */
     float cos_half, sin_half; /* of half */
 } pn_light_node;
 

@@ -231,8 +231,8 @@ static vec3 triangle_emit_normal(const pn_mesh *m, uint32_t t) {
 }
 
 /* If triangles a and b form a rectangle, returns true with its corner and edges. */
-static bool pair_is_rectangle(const pn_mesh *m, uint32_t a, uint32_t b, vec3 na, vec3 nb, vec3 *p0,
-                              vec3 *e1, vec3 *e2) {
+static bool pair_is_rectangle(const pn_mesh *m, uint32_t a, uint32_t b, vec3 na, vec3 nb, vec3 *p0, vec3 *e1,
+                              vec3 *e2) {
     if (v3_dot(na, nb) < 0.9999f) return false;
     const uint32_t *ia = m->indices + 3 * (size_t)a, *ib = m->indices + 3 * (size_t)b;
     vec3 va[3], vb[3];
@@ -254,9 +254,12 @@ static bool pair_is_rectangle(const pn_mesh *m, uint32_t a, uint32_t b, vec3 na,
     if (shared != 2) return false;
     int xa = -1, xb = -1, s1 = -1, s2 = -1;
     for (int i = 0; i < 3; i++) {
-        if (!shared_a[i]) xa = i;
-        else if (s1 < 0) s1 = i;
-        else s2 = i;
+        if (!shared_a[i])
+            xa = i;
+        else if (s1 < 0)
+            s1 = i;
+        else
+            s2 = i;
     }
     for (int j = 0; j < 3; j++)
         if (!shared_b[j]) xb = j;
@@ -316,7 +319,7 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         l->mesh = mi;
         if (d->inner_radius > 0.0f)
             pn_warn(scene->ctx, &scene->warnings, "%s: the disk light's inner radius is ignored for light sampling",
-                          m->source ? m->source : "disk");
+                    m->source ? m->source : "disk");
         return PN_OK;
     }
     int dropped = 0;
@@ -395,8 +398,7 @@ static pn_status gonio_prepare(const struct pn_scene_s *scene, const pn_light_de
     size_t n = (size_t)img->width * (size_t)img->height;
     g->mono = malloc(n * sizeof *g->mono);
     if (!g->mono) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a goniometric image");
-    for (size_t i = 0; i < n; i++)
-        g->mono[i] = (img->rgb[3 * i] + img->rgb[3 * i + 1] + img->rgb[3 * i + 2]) / 3.0f;
+    for (size_t i = 0; i < n; i++) g->mono[i] = (img->rgb[3 * i] + img->rgb[3 * i + 1] + img->rgb[3 * i + 2]) / 3.0f;
     g->width = img->width;
     g->height = img->height;
     return PN_OK;
@@ -478,7 +480,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             st = pn_projection_prepare(scene, d, pr, l, err);
             if (st == PN_OK && !(l->power > 0.0f)) {
                 pn_warn(scene->ctx, &scene->warnings, "%s: projection light with a black image dropped",
-                              d->source ? d->source : "LightSource");
+                        d->source ? d->source : "LightSource");
                 ll.count--;
             }
             break;
@@ -515,7 +517,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             if (st != PN_OK) break;
             if (env->average_luminance <= 0.0f) {
                 pn_warn(scene->ctx, &scene->warnings, "%s: environment light with zero power dropped",
-                              d->source ? d->source : "LightSource");
+                        d->source ? d->source : "LightSource");
                 pn_distribution2d_free(env->dist);
                 env->dist = NULL;
                 ll.count--;
@@ -535,7 +537,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         if (is_interface(scene, m->material)) {
             pn_warn(scene->ctx, &scene->warnings,
                     "%s: area light on a shape with the \"interface\" material ignored (as pbrt-v4 does)",
-                          m->source ? m->source : "mesh");
+                    m->source ? m->source : "mesh");
             continue;
         }
         st = add_mesh_lights(scene, mi, &ll, err);
@@ -552,7 +554,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         }
         if (s->flip_normals) {
             pn_warn(scene->ctx, &scene->warnings, "%s: sphere light %d emits inwards; it is not sampled",
-                          s->source ? s->source : "?:0:0", si);
+                    s->source ? s->source : "?:0:0", si);
             continue;
         }
         pn_light *l = push_light(&ll, err);
@@ -640,8 +642,9 @@ static float spot_falloff(const pn_light *l, float cos_theta) {
     return t * t * (3.0f - 2.0f * t);
 }
 
-static float lum(vec3 c) { return fmaxf(0.0f, v3_luminance(c)); }
-
+static float lum(vec3 c) {
+    return fmaxf(0.0f, v3_luminance(c));
+}
 
 float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, vec3 p, vec3 n) {
     switch (l->kind) {
@@ -659,8 +662,7 @@ float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, v
         if (l->kind == PN_LIGHT_GONIOMETRIC) e *= pn_gonio_factor(lights, l, v3_neg(wi));
         return e;
     }
-    case PN_LIGHT_DISTANT:
-        return lum(l->emit) * fmaxf(0.0f, v3_dot(n, l->n));
+    case PN_LIGHT_DISTANT: return lum(l->emit) * fmaxf(0.0f, v3_dot(n, l->n));
     case PN_LIGHT_TRIANGLE:
     case PN_LIGHT_RECTANGLE:
     case PN_LIGHT_DISK: {
@@ -698,17 +700,17 @@ float pn_light_irradiance_estimate(const pn_lights *lights, const pn_light *l, v
         float sin2 = r2 / d2, sin_a = sqrtf(sin2);
         float c = v3_dot(n, d) / sqrtf(d2);
         float ceff;
-        if (c >= sin_a) ceff = c;
-        else if (c > -sin_a) ceff = (c + sin_a) * (c + sin_a) / (4.0f * sin_a);
-        else ceff = 0.0f;
+        if (c >= sin_a)
+            ceff = c;
+        else if (c > -sin_a)
+            ceff = (c + sin_a) * (c + sin_a) / (4.0f * sin_a);
+        else
+            ceff = 0.0f;
         return lum(l->emit) * PN_PI * sin2 * ceff;
     }
-    case PN_LIGHT_ENVIRONMENT:
-        return env_irradiance(&lights->envs[l->env], n);
-    case PN_LIGHT_PROJECTION:
-        return pn_projection_irradiance(lights, l, p, n);
-    case PN_LIGHT_KIND_COUNT:
-        break;
+    case PN_LIGHT_ENVIRONMENT: return env_irradiance(&lights->envs[l->env], n);
+    case PN_LIGHT_PROJECTION: return pn_projection_irradiance(lights, l, p, n);
+    case PN_LIGHT_KIND_COUNT: break;
     }
     return 0.0f;
 }

@@ -30,34 +30,34 @@ typedef enum pn_light_kind {
 
 typedef struct pn_light {
     pn_light_kind kind;
-    vec3 p;          /* POINT/SPOT: position; TRIANGLE/RECTANGLE: corner p0; DISK/SPHERE: centre */
-    vec3 e1, e2;     /* TRIANGLE: p1 - p0, p2 - p0; RECTANGLE: the two edges from p0 */
-    vec3 n;          /* unit emitting normal (TRIANGLE/RECTANGLE/DISK), SPOT axis, DISTANT
+    vec3 p;       /* POINT/SPOT: position; TRIANGLE/RECTANGLE: corner p0; DISK/SPHERE: centre */
+    vec3 e1, e2;  /* TRIANGLE: p1 - p0, p2 - p0; RECTANGLE: the two edges from p0 */
+    vec3 n;       /* unit emitting normal (TRIANGLE/RECTANGLE/DISK), SPOT axis, DISTANT
                         direction towards the light */
-    float radius;    /* DISK, SPHERE */
-    float area;      /* m^2 (TRIANGLE/RECTANGLE/DISK/SPHERE) */
-    vec3 emit;       /* radiance (area, distant: irradiance, env: scale), intensity (point/spot) */
+    float radius; /* DISK, SPHERE */
+    float area;   /* m^2 (TRIANGLE/RECTANGLE/DISK/SPHERE) */
+    vec3 emit;    /* radiance (area, distant: irradiance, env: scale), intensity (point/spot) */
     float cos_falloff_start, cos_total_width; /* SPOT */
     bool two_sided;
-    int env;         /* ENVIRONMENT: index into pn_lights.envs; GONIOMETRIC: into .gonios;
+    int env;        /* ENVIRONMENT: index into pn_lights.envs; GONIOMETRIC: into .gonios;
                         PROJECTION: into .projections (whose axis is n and whose frustum lies
                         within cos_total_width of it) */
-    int mesh, prim;  /* area lights from meshes: source triangle(s), for `info` and tests */
-    float power;     /* PROJECTION: luminous power, luminance(emit * phi) (pn_projection) */
+    int mesh, prim; /* area lights from meshes: source triangle(s), for `info` and tests */
+    float power;    /* PROJECTION: luminous power, luminance(emit * phi) (pn_projection) */
 } pn_light;
 
 /* An environment map prepared for lookup and importance sampling by luminance. */
 typedef struct pn_env {
     int width, height;
-    const float *rgb;   /* owned by the scene's image table, or `constant` when NULL */
+    const float *rgb; /* owned by the scene's image table, or `constant` when NULL */
     vec3 constant;
     vec3 scale;
     bool equal_area;
     mat4 world_from_light, light_from_world;
     struct pn_distribution2d *dist; /* over pixels, NULL for constant maps */
     float average_luminance;
-    bool has_sh;             /* irradiance_sh holds the map's irradiance in 9 harmonics */
-    float irradiance_sh[9];  /* light space; coefficients already multiplied by A_l */
+    bool has_sh;            /* irradiance_sh holds the map's irradiance in 9 harmonics */
+    float irradiance_sh[9]; /* light space; coefficients already multiplied by A_l */
 } pn_env;
 
 /* The lights again as plain arrays, for pn_lights_irradiance_all (light_pdf.c). */
@@ -90,14 +90,14 @@ typedef struct pn_gonio {
  * intensity is emit * rgb there, zero outside the frustum. */
 typedef struct pn_projection {
     int width, height;
-    const float *rgb;         /* width * height RGB, top row first; owned by the scene's image table */
+    const float *rgb;                        /* width * height RGB, top row first; owned by the scene's image table */
     mat4 world_from_light, light_from_world; /* y already flipped as pbrt-v4 does */
-    float abs_det;            /* |det| of world_from_light's 3x3 (solid-angle Jacobian) */
+    float abs_det;                           /* |det| of world_from_light's 3x3 (solid-angle Jacobian) */
     float tan_half_fov, sx, sy;
-    float plane_area;         /* A = (2 sx tan)(2 sy tan): the window's area on the plane z = 1 */
-    vec3 phi;                 /* power per unit emit: A * mean(rgb cos^3), per channel */
-    float peak;               /* largest channel of any pixel (>= every rgb value) */
-    float mean_max;           /* mean over pixels of the largest channel (pbrt-v4's Bounds) */
+    float plane_area;               /* A = (2 sx tan)(2 sy tan): the window's area on the plane z = 1 */
+    vec3 phi;                       /* power per unit emit: A * mean(rgb cos^3), per channel */
+    float peak;                     /* largest channel of any pixel (>= every rgb value) */
+    float mean_max;                 /* mean over pixels of the largest channel (pbrt-v4's Bounds) */
     struct pn_distribution2d *dist; /* pixels weighted by mean(rgb) cos^3: directions by intensity */
 } pn_projection;
 
@@ -135,8 +135,7 @@ typedef struct pn_light_sample {
 
 /* Samples light `l` as seen from point p with normal n; u in [0,1)^2. Returns false when the
  * sample carries nothing (facing away, outside the spot cone, zero pdf). */
-bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
-                           pn_light_sample *s);
+bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2, pn_light_sample *s);
 
 /* What sampling a rectangle light from one receiver sets up (the spherical rectangle), kept
  * between calls for the same light and point. Zero-initialise before the first use. */

@@ -64,8 +64,8 @@ float pn_projection_pdf(const pn_lights *lights, const pn_light *l, vec3 w) {
     if (!projection_pixel(pr, wl, &x, &y, &u, &v)) return 0.0f;
     /* The pixel's own density (u, v of its centre), so that a direction on a pixel edge gets the
      * density of the pixel whose colour it reads. */
-    float pdf_uv = pn_distribution2d_pdf(pr->dist, ((float)x + 0.5f) / (float)pr->width,
-                                         ((float)y + 0.5f) / (float)pr->height);
+    float pdf_uv =
+        pn_distribution2d_pdf(pr->dist, ((float)x + 0.5f) / (float)pr->width, ((float)y + 0.5f) / (float)pr->height);
     /* wl = M^-1 w for unit w: the world density is pdf_uv / (A |det M| wl.z^3) (file comment). */
     float z3 = wl.z * wl.z * wl.z;
     float pdf = pdf_uv / (pr->plane_area * pr->abs_det * z3);
@@ -185,7 +185,8 @@ pn_status pn_projection_prepare(const struct pn_scene_s *scene, const struct pn_
      * frustum is their conic hull and the cone is convex); rounded down to stay conservative. */
     float cos_min = 1.0f;
     for (int k2 = 0; k2 < 4; k2++) {
-        vec3 corner = v3((k2 & 1 ? 1.0f : -1.0f) * pr->sx * (float)t, (k2 & 2 ? 1.0f : -1.0f) * pr->sy * (float)t, 1.0f);
+        vec3 corner =
+            v3((k2 & 1 ? 1.0f : -1.0f) * pr->sx * (float)t, (k2 & 2 ? 1.0f : -1.0f) * pr->sy * (float)t, 1.0f);
         vec3 wc = v3_normalize(mat4_apply_vector(&d->world_from_light, corner));
         cos_min = fminf(cos_min, v3_dot(wc, l->n));
     }

@@ -308,7 +308,8 @@ pn_status pn_vpl_trace_with(const struct pn_scene_s *scene, const pn_lights *L, 
         while (buf.count < s->count && paths < max_paths) {
             /* Light that reaches nothing (an open scene, black surfaces): give up early. */
             if (paths >= 65536 && buf.count == exact) break;
-            if ((paths & 4095u) == 0 && opt->progress && !opt->progress(opt->progress_user, (double)buf.count / (double)s->count))
+            if ((paths & 4095u) == 0 && opt->progress &&
+                !opt->progress(opt->progress_user, (double)buf.count / (double)s->count))
                 goto cancelled;
             pn_rng rng;
             pn_rng_seed(&rng, pn_hash64(s->seed ^ UINT64_C(0x5bd1e995)), paths);
@@ -317,8 +318,10 @@ pn_status pn_vpl_trace_with(const struct pn_scene_s *scene, const pn_lights *L, 
             int lo = 0, hi = n;
             while (hi - lo > 1) {
                 int mid = (lo + hi) / 2;
-                if (cdf[mid] <= target) lo = mid;
-                else hi = mid;
+                if (cdf[mid] <= target)
+                    lo = mid;
+                else
+                    hi = mid;
             }
             while (lo < n - 1 && cdf[lo + 1] - cdf[lo] <= 0.0) lo++;
             const pn_light *l = &L->lights[lo];
@@ -438,7 +441,9 @@ void pn_vpl_set_free(pn_vpl_set *set) {
     memset(set, 0, sizeof *set);
 }
 
-vec3 pn_vpl_receiver_brdf_cos(const pn_vpl_receiver *r, vec3 wi) { return pn_vpl_brdf_cos_inline(r, wi); }
+vec3 pn_vpl_receiver_brdf_cos(const pn_vpl_receiver *r, vec3 wi) {
+    return pn_vpl_brdf_cos_inline(r, wi);
+}
 
 vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 intensity, const pn_vpl_receiver *r,
                               float min_dist2, vec3 *wi, float *dist) {
@@ -452,8 +457,10 @@ vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 int
     vec3 w = v3_scale(d, 1.0f / len);
     float g = 1.0f / (len2 > min_dist2 ? len2 : min_dist2);
     const pn_light *l = &lights->lights[v->light];
-    if (l->kind == PN_LIGHT_SPOT) g *= spot_falloff(l, -v3_dot(w, l->n));
-    else if (l->kind == PN_LIGHT_GONIOMETRIC) g *= pn_gonio_factor(lights, l, v3_neg(w));
+    if (l->kind == PN_LIGHT_SPOT)
+        g *= spot_falloff(l, -v3_dot(w, l->n));
+    else if (l->kind == PN_LIGHT_GONIOMETRIC)
+        g *= pn_gonio_factor(lights, l, v3_neg(w));
     *wi = w;
     *dist = len;
     if (g <= 0.0f) return v3(0, 0, 0);

@@ -50,9 +50,9 @@ typedef struct pn_vpl {
 } pn_vpl;
 
 typedef struct pn_vpl_settings {
-    uint32_t count;        /* VPLs wanted (at least the exact point / distant lights are kept) */
-    uint32_t max_depth;    /* bounces of a light path that may leave a VPL (10) */
-    float clamp_fraction;  /* minimum point-VPL distance as a fraction of the scene radius (0.05) */
+    uint32_t count;       /* VPLs wanted (at least the exact point / distant lights are kept) */
+    uint32_t max_depth;   /* bounces of a light path that may leave a VPL (10) */
+    float clamp_fraction; /* minimum point-VPL distance as a fraction of the scene radius (0.05) */
     uint64_t seed;
 } pn_vpl_settings;
 
@@ -73,9 +73,9 @@ typedef struct pn_vpl_set {
     pn_vpl *vpls;
     uint32_t count;
     uint32_t count_by_kind[PN_VPL_KIND_COUNT];
-    uint32_t paths;          /* light paths traced */
-    float clamp_distance;    /* clamp_fraction * scene radius */
-    float min_dist2;         /* its square */
+    uint32_t paths;       /* light paths traced */
+    float clamp_distance; /* clamp_fraction * scene radius */
+    float min_dist2;      /* its square */
     double seconds;
 } pn_vpl_set;
 
@@ -101,8 +101,8 @@ typedef struct pn_vpl_receiver {
 /* The unshadowed contribution M · G · I of VPL v at receiver r (eq. 1 without V), with the
  * clamped distance; *wi receives the unit direction towards the VPL and *dist its distance
  * (INFINITY for directional VPLs). Returns zero when the VPL cannot light r. */
-vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_receiver *r, float min_dist2,
-                         vec3 *wi, float *dist);
+vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_receiver *r, float min_dist2, vec3 *wi,
+                         float *dist);
 
 /* Like pn_vpl_contribution but with the intensity replaced by `intensity` (eq. 3: the
  * representative's M and G with its cluster's summed intensity). */

@@ -71,8 +71,8 @@ typedef struct pn_batch {
 struct pn_threadpool;
 /* Renders the whole window at once: fills pixels[y * width + x] for the window (camera x0..x1,
  * y0..y1) using the pool. */
-typedef pn_status (*pn_render_image_fn)(const pn_render_job *job, struct pn_threadpool *pool,
-                                        pn_pixel_estimate *pixels, int width, int height);
+typedef pn_status (*pn_render_image_fn)(const pn_render_job *job, struct pn_threadpool *pool, pn_pixel_estimate *pixels,
+                                        int width, int height);
 
 /* The code of one integrator. What it is, what it computes, its capabilities and options are
  * its entry in the method table (integrators/registry.c), which points here. */
@@ -88,8 +88,7 @@ typedef struct pn_integrator {
     void *(*scratch_create)(const pn_render_job *job);
     void (*scratch_free)(void *scratch);
     /* Fills out[i] for batch->pixels[i]. */
-    pn_status (*render_batch)(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
-                              void *scratch);
+    pn_status (*render_batch)(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out, void *scratch);
     /* Optional: under the tiled driver, renders the whole window instead of blocks (illumcut's
      * point tree spans every shading point of the image; contour runs §5 spans along whole rows). */
     pn_render_image_fn render_image;

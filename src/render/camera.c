@@ -24,8 +24,8 @@ static float filter_eval(const pn_camera_def *def, float x, float radius) {
         float t = 2.0f * ax / radius;
         if (t >= 2.0f) return 0.0f;
         if (t >= 1.0f)
-            return ((-B - 6 * C) * t * t * t + (6 * B + 30 * C) * t * t + (-12 * B - 48 * C) * t +
-                    (8 * B + 24 * C)) / 6.0f;
+            return ((-B - 6 * C) * t * t * t + (6 * B + 30 * C) * t * t + (-12 * B - 48 * C) * t + (8 * B + 24 * C)) /
+                   6.0f;
         return ((12 - 9 * B - 6 * C) * t * t * t + (-18 + 12 * B + 6 * C) * t * t + (6 - 2 * B)) / 6.0f;
     }
     }
@@ -60,8 +60,10 @@ static float filter_axis_sample(const pn_filter_axis *ax, float u, float *weight
     int lo = 0, hi = PN_FILTER_TABLE;
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;
-        if (ax->cdf[mid] <= u) lo = mid;
-        else hi = mid;
+        if (ax->cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid;
     }
     float span = ax->cdf[lo + 1] - ax->cdf[lo];
     float t = span > 0.0f ? (u - ax->cdf[lo]) / span : 0.5f;
@@ -160,8 +162,8 @@ void pn_white_balance_matrix(double kelvin, double out[3][3]) {
     xyz_of_xy(0.3127, 0.3290, dst);
     mat3_apply(lms_from_xyz, src, src_lms);
     mat3_apply(lms_from_xyz, dst, dst_lms);
-    double d[3][3] = {{dst_lms[0] / src_lms[0], 0, 0}, {0, dst_lms[1] / src_lms[1], 0},
-                      {0, 0, dst_lms[2] / src_lms[2]}};
+    double d[3][3] = {
+        {dst_lms[0] / src_lms[0], 0, 0}, {0, dst_lms[1] / src_lms[1], 0}, {0, 0, dst_lms[2] / src_lms[2]}};
     double t[3][3];
     mat3_mul(d, lms_from_xyz, t);
     mat3_mul(xyz_from_lms, t, out);
@@ -212,8 +214,7 @@ void pn_camera_film_apply(const pn_camera *cam, pn_image image) {
 
 /* ---- camera ------------------------------------------------------------------------------- */
 
-bool pn_camera_setup(const pn_camera_def *def, int full_width, int full_height, const float crop[4],
-                     pn_camera *cam) {
+bool pn_camera_setup(const pn_camera_def *def, int full_width, int full_height, const float crop[4], pn_camera *cam) {
     memset(cam, 0, sizeof *cam);
     cam->world_from_camera = def->world_from_camera;
     cam->projection = def->projection;
@@ -263,8 +264,8 @@ bool pn_camera_setup(const pn_camera_def *def, int full_width, int full_height, 
     return cam->x1 > cam->x0 && cam->y1 > cam->y0;
 }
 
-void pn_camera_filter_sample(const pn_camera *cam, int px, int py, float u1, float u2, float *rx,
-                             float *ry, float *weight) {
+void pn_camera_filter_sample(const pn_camera *cam, int px, int py, float u1, float u2, float *rx, float *ry,
+                             float *weight) {
     float wx, wy;
     float dx = filter_axis_sample(&cam->filter_x, u1, &wx);
     float dy = filter_axis_sample(&cam->filter_y, u2, &wy);

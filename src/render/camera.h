@@ -13,26 +13,26 @@
 /* A separable 1D filter tabulated on [-radius, radius] for importance sampling by |f|. */
 typedef struct pn_filter_axis {
     float radius;
-    float f[PN_FILTER_TABLE];   /* filter value at bin centres */
+    float f[PN_FILTER_TABLE]; /* filter value at bin centres */
     float cdf[PN_FILTER_TABLE + 1];
-    float integral_abs;         /* integral of |f| over the bins */
+    float integral_abs; /* integral of |f| over the bins */
 } pn_filter_axis;
 
 typedef struct pn_camera {
     mat4 world_from_camera;
     pn_camera_projection projection;
-    float tan_half_fov;         /* perspective; for the others the value that makes 2 tan / min(w, h)
+    float tan_half_fov; /* perspective; for the others the value that makes 2 tan / min(w, h)
                                    the angle of a pixel (ias's heuristics read it) */
-    float screen[4];            /* xmin xmax ymin ymax */
+    float screen[4];    /* xmin xmax ymin ymax */
     float lens_radius, focal_distance;
     int full_width, full_height; /* resolution of the whole image */
     int x0, y0, x1, y1;          /* pixel bounds of the rendered window [x0,x1) x [y0,y1) */
     pn_filter_axis filter_x, filter_y;
     /* The film's response (pn_camera_def): false = the image is left exactly as rendered. */
     bool film_active;
-    bool film_matrix;           /* clamp or white balance: go through XYZ */
-    float film_scale;           /* the imaging ratio */
-    float film_max_component;   /* 0 = no clamp */
+    bool film_matrix;         /* clamp or white balance: go through XYZ */
+    float film_scale;         /* the imaging ratio */
+    float film_max_component; /* 0 = no clamp */
     double xyz_from_rgb[3][3], rgb_from_xyz[3][3], white_balance[3][3];
 } pn_camera;
 
@@ -40,13 +40,12 @@ typedef struct pn_camera {
  * (pbrt's rounding: pixel bounds are ceil(res * crop)). When the scene gave Film "pixelbounds"
  * and the crop and resolution are the scene's own, its integer window is used as it is.
  * Returns false for an empty window. */
-bool pn_camera_setup(const pn_camera_def *def, int full_width, int full_height, const float crop[4],
-                     pn_camera *cam);
+bool pn_camera_setup(const pn_camera_def *def, int full_width, int full_height, const float crop[4], pn_camera *cam);
 
 /* Samples the pixel filter around the centre of pixel (px, py) with u in [0,1)^2: returns the
  * raster position and the sample's weight (1 for non-negative filters). */
-void pn_camera_filter_sample(const pn_camera *cam, int px, int py, float u1, float u2, float *rx,
-                             float *ry, float *weight);
+void pn_camera_filter_sample(const pn_camera *cam, int px, int py, float u1, float u2, float *rx, float *ry,
+                             float *weight);
 
 /* A primary ray through raster position (rx, ry) with lens sample (l1, l2). The direction is
  * unit length. */

@@ -79,14 +79,15 @@ uint32_t pn_pixel_scramble(const pn_render_job *job, int px, int py) {
 void pn_pixel_eye_sample(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, vec3 *o, vec3 *d,
                          float *fw, float *u_specular) {
     float rx, ry;
-    pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble),
-                            &rx, &ry, fw);
+    pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble), &rx,
+                            &ry, fw);
     pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), o, d);
     *u_specular = pn_sobol_sample(i, 4, scramble);
 }
 
 void pn_eye_point_trace(const pn_render_job *job, int px, int py, uint32_t i, pn_batch_point *out) {
-    uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
+    uint32_t scramble =
+        (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
     float fw, u_specular;
     vec3 ro, rd;
     pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);

@@ -58,7 +58,9 @@ double pn_progress_value(pn_progress *p) {
     return v;
 }
 
-bool pn_progress_cancelled(const pn_progress *p) { return p && p->cancel && atomic_load(p->cancel) != 0; }
+bool pn_progress_cancelled(const pn_progress *p) {
+    return p && p->cancel && atomic_load(p->cancel) != 0;
+}
 
 bool pn_progress_step(void *progress, double fraction) {
     pn_progress *p = progress;

@@ -22,10 +22,10 @@ typedef struct pn_progress {
     void (*fn)(void *user, double fraction); /* NULL: nothing is reported */
     void *user;
     pthread_mutex_t lock;
-    double reported;                  /* the last value passed to fn (0 before the first) */
-    double window_start, window_end;  /* the current window (absolute) */
-    double phase_start, phase_end;    /* the current phase (absolute, inside the window) */
-    const atomic_int *cancel;         /* the context's cancel flag */
+    double reported;                 /* the last value passed to fn (0 before the first) */
+    double window_start, window_end; /* the current window (absolute) */
+    double phase_start, phase_end;   /* the current phase (absolute, inside the window) */
+    const atomic_int *cancel;        /* the context's cancel flag */
 } pn_progress;
 
 /* A progress path over the callback (may be NULL) and the cancel flag; window and phase [0, 1]. */

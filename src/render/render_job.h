@@ -18,11 +18,11 @@ enum {
 
 /* contour_flags bits (option contour-off, in the order of its choices). */
 enum {
-    PN_CONTOUR_NO_SHAFT_CULLING = 1u << 0, /* cast rays even where no obstacle is in the shaft */
-    PN_CONTOUR_NO_SPANS = 1u << 1,         /* a full contour integration at every pixel */
-    PN_CONTOUR_NO_VALIDITY = 1u << 2,      /* no corner test, no subdivision (the Fig. 6 failure) */
+    PN_CONTOUR_NO_SHAFT_CULLING = 1u << 0,    /* cast rays even where no obstacle is in the shaft */
+    PN_CONTOUR_NO_SPANS = 1u << 1,            /* a full contour integration at every pixel */
+    PN_CONTOUR_NO_VALIDITY = 1u << 2,         /* no corner test, no subdivision (the Fig. 6 failure) */
     PN_CONTOUR_NO_ADAPTIVE_DENSITY = 1u << 3, /* keep the first-level grid fixed */
-    PN_CONTOUR_NO_RESTARTS = 1u << 4, /* accept inconsistencies instead of restarting finer */
+    PN_CONTOUR_NO_RESTARTS = 1u << 4,         /* accept inconsistencies instead of restarting finer */
     /* Our departures from the paper, on by default (bench/contour/RESULTS.md measures each): */
     PN_CONTOUR_NO_ISLANDS = 1u << 5,    /* no island probes from a nearby pixel's contour */
     PN_CONTOUR_NO_HALF_CHECK = 1u << 6, /* uniform runs check every first-level sample */
@@ -52,15 +52,15 @@ typedef struct pn_render_job {
     const pn_lights *lights;
     pn_camera camera;
     /* Common settings with defaults applied. */
-    uint32_t spp;                 /* 0: adaptive */
+    uint32_t spp; /* 0: adaptive */
     double threshold;
     uint32_t max_specular_depth;
     uint64_t seed;
     uint32_t aovs;
     /* Method options: every option of the table in integrators/registry.c, its set value or its
      * declared default (pn_registry_resolve). A new option adds its field here. */
-    uint32_t shadow_rays;         /* per eye ray */
-    uint32_t max_shadow_rays;     /* per pixel */
+    uint32_t shadow_rays;     /* per eye ray */
+    uint32_t max_shadow_rays; /* per pixel */
     uint32_t min_shadow_rays_black;
     uint32_t min_eye_rays;
     /* ias */
@@ -81,8 +81,8 @@ typedef struct pn_render_job {
     uint32_t contour_grid, contour_steps, contour_span, contour_flags;
     double contour_mc_threshold;
     uint32_t contour_mc_max_rays;
-    int contour_scout;         /* -1: by the first-level density */
-    int contour_part;          /* 1, 2 or 4 */
+    int contour_scout; /* -1: by the first-level density */
+    int contour_part;  /* 1, 2 or 4 */
     double contour_linear_tol;
     const char *contour_trace; /* NULL: no trace */
     /* progressive drivers */
@@ -98,12 +98,12 @@ typedef struct pn_render_job {
 /* The result of following an eye ray through perfect specular interactions to the first
  * non-specular surface. */
 typedef struct pn_eye_path {
-    vec3 emitted;     /* radiance collected along the way (emitters, environment), weighted */
-    bool has_point;   /* ended at a surface with a non-specular lobe */
-    vec3 throughput;  /* product of specular tints up to the point */
+    vec3 emitted;    /* radiance collected along the way (emitters, environment), weighted */
+    bool has_point;  /* ended at a surface with a non-specular lobe */
+    vec3 throughput; /* product of specular tints up to the point */
     pn_hit hit;
-    vec3 wo;          /* unit direction from the point back along the path */
-    uint32_t rays;    /* intersect calls made (1 + specular bounces) */
+    vec3 wo;       /* unit direction from the point back along the path */
+    uint32_t rays; /* intersect calls made (1 + specular bounces) */
     float first_depth;
     vec3 first_normal;
     vec3 first_albedo;

@@ -10,9 +10,9 @@
 
 /* How an RGB / blackbody / spectrum value is turned into linear RGB. */
 typedef enum pn_spectrum_use {
-    PN_SPECTRUM_ALBEDO = 0,     /* reflectances: clamped to [0, 1] */
-    PN_SPECTRUM_UNBOUNDED = 1,  /* eta, k, sigma: taken as they are */
-    PN_SPECTRUM_ILLUMINANT = 2  /* emission: blackbody and named illuminants (stdillum-*)
+    PN_SPECTRUM_ALBEDO = 0,    /* reflectances: clamped to [0, 1] */
+    PN_SPECTRUM_UNBOUNDED = 1, /* eta, k, sigma: taken as they are */
+    PN_SPECTRUM_ILLUMINANT = 2 /* emission: blackbody and named illuminants (stdillum-*)
                                    normalised to luminance 1, keeping their colour */
 } pn_spectrum_use;
 
@@ -20,14 +20,14 @@ typedef enum pn_spectrum_use {
  * pbrt-v4 spectrum such as "metal-Cu-eta" / "glass-BK7", or an .spd file relative to base_dir) as
  * linear RGB. Absent: *out = def, *found = false (found may be NULL). Wrong type or values: err at
  * the parameter's location, PN_ERROR_BAD_INPUT. */
-pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spectrum_use use,
-                        vec3 *out, bool *found, pn_err *err);
+pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spectrum_use use, vec3 *out, bool *found,
+                        pn_err *err);
 
 /* A spectral quantity read as one number at wavelength lambda_nm: a float, a numeric or file
  * spectrum evaluated there (end values held outside its range), a named spectrum's green value
  * (glasses: their index at 550 nm), or the green channel of an rgb. Absent: *out = def. */
-pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double lambda_nm, double def,
-                                   double *out, bool *found, pn_err *err);
+pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double lambda_nm, double def, double *out,
+                                   bool *found, pn_err *err);
 
 /* RGB of a named pbrt-v4 spectrum (metal-Cu-eta, glass-BK7, stdillum-D65, ...); false if unknown. */
 bool pn_named_spectrum_rgb(const char *name, vec3 *out);
@@ -42,21 +42,19 @@ vec3 pn_spectrum_pairs_rgb(const double *pairs, int value_count, pn_spectrum_use
 /* The shared image table (scene->images): decodes `path` (already resolved) with `gamma` as
  * pn_image_read_file takes it, or returns the index of the same file decoded with the same gamma
  * earlier. On failure err holds the image reader's message (without a location). */
-pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma, int *out_index,
-                         pn_err *err);
+pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma, int *out_index, pn_err *err);
 
 /* A material input that is a constant or a named texture ("texture name" "tex"): float (is_float,
  * value in .x of the texref) or RGB/spectrum. Undefined texture names are an error at the
  * parameter's location. Absent: constant `def`. */
-pn_status pn_params_texref(struct pn_scene_s *scene, const pn_params *ps, const char *name,
-                           bool is_float, vec3 def, pn_texref *out, pn_err *err);
+pn_status pn_params_texref(struct pn_scene_s *scene, const pn_params *ps, const char *name, bool is_float, vec3 def,
+                           pn_texref *out, pn_err *err);
 
 /* pn_params_texref with the conversion of constant RGB/spectrum values chosen by `use`
  * (pn_params_texref uses PN_SPECTRUM_ALBEDO, clamping with a warning; eta and k of conductors
  * need PN_SPECTRUM_UNBOUNDED). */
-pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, const char *name,
-                               bool is_float, vec3 def, pn_spectrum_use use, pn_texref *out,
-                               pn_err *err);
+pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, const char *name, bool is_float, vec3 def,
+                               pn_spectrum_use use, pn_texref *out, pn_err *err);
 
 /* Index of the last texture called `name` of the given kind (float or spectrum), or -1. */
 int pn_scene_find_texture_typed(const struct pn_scene_s *scene, const char *name, bool is_float);
@@ -72,8 +70,8 @@ int pn_scene_find_texture(const struct pn_scene_s *scene, const char *name);
 /* Material "type" params / MakeNamedMaterial "name" "string type" ...: appends a material mapped
  * as ARCHITECTURE.md says (with its one-line description) and returns its index in *out.
  * name is "" for anonymous Material directives. */
-pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, const char *name,
-                                const pn_params *ps, int *out, pn_err *err);
+pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, const char *name, const pn_params *ps,
+                                int *out, pn_err *err);
 
 /* Index of the last material called `name`, or -1. */
 int pn_scene_find_material(const struct pn_scene_s *scene, const char *name);
@@ -87,8 +85,8 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
  * pn_area_light_apply_power must be called for the shape it is attached to. */
 typedef struct pn_area_light_desc {
     pn_emission emission;
-    double power;        /* 0 = not given */
-    float photometric;   /* pbrt-v4 SpectrumToPhotometric(L): 1 for rgb, else luminance(L) */
+    double power;      /* 0 = not given */
+    float photometric; /* pbrt-v4 SpectrumToPhotometric(L): 1 for rgb, else luminance(L) */
 } pn_area_light_desc;
 
 pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,

@@ -58,7 +58,6 @@
 
 #define PN_PI_D 3.14159265358979323846
 
-
 static pn_status error_at(pn_srcloc loc, pn_status status, pn_err *err, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));
 
@@ -158,7 +157,8 @@ static pn_status projection_from_pbrt(struct pn_scene_s *scene, const pn_params 
         return pn_param_error(pn_params_find(ps, "fov"), err,
                               "projection light: \"fov\" %g is outside (0, 180) degrees", fov);
     if (!file[0])
-        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "projection light: \"filename\" (the projected image) is required");
+        return error_at(ps->loc, PN_ERROR_BAD_INPUT, err,
+                        "projection light: \"filename\" (the projected image) is required");
     st = load_image_param(scene, ps, file, &d->image, err);
     if (st != PN_OK) return st;
     const pn_texture_image *img = &scene->images[d->image];
@@ -295,9 +295,9 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             if (!d.equal_area) {
                 const pn_param *p = pn_params_find(ps, "filename");
                 pn_warn_at(scene, p ? p->loc : ps->loc,
-                        "environment image \"%s\" is %dx%d, not square (pbrt-v4's equal-area octahedral layout); "
-                        "read as a latitude-longitude map",
-                        file, img->width, img->height);
+                           "environment image \"%s\" is %dx%d, not square (pbrt-v4's equal-area octahedral layout); "
+                           "read as a latitude-longitude map",
+                           file, img->width, img->height);
             }
             if (illuminance > 0.0) {
                 double e = image_illuminance(img, d.equal_area);

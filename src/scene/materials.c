@@ -101,8 +101,6 @@
 #define PN_BLINN_MAX_EXPONENT 10000.0
 #define PN_SMOOTH_ALPHA 1e-3
 
-
-
 /* What is being built: the material, its label for messages and the description pieces. */
 typedef struct builder {
     struct pn_scene_s *scene;
@@ -154,7 +152,9 @@ static vec3 texref_constant(const struct pn_scene_s *scene, pn_texref r, vec3 fa
     return fallback;
 }
 
-static const pn_param *find_param(const pn_params *ps, const char *name) { return pn_params_find(ps, name); }
+static const pn_param *find_param(const pn_params *ps, const char *name) {
+    return pn_params_find(ps, name);
+}
 
 /* Reads and ignores parameters that have no counterpart in penumbra's models. */
 static void accept_silently(const pn_params *ps, const char *const *names, size_t n) {
@@ -205,7 +205,8 @@ static pn_status float_input(builder *b, const char *name, double def, double *o
     bool varies = false;
     vec3 v = texref_constant(b->scene, r, v3(0.5f, 0.5f, 0.5f), &varies);
     if (varies)
-        pn_warn_at(b->scene, p->loc, "%s: \"%s\" is a varying texture; the constant 0.5 is used instead", b->label, name);
+        pn_warn_at(b->scene, p->loc, "%s: \"%s\" is a varying texture; the constant 0.5 is used instead", b->label,
+                   name);
     *out = v.x;
     return PN_OK;
 }
@@ -333,8 +334,8 @@ static pn_status map_coateddiffuse(builder *b, pn_err *err) {
     b->m.exponent = (float)n;
     size_t len = strlen(b->model);
     snprintf(b->model + len, sizeof b->model - len,
-             " under a coating (kd x %.4g / (1 - kd x %.4g)) + Blinn ks=%.4g n=%.5g",
-             (double)b->m.coat_transmission, (double)b->m.coat_internal, (double)ks, n);
+             " under a coating (kd x %.4g / (1 - kd x %.4g)) + Blinn ks=%.4g n=%.5g", (double)b->m.coat_transmission,
+             (double)b->m.coat_internal, (double)ks, n);
     describe_roughness(b->note, sizeof b->note, roughness, alpha, n, clamped);
     warn_bump(b);
     return PN_OK;
@@ -367,8 +368,8 @@ static pn_status conductor_reflectance(builder *b, const char *prefix, bool has_
     vec3 eta = texref_constant(b->scene, eta_ref, cu_eta, &varies);
     vec3 k = texref_constant(b->scene, k_ref, cu_k, &varies);
     if (varies)
-        pn_warn_at(b->scene, b->ps->loc, "%s: textured \"%s\" / \"%s\" are not supported; copper is used where they vary",
-                b->label, en, kn);
+        pn_warn_at(b->scene, b->ps->loc,
+                   "%s: textured \"%s\" / \"%s\" are not supported; copper is used where they vary", b->label, en, kn);
     *f0 = constant_ref(v3(conductor_f0(eta.x, k.x), conductor_f0(eta.y, k.y), conductor_f0(eta.z, k.z)));
     const pn_param *pe = find_param(b->ps, en);
     const char *ename = pe && pe->type == PN_PT_SPECTRUM && pe->str_count == 1 ? pe->strs[0] : NULL;
@@ -391,8 +392,8 @@ static void set_conductor(builder *b, pn_texref f0, const char *what, double rou
         bool varies = false;
         vec3 spec = texref_constant(b->scene, f0, v3(0.9f, 0.9f, 0.9f), &varies);
         if (varies) {
-            pn_warn_at(b->scene, b->ps->loc, "%s: a textured reflectance on a smooth conductor is not supported; 0.9 used",
-                    b->label);
+            pn_warn_at(b->scene, b->ps->loc,
+                       "%s: a textured reflectance on a smooth conductor is not supported; 0.9 used", b->label);
             fmt_rgb(s, sizeof s, spec);
         }
         b->m.kind = PN_MATERIAL_MIRROR;
@@ -468,10 +469,11 @@ static pn_status map_dielectric(builder *b, pn_err *err) {
     double roughness = 0, alpha = 0;
     if (st == PN_OK && !thin) st = read_roughness(b, "", &roughness, &alpha, err);
     if (st != PN_OK) return st;
-    if (!(eta > 0.0)) return pn_param_error(find_param(b->ps, "eta"), err, "%s: eta %g must be positive", b->label, eta);
+    if (!(eta > 0.0))
+        return pn_param_error(find_param(b->ps, "eta"), err, "%s: eta %g must be positive", b->label, eta);
     if (alpha >= PN_SMOOTH_ALPHA)
         pn_warn_at(b->scene, b->ps->loc, "%s: rough dielectric (roughness %g) rendered as smooth glass", b->label,
-                roughness);
+                   roughness);
     b->m.kind = PN_MATERIAL_DIELECTRIC;
     b->m.eta = (float)eta;
     b->m.specular = v3(1, 1, 1);
@@ -479,8 +481,10 @@ static pn_status map_dielectric(builder *b, pn_err *err) {
     b->m.ks = constant_ref(v3(0, 0, 0));
     b->m.exponent = 1.0f;
     snprintf(b->model, sizeof b->model, "dielectric eta=%.4g", eta);
-    if (alpha >= PN_SMOOTH_ALPHA) snprintf(b->note, sizeof b->note, "(roughness %g ignored: smooth)", roughness);
-    else if (thin) snprintf(b->note, sizeof b->note, "(thin: rendered as a refracting surface)");
+    if (alpha >= PN_SMOOTH_ALPHA)
+        snprintf(b->note, sizeof b->note, "(roughness %g ignored: smooth)", roughness);
+    else if (thin)
+        snprintf(b->note, sizeof b->note, "(thin: rendered as a refracting surface)");
     warn_bump(b);
     return PN_OK;
 }
@@ -526,8 +530,8 @@ static pn_status map_diffusetransmission(builder *b, pn_err *err) {
             return st;
     }
     set_lambert(b, kd);
-    pn_warn_at(b->scene, b->ps->loc, "%s: diffusetransmission rendered as diffuse reflection; its transmission is dropped",
-            b->label);
+    pn_warn_at(b->scene, b->ps->loc,
+               "%s: diffusetransmission rendered as diffuse reflection; its transmission is dropped", b->label);
     snprintf(b->note, sizeof b->note, "(transmission dropped)");
     warn_bump(b);
     return PN_OK;
@@ -542,7 +546,8 @@ static pn_status map_substitute(builder *b, pn_err *err) {
         const char *colour = find_param(b->ps, "reflectance") ? "reflectance" : "color";
         if (find_param(b->ps, colour))
             st = pn_params_texref(b->scene, b->ps, colour, false, v3(0.3f, 0.3f, 0.3f), &kd, err);
-        else kd = constant_ref(v3(0.3f, 0.3f, 0.3f));
+        else
+            kd = constant_ref(v3(0.3f, 0.3f, 0.3f));
     } else if (strcmp(type, "subsurface") == 0) {
         if (find_param(b->ps, "reflectance"))
             st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
@@ -562,7 +567,7 @@ static pn_status map_substitute(builder *b, pn_err *err) {
     fmt_ref(b->scene, s, sizeof s, kd);
     const char *dialect = b->v3 ? "pbrt-v3 " : "";
     pn_warn_at(b->scene, b->ps->loc, "%s: %s%s material is not supported; substituted by a diffuse material kd=%s",
-            b->label, dialect, type, s);
+               b->label, dialect, type, s);
     snprintf(b->note, sizeof b->note, "(substitute for an unsupported %s%s material)", dialect, type);
     return PN_OK;
 }
@@ -588,8 +593,7 @@ static void copy_mix_input(builder *b, int idx, const char *name, const char *wh
  * A constant amount <= 0 or >= 1 is one material, as in pbrt-v4; a mix with an "interface"
  * input cannot be resolved per hit (interface shapes are removed from ray tracing as a whole) and
  * takes the input of larger weight, with a warning. */
-static pn_status set_mix(builder *b, const pn_param *where, const char *const names[2], pn_texref amount,
-                         pn_err *err) {
+static pn_status set_mix(builder *b, const pn_param *where, const char *const names[2], pn_texref amount, pn_err *err) {
     int idx[2];
     for (int i = 0; i < 2; i++) {
         idx[i] = pn_scene_find_material(b->scene, names[i]);
@@ -631,8 +635,9 @@ static pn_status set_mix(builder *b, const pn_param *where, const char *const na
 static pn_status map_mix(builder *b, pn_err *err) {
     const pn_param *mp = find_param(b->ps, "materials");
     if (!mp && (find_param(b->ps, "namedmaterial1") || find_param(b->ps, "namedmaterial2"))) return map_mix_v3(b, err);
-    if (!mp) return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: mix material needs \"materials\"",
-                               b->ps->loc.file ? b->ps->loc.file : "?", b->ps->loc.line, b->ps->loc.column);
+    if (!mp)
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s:%d:%d: mix material needs \"materials\"",
+                          b->ps->loc.file ? b->ps->loc.file : "?", b->ps->loc.line, b->ps->loc.column);
     if (mp->type != PN_PT_STRING || mp->str_count != 2)
         return pn_param_error(mp, err, "\"materials\" of a mix needs two material names");
     pn_texref amount;
@@ -724,12 +729,14 @@ static vec3 constant_tint(builder *b, const char *name, pn_texref r, vec3 fallba
         char s[64];
         fmt_rgb(s, sizeof s, fallback);
         pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: a varying texture \"%s\" is not supported here; %s is used",
-                b->label, name, s);
+                   b->label, name, s);
     }
     return c;
 }
 
-static bool is_white(vec3 c) { return c.x == 1.0f && c.y == 1.0f && c.z == 1.0f; }
+static bool is_white(vec3 c) {
+    return c.x == 1.0f && c.y == 1.0f && c.z == 1.0f;
+}
 
 static pn_status map_v3_matte(builder *b, pn_err *err) {
     pn_texref kd;
@@ -796,7 +803,7 @@ static pn_status map_v3_uber(builder *b, pn_err *err) {
         char s[128];
         fmt_ref(b->scene, s, sizeof s, lobes[i]);
         pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: uber's %s \"%s\" = %s is dropped", b->label, lobe_what[i],
-                lobe_names[i], s);
+                   lobe_names[i], s);
         add_note(b, "(%s %s dropped)", lobe_names[i], s);
     }
     bool op_varies = false;
@@ -806,7 +813,7 @@ static pn_status map_v3_uber(builder *b, pn_err *err) {
         char s[128];
         fmt_ref(b->scene, s, sizeof s, opacity);
         pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: \"opacity\" %s (below 1) is ignored; rendered opaque",
-                b->label, s);
+                   b->label, s);
         add_note(b, "(opacity %s ignored)", s);
     }
     if (has_eta) add_note(b, "(eta %g not used)", eta);
@@ -837,8 +844,10 @@ static pn_status map_v3_glass(builder *b, pn_err *err) {
     if (v3_is_zero(r)) {
         /* Transmission only in pbrt-v3; penumbra's glass reflects anyway, so Kt is the tint. */
         b->m.specular = t;
-        if (!is_white(t)) add_note(b, "(specular tint Kt=%s; Kr=0 not honoured: glass always reflects)", ts);
-        else add_note(b, "(Kr=0 not honoured: glass always reflects)");
+        if (!is_white(t))
+            add_note(b, "(specular tint Kt=%s; Kr=0 not honoured: glass always reflects)", ts);
+        else
+            add_note(b, "(Kr=0 not honoured: glass always reflects)");
         pn_warn_at(b->scene, b->ps->loc, "%s: glass with Kr = 0 still reflects in penumbra", b->label);
     } else {
         if (!is_white(r)) {
@@ -848,12 +857,13 @@ static pn_status map_v3_glass(builder *b, pn_err *err) {
         if (!is_white(t)) {
             const pn_param *p = find_param(b->ps, "Kt");
             pn_warn_at(b->scene, p ? p->loc : b->ps->loc, "%s: the transmission tint Kt = %s of glass is dropped",
-                    b->label, ts);
+                       b->label, ts);
             add_note(b, "(Kt=%s dropped)", ts);
         }
     }
     if (roughness > 0.0) {
-        pn_warn_at(b->scene, b->ps->loc, "%s: rough glass (roughness %g) rendered as smooth glass", b->label, roughness);
+        pn_warn_at(b->scene, b->ps->loc, "%s: rough glass (roughness %g) rendered as smooth glass", b->label,
+                   roughness);
         add_note(b, "(roughness %g ignored: smooth)", roughness);
     }
     snprintf(b->model, sizeof b->model, "dielectric eta=%.4g", eta);
@@ -963,8 +973,8 @@ static const material_entry material_table[] = {
     {"disney", true, map_substitute},
 };
 
-pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, const char *name,
-                                const pn_params *ps, int *out, pn_err *err) {
+pn_status pn_material_from_pbrt(struct pn_scene_s *scene, const char *type, const char *name, const pn_params *ps,
+                                int *out, pn_err *err) {
     if (out) *out = -1;
     if (!name) name = "";
     builder b;

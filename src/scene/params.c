@@ -18,12 +18,12 @@ typedef struct pn_type_spelling {
 
 /* pbrt-v4 names first (used when printing), then the pbrt-v3 spellings it still accepts. */
 static const pn_type_spelling pn_type_spellings[] = {
-    {"integer", PN_PT_INTEGER}, {"float", PN_PT_FLOAT},         {"point2", PN_PT_POINT2},
-    {"vector2", PN_PT_VECTOR2}, {"point3", PN_PT_POINT3},       {"vector3", PN_PT_VECTOR3},
-    {"normal3", PN_PT_NORMAL3}, {"rgb", PN_PT_RGB},             {"blackbody", PN_PT_BLACKBODY},
-    {"spectrum", PN_PT_SPECTRUM}, {"bool", PN_PT_BOOL},         {"string", PN_PT_STRING},
-    {"texture", PN_PT_TEXTURE}, {"point", PN_PT_POINT3},        {"vector", PN_PT_VECTOR3},
-    {"normal", PN_PT_NORMAL3},  {"color", PN_PT_RGB},
+    {"integer", PN_PT_INTEGER},   {"float", PN_PT_FLOAT},   {"point2", PN_PT_POINT2},
+    {"vector2", PN_PT_VECTOR2},   {"point3", PN_PT_POINT3}, {"vector3", PN_PT_VECTOR3},
+    {"normal3", PN_PT_NORMAL3},   {"rgb", PN_PT_RGB},       {"blackbody", PN_PT_BLACKBODY},
+    {"spectrum", PN_PT_SPECTRUM}, {"bool", PN_PT_BOOL},     {"string", PN_PT_STRING},
+    {"texture", PN_PT_TEXTURE},   {"point", PN_PT_POINT3},  {"vector", PN_PT_VECTOR3},
+    {"normal", PN_PT_NORMAL3},    {"color", PN_PT_RGB},
 };
 
 const char *pn_param_type_name(pn_param_type type) {
@@ -80,7 +80,9 @@ pn_status pn_param_error(const pn_param *p, pn_err *err, const char *fmt, ...) {
 
 /* ---- parsing ----------------------------------------------------------------------------- */
 
-static pn_status oom(pn_err *err) { return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory"); }
+static pn_status oom(pn_err *err) {
+    return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+}
 
 static pn_status push_number(pn_param *p, int *cap, double v, pn_err *err) {
     if (p->num_count == *cap) {
@@ -146,8 +148,7 @@ static pn_status add_value(pn_param *p, const pn_token *tok, int *num_cap, int *
     }
     if (tok->kind == PN_TOKEN_STRING)
         return pn_loc_error(&tok->loc, PN_ERROR_BAD_INPUT, err,
-                            "parameter \"%s %s\" expects numbers, found the string \"%s\"", tn, p->name,
-                            tok->text);
+                            "parameter \"%s %s\" expects numbers, found the string \"%s\"", tn, p->name, tok->text);
     double v;
     pn_status st = pn_token_number(tok, &v, err);
     if (st != PN_OK) return st;
@@ -199,8 +200,7 @@ static pn_status check_count(const pn_param *p, pn_err *err) {
         return pn_param_error(p, err, "parameter \"%s %s\" has %d values, which is not a multiple of %d",
                               pn_param_type_name(p->type), p->name, p->num_count, k);
     if (p->type == PN_PT_SPECTRUM && p->num_count % 2 != 0)
-        return pn_param_error(p, err,
-                              "parameter \"spectrum %s\" has %d values; (wavelength, value) pairs are needed",
+        return pn_param_error(p, err, "parameter \"spectrum %s\" has %d values; (wavelength, value) pairs are needed",
                               p->name, p->num_count);
     return PN_OK;
 }
@@ -235,8 +235,8 @@ pn_status pn_params_parse(pn_tokenizer *tz, pn_params *ps, pn_err *err) {
                                         pn_param_type_name(p->type), p->name);
                 if (v.kind == PN_TOKEN_LBRACKET)
                     return pn_loc_error(&v.loc, PN_ERROR_BAD_INPUT, err,
-                                        "'[' inside the value list of parameter \"%s %s\"",
-                                        pn_param_type_name(p->type), p->name);
+                                        "'[' inside the value list of parameter \"%s %s\"", pn_param_type_name(p->type),
+                                        p->name);
                 st = add_value(p, &v, &num_cap, &str_cap, err);
                 if (st != PN_OK) return st;
             }
@@ -288,8 +288,8 @@ static pn_status wrong_type(const pn_param *p, const char *expected, pn_err *err
 }
 
 static pn_status wrong_count(const pn_param *p, int expected, pn_err *err) {
-    return pn_param_error(p, err, "parameter \"%s %s\" needs exactly %d value%s, found %d",
-                          pn_param_type_name(p->type), p->name, expected, expected == 1 ? "" : "s",
+    return pn_param_error(p, err, "parameter \"%s %s\" needs exactly %d value%s, found %d", pn_param_type_name(p->type),
+                          p->name, expected, expected == 1 ? "" : "s",
                           p->type == PN_PT_STRING || p->type == PN_PT_TEXTURE ? p->str_count : p->num_count);
 }
 
@@ -323,8 +323,7 @@ pn_status pn_params_bool(const pn_params *ps, const char *name, bool def, bool *
     return PN_OK;
 }
 
-pn_status pn_params_string(const pn_params *ps, const char *name, const char *def, const char **out,
-                           pn_err *err) {
+pn_status pn_params_string(const pn_params *ps, const char *name, const char *def, const char **out, pn_err *err) {
     const pn_param *p = pn_params_find(ps, name);
     *out = def;
     if (!p) return PN_OK;

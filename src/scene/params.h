@@ -40,12 +40,12 @@ typedef enum pn_param_type {
 typedef struct pn_param {
     pn_param_type type;
     char *name;
-    pn_srcloc loc;    /* of the quoted "type name" */
-    double *nums;     /* numeric values (bool: 0 / 1) */
+    pn_srcloc loc; /* of the quoted "type name" */
+    double *nums;  /* numeric values (bool: 0 / 1) */
     int num_count;
-    char **strs;      /* string, texture and string-form spectrum values */
+    char **strs; /* string, texture and string-form spectrum values */
     int str_count;
-    bool used;        /* set by the getters; unused parameters are reported as warnings */
+    bool used; /* set by the getters; unused parameters are reported as warnings */
 } pn_param;
 
 typedef struct pn_params {
@@ -64,8 +64,7 @@ const pn_param *pn_params_find(const pn_params *ps, const char *name);
 
 /* Sets err to "file:line:column: <message>" at the parameter's location and returns
  * PN_ERROR_BAD_INPUT. */
-pn_status pn_param_error(const pn_param *p, pn_err *err, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+pn_status pn_param_error(const pn_param *p, pn_err *err, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
 /* Typed getters: when the parameter is absent, *out = def and PN_OK. When it is present with the
  * wrong type or the wrong number of values, err is set at its location and PN_ERROR_BAD_INPUT is
@@ -74,8 +73,7 @@ pn_status pn_params_float(const pn_params *ps, const char *name, double def, dou
 pn_status pn_params_int(const pn_params *ps, const char *name, int def, int *out, pn_err *err);
 pn_status pn_params_bool(const pn_params *ps, const char *name, bool def, bool *out, pn_err *err);
 /* *out points into the parameter (valid while ps lives) or is `def`. */
-pn_status pn_params_string(const pn_params *ps, const char *name, const char *def, const char **out,
-                           pn_err *err);
+pn_status pn_params_string(const pn_params *ps, const char *name, const char *def, const char **out, pn_err *err);
 /* A POINT3/VECTOR3/NORMAL3 (any of the three) with exactly 3 values. */
 pn_status pn_params_vec3(const pn_params *ps, const char *name, vec3 def, vec3 *out, pn_err *err);
 /* Arrays: *out points into the parameter (NULL and 0 when absent). `type` is checked (INTEGER
@@ -87,8 +85,7 @@ pn_status pn_params_array(const pn_params *ps, const char *name, pn_param_type t
 struct pn_scene_s;
 
 /* Adds the warning "file:line:column: <message>" at loc to the scene (pn_scene_warn). */
-void pn_warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+void pn_warn_at(struct pn_scene_s *scene, pn_srcloc loc, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 
 /* A malloc'ed copy of s (NULL when out of memory). */
 char *pn_strdup(const char *s);

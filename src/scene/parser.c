@@ -33,24 +33,23 @@
 
 enum { PN_ATTR_SHAPE = 0, PN_ATTR_LIGHT, PN_ATTR_MATERIAL, PN_ATTR_MEDIUM, PN_ATTR_TEXTURE, PN_ATTR_TARGETS };
 
-static const char *const pn_attr_target_names[PN_ATTR_TARGETS] = {"shape", "light", "material", "medium",
-                                                                   "texture"};
+static const char *const pn_attr_target_names[PN_ATTR_TARGETS] = {"shape", "light", "material", "medium", "texture"};
 
 /* What AttributeBegin saves and AttributeEnd restores. */
 typedef struct pn_gstate {
-    mat4 ctm[2];     /* transforms at the shutter's start and end (pbrt's motion blur) */
-    int active;      /* which of ctm[] the transform directives change: bit 0 start, bit 1 end */
-    int material;    /* -1: the default material; >= 0: index; <= -2: pending named material */
+    mat4 ctm[2];  /* transforms at the shutter's start and end (pbrt's motion blur) */
+    int active;   /* which of ctm[] the transform directives change: bit 0 start, bit 1 end */
+    int material; /* -1: the default material; >= 0: index; <= -2: pending named material */
     bool area_light_on;
     pn_area_light_desc area_light;
     pn_srcloc area_light_loc;
     bool reverse_orientation;
-    int attr_count;  /* Attribute defaults in effect: the first attr_count records */
+    int attr_count; /* Attribute defaults in effect: the first attr_count records */
 } pn_gstate;
 
 typedef struct pn_pushed_state {
     pn_gstate gs;
-    char kind;       /* 'a' AttributeBegin, 't' TransformBegin, 'o' ObjectBegin */
+    char kind; /* 'a' AttributeBegin, 't' TransformBegin, 'o' ObjectBegin */
     pn_srcloc loc;
 } pn_pushed_state;
 
@@ -121,8 +120,8 @@ typedef struct pn_parser {
     pn_srcloc degenerate_first; /* valid while parsing only */
 
     /* warnings given once per scene */
-    bool warned_motion, warned_media, warned_displacement, warned_object_light, warned_curve,
-        warned_cylinder, warned_world_end, warned_transform_times, warned_loop;
+    bool warned_motion, warned_media, warned_displacement, warned_object_light, warned_curve, warned_cylinder,
+        warned_world_end, warned_transform_times, warned_loop;
 } pn_parser;
 
 /* ---- small helpers ----------------------------------------------------------------------- */
@@ -153,16 +152,24 @@ static char *dir_of(const char *path) {
     return d;
 }
 
-static pn_tokenizer *cur(pn_parser *p) { return &p->files[p->depth - 1].tz; }
-static const char *search_dir(const pn_parser *p) { return p->search_dir; }
+static pn_tokenizer *cur(pn_parser *p) {
+    return &p->files[p->depth - 1].tz;
+}
+static const char *search_dir(const pn_parser *p) {
+    return p->search_dir;
+}
 
-static bool mat4_equal(const mat4 *a, const mat4 *b) { return memcmp(a, b, sizeof *a) == 0; }
+static bool mat4_equal(const mat4 *a, const mat4 *b) {
+    return memcmp(a, b, sizeof *a) == 0;
+}
 
 static void warn_motion_once(pn_parser *p, const pn_srcloc *loc) {
     if (p->warned_motion || mat4_equal(&p->gs.ctm[0], &p->gs.ctm[1])) return;
     p->warned_motion = true;
-    pn_scene_warn(p->scene, "%s:%d:%d: motion blur (ActiveTransform) is not supported; the transform at "
-                  "the start of the shutter is used", loc->file, loc->line, loc->column);
+    pn_scene_warn(p->scene,
+                  "%s:%d:%d: motion blur (ActiveTransform) is not supported; the transform at "
+                  "the start of the shutter is used",
+                  loc->file, loc->line, loc->column);
 }
 
 static void grow_bounds(pn_parser *p, vec3 lo, vec3 hi) {
@@ -196,8 +203,8 @@ static pn_status read_numbers(pn_parser *p, const pn_token *d, int n, double *ou
             if (bracket && t.kind == PN_TOKEN_EOF)
                 return pn_loc_error(&d->loc, PN_ERROR_BAD_INPUT, p->err, "the file ends inside the [ ] list of %.*s",
                                     (int)d->len, d->text);
-            return pn_loc_error(&d->loc, PN_ERROR_BAD_INPUT, p->err, "%.*s needs %d numbers, found %d",
-                                (int)d->len, d->text, n, i);
+            return pn_loc_error(&d->loc, PN_ERROR_BAD_INPUT, p->err, "%.*s needs %d numbers, found %d", (int)d->len,
+                                d->text, n, i);
         }
         pn_tokenizer_next(tz, &t, p->err);
         st = pn_token_number(&t, &out[i], p->err);
@@ -379,8 +386,8 @@ static pn_status d_coord_sys_transform(pn_parser *p, const pn_token *d) {
     if (st != PN_OK) return st;
     const pn_named_transform *n = find_named(p, name.text);
     if (!n) {
-        pn_scene_warn(p->scene, "%s:%d:%d: unknown coordinate system \"%s\"; the transform is unchanged",
-                      name.loc.file, name.loc.line, name.loc.column, name.text);
+        pn_scene_warn(p->scene, "%s:%d:%d: unknown coordinate system \"%s\"; the transform is unchanged", name.loc.file,
+                      name.loc.line, name.loc.column, name.text);
         return PN_OK;
     }
     p->gs.ctm[0] = n->ctm[0];
@@ -392,9 +399,12 @@ static pn_status d_active_transform(pn_parser *p, const pn_token *d) {
     pn_token t;
     pn_status st = pn_tokenizer_next(cur(p), &t, p->err);
     if (st != PN_OK) return st;
-    if (pn_token_is(&t, "StartTime")) p->gs.active = 1;
-    else if (pn_token_is(&t, "EndTime")) p->gs.active = 2;
-    else if (pn_token_is(&t, "All")) p->gs.active = 3;
+    if (pn_token_is(&t, "StartTime"))
+        p->gs.active = 1;
+    else if (pn_token_is(&t, "EndTime"))
+        p->gs.active = 2;
+    else if (pn_token_is(&t, "All"))
+        p->gs.active = 3;
     else
         return pn_loc_error(t.kind == PN_TOKEN_EOF ? &d->loc : &t.loc, PN_ERROR_BAD_INPUT, p->err,
                             "ActiveTransform expects StartTime, EndTime or All");
@@ -458,10 +468,18 @@ static pn_status pop_state(pn_parser *p, const pn_token *d, char kind) {
     return PN_OK;
 }
 
-static pn_status d_attribute_begin(pn_parser *p, const pn_token *d) { return push_state(p, 'a', &d->loc); }
-static pn_status d_attribute_end(pn_parser *p, const pn_token *d) { return pop_state(p, d, 'a'); }
-static pn_status d_transform_begin(pn_parser *p, const pn_token *d) { return push_state(p, 't', &d->loc); }
-static pn_status d_transform_end(pn_parser *p, const pn_token *d) { return pop_state(p, d, 't'); }
+static pn_status d_attribute_begin(pn_parser *p, const pn_token *d) {
+    return push_state(p, 'a', &d->loc);
+}
+static pn_status d_attribute_end(pn_parser *p, const pn_token *d) {
+    return pop_state(p, d, 'a');
+}
+static pn_status d_transform_begin(pn_parser *p, const pn_token *d) {
+    return push_state(p, 't', &d->loc);
+}
+static pn_status d_transform_end(pn_parser *p, const pn_token *d) {
+    return pop_state(p, d, 't');
+}
 
 static pn_status d_attribute(pn_parser *p, const pn_token *d) {
     pn_token target;
@@ -488,8 +506,7 @@ static pn_status d_attribute(pn_parser *p, const pn_token *d) {
     if (st != PN_OK) return st;
     if (t == PN_ATTR_MEDIUM && !p->warned_media) {
         p->warned_media = true;
-        pn_scene_warn(p->scene, "%s:%d:%d: participating media are ignored", d->loc.file, d->loc.line,
-                      d->loc.column);
+        pn_scene_warn(p->scene, "%s:%d:%d: participating media are ignored", d->loc.file, d->loc.line, d->loc.column);
     }
     return PN_OK;
 }
@@ -556,7 +573,8 @@ static pn_status d_camera(pn_parser *p, const pn_token *d) {
         } else {
             st = pn_param_error(pn_params_find(&ps, "mapping"), p->err,
                                 "unknown \"mapping\" \"%s\" for the spherical camera (pbrt-v4 knows \"equalarea\" "
-                                "and \"equirectangular\")", mapping);
+                                "and \"equirectangular\")",
+                                mapping);
             goto done;
         }
     } else if (strcmp(type.text, "realistic") == 0) {
@@ -567,7 +585,8 @@ static pn_status d_camera(pn_parser *p, const pn_token *d) {
     } else {
         st = pn_loc_error(&type.loc, PN_ERROR_UNSUPPORTED, p->err,
                           "Camera \"%s\" is not supported (penumbra renders \"perspective\", \"orthographic\" and "
-                          "\"spherical\" cameras)", type.text);
+                          "\"spherical\" cameras)",
+                          type.text);
         goto done;
     }
     mat4 inv;
@@ -612,9 +631,8 @@ static pn_status d_camera(pn_parser *p, const pn_token *d) {
         p->screen_window_given = true;
     }
     cam->fov_deg = (float)fov;
-    cam->lens_radius = projection == PN_PROJECTION_EQUAL_AREA || projection == PN_PROJECTION_EQUIRECTANGULAR
-                           ? 0.0f
-                           : (float)lens;
+    cam->lens_radius =
+        projection == PN_PROJECTION_EQUAL_AREA || projection == PN_PROJECTION_EQUIRECTANGULAR ? 0.0f : (float)lens;
     cam->focal_distance = (float)focal;
     cam->shutter_open = (float)open;
     cam->shutter_close = (float)close;
@@ -680,7 +698,8 @@ static pn_status d_film(pn_parser *p, const pn_token *d) {
         memcpy(cam->crop, c, sizeof c);
         p->crop_given = true;
         if (pb)
-            pn_warn_at(p->scene, pb->loc, "both \"pixelbounds\" and \"cropwindow\" are given; the crop window is used "
+            pn_warn_at(p->scene, pb->loc,
+                       "both \"pixelbounds\" and \"cropwindow\" are given; the crop window is used "
                        "(as pbrt-v4 does)");
     } else if (pb) {
         if (pbn != 4) {
@@ -705,8 +724,8 @@ static pn_status d_film(pn_parser *p, const pn_token *d) {
             goto done;
         }
         if (clamped)
-            pn_warn_at(p->scene, pb->loc, "\"pixelbounds\" extends beyond the %dx%d film; clamped to [%d %d %d %d]",
-                       w, h, b[0], b[1], b[2], b[3]);
+            pn_warn_at(p->scene, pb->loc, "\"pixelbounds\" extends beyond the %dx%d film; clamped to [%d %d %d %d]", w,
+                       h, b[0], b[1], b[2], b[3]);
         memcpy(cam->pixel_bounds, b, sizeof b);
         cam->pixel_bounds_given = true;
         cam->crop[0] = (float)b[0] / (float)w;
@@ -730,8 +749,10 @@ static pn_status d_film(pn_parser *p, const pn_token *d) {
         goto done;
     }
     if (wp && wb != 0.0 && !(wb >= 1667.0 && wb <= 25000.0)) {
-        st = pn_param_error(wp, p->err, "\"whitebalance\" must be a colour temperature in 1667..25000 K (or 0 for "
-                            "none), not %g", wb);
+        st = pn_param_error(wp, p->err,
+                            "\"whitebalance\" must be a colour temperature in 1667..25000 K (or 0 for "
+                            "none), not %g",
+                            wb);
         goto done;
     }
     if (mp && !(maxc > 0.0)) {
@@ -743,8 +764,10 @@ static pn_status d_film(pn_parser *p, const pn_token *d) {
          * balance; penumbra has no spectra to integrate, so it keeps the XYZ response. */
         const pn_param *sp = pn_params_find(&ps, "sensor");
         if (wb == 0.0) wb = 6500.0;
-        pn_warn_at(p->scene, sp->loc, "\"sensor\" \"%s\" is not supported: the \"cie1931\" (XYZ) response is used, "
-                   "white-balanced for %g K", sensor, wb);
+        pn_warn_at(p->scene, sp->loc,
+                   "\"sensor\" \"%s\" is not supported: the \"cie1931\" (XYZ) response is used, "
+                   "white-balanced for %g K",
+                   sensor, wb);
     }
     cam->iso = (float)iso;
     cam->white_balance_k = (float)wb;
@@ -782,8 +805,10 @@ static pn_status d_pixel_filter(pn_parser *p, const pn_token *d) {
         kind = PN_FILTER_GAUSSIAN;
         def_radius = 4.0;
         pn_params_find(&ps, "tau");
-        pn_scene_warn(p->scene, "%s:%d:%d: PixelFilter \"%s\" is not supported; a gaussian filter of the same "
-                      "radius is used", type.loc.file, type.loc.line, type.loc.column, type.text);
+        pn_scene_warn(p->scene,
+                      "%s:%d:%d: PixelFilter \"%s\" is not supported; a gaussian filter of the same "
+                      "radius is used",
+                      type.loc.file, type.loc.line, type.loc.column, type.text);
     } else {
         st = pn_loc_error(&type.loc, PN_ERROR_BAD_INPUT, p->err, "unknown PixelFilter \"%s\"", type.text);
         goto done;
@@ -854,8 +879,8 @@ static pn_status d_integrator(pn_parser *p, const pn_token *d) {
         pn_warn_at(p->scene, dp->loc,
                    "Integrator \"%s\" \"maxdepth\" %d: the VPL integrators (vpl, lightcuts, illumcut) default to "
                    "light paths of %d bounce%s; the direct-light integrators (reference, ias, contour, contour-mc) "
-                   "render direct light only, as pbrt does with maxdepth 1", type.text, depth,
-                   depth > 0 ? depth - 1 : 0, depth == 2 ? "" : "s");
+                   "render direct light only, as pbrt does with maxdepth 1",
+                   type.text, depth, depth > 0 ? depth - 1 : 0, depth == 2 ? "" : "s");
     if (st == PN_OK) warn_unused(p, &ps, ps.count, d, type.text);
     pn_params_free(&ps);
     return st;
@@ -990,8 +1015,8 @@ static pn_status d_named_material(pn_parser *p, const pn_token *d) {
     }
     /* pbrt-v4 resolves names after parsing, so a material may be defined later in the file. */
     char *copy = strdup(name.text);
-    if (!copy || !pn_grow_for_append((void **)&p->pending_materials, p->pending_material_count,
-                                     sizeof *p->pending_materials)) {
+    if (!copy ||
+        !pn_grow_for_append((void **)&p->pending_materials, p->pending_material_count, sizeof *p->pending_materials)) {
         free(copy);
         return out_of_memory(p);
     }
@@ -1107,10 +1132,10 @@ typedef struct pn_shape_ctx {
     const char *type;
     int material;
     pn_texref alpha;
-    bool reverse;  /* ReverseOrientation */
-    bool swaps;    /* det3(CTM) < 0 */
+    bool reverse; /* ReverseOrientation */
+    bool swaps;   /* det3(CTM) < 0 */
     int object;
-    char *source;  /* "file:line", handed to the first mesh, copied for later ones */
+    char *source; /* "file:line", handed to the first mesh, copied for later ones */
 } pn_shape_ctx;
 
 static pn_status resolve_material(pn_parser *p, int *out) {
@@ -1136,16 +1161,20 @@ static pn_status shape_emission(pn_parser *p, const pn_shape_ctx *sc, double are
     if (sc->object >= 0) {
         if (!p->warned_object_light) {
             p->warned_object_light = true;
-            pn_scene_warn(p->scene, "%s:%d:%d: area lights inside ObjectBegin/ObjectEnd are not supported; the "
-                          "shapes of object definitions do not emit", loc->file, loc->line, loc->column);
+            pn_scene_warn(p->scene,
+                          "%s:%d:%d: area lights inside ObjectBegin/ObjectEnd are not supported; the "
+                          "shapes of object definitions do not emit",
+                          loc->file, loc->line, loc->column);
         }
         return PN_OK;
     }
     pn_area_light_desc desc = p->gs.area_light;
     if (desc.power > 0.0) {
         if (!(area > 0.0)) {
-            pn_scene_warn(p->scene, "%s:%d:%d: the %s has zero area; its \"power\" cannot be normalised and it "
-                          "does not emit", loc->file, loc->line, loc->column, sc->type);
+            pn_scene_warn(p->scene,
+                          "%s:%d:%d: the %s has zero area; its \"power\" cannot be normalised and it "
+                          "does not emit",
+                          loc->file, loc->line, loc->column, sc->type);
             return PN_OK;
         }
         pn_area_light_apply_power(&desc, area, sc->type);
@@ -1162,8 +1191,7 @@ static char *take_source(pn_shape_ctx *sc) {
     sc->source = NULL;
     if (s) return s;
     char buf[600];
-    snprintf(buf, sizeof buf, "%s:%d:%d", sc->directive->loc.file, sc->directive->loc.line,
-             sc->directive->loc.column);
+    snprintf(buf, sizeof buf, "%s:%d:%d", sc->directive->loc.file, sc->directive->loc.line, sc->directive->loc.column);
     return strdup(buf);
 }
 
@@ -1253,8 +1281,8 @@ static pn_status read_vertices(pn_parser *p, const pn_shape_ctx *sc, const pn_pa
         if ((st = pn_params_array(ps, "N", PN_PT_NORMAL3, 3, &N, &nn, p->err)) != PN_OK) return st;
         if ((st = pn_params_array(ps, "uv", PN_PT_POINT2, 2, &UV, &nuv, p->err)) != PN_OK) return st;
         if (N && nn != np)
-            return pn_param_error(pn_params_find(ps, "N"), p->err,
-                                  "\"N\" has %d normals but \"P\" has %d vertices", nn / 3, np / 3);
+            return pn_param_error(pn_params_find(ps, "N"), p->err, "\"N\" has %d normals but \"P\" has %d vertices",
+                                  nn / 3, np / 3);
         if (UV && nuv / 2 != np / 3)
             return pn_param_error(pn_params_find(ps, "uv"), p->err,
                                   "\"uv\" has %d coordinate pairs but \"P\" has %d vertices", nuv / 2, np / 3);
@@ -1358,8 +1386,10 @@ static pn_status shape_loopsubdiv(pn_parser *p, pn_shape_ctx *sc, pn_params *ps)
     pn_mesh_data data;
     int levels = 3;
     pn_status st = pn_params_int(ps, "levels", 3, &levels, p->err);
-    if (st == PN_OK) st = read_vertices(p, sc, ps, false, &data);
-    else memset(&data, 0, sizeof data);
+    if (st == PN_OK)
+        st = read_vertices(p, sc, ps, false, &data);
+    else
+        memset(&data, 0, sizeof data);
     if (st == PN_OK) {
         int n;
         st = read_indices(p, sc, ps, 3, data.vertex_count, &data.indices, &n);
@@ -1456,15 +1486,19 @@ static pn_status shape_sphere(pn_parser *p, pn_shape_ctx *sc, pn_params *ps) {
         return PN_OK;
     }
     if (zmin > -radius || zmax < radius || phimax < 360.0)
-        pn_scene_warn(p->scene, "%s:%d:%d: partial spheres (zmin, zmax, phimax) are not supported; a full sphere "
-                      "is used", loc->file, loc->line, loc->column);
+        pn_scene_warn(p->scene,
+                      "%s:%d:%d: partial spheres (zmin, zmax, phimax) are not supported; a full sphere "
+                      "is used",
+                      loc->file, loc->line, loc->column);
     const mat4 *M = &p->gs.ctm[0];
     double det = mat4_det3(M);
     if (!(fabs(det) > 0.0) || !isfinite(det))
         return pn_loc_error(loc, PN_ERROR_BAD_INPUT, p->err, "the transform of the sphere is singular");
     if (!is_similarity(M, 3))
-        pn_scene_warn(p->scene, "%s:%d:%d: sphere under a non-uniform scale or shear; approximated by a sphere of "
-                      "the same volume", loc->file, loc->line, loc->column);
+        pn_scene_warn(p->scene,
+                      "%s:%d:%d: sphere under a non-uniform scale or shear; approximated by a sphere of "
+                      "the same volume",
+                      loc->file, loc->line, loc->column);
     if (sc->alpha.texture >= 0 || sc->alpha.value.x < 1.0f)
         pn_scene_warn(p->scene, "%s:%d:%d: \"alpha\" is not supported on spheres; ignored", loc->file, loc->line,
                       loc->column);
@@ -1515,8 +1549,10 @@ static pn_status shape_disk(pn_parser *p, pn_shape_ctx *sc, pn_params *ps) {
     if (!mat4_inverse(*M, &inv))
         return pn_loc_error(loc, PN_ERROR_BAD_INPUT, p->err, "the transform of the disk is singular");
     if (!is_similarity(M, 2))
-        pn_scene_warn(p->scene, "%s:%d:%d: disk under a non-uniform scale or shear; its analytic light uses a "
-                      "circle of the same area", loc->file, loc->line, loc->column);
+        pn_scene_warn(p->scene,
+                      "%s:%d:%d: disk under a non-uniform scale or shear; its analytic light uses a "
+                      "circle of the same area",
+                      loc->file, loc->line, loc->column);
     /* Winding is reversed under a mirroring transform so that the tessellation's geometric
      * normal, after pbrt's flip for ReverseOrientation XOR handedness, equals the disk's. */
     pn_mesh_data data;
@@ -1567,8 +1603,8 @@ static pn_status shape_cylinder(pn_parser *p, pn_shape_ctx *sc, pn_params *ps) {
                       loc->line, loc->column, PN_CYLINDER_SEGMENTS);
     }
     pn_mesh_data data;
-    st = pn_tessellate_cylinder(radius, zmin, zmax, fmin(phimax, 360.0), PN_CYLINDER_SEGMENTS, sc->swaps, &data,
-                                p->err);
+    st =
+        pn_tessellate_cylinder(radius, zmin, zmax, fmin(phimax, 360.0), PN_CYLINDER_SEGMENTS, sc->swaps, &data, p->err);
     if (st != PN_OK) return st;
     /* Quadric normals flip with ReverseOrientation XOR handedness (pbrt), unlike mesh normals. */
     return add_mesh(p, sc, &data, sc->reverse != sc->swaps, 0.0, NULL);
@@ -1590,9 +1626,12 @@ static pn_status d_shape(pn_parser *p, const pn_token *d) {
     static const struct {
         const char *name;
         shape_fn fn;
-    } shapes[] = {{"trianglemesh", shape_trianglemesh}, {"plymesh", shape_plymesh},
-                  {"sphere", shape_sphere},             {"disk", shape_disk},
-                  {"bilinearmesh", shape_bilinearmesh}, {"loopsubdiv", shape_loopsubdiv},
+    } shapes[] = {{"trianglemesh", shape_trianglemesh},
+                  {"plymesh", shape_plymesh},
+                  {"sphere", shape_sphere},
+                  {"disk", shape_disk},
+                  {"bilinearmesh", shape_bilinearmesh},
+                  {"loopsubdiv", shape_loopsubdiv},
                   {"cylinder", shape_cylinder}};
     shape_fn fn = NULL;
     for (size_t i = 0; i < sizeof shapes / sizeof shapes[0]; i++)
@@ -1718,8 +1757,8 @@ static const pn_directive pn_directives[] = {
 static pn_status dispatch(pn_parser *p, const pn_token *t) {
     if (t->kind != PN_TOKEN_WORD) {
         if (t->kind == PN_TOKEN_STRING)
-            return pn_loc_error(&t->loc, PN_ERROR_BAD_INPUT, p->err,
-                                "expected a directive, found the string \"%s\"", t->text);
+            return pn_loc_error(&t->loc, PN_ERROR_BAD_INPUT, p->err, "expected a directive, found the string \"%s\"",
+                                t->text);
         return pn_loc_error(&t->loc, PN_ERROR_BAD_INPUT, p->err, "expected a directive, found '%c'", t->text[0]);
     }
     for (size_t i = 0; i < sizeof pn_directives / sizeof pn_directives[0]; i++) {
@@ -1917,9 +1956,10 @@ static pn_status parse_all(pn_parser *p, const char *path) {
     if (st != PN_OK) return st;
     if (p->degenerate_shapes > 0) {
         const pn_srcloc *l = &p->degenerate_first;
-        pn_scene_warn(p->scene, "%s:%d:%d: %llu degenerate (zero-area) triangles in %d shape%s, the first here; "
-                      "they are kept but cannot be hit or emit", l->file, l->line, l->column,
-                      (unsigned long long)p->degenerate_triangles, p->degenerate_shapes,
+        pn_scene_warn(p->scene,
+                      "%s:%d:%d: %llu degenerate (zero-area) triangles in %d shape%s, the first here; "
+                      "they are kept but cannot be hit or emit",
+                      l->file, l->line, l->column, (unsigned long long)p->degenerate_triangles, p->degenerate_shapes,
                       p->degenerate_shapes == 1 ? "" : "s");
     }
     instance_bounds(p);
@@ -1940,7 +1980,6 @@ static void parser_cleanup(pn_parser *p) {
     for (int i = 0; i < p->string_count; i++) free(p->strings[i]);
     free(p->strings);
 }
-
 
 pn_status pn_scene_parse(pn_context ctx, const char *path, struct pn_scene_s **out, pn_err *err) {
     if (out) *out = NULL;

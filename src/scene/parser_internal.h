@@ -16,9 +16,12 @@
  * is needed. Returns false (array unchanged) when memory runs out. */
 static inline bool pn_grow_for_append(void **array, int count, size_t elem_size) {
     size_t new_cap;
-    if (count == 0) new_cap = 4;
-    else if (count >= 4 && (count & (count - 1)) == 0) new_cap = (size_t)count * 2;
-    else return true;
+    if (count == 0)
+        new_cap = 4;
+    else if (count >= 4 && (count & (count - 1)) == 0)
+        new_cap = (size_t)count * 2;
+    else
+        return true;
     if (count > 0x3fffffff) return false;
     void *p = realloc(*array, new_cap * elem_size);
     if (!p) return false;
@@ -59,13 +62,13 @@ void pn_mesh_bounds(const pn_mesh *mesh, vec3 *lo, vec3 *hi);
 /* Tessellates pbrt's disk (object space: z = height, radius, inner radius, phi_max in degrees)
  * with `segments` around. Triangles wind counter-clockwise seen from +z, or clockwise when
  * `reverse_winding`. */
-pn_status pn_tessellate_disk(double height, double radius, double inner_radius, double phi_max_deg,
-                             int segments, bool reverse_winding, pn_mesh_data *out, pn_err *err);
+pn_status pn_tessellate_disk(double height, double radius, double inner_radius, double phi_max_deg, int segments,
+                             bool reverse_winding, pn_mesh_data *out, pn_err *err);
 
 /* Tessellates pbrt's cylinder (object space: z axis, radius, z from zmin to zmax, phi_max) with
  * `segments` around; triangles face outwards (inwards when reverse_winding). */
-pn_status pn_tessellate_cylinder(double radius, double zmin, double zmax, double phi_max_deg,
-                                 int segments, bool reverse_winding, pn_mesh_data *out, pn_err *err);
+pn_status pn_tessellate_cylinder(double radius, double zmin, double zmax, double phi_max_deg, int segments,
+                                 bool reverse_winding, pn_mesh_data *out, pn_err *err);
 
 /* Loop subdivision (Loop 1987) of a closed or open triangle mesh, `levels` times; replaces the
  * data. Boundary vertices and edges use the usual boundary rules. Normals/uvs are dropped. */

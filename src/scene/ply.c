@@ -96,12 +96,10 @@ static const struct {
     const char *name;
     ply_type type;
 } ply_type_names[] = {
-    {"char", PLY_INT8},       {"int8", PLY_INT8},       {"uchar", PLY_UINT8},
-    {"uint8", PLY_UINT8},     {"short", PLY_INT16},     {"int16", PLY_INT16},
-    {"ushort", PLY_UINT16},   {"uint16", PLY_UINT16},   {"int", PLY_INT32},
-    {"int32", PLY_INT32},     {"uint", PLY_UINT32},     {"uint32", PLY_UINT32},
-    {"float", PLY_FLOAT32},   {"float32", PLY_FLOAT32}, {"double", PLY_FLOAT64},
-    {"float64", PLY_FLOAT64},
+    {"char", PLY_INT8},     {"int8", PLY_INT8},       {"uchar", PLY_UINT8},    {"uint8", PLY_UINT8},
+    {"short", PLY_INT16},   {"int16", PLY_INT16},     {"ushort", PLY_UINT16},  {"uint16", PLY_UINT16},
+    {"int", PLY_INT32},     {"int32", PLY_INT32},     {"uint", PLY_UINT32},    {"uint32", PLY_UINT32},
+    {"float", PLY_FLOAT32}, {"float32", PLY_FLOAT32}, {"double", PLY_FLOAT64}, {"float64", PLY_FLOAT64},
 };
 
 static size_t ply_type_size(ply_type t) {
@@ -125,12 +123,13 @@ static ply_type ply_type_from_name(const char *name) {
     return PLY_NONE;
 }
 
-static bool ply_type_is_integer(ply_type t) { return t != PLY_FLOAT32 && t != PLY_FLOAT64; }
+static bool ply_type_is_integer(ply_type t) {
+    return t != PLY_FLOAT32 && t != PLY_FLOAT64;
+}
 
 /* ---- errors ---------------------------------------------------------------------------- */
 
-static pn_status ply_fail(ply_reader *r, const char *fmt, ...)
-    __attribute__((format(printf, 2, 3)));
+static pn_status ply_fail(ply_reader *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 static pn_status ply_fail(ply_reader *r, const char *fmt, ...) {
     char msg[768];
@@ -312,10 +311,8 @@ static pn_status ply_assign_slots(ply_reader *r) {
         if (e->kind == KIND_FACE) {
             for (size_t j = 0; j < e->prop_count; j++) {
                 ply_prop *p = &e->props[j];
-                if (strcmp(p->name, "vertex_indices") != 0 && strcmp(p->name, "vertex_index") != 0)
-                    continue;
-                if (p->count_type == PLY_NONE)
-                    return ply_fail(r, "header: face property '%s' is not a list", p->name);
+                if (strcmp(p->name, "vertex_indices") != 0 && strcmp(p->name, "vertex_index") != 0) continue;
+                if (p->count_type == PLY_NONE) return ply_fail(r, "header: face property '%s' is not a list", p->name);
                 p->slot = SLOT_INDICES;
                 break;
             }
@@ -362,8 +359,7 @@ static pn_status ply_parse_header(ply_reader *r) {
     if (!ply_ensure(r, 2) && r->io_failed) return r->err->status;
     if (r->len - r->pos >= 2 && r->buf[0] == 0x1f && r->buf[1] == 0x8b)
         return ply_fail(r, "gzip-compressed PLY files are not supported; decompress it first");
-    if (!ply_ensure(r, 4) || memcmp(r->buf, "ply", 3) != 0 ||
-        (r->buf[3] != '\n' && r->buf[3] != '\r')) {
+    if (!ply_ensure(r, 4) || memcmp(r->buf, "ply", 3) != 0 || (r->buf[3] != '\n' && r->buf[3] != '\r')) {
         if (r->io_failed) return r->err->status;
         return ply_fail(r, "not a PLY file");
     }
@@ -400,15 +396,13 @@ static pn_status ply_parse_header(ply_reader *r) {
             if (n != 3) return ply_fail(r, "header: malformed element line on line %llu", ln);
             if (!ply_parse_count(tok[2], &count))
                 return ply_fail(r, "header: bad element count '%s' on line %llu", tok[2], ln);
-            if (strlen(tok[1]) >= PLY_MAX_NAME)
-                return ply_fail(r, "header: element name too long on line %llu", ln);
+            if (strlen(tok[1]) >= PLY_MAX_NAME) return ply_fail(r, "header: element name too long on line %llu", ln);
             if (ply_find_elem(r, tok[1]) != NULL)
                 return ply_fail(r, "header: second element '%s' on line %llu", tok[1], ln);
             if (r->elem_count == r->elem_cap) {
                 size_t cap = r->elem_cap ? r->elem_cap * 2 : 4;
                 ply_elem *grown = realloc(r->elems, cap * sizeof *grown);
-                if (grown == NULL)
-                    return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
+                if (grown == NULL) return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
                 r->elems = grown;
                 r->elem_cap = cap;
             }
@@ -416,9 +410,7 @@ static pn_status ply_parse_header(ply_reader *r) {
             memset(e, 0, sizeof *e);
             snprintf(e->name, sizeof e->name, "%s", tok[1]);
             e->count = count;
-            e->kind = !strcmp(e->name, "vertex") ? KIND_VERTEX
-                      : !strcmp(e->name, "face") ? KIND_FACE
-                                                 : KIND_OTHER;
+            e->kind = !strcmp(e->name, "vertex") ? KIND_VERTEX : !strcmp(e->name, "face") ? KIND_FACE : KIND_OTHER;
             if (e->kind == KIND_VERTEX) {
                 if (count > UINT32_MAX)
                     return ply_fail(r, "header: %llu vertices is more than supported, on line %llu",
@@ -426,8 +418,7 @@ static pn_status ply_parse_header(ply_reader *r) {
                 r->vertex_count = count;
             }
         } else if (!strcmp(tok[0], "property")) {
-            if (r->elem_count == 0)
-                return ply_fail(r, "header: property before any element on line %llu", ln);
+            if (r->elem_count == 0) return ply_fail(r, "header: property before any element on line %llu", ln);
             ply_elem *e = &r->elems[r->elem_count - 1];
             ply_prop p;
             memset(&p, 0, sizeof p);
@@ -437,36 +428,28 @@ static pn_status ply_parse_header(ply_reader *r) {
                 p.count_type = ply_type_from_name(tok[2]);
                 p.type = ply_type_from_name(tok[3]);
                 if (p.count_type == PLY_NONE)
-                    return ply_fail(r, "header: unknown property type '%s' on line %llu", tok[2],
-                                    ln);
+                    return ply_fail(r, "header: unknown property type '%s' on line %llu", tok[2], ln);
                 if (p.type == PLY_NONE)
-                    return ply_fail(r, "header: unknown property type '%s' on line %llu", tok[3],
-                                    ln);
+                    return ply_fail(r, "header: unknown property type '%s' on line %llu", tok[3], ln);
                 if (!ply_type_is_integer(p.count_type))
-                    return ply_fail(
-                        r, "header: list count type '%s' is not an integer type on line %llu",
-                        tok[2], ln);
+                    return ply_fail(r, "header: list count type '%s' is not an integer type on line %llu", tok[2], ln);
                 name = tok[4];
             } else {
                 if (n != 3) return ply_fail(r, "header: malformed property line on line %llu", ln);
                 p.type = ply_type_from_name(tok[1]);
                 if (p.type == PLY_NONE)
-                    return ply_fail(r, "header: unknown property type '%s' on line %llu", tok[1],
-                                    ln);
+                    return ply_fail(r, "header: unknown property type '%s' on line %llu", tok[1], ln);
                 name = tok[2];
             }
-            if (strlen(name) >= PLY_MAX_NAME)
-                return ply_fail(r, "header: property name too long on line %llu", ln);
+            if (strlen(name) >= PLY_MAX_NAME) return ply_fail(r, "header: property name too long on line %llu", ln);
             for (size_t i = 0; i < e->prop_count; i++)
                 if (!strcmp(e->props[i].name, name))
-                    return ply_fail(r, "header: second property '%s' in element '%s' on line %llu",
-                                    name, e->name, ln);
+                    return ply_fail(r, "header: second property '%s' in element '%s' on line %llu", name, e->name, ln);
             snprintf(p.name, sizeof p.name, "%s", name);
             if (e->prop_count == e->prop_cap) {
                 size_t cap = e->prop_cap ? e->prop_cap * 2 : 8;
                 ply_prop *grown = realloc(e->props, cap * sizeof *grown);
-                if (grown == NULL)
-                    return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
+                if (grown == NULL) return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
                 e->props = grown;
                 e->prop_cap = cap;
             }
@@ -512,11 +495,10 @@ static pn_status ply_check_sizes(ply_reader *r) {
             char plural[PLY_MAX_NAME + 2];
             const char *what = ply_plural(e, plural, sizeof plural);
             if (exact)
-                return ply_fail(r, "file ends after %llu of %llu %s",
-                                (unsigned long long)(room / min_record),
+                return ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)(room / min_record),
                                 (unsigned long long)e->count, what);
-            return ply_fail(r, "file is too short for the %llu %s its header declares",
-                            (unsigned long long)e->count, what);
+            return ply_fail(r, "file is too short for the %llu %s its header declares", (unsigned long long)e->count,
+                            what);
         }
         needed += e->count * min_record;
         if (needed > remaining) needed = remaining;
@@ -601,15 +583,15 @@ static bool ply_ascii_token(ply_reader *r, char *tok, size_t size) {
 
 /* Reads one value of type t from the body (either format). On failure records an error naming
  * the property, the record and the element, and returns false. */
-static bool ply_read_value(ply_reader *r, ply_type t, double *out, const ply_elem *e,
-                           uint64_t record, const char *prop) {
+static bool ply_read_value(ply_reader *r, ply_type t, double *out, const ply_elem *e, uint64_t record,
+                           const char *prop) {
     char plural[PLY_MAX_NAME + 2];
     if (r->format != PLY_ASCII) {
         size_t n = ply_type_size(t);
         if (!ply_ensure(r, n)) {
             if (r->err->status == PN_OK)
-                ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record,
-                         (unsigned long long)e->count, ply_plural(e, plural, sizeof plural));
+                ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record, (unsigned long long)e->count,
+                         ply_plural(e, plural, sizeof plural));
             return false;
         }
         *out = ply_load(r->buf + r->pos, t, r->swap);
@@ -619,20 +601,20 @@ static bool ply_read_value(ply_reader *r, ply_type t, double *out, const ply_ele
     char tok[128];
     if (!ply_ascii_token(r, tok, sizeof tok)) {
         if (r->err->status == PN_OK)
-            ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record,
-                     (unsigned long long)e->count, ply_plural(e, plural, sizeof plural));
+            ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record, (unsigned long long)e->count,
+                     ply_plural(e, plural, sizeof plural));
         return false;
     }
     char *end;
     double v = strtod(tok, &end);
     if (end == tok || *end != '\0') {
-        ply_fail(r, "line %llu: '%s' is not a number (property '%s' of %s %llu)",
-                 (unsigned long long)r->line, tok, prop, e->name, (unsigned long long)record);
+        ply_fail(r, "line %llu: '%s' is not a number (property '%s' of %s %llu)", (unsigned long long)r->line, tok,
+                 prop, e->name, (unsigned long long)record);
         return false;
     }
     if (ply_type_is_integer(t) && v != floor(v)) {
-        ply_fail(r, "line %llu: '%s' is not an integer (property '%s' of %s %llu)",
-                 (unsigned long long)r->line, tok, prop, e->name, (unsigned long long)record);
+        ply_fail(r, "line %llu: '%s' is not an integer (property '%s' of %s %llu)", (unsigned long long)r->line, tok,
+                 prop, e->name, (unsigned long long)record);
         return false;
     }
     *out = v;
@@ -667,18 +649,16 @@ static bool ply_push_triangle(ply_reader *r, uint32_t a, uint32_t b, uint32_t c)
 
 /* Reads a list property; its items go to the face buffer when used, else are discarded.
  * *item_count receives the list length. */
-static bool ply_read_list(ply_reader *r, const ply_elem *e, const ply_prop *p, uint64_t record,
-                          size_t *item_count) {
+static bool ply_read_list(ply_reader *r, const ply_elem *e, const ply_prop *p, uint64_t record, size_t *item_count) {
     double cv;
     if (!ply_read_value(r, p->count_type, &cv, e, record, p->name)) return false;
     if (cv < 0) {
-        ply_fail(r, "%s %llu: negative list length %.0f for '%s'", e->name,
-                 (unsigned long long)record, cv, p->name);
+        ply_fail(r, "%s %llu: negative list length %.0f for '%s'", e->name, (unsigned long long)record, cv, p->name);
         return false;
     }
     if (cv > (double)UINT32_MAX) {
-        ply_fail(r, "%s %llu: list length %.0f for '%s' is too large", e->name,
-                 (unsigned long long)record, cv, p->name);
+        ply_fail(r, "%s %llu: list length %.0f for '%s' is too large", e->name, (unsigned long long)record, cv,
+                 p->name);
         return false;
     }
     size_t count = (size_t)cv;
@@ -708,14 +688,14 @@ static bool ply_read_list(ply_reader *r, const ply_elem *e, const ply_prop *p, u
          * forged length cannot make the buffer grow past the file. */
         if (!ply_ensure(r, count * item)) {
             if (r->err->status == PN_OK)
-                ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record,
-                         (unsigned long long)e->count, ply_plural(e, plural, sizeof plural));
+                ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record, (unsigned long long)e->count,
+                         ply_plural(e, plural, sizeof plural));
             return false;
         }
     } else if ((uint64_t)count > (ply_remaining(r) + 1) / 2) {
         /* Each ascii item takes at least a digit and a separator. */
-        ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record,
-                 (unsigned long long)e->count, ply_plural(e, plural, sizeof plural));
+        ply_fail(r, "file ends after %llu of %llu %s", (unsigned long long)record, (unsigned long long)e->count,
+                 ply_plural(e, plural, sizeof plural));
         return false;
     }
     if (count > r->face_cap) {
@@ -738,8 +718,8 @@ static bool ply_read_list(ply_reader *r, const ply_elem *e, const ply_prop *p, u
             return false;
         }
         if (!(v >= 0 && v < (double)r->vertex_count) || v != floor(v)) {
-            ply_fail(r, "face %llu refers to vertex %.17g but there are %llu vertices",
-                     (unsigned long long)record, v, (unsigned long long)r->vertex_count);
+            ply_fail(r, "face %llu refers to vertex %.17g but there are %llu vertices", (unsigned long long)record, v,
+                     (unsigned long long)r->vertex_count);
             return false;
         }
         r->face[i] = (uint32_t)v;
@@ -754,8 +734,7 @@ static bool ply_store_vertex(ply_reader *r, uint64_t index, const double *v) {
     p[1] = (float)v[SLOT_Y];
     p[2] = (float)v[SLOT_Z];
     if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
-        ply_fail(r, "vertex %llu has a position that is not a finite number",
-                 (unsigned long long)index);
+        ply_fail(r, "vertex %llu has a position that is not a finite number", (unsigned long long)index);
         return false;
     }
     if (m->normals != NULL) {
@@ -769,8 +748,7 @@ static bool ply_store_vertex(ply_reader *r, uint64_t index, const double *v) {
         t[0] = (float)v[SLOT_U];
         t[1] = (float)v[SLOT_V];
         if (!isfinite(t[0]) || !isfinite(t[1])) {
-            ply_fail(r, "vertex %llu has a texture coordinate that is not a finite number",
-                     (unsigned long long)index);
+            ply_fail(r, "vertex %llu has a texture coordinate that is not a finite number", (unsigned long long)index);
             return false;
         }
     }
@@ -841,8 +819,7 @@ static pn_status ply_read_binary_vertices(ply_reader *r, const ply_elem *e) {
                 vals[slots[k]] = (double)f;
             }
         } else {
-            for (size_t k = 0; k < used; k++)
-                vals[slots[k]] = ply_load(rec + offset[k], type[k], r->swap);
+            for (size_t k = 0; k < used; k++) vals[slots[k]] = ply_load(rec + offset[k], type[k], r->swap);
         }
         r->pos += e->fixed_size;
         if (!ply_store_vertex(r, i, vals)) return r->err->status;
@@ -913,8 +890,7 @@ static pn_status ply_read_binary_faces(ply_reader *r, const ply_elem *e, size_t 
                 int64_t b = ply_load_int(rec + item, lp->type, r->swap);
                 int64_t c = ply_load_int(rec + 2 * item, lp->type, r->swap);
                 if (a >= 0 && a < nv && b >= 0 && b < nv && c >= 0 && c < nv) {
-                    if (!ply_push_triangle(r, (uint32_t)a, (uint32_t)b, (uint32_t)c))
-                        return r->err->status;
+                    if (!ply_push_triangle(r, (uint32_t)a, (uint32_t)b, (uint32_t)c)) return r->err->status;
                     r->pos += tri_size;
                     continue;
                 }
@@ -952,8 +928,7 @@ static pn_status ply_read_element(ply_reader *r, const ply_elem *e) {
                 lists++;
                 list_at = j;
             }
-            if (lists == 1 && e->props[list_at].slot == SLOT_INDICES &&
-                ply_type_is_integer(e->props[list_at].type))
+            if (lists == 1 && e->props[list_at].slot == SLOT_INDICES && ply_type_is_integer(e->props[list_at].type))
                 return ply_read_binary_faces(r, e, list_at);
         }
     }
@@ -999,8 +974,7 @@ static pn_status ply_read_all(ply_reader *r) {
     m->positions = malloc((nv ? nv : 1) * 3 * sizeof(float));
     if (want_normals) m->normals = malloc((nv ? nv : 1) * 3 * sizeof(float));
     if (want_uvs) m->uvs = malloc((nv ? nv : 1) * 2 * sizeof(float));
-    if (m->positions == NULL || (want_normals && m->normals == NULL) ||
-        (want_uvs && m->uvs == NULL))
+    if (m->positions == NULL || (want_normals && m->normals == NULL) || (want_uvs && m->uvs == NULL))
         return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
 
     /* Reserve triangles for the common case of one per face, as far as the file can hold. */
@@ -1012,8 +986,7 @@ static pn_status ply_read_all(ply_reader *r) {
         if (cap > fit) cap = fit;
         if (cap > UINT32_MAX) cap = UINT32_MAX;
         m->indices = malloc((size_t)cap * 3 * sizeof(uint32_t));
-        if (m->indices == NULL)
-            return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
+        if (m->indices == NULL) return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
         r->tri_cap = (size_t)cap;
     }
 
@@ -1027,17 +1000,14 @@ static pn_status ply_read_all(ply_reader *r) {
         uint32_t *shrunk = realloc(m->indices, (size_t)m->triangle_count * 3 * sizeof(uint32_t));
         if (shrunk != NULL) m->indices = shrunk;
     }
-    if (m->indices == NULL)
-        return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
+    if (m->indices == NULL) return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->path);
     return PN_OK;
 }
 
 pn_status pn_ply_read(const char *path, pn_ply_mesh *mesh, pn_err *err) {
-    if (mesh == NULL)
-        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "PLY reader: no mesh to fill");
+    if (mesh == NULL) return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "PLY reader: no mesh to fill");
     memset(mesh, 0, sizeof *mesh);
-    if (path == NULL)
-        return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "PLY reader: no path given");
+    if (path == NULL) return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "PLY reader: no path given");
 
     pn_err local;
     pn_err_init(&local);

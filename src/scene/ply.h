@@ -18,9 +18,9 @@
 
 typedef struct pn_ply_mesh {
     uint32_t vertex_count, triangle_count;
-    float *positions;  /* 3 * vertex_count */
-    float *normals;    /* 3 * vertex_count or NULL */
-    float *uvs;        /* 2 * vertex_count or NULL */
+    float *positions; /* 3 * vertex_count */
+    float *normals;   /* 3 * vertex_count or NULL */
+    float *uvs;       /* 2 * vertex_count or NULL */
     /* 3 * triangle_count; quads split into two triangles (0,1,2),(0,2,3); n-gons fanned */
     uint32_t *indices;
     uint32_t skipped_face_count; /* faces with fewer than 3 vertices, which were left out */

@@ -29,10 +29,10 @@ typedef struct pn_texref {
 } pn_texref;
 
 typedef enum pn_texture_kind {
-    PN_TEXTURE_CONSTANT = 0,  /* value */
-    PN_TEXTURE_IMAGE = 1,     /* image[] lookup with (s, 1 - t), bilinear, wrap */
-    PN_TEXTURE_SCALE = 2,     /* a * b   ("tex" * "scale") */
-    PN_TEXTURE_MIX = 3,       /* (1 - amount) * a + amount * b */
+    PN_TEXTURE_CONSTANT = 0,    /* value */
+    PN_TEXTURE_IMAGE = 1,       /* image[] lookup with (s, 1 - t), bilinear, wrap */
+    PN_TEXTURE_SCALE = 2,       /* a * b   ("tex" * "scale") */
+    PN_TEXTURE_MIX = 3,         /* (1 - amount) * a + amount * b */
     PN_TEXTURE_CHECKERBOARD = 4 /* 2D checkerboard of a ("tex1") and b ("tex2") */
 } pn_texture_kind;
 
@@ -40,12 +40,12 @@ typedef enum pn_wrap_mode { PN_WRAP_REPEAT = 0, PN_WRAP_CLAMP = 1, PN_WRAP_BLACK
 
 typedef struct pn_texture {
     pn_texture_kind kind;
-    bool is_float;    /* "float" texture (single channel, stored in .x of results) */
-    vec3 value;       /* CONSTANT */
-    int image;        /* IMAGE: index into pn_scene_s.images */
-    float su, sv, du, dv; /* uv mapping: s = su*u + du, t = sv*v + dv */
-    float scale;      /* IMAGE: multiplies the looked-up value (pbrt "scale") */
-    bool invert;      /* IMAGE: 1 - value */
+    bool is_float;            /* "float" texture (single channel, stored in .x of results) */
+    vec3 value;               /* CONSTANT */
+    int image;                /* IMAGE: index into pn_scene_s.images */
+    float su, sv, du, dv;     /* uv mapping: s = su*u + du, t = sv*v + dv */
+    float scale;              /* IMAGE: multiplies the looked-up value (pbrt "scale") */
+    bool invert;              /* IMAGE: 1 - value */
     bool float_first_channel; /* IMAGE, float: the first channel of an RGB image instead of the
                                  channel average (pbrt-v4's point / EWA filters; texture.c) */
     pn_wrap_mode wrap;
@@ -83,11 +83,11 @@ typedef enum pn_material_kind {
 
 typedef struct pn_material {
     pn_material_kind kind;
-    pn_texref kd;        /* diffuse reflectance (RGB) */
-    pn_texref ks;        /* glossy coefficient k_spec (RGB), 0 = none */
-    float exponent;      /* Blinn–Phong exponent n */
-    vec3 specular;       /* MIRROR / DIELECTRIC tint */
-    float eta;           /* DIELECTRIC */
+    pn_texref kd;   /* diffuse reflectance (RGB) */
+    pn_texref ks;   /* glossy coefficient k_spec (RGB), 0 = none */
+    float exponent; /* Blinn–Phong exponent n */
+    vec3 specular;  /* MIRROR / DIELECTRIC tint */
+    float eta;      /* DIELECTRIC */
     /* Lambert under a smooth dielectric coating (pbrt-v4 coateddiffuse): the diffuse reflectance
      * seen from outside is kd * coat_transmission / (1 - kd * coat_internal) per channel, with
      * coat_transmission = (1 - Fbar)^2 / eta^2 (in through the coating and out again, radiance
@@ -96,17 +96,17 @@ typedef struct pn_material {
      * hemispherical Fresnel reflectance. */
     bool coated;
     float coat_transmission, coat_internal;
-    int mix[2];            /* MIX: the two materials (indices, defined before this one) */
-    pn_texref mix_amount;  /* MIX: probability of mix[1] (channel average of the value) */
-    char *name;          /* pbrt name ("" for anonymous Material directives) */
-    char *description;   /* one line: "NAME: pbrt TYPE -> penumbra model (parameters)" */
+    int mix[2];           /* MIX: the two materials (indices, defined before this one) */
+    pn_texref mix_amount; /* MIX: probability of mix[1] (channel average of the value) */
+    char *name;           /* pbrt name ("" for anonymous Material directives) */
+    char *description;    /* one line: "NAME: pbrt TYPE -> penumbra model (parameters)" */
 } pn_material;
 
 /* ---- geometry ---------------------------------------------------------------------------- */
 
 /* Emission of an area light attached to a shape (AreaLightSource "diffuse"). */
 typedef struct pn_emission {
-    vec3 radiance;  /* L * scale (* power normalisation) */
+    vec3 radiance; /* L * scale (* power normalisation) */
     bool two_sided;
     /* "power" normalised per pbrt-v4 shape inside a mesh: 0 = radiance is final; 1 = each
      * triangle is a shape, 2 = each pair of triangles (2i, 2i + 1) is one (a bilinear patch).
@@ -119,21 +119,21 @@ typedef struct pn_emission {
  * an object definition (object >= 0). Normals are unit length. */
 typedef struct pn_mesh {
     uint32_t vertex_count, triangle_count;
-    float *positions;   /* 3 * vertex_count */
-    float *normals;     /* 3 * vertex_count or NULL */
-    float *uvs;         /* 2 * vertex_count or NULL */
-    uint32_t *indices;  /* 3 * triangle_count */
-    int material;       /* index into materials */
-    pn_texref alpha;    /* alpha cut-out: texture >= 0, or value.x < 1 to cut everything */
-    int emission;       /* index into emissions, or -1 */
+    float *positions;  /* 3 * vertex_count */
+    float *normals;    /* 3 * vertex_count or NULL */
+    float *uvs;        /* 2 * vertex_count or NULL */
+    uint32_t *indices; /* 3 * triangle_count */
+    int material;      /* index into materials */
+    pn_texref alpha;   /* alpha cut-out: texture >= 0, or value.x < 1 to cut everything */
+    int emission;      /* index into emissions, or -1 */
     /* pbrt: ReverseOrientation XOR the transform swaps handedness. The geometric normal of a
      * triangle is normalize(cross(p1 - p0, p2 - p0)), negated when this is true, then (if the
      * mesh has normals) flipped to the side of the interpolated shading normal. One-sided
      * emitters emit on the side of that geometric normal. */
     bool flip_normals;
-    int object;         /* -1: world geometry; >= 0: belongs to objects[object] */
-    int disk;           /* >= 0: this mesh tessellates disks[disk] (for analytic disk lights) */
-    char *source;       /* "file:line:column" of the Shape directive, for messages */
+    int object;   /* -1: world geometry; >= 0: belongs to objects[object] */
+    int disk;     /* >= 0: this mesh tessellates disks[disk] (for analytic disk lights) */
+    char *source; /* "file:line:column" of the Shape directive, for messages */
 } pn_mesh;
 
 /* An analytic sphere (pbrt "sphere" with full zmin/zmax/phimax). A non-uniform scale in its
@@ -142,23 +142,23 @@ typedef struct pn_sphere {
     vec3 center;
     float radius;
     int material;
-    int emission;       /* -1 or index into emissions */
-    bool flip_normals;  /* normals point inward */
+    int emission;      /* -1 or index into emissions */
+    bool flip_normals; /* normals point inward */
     int object;
-    char *source;       /* "file:line:column" of the Shape directive, for messages */
+    char *source; /* "file:line:column" of the Shape directive, for messages */
 } pn_sphere;
 
 /* An analytic disk as a light source; its geometry is also tessellated into a pn_mesh. */
 typedef struct pn_disk {
     vec3 center, normal; /* normal already flipped per ReverseOrientation/handedness */
     float radius;
-    float inner_radius;  /* pbrt "innerradius" (0 = full disk) */
-    int mesh;            /* the tessellated mesh */
+    float inner_radius; /* pbrt "innerradius" (0 = full disk) */
+    int mesh;           /* the tessellated mesh */
 } pn_disk;
 
 typedef struct pn_object {
     char *name;
-    int first_mesh, mesh_count;       /* meshes[first_mesh .. +mesh_count) */
+    int first_mesh, mesh_count; /* meshes[first_mesh .. +mesh_count) */
     int first_sphere, sphere_count;
 } pn_object;
 
@@ -180,20 +180,20 @@ typedef enum pn_light_def_kind {
 
 typedef struct pn_light_def {
     pn_light_def_kind kind;
-    vec3 position;      /* POINT, SPOT, GONIOMETRIC: world position */
-    vec3 direction;     /* SPOT: unit axis of the cone (from -> to); DISTANT: unit direction
+    vec3 position;                            /* POINT, SPOT, GONIOMETRIC: world position */
+    vec3 direction;                           /* SPOT: unit axis of the cone (from -> to); DISTANT: unit direction
                            TOWARDS the light (from - to, normalised) */
-    vec3 intensity;     /* POINT/SPOT/GONIOMETRIC: I * scale (W/sr); DISTANT: L * scale
+    vec3 intensity;                           /* POINT/SPOT/GONIOMETRIC: I * scale (W/sr); DISTANT: L * scale
                            (irradiance on a surface facing it); INFINITE: constant L * scale
                            when image < 0, else the scale in .x,.y,.z */
     float cos_falloff_start, cos_total_width; /* SPOT: pbrt's smoothstep falloff */
-    int image;          /* INFINITE or GONIOMETRIC: index into images, or -1 */
-    bool equal_area;    /* INFINITE image: pbrt-v4 equal-area octahedral (square image);
+    int image;                                /* INFINITE or GONIOMETRIC: index into images, or -1 */
+    bool equal_area;                          /* INFINITE image: pbrt-v4 equal-area octahedral (square image);
                            false: equirectangular (latitude-longitude) */
-    mat4 world_from_light; /* INFINITE / GONIOMETRIC orientation */
+    mat4 world_from_light;                    /* INFINITE / GONIOMETRIC orientation */
     mat4 light_from_world;
-    char *source;       /* "file:line" */
-    float fov_deg;      /* PROJECTION: the frustum's angle across the image's shorter side */
+    char *source;  /* "file:line" */
+    float fov_deg; /* PROJECTION: the frustum's angle across the image's shorter side */
 } pn_light_def;
 
 /* ---- camera and film --------------------------------------------------------------------- */
@@ -219,8 +219,8 @@ typedef struct pn_camera_def {
     float fov_deg;          /* of the shorter image axis, pbrt's "fov" (default 90) */
     float screen_window[4]; /* xmin, xmax, ymin, ymax (default from the aspect ratio) */
     float lens_radius, focal_distance;
-    int width, height;      /* Film resolution (default 1280 x 720) */
-    float crop[4];          /* x0, x1, y0, y1 (default 0 1 0 1) */
+    int width, height; /* Film resolution (default 1280 x 720) */
+    float crop[4];     /* x0, x1, y0, y1 (default 0 1 0 1) */
     pn_filter_kind filter;
     float filter_radius[2];
     float gaussian_sigma;
@@ -229,28 +229,28 @@ typedef struct pn_camera_def {
      * when given, crop[] holds the same window as fractions and the renderer uses these
      * integers whenever it renders the scene's own crop at the scene's own resolution. */
     bool pixel_bounds_given;
-    int pixel_bounds[4];    /* x0, x1, y0, y1 */
+    int pixel_bounds[4]; /* x0, x1, y0, y1 */
     /* The film's response, applied to the finished image in one place (pn_camera_film_apply):
      * RGB -> XYZ, times imaging_ratio, clamped so that no XYZ component exceeds
      * max_component_value (0 = no clamp), white-balanced from the CIE daylight (or, below 4000 K,
      * blackbody) white of white_balance_k to D65 with the Bradford (von Kries) transform
      * (0 = none), -> RGB. pbrt-v4: the "cie1931" PixelSensor and RGBFilm. */
-    float imaging_ratio;    /* (shutterclose - shutteropen) * iso / 100; 0 reads as 1 */
+    float imaging_ratio; /* (shutterclose - shutteropen) * iso / 100; 0 reads as 1 */
     float max_component_value;
     float white_balance_k;
     float shutter_open, shutter_close; /* Camera parameters, kept for the imaging ratio */
     float iso;                         /* Film parameter */
-    int pixel_samples;      /* Sampler "pixelsamples", reported only */
+    int pixel_samples;                 /* Sampler "pixelsamples", reported only */
     char *film_filename;
-    char *integrator_name;  /* Integrator, reported only */
-    int max_depth;          /* Integrator "maxdepth" (pbrt's default 5 when absent) */
-    bool max_depth_given;   /* the scene gave "maxdepth": the VPL integrators' default light-path
+    char *integrator_name; /* Integrator, reported only */
+    int max_depth;         /* Integrator "maxdepth" (pbrt's default 5 when absent) */
+    bool max_depth_given;  /* the scene gave "maxdepth": the VPL integrators' default light-path
                                depth becomes max_depth - 1 bounces (pn_scene_vpl_depth) */
 } pn_camera_def;
 
 /* ---- the scene --------------------------------------------------------------------------- */
 
-struct pn_accel; /* accel/accel.h */
+struct pn_accel;  /* accel/accel.h */
 struct pn_lights; /* lights/lights.h */
 
 struct pn_scene_s {

@@ -98,7 +98,9 @@ uint32_t pn_scene_vpl_depth(const struct pn_scene_s *scene, uint32_t fallback) {
     return scene->camera.max_depth > 1 ? (uint32_t)(scene->camera.max_depth - 1) : 0u;
 }
 
-uint32_t pn_scene_material_count(pn_scene scene) { return scene ? (uint32_t)scene->material_count : 0; }
+uint32_t pn_scene_material_count(pn_scene scene) {
+    return scene ? (uint32_t)scene->material_count : 0;
+}
 
 const char *pn_scene_material_description(pn_scene scene, uint32_t index) {
     if (!scene || index >= (uint32_t)scene->material_count) return "";
@@ -106,7 +108,9 @@ const char *pn_scene_material_description(pn_scene scene, uint32_t index) {
     return d ? d : "";
 }
 
-uint32_t pn_scene_warning_count(pn_scene scene) { return scene ? (uint32_t)scene->warnings.count : 0; }
+uint32_t pn_scene_warning_count(pn_scene scene) {
+    return scene ? (uint32_t)scene->warnings.count : 0;
+}
 
 const char *pn_scene_warning(pn_scene scene, uint32_t index) {
     if (!scene || index >= (uint32_t)scene->warnings.count) return "";

@@ -76,7 +76,9 @@ pn_status pn_mesh_from_data(pn_mesh_data *d, const mat4 *M, bool reverse_orienta
     return PN_OK;
 }
 
-static inline vec3 vertex(const float *P, uint32_t i) { return v3(P[3 * i], P[3 * i + 1], P[3 * i + 2]); }
+static inline vec3 vertex(const float *P, uint32_t i) {
+    return v3(P[3 * i], P[3 * i + 1], P[3 * i + 2]);
+}
 
 double pn_mesh_area(const pn_mesh *mesh) {
     double sum = 0.0;
@@ -136,8 +138,8 @@ static void put_tri(uint32_t *ix, uint32_t a, uint32_t b, uint32_t c, bool rever
     ix[2] = reverse ? b : c;
 }
 
-pn_status pn_tessellate_disk(double height, double radius, double inner_radius, double phi_max_deg,
-                             int segments, bool reverse_winding, pn_mesh_data *out, pn_err *err) {
+pn_status pn_tessellate_disk(double height, double radius, double inner_radius, double phi_max_deg, int segments,
+                             bool reverse_winding, pn_mesh_data *out, pn_err *err) {
     double phi_max = phi_max_deg * (PN_PI_D / 180.0);
     bool full = phi_max_deg >= 360.0;
     uint32_t ring = (uint32_t)segments + (full ? 0u : 1u); /* vertices per ring */
@@ -190,8 +192,8 @@ pn_status pn_tessellate_disk(double height, double radius, double inner_radius, 
     return PN_OK;
 }
 
-pn_status pn_tessellate_cylinder(double radius, double zmin, double zmax, double phi_max_deg,
-                                 int segments, bool reverse_winding, pn_mesh_data *out, pn_err *err) {
+pn_status pn_tessellate_cylinder(double radius, double zmin, double zmax, double phi_max_deg, int segments,
+                                 bool reverse_winding, pn_mesh_data *out, pn_err *err) {
     double phi_max = phi_max_deg * (PN_PI_D / 180.0);
     uint32_t ring = (uint32_t)segments + 1; /* the seam is duplicated for the uvs */
     pn_status st = alloc_data(out, 2 * ring, 2 * (uint32_t)segments, true, true, err);
@@ -226,7 +228,7 @@ pn_status pn_tessellate_cylinder(double radius, double zmin, double zmax, double
 
 /* One half-edge of the input: the undirected edge's key and the corner it starts at. */
 typedef struct pn_half_edge {
-    uint64_t key; /* (min vertex << 32) | max vertex */
+    uint64_t key;    /* (min vertex << 32) | max vertex */
     uint32_t corner; /* 3 * triangle + k: the edge runs from corner k to corner k+1 */
 } pn_half_edge;
 
@@ -237,7 +239,9 @@ static int compare_half_edges(const void *a, const void *b) {
 }
 
 /* Loop's weight for an interior vertex of valence n (3/16 for n = 3, else 3/(8n)). */
-static double loop_beta(uint32_t n) { return n == 3 ? 3.0 / 16.0 : 3.0 / (8.0 * (double)n); }
+static double loop_beta(uint32_t n) {
+    return n == 3 ? 3.0 / 16.0 : 3.0 / (8.0 * (double)n);
+}
 
 /* One level of Loop subdivision (Loop 1987, "Smooth Subdivision Surfaces Based on Triangles",
  * section 3.2): every triangle becomes four; old ("even") vertices move by the valence-weighted

@@ -56,13 +56,16 @@ static double lobe(double lambda, double mu, double sigma_left, double sigma_rig
 }
 
 static double cmf_x(double l) {
-    return 1.056 * lobe(l, 599.8, 37.9, 31.0) + 0.362 * lobe(l, 442.0, 16.0, 26.7) -
-           0.065 * lobe(l, 501.1, 20.4, 26.2);
+    return 1.056 * lobe(l, 599.8, 37.9, 31.0) + 0.362 * lobe(l, 442.0, 16.0, 26.7) - 0.065 * lobe(l, 501.1, 20.4, 26.2);
 }
 
-static double cmf_y(double l) { return 0.821 * lobe(l, 568.8, 46.9, 40.5) + 0.286 * lobe(l, 530.9, 16.3, 31.1); }
+static double cmf_y(double l) {
+    return 0.821 * lobe(l, 568.8, 46.9, 40.5) + 0.286 * lobe(l, 530.9, 16.3, 31.1);
+}
 
-static double cmf_z(double l) { return 1.217 * lobe(l, 437.0, 11.8, 36.0) + 0.681 * lobe(l, 459.0, 26.0, 13.8); }
+static double cmf_z(double l) {
+    return 1.217 * lobe(l, 437.0, 11.8, 36.0) + 0.681 * lobe(l, 459.0, 26.0, 13.8);
+}
 
 /* CIE XYZ -> linear sRGB (Rec.709 primaries, D65 white). */
 static void xyz_to_rgb(const double xyz[3], double rgb[3]) {
@@ -156,26 +159,16 @@ typedef struct named_spectrum {
 
 /* Values of pbrt-v4's tabulated spectra, linearly interpolated at the wavelengths above. */
 static const named_spectrum named_spectra[] = {
-    {"metal-Ag-eta", 0.1342f, 0.1297f, 0.1395f},
-    {"metal-Ag-k", 3.9628f, 3.1942f, 2.6135f},
-    {"metal-Al-eta", 1.3571f, 0.8843f, 0.6605f},
-    {"metal-Al-k", 7.5878f, 6.4700f, 5.6536f},
-    {"metal-Au-eta", 0.1837f, 0.4573f, 1.3724f},
-    {"metal-Au-k", 3.0663f, 2.4084f, 1.8250f},
-    {"metal-Cu-eta", 0.2459f, 1.0723f, 1.1569f},
-    {"metal-Cu-k", 3.3784f, 2.5907f, 2.4572f},
-    {"metal-CuZn-eta", 0.445f, 0.568f, 0.947f},
-    {"metal-CuZn-k", 3.522f, 2.588f, 1.920f},
-    {"metal-MgO-eta", 1.7347f, 1.7423f, 1.7502f},
-    {"metal-MgO-k", 0.0f, 0.0f, 0.0f},
-    {"metal-TiO2-eta", 2.8748f, 2.9580f, 3.1143f},
-    {"metal-TiO2-k", 0.0f, 0.0f, 0.0f},
-    {"glass-BK7", 1.5185f, 1.5185f, 1.5185f},
-    {"glass-BAF10", 1.6730f, 1.6730f, 1.6730f},
-    {"glass-FK51A", 1.4878f, 1.4878f, 1.4878f},
-    {"glass-LASF9", 1.8558f, 1.8558f, 1.8558f},
-    {"glass-F5", 1.6771f, 1.6771f, 1.6771f},
-    {"glass-F10", 1.7336f, 1.7336f, 1.7336f},
+    {"metal-Ag-eta", 0.1342f, 0.1297f, 0.1395f},   {"metal-Ag-k", 3.9628f, 3.1942f, 2.6135f},
+    {"metal-Al-eta", 1.3571f, 0.8843f, 0.6605f},   {"metal-Al-k", 7.5878f, 6.4700f, 5.6536f},
+    {"metal-Au-eta", 0.1837f, 0.4573f, 1.3724f},   {"metal-Au-k", 3.0663f, 2.4084f, 1.8250f},
+    {"metal-Cu-eta", 0.2459f, 1.0723f, 1.1569f},   {"metal-Cu-k", 3.3784f, 2.5907f, 2.4572f},
+    {"metal-CuZn-eta", 0.445f, 0.568f, 0.947f},    {"metal-CuZn-k", 3.522f, 2.588f, 1.920f},
+    {"metal-MgO-eta", 1.7347f, 1.7423f, 1.7502f},  {"metal-MgO-k", 0.0f, 0.0f, 0.0f},
+    {"metal-TiO2-eta", 2.8748f, 2.9580f, 3.1143f}, {"metal-TiO2-k", 0.0f, 0.0f, 0.0f},
+    {"glass-BK7", 1.5185f, 1.5185f, 1.5185f},      {"glass-BAF10", 1.6730f, 1.6730f, 1.6730f},
+    {"glass-FK51A", 1.4878f, 1.4878f, 1.4878f},    {"glass-LASF9", 1.8558f, 1.8558f, 1.8558f},
+    {"glass-F5", 1.6771f, 1.6771f, 1.6771f},       {"glass-F10", 1.7336f, 1.7336f, 1.7336f},
     {"glass-F11", 1.7911f, 1.7911f, 1.7911f},
 };
 
@@ -191,11 +184,11 @@ typedef struct named_illuminant {
 } named_illuminant;
 
 static const named_illuminant named_illuminants[] = {
-    {"stdillum-A", 0.44757, 0.40745},   {"stdillum-D50", 0.34567, 0.35850}, {"stdillum-D65", 0.0, 0.0},
-    {"stdillum-F1", 0.31310, 0.33727},  {"stdillum-F2", 0.37208, 0.37529},  {"stdillum-F3", 0.40910, 0.39430},
-    {"stdillum-F4", 0.44018, 0.40329},  {"stdillum-F5", 0.31379, 0.34531},  {"stdillum-F6", 0.37790, 0.38835},
-    {"stdillum-F7", 0.31292, 0.32933},  {"stdillum-F8", 0.34588, 0.35875},  {"stdillum-F9", 0.37417, 0.37281},
-    {"stdillum-F10", 0.34609, 0.35986}, {"stdillum-F11", 0.38052, 0.37713}, {"stdillum-F12", 0.43695, 0.40441},
+    {"stdillum-A", 0.44757, 0.40745},    {"stdillum-D50", 0.34567, 0.35850}, {"stdillum-D65", 0.0, 0.0},
+    {"stdillum-F1", 0.31310, 0.33727},   {"stdillum-F2", 0.37208, 0.37529},  {"stdillum-F3", 0.40910, 0.39430},
+    {"stdillum-F4", 0.44018, 0.40329},   {"stdillum-F5", 0.31379, 0.34531},  {"stdillum-F6", 0.37790, 0.38835},
+    {"stdillum-F7", 0.31292, 0.32933},   {"stdillum-F8", 0.34588, 0.35875},  {"stdillum-F9", 0.37417, 0.37281},
+    {"stdillum-F10", 0.34609, 0.35986},  {"stdillum-F11", 0.38052, 0.37713}, {"stdillum-F12", 0.43695, 0.40441},
     {"illum-acesD60", 0.32168, 0.33767},
 };
 
@@ -293,14 +286,12 @@ static bool read_number_file(const char *path, double **out, int *count, char *m
 /* Checks numeric pairs: an even count of at least 2 values and increasing wavelengths. */
 static bool check_pairs(const double *v, int n, char *msg, size_t msg_size) {
     if (n < 2 || n % 2 != 0) {
-        snprintf(msg, msg_size, "a spectrum needs (wavelength, value) pairs, got %d value%s", n,
-                 n == 1 ? "" : "s");
+        snprintf(msg, msg_size, "a spectrum needs (wavelength, value) pairs, got %d value%s", n, n == 1 ? "" : "s");
         return false;
     }
     for (int i = 1; i < n / 2; i++) {
         if (!(v[2 * i] > v[2 * (i - 1)])) {
-            snprintf(msg, msg_size, "spectrum wavelengths must increase (%g after %g)", v[2 * i],
-                     v[2 * (i - 1)]);
+            snprintf(msg, msg_size, "spectrum wavelengths must increase (%g after %g)", v[2 * i], v[2 * (i - 1)]);
             return false;
         }
     }
@@ -329,8 +320,8 @@ vec3 pn_spectrum_pairs_rgb(const double *pairs, int value_count, pn_spectrum_use
 
 /* The numeric pairs of a string-form spectrum parameter that names an .spd file (loaded into
  * *vals, to be freed by the caller). */
-static pn_status spd_file_pairs(const pn_params *ps, const pn_param *p, const char *file, double **vals,
-                                int *n, pn_err *err) {
+static pn_status spd_file_pairs(const pn_params *ps, const pn_param *p, const char *file, double **vals, int *n,
+                                pn_err *err) {
     char msg[512];
     char *path = pn_path_resolve(ps->base_dir, file);
     if (!path) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
@@ -345,8 +336,8 @@ static pn_status spd_file_pairs(const pn_params *ps, const pn_param *p, const ch
     return PN_OK;
 }
 
-pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spectrum_use use, vec3 *out,
-                        bool *found, pn_err *err) {
+pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spectrum_use use, vec3 *out, bool *found,
+                        pn_err *err) {
     *out = def;
     if (found) *found = false;
     const pn_param *p = pn_params_find(ps, name);
@@ -355,8 +346,7 @@ pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spec
     vec3 c = def;
     switch (p->type) {
     case PN_PT_RGB:
-        if (p->num_count != 3)
-            return pn_param_error(p, err, "\"%s\" needs 3 values, got %d", name, p->num_count);
+        if (p->num_count != 3) return pn_param_error(p, err, "\"%s\" needs 3 values, got %d", name, p->num_count);
         c = v3((float)p->nums[0], (float)p->nums[1], (float)p->nums[2]);
         if (!v3_is_finite(c)) return pn_param_error(p, err, "\"%s\" has a value that is not finite", name);
         if (use == PN_SPECTRUM_ALBEDO) c = clamp01(c);
@@ -394,21 +384,19 @@ pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spec
             if (!check_pairs(p->nums, p->num_count, msg, sizeof msg))
                 return pn_param_error(p, err, "\"%s\": %s", name, msg);
             for (int i = 0; i < p->num_count; i++)
-                if (!isfinite(p->nums[i]))
-                    return pn_param_error(p, err, "\"%s\" has a value that is not finite", name);
+                if (!isfinite(p->nums[i])) return pn_param_error(p, err, "\"%s\" has a value that is not finite", name);
             c = pairs_to_rgb(p->nums, p->num_count, use);
         }
         break;
-    default:
-        return pn_param_error(p, err, "\"%s\" must be an rgb, blackbody or spectrum value", name);
+    default: return pn_param_error(p, err, "\"%s\" must be an rgb, blackbody or spectrum value", name);
     }
     *out = c;
     if (found) *found = true;
     return PN_OK;
 }
 
-pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double lambda_nm, double def,
-                                   double *out, bool *found, pn_err *err) {
+pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double lambda_nm, double def, double *out,
+                                   bool *found, pn_err *err) {
     *out = def;
     if (found) *found = false;
     const pn_param *p = pn_params_find(ps, name);
@@ -427,8 +415,7 @@ pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double
         break;
     case PN_PT_SPECTRUM:
         if (p->str_count > 0) {
-            if (p->str_count != 1)
-                return pn_param_error(p, err, "spectrum \"%s\" needs one name or file", name);
+            if (p->str_count != 1) return pn_param_error(p, err, "spectrum \"%s\" needs one name or file", name);
             vec3 c;
             if (pn_named_spectrum_rgb(p->strs[0], &c)) {
                 v = c.y;
@@ -446,8 +433,7 @@ pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double
             v = pairs_eval(p->nums, p->num_count / 2, lambda_nm);
         }
         break;
-    default:
-        return pn_param_error(p, err, "\"%s\" must be a float or a spectrum", name);
+    default: return pn_param_error(p, err, "\"%s\" must be a float or a spectrum", name);
     }
     if (!isfinite(v)) return pn_param_error(p, err, "\"%s\" is not finite", name);
     *out = v;

@@ -39,8 +39,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-
-
 /* ---- the shared image table ----------------------------------------------------------------- */
 
 /* The table key: the path, plus the encoding when it is not the default sRGB curve. */
@@ -53,8 +51,7 @@ static void image_key(const char *path, float gamma, char *key, size_t size) {
         snprintf(key, size, "%s (gamma %g)", path, (double)gamma);
 }
 
-pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma, int *out_index,
-                         pn_err *err) {
+pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma, int *out_index, pn_err *err) {
     *out_index = -1;
     size_t key_size = strlen(path) + 64;
     char *key = malloc(key_size);
@@ -89,7 +86,8 @@ pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma
         if (rgb) {
             int ch = img->layers[0].channels;
             for (size_t i = 0; i < n; i++)
-                for (int c = 0; c < 3; c++) rgb[3 * i + (size_t)c] = img->layers[0].data[i * (size_t)ch + (size_t)(c < ch ? c : 0)];
+                for (int c = 0; c < 3; c++)
+                    rgb[3 * i + (size_t)c] = img->layers[0].data[i * (size_t)ch + (size_t)(c < ch ? c : 0)];
         }
     }
     if (!rgb || !pn_grow_for_append((void **)&scene->images, scene->image_count, sizeof *scene->images)) {
@@ -133,9 +131,8 @@ static pn_texref constant_ref(vec3 v) {
     return r;
 }
 
-pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, const char *name,
-                               bool is_float, vec3 def, pn_spectrum_use use, pn_texref *out,
-                               pn_err *err) {
+pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, const char *name, bool is_float, vec3 def,
+                               pn_spectrum_use use, pn_texref *out, pn_err *err) {
     if (is_float) def = v3(def.x, def.x, def.x);
     *out = constant_ref(def);
     const pn_param *p = pn_params_find(ps, name);
@@ -169,24 +166,25 @@ pn_status pn_params_texref_use(struct pn_scene_s *scene, const pn_params *ps, co
     case PN_PT_BLACKBODY: {
         if (is_float) return pn_param_error(p, err, "\"%s\" must be a float or a float texture", name);
         vec3 c;
-        pn_status st = pn_params_rgb(ps, name, def, use == PN_SPECTRUM_ALBEDO ? PN_SPECTRUM_UNBOUNDED : use, &c,
-                                     NULL, err);
+        pn_status st =
+            pn_params_rgb(ps, name, def, use == PN_SPECTRUM_ALBEDO ? PN_SPECTRUM_UNBOUNDED : use, &c, NULL, err);
         if (st != PN_OK) return st;
         if (use == PN_SPECTRUM_ALBEDO && (v3_max_component(c) > 1.0f || fminf(c.x, fminf(c.y, c.z)) < 0.0f)) {
-            pn_warn_at(scene, p->loc, "\"%s\" (%g, %g, %g) is outside [0, 1]; clamped", name, (double)c.x,
-                    (double)c.y, (double)c.z);
+            pn_warn_at(scene, p->loc, "\"%s\" (%g, %g, %g) is outside [0, 1]; clamped", name, (double)c.x, (double)c.y,
+                       (double)c.z);
             c = v3_min(v3(1, 1, 1), v3_max(v3(0, 0, 0), c));
         }
         out->value = c;
         return PN_OK;
     }
     default:
-        return pn_param_error(p, err, "\"%s\" must be %s or a texture", name, is_float ? "a float" : "an rgb or spectrum value");
+        return pn_param_error(p, err, "\"%s\" must be %s or a texture", name,
+                              is_float ? "a float" : "an rgb or spectrum value");
     }
 }
 
-pn_status pn_params_texref(struct pn_scene_s *scene, const pn_params *ps, const char *name,
-                           bool is_float, vec3 def, pn_texref *out, pn_err *err) {
+pn_status pn_params_texref(struct pn_scene_s *scene, const pn_params *ps, const char *name, bool is_float, vec3 def,
+                           pn_texref *out, pn_err *err) {
     return pn_params_texref_use(scene, ps, name, is_float, def, PN_SPECTRUM_ALBEDO, out, err);
 }
 
@@ -256,7 +254,7 @@ static pn_status read_mapping(struct pn_scene_s *scene, const pn_params *ps, pn_
     if (strcmp(mapping, "uv") != 0) {
         const pn_param *p = pn_params_find(ps, "mapping");
         pn_warn_at(scene, p ? p->loc : ps->loc, "texture mapping \"%s\" is not supported; uv mapping used instead",
-                mapping);
+                   mapping);
         /* The parameters of the other mappings are consumed so they are not reported twice. */
         const char *extra[] = {"v1", "v2", "dimension"};
         for (size_t i = 0; i < sizeof extra / sizeof extra[0]; i++) (void)pn_params_find(ps, extra[i]);
@@ -289,9 +287,8 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     /* pbrt-v4 (util/image.cpp Image::Read) applies the encoding to PNG files only (8 and 16
      * bit); its other 8-bit formats (TGA, JPEG, BMP, ...) are always decoded with the sRGB curve
      * and float formats (EXR, PFM, HDR) are linear. */
-    bool is_png = has_extension(file, ".png"), is_float_format = has_extension(file, ".exr") ||
-                                                                   has_extension(file, ".pfm") ||
-                                                                   has_extension(file, ".hdr");
+    bool is_png = has_extension(file, ".png"),
+         is_float_format = has_extension(file, ".exr") || has_extension(file, ".pfm") || has_extension(file, ".hdr");
     if (!is_png) {
         const pn_param *ep = pn_params_find(ps, "encoding");
         if (ep && gamma != 0.0f && !is_float_format)
@@ -306,8 +303,7 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     if ((st = read_wrap(ps, &t->wrap, err)) != PN_OK) return st;
     const char *filter = NULL;
     if ((st = pn_params_string(ps, "filter", "bilinear", &filter, err)) != PN_OK) return st;
-    t->float_first_channel = strcmp(filter, "point") == 0 || strcmp(filter, "ewa") == 0 ||
-                             strcmp(filter, "EWA") == 0;
+    t->float_first_channel = strcmp(filter, "point") == 0 || strcmp(filter, "ewa") == 0 || strcmp(filter, "EWA") == 0;
     double aniso = 8.0;
     if ((st = pn_params_float(ps, "maxanisotropy", 8.0, &aniso, err)) != PN_OK) return st;
 
@@ -319,7 +315,8 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     st = pn_scene_image(scene, path, gamma, &index, &ierr);
     free(path);
     if (st == PN_ERROR_OUT_OF_MEMORY) return pn_err_set(err, st, "%s", ierr.message);
-    if (st != PN_OK) return pn_param_error(pn_params_find(ps, "filename"), err, "cannot read texture image: %s", ierr.message);
+    if (st != PN_OK)
+        return pn_param_error(pn_params_find(ps, "filename"), err, "cannot read texture image: %s", ierr.message);
     t->kind = PN_TEXTURE_IMAGE;
     t->image = index;
     t->scale = (float)scale;
@@ -374,8 +371,8 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
                strcmp(class_name, "dots") == 0) {
         t.kind = PN_TEXTURE_MIX;
         bool dots = strcmp(class_name, "dots") == 0;
-        st = pn_params_texref_use(scene, ps, dots ? "outside" : "tex1", f, dots ? zero : zero,
-                                  PN_SPECTRUM_UNBOUNDED, &t.a, err);
+        st = pn_params_texref_use(scene, ps, dots ? "outside" : "tex1", f, dots ? zero : zero, PN_SPECTRUM_UNBOUNDED,
+                                  &t.a, err);
         if (st == PN_OK)
             st = pn_params_texref_use(scene, ps, dots ? "inside" : "tex2", f, one, PN_SPECTRUM_UNBOUNDED, &t.b, err);
         if (st == PN_OK && strcmp(class_name, "mix") == 0)
@@ -385,7 +382,7 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
         if (st == PN_OK && strcmp(class_name, "mix") != 0) {
             consume_all(ps);
             pn_warn_at(scene, ps->loc, "texture \"%s\": %s texture approximated by an even mix of its two inputs", name,
-                    class_name);
+                       class_name);
         }
     } else if (strcmp(class_name, "checkerboard") == 0) {
         t.kind = PN_TEXTURE_CHECKERBOARD;
@@ -413,7 +410,8 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
         t.kind = PN_TEXTURE_CONSTANT;
         t.value = v3_scale(sum, 0.25f);
         if (st == PN_OK)
-            pn_warn_at(scene, ps->loc, "texture \"%s\": bilerp texture approximated by the average of its corners", name);
+            pn_warn_at(scene, ps->loc, "texture \"%s\": bilerp texture approximated by the average of its corners",
+                       name);
     } else if (strcmp(class_name, "fbm") == 0 || strcmp(class_name, "wrinkled") == 0 ||
                strcmp(class_name, "windy") == 0 || strcmp(class_name, "marble") == 0 ||
                strcmp(class_name, "ptex") == 0) {
@@ -421,7 +419,7 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
         t.kind = PN_TEXTURE_CONSTANT;
         t.value = half;
         pn_warn_at(scene, ps->loc, "texture \"%s\": %s texture is not supported; constant 0.5 used instead", name,
-                class_name);
+                   class_name);
     } else {
         snprintf(msg, sizeof msg, "unknown texture class \"%s\"", class_name);
         return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, msg);
@@ -444,8 +442,7 @@ static vec3 texel(const pn_texture_image *img, int x, int y, pn_wrap_mode wrap) 
     int w = img->width, h = img->height;
     if (x < 0 || x >= w || y < 0 || y >= h) {
         switch (wrap) {
-        case PN_WRAP_BLACK:
-            return v3(0, 0, 0);
+        case PN_WRAP_BLACK: return v3(0, 0, 0);
         case PN_WRAP_CLAMP:
             x = x < 0 ? 0 : (x >= w ? w - 1 : x);
             y = y < 0 ? 0 : (y >= h ? h - 1 : y);
@@ -488,9 +485,7 @@ vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, flo
     float s = t->su * u + t->du, tt = t->sv * v + t->dv;
     vec3 r;
     switch (t->kind) {
-    case PN_TEXTURE_CONSTANT:
-        r = t->value;
-        break;
+    case PN_TEXTURE_CONSTANT: r = t->value; break;
     case PN_TEXTURE_IMAGE: {
         if (t->image < 0 || t->image >= scene->image_count) return v3(0, 0, 0);
         r = image_bilerp(&scene->images[t->image], s, 1.0f - tt, t->wrap);
@@ -505,9 +500,7 @@ vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, flo
         r = v3_max(r, v3(0, 0, 0));
         break;
     }
-    case PN_TEXTURE_SCALE:
-        r = v3_mul(pn_texture_eval(scene, t->a, u, v), pn_texture_eval(scene, t->b, u, v));
-        break;
+    case PN_TEXTURE_SCALE: r = v3_mul(pn_texture_eval(scene, t->a, u, v), pn_texture_eval(scene, t->b, u, v)); break;
     case PN_TEXTURE_MIX: {
         float amt = pn_texture_eval(scene, t->amount, u, v).x;
         vec3 a = amt != 1.0f ? pn_texture_eval(scene, t->a, u, v) : v3(0, 0, 0);
@@ -521,9 +514,7 @@ vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, flo
         r = pn_texture_eval(scene, even ? t->a : t->b, u, v);
         break;
     }
-    default:
-        r = v3(0, 0, 0);
-        break;
+    default: r = v3(0, 0, 0); break;
     }
     return r;
 }

@@ -16,8 +16,7 @@ pn_status pn_loc_error(const pn_srcloc *loc, pn_status status, pn_err *err, cons
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    if (loc && loc->file)
-        return pn_err_set(err, status, "%s:%d:%d: %s", loc->file, loc->line, loc->column, msg);
+    if (loc && loc->file) return pn_err_set(err, status, "%s:%d:%d: %s", loc->file, loc->line, loc->column, msg);
     return pn_err_set(err, status, "%s", msg);
 }
 
@@ -49,14 +48,12 @@ pn_status pn_tokenizer_open(pn_tokenizer *tz, const char *path, const pn_srcloc 
     if (at && at->file) snprintf(where, sizeof where, "%s:%d:%d: ", at->file, at->line, at->column);
     FILE *f = fopen(path, "rb");
     if (!f)
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%scannot open scene file \"%s\": %s", where, path,
-                          strerror(errno));
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%scannot open scene file \"%s\": %s", where, path, strerror(errno));
     struct stat st;
     if (fstat(fileno(f), &st) != 0 || S_ISDIR(st.st_mode)) {
         int e = S_ISDIR(st.st_mode) ? EISDIR : errno;
         fclose(f);
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%scannot read scene file \"%s\": %s", where, path,
-                          strerror(e));
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%scannot read scene file \"%s\": %s", where, path, strerror(e));
     }
     size_t cap = st.st_size > 0 ? (size_t)st.st_size + 1 : 4096;
     size_t n = 0;
@@ -73,8 +70,7 @@ pn_status pn_tokenizer_open(pn_tokenizer *tz, const char *path, const pn_srcloc 
             if (!nd) {
                 free(data);
                 fclose(f);
-                return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%sout of memory reading \"%s\"", where,
-                                  path);
+                return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%sout of memory reading \"%s\"", where, path);
             }
             data = nd;
             cap = ncap;
@@ -143,8 +139,7 @@ static int decode_escape(char c) {
 }
 
 static inline bool is_delimiter(char c) {
-    return c == ' ' || c == '\n' || c == '\t' || c == '\r' || c == '"' || c == '[' || c == ']' ||
-           c == '#' || c == '\0';
+    return c == ' ' || c == '\n' || c == '\t' || c == '\r' || c == '"' || c == '[' || c == ']' || c == '#' || c == '\0';
 }
 
 static pn_status scan(pn_tokenizer *tz, pn_token *tok, pn_err *err) {
@@ -275,9 +270,8 @@ bool pn_token_is_numeric(const pn_token *tok) {
 }
 
 /* Exact powers of ten representable in a double (Clinger's fast path). */
-static const double pn_pow10_exact[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
-                                          1e8,  1e9,  1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
-                                          1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+static const double pn_pow10_exact[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                                          1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
 
 /* Decimal numbers with at most 15 significant digits and a small exponent are converted exactly
  * without strtod (which is slower and depends on the locale); anything else falls back to it. */
@@ -328,10 +322,14 @@ static bool parse_decimal_fast(const char *s, size_t n, double *out) {
     if (i != n) return false;
     int e = exp10 - frac_digits;
     double v = (double)mant;
-    if (mant == 0) v = 0.0;
-    else if (e >= 0 && e <= 22) v *= pn_pow10_exact[e];
-    else if (e < 0 && e >= -22) v /= pn_pow10_exact[-e];
-    else return false;
+    if (mant == 0)
+        v = 0.0;
+    else if (e >= 0 && e <= 22)
+        v *= pn_pow10_exact[e];
+    else if (e < 0 && e >= -22)
+        v /= pn_pow10_exact[-e];
+    else
+        return false;
     *out = neg ? -v : v;
     return true;
 }
@@ -362,8 +360,7 @@ pn_status pn_token_number(const pn_token *tok, double *out, pn_err *err) {
     v = strtod(buf, &end);
     if (end == buf || *end != '\0')
         return pn_loc_error(&tok->loc, PN_ERROR_BAD_INPUT, err, "expected a number, found \"%s\"", buf);
-    if (!isfinite(v))
-        return pn_loc_error(&tok->loc, PN_ERROR_BAD_INPUT, err, "\"%s\" is not a finite number", buf);
+    if (!isfinite(v)) return pn_loc_error(&tok->loc, PN_ERROR_BAD_INPUT, err, "\"%s\" is not a finite number", buf);
     *out = v;
     return PN_OK;
 }

@@ -29,7 +29,7 @@ typedef struct pn_token {
 } pn_token;
 
 typedef struct pn_tokenizer {
-    char *data;       /* the file's bytes plus a terminating NUL */
+    char *data; /* the file's bytes plus a terminating NUL */
     size_t size, pos;
     int line, column; /* of data[pos] */
     const char *path; /* as used in messages; not owned, must outlive every token */

@@ -2,8 +2,12 @@
 #include "shade/bounds.h"
 
 /* Inline min / max (the libm calls were a tenth of the render time). */
-static inline float mnf(float a, float b) { return a < b ? a : b; }
-static inline float mxf(float a, float b) { return a > b ? a : b; }
+static inline float mnf(float a, float b) {
+    return a < b ? a : b;
+}
+static inline float mxf(float a, float b) {
+    return a > b ? a : b;
+}
 
 float pn_bound_cos_cs(vec3 lo, vec3 hi, vec3 axis, float cos_half, float sin_half) {
     if (cos_half <= -1.0f) return 1.0f;
@@ -73,8 +77,10 @@ float pn_bound_lobe(float cb, float n_min, float n_max) {
      * pairs the largest factor with the largest power, and equal to it for one exponent. */
     float n = n_max;
     if (cb < 1.0f && n_min < n_max) {
-        if (cb <= 0.0f) n = n_min;
-        else n = mnf(n_max, mxf(n_min, -1.0f / logf(cb) - 2.0f));
+        if (cb <= 0.0f)
+            n = n_min;
+        else
+            n = mnf(n_max, mxf(n_min, -1.0f / logf(cb) - 2.0f));
     }
     return (n + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, n);
 }
@@ -138,8 +144,10 @@ void pn_cone_merge(vec3 a1, float h1, vec3 a2, float h2, vec3 *axis, float *half
         *half = PN_PI;
         return;
     }
-    if (s < 1e-6f) a = a1;
-    else a = v3_add(v3_scale(a1, sinf(theta - phi) / s), v3_scale(a2, sinf(phi) / s));
+    if (s < 1e-6f)
+        a = a1;
+    else
+        a = v3_add(v3_scale(a1, sinf(theta - phi) / s), v3_scale(a2, sinf(phi) / s));
     *axis = v3_normalize(a);
     *half = fminf(PN_PI, h * (1.0f + 1e-5f) + 1e-6f);
 }

@@ -35,9 +35,9 @@ typedef enum pn_vpl_kind {
 typedef struct pn_receiver_bounds {
     vec3 lo, hi;
     vec3 n_axis;
-    float n_half;   /* radians */
+    float n_half; /* radians */
     vec3 r_axis;
-    float r_half;   /* radians */
+    float r_half; /* radians */
     vec3 kd_max, ks_max;
     float n_min, n_max;
     float n_cos, n_sin, r_cos, r_sin; /* cos and sin of n_half and r_half (pn_receiver_bounds_set_cones) */
@@ -49,7 +49,7 @@ typedef struct pn_light_bounds {
     int kind;
     vec3 lo, hi;
     vec3 axis;
-    float half; /* radians */
+    float half;               /* radians */
     float cos_half, sin_half; /* of half (pn_light_bounds_set_cone) */
 } pn_light_bounds;
 

@@ -15,8 +15,8 @@ typedef struct pn_bsdf {
     float exponent; /* Blinn–Phong n */
     vec3 specular;  /* mirror / dielectric tint */
     float eta;
-    vec3 ng, ns;    /* normals flipped to the side of wo */
-    bool entering;  /* wo is on the side the geometric normal points to (dielectric: outside) */
+    vec3 ng, ns;   /* normals flipped to the side of wo */
+    bool entering; /* wo is on the side the geometric normal points to (dielectric: outside) */
 } pn_bsdf;
 
 /* Evaluates the material at a hit, seen from direction wo (unit, pointing away from the
@@ -39,14 +39,15 @@ static inline bool pn_bsdf_is_shadable(const pn_bsdf *b) {
     return b->kind == PN_MATERIAL_LAMBERT_BLINN && (!v3_is_zero(b->kd) || !v3_is_zero(b->ks));
 }
 
-
 /* The diffuse reflectance, seen from outside, of a Lambertian base of reflectance kd (each
  * channel in [0, 1]) under a smooth dielectric coating (scene.h, pn_material.coated): the light
  * that the coating reflects back down is reflected again by the base, a geometric series. */
 vec3 pn_coated_diffuse(vec3 kd, float transmission, float internal);
 
 /* Perfect reflection of wo about n. */
-static inline vec3 pn_reflect(vec3 wo, vec3 n) { return v3_sub(v3_scale(n, 2.0f * v3_dot(wo, n)), wo); }
+static inline vec3 pn_reflect(vec3 wo, vec3 n) {
+    return v3_sub(v3_scale(n, 2.0f * v3_dot(wo, n)), wo);
+}
 
 /* Refraction of wo through n (n on wo's side) with eta = eta_t / eta_i; false on total internal
  * reflection. */
