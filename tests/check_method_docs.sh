@@ -15,7 +15,30 @@
 #   - the tiles driver has no page: its options must be in the README's "## Common options" table
 #     (which lists the settings of every method besides), or on a page that mentions them.
 # Exits 1 and names each difference.
+#
+#   check_method_docs.sh --self-test SOURCE_DIR PENUMBRA_BINARY
+# checks the check: on a copy of the pages it must pass unchanged, fail when vpl.md lists a flag
+# vpl does not take (--error), and fail when lightcuts.md misses one it takes (--vpl-clamp).
 set -u
+if [ "${1-}" = --self-test ]; then
+    st=$(mktemp -d) || exit 2
+    trap 'rm -rf "$st"' EXIT
+    mkdir -p "$st/src/docs" && cp -R "$2/docs/methods" "$st/src/docs/" && cp "$2/README.md" "$st/src/" || exit 2
+    sh "$0" "$st/src" "$3" > "$st/out" || { echo "self-test: unchanged copy fails:"; cat "$st/out"; exit 1; }
+    m=$st/src/docs/methods
+    cp "$m/vpl.md" "$st/vpl.md"
+    sed '/^| `--vpls N`/p; s/^| `--vpls N`/| `--error E`/' "$st/vpl.md" | awk '!(/^\| `--error E`/ && seen++)' > "$m/vpl.md"
+    if sh "$0" "$st/src" "$3" > "$st/out"; then echo "self-test: a foreign --error on vpl.md passed"; exit 1; fi
+    grep -q 'vpl: docs/methods/vpl.md lists --error, which vpl does not take' "$st/out" ||
+        { echo "self-test: foreign flag not named:"; cat "$st/out"; exit 1; }
+    cp "$st/vpl.md" "$m/vpl.md"
+    grep -v '^| `--vpl-clamp F`' "$m/lightcuts.md" > "$st/lc.md" && cp "$st/lc.md" "$m/lightcuts.md"
+    if sh "$0" "$st/src" "$3" > "$st/out"; then echo "self-test: lightcuts.md without --vpl-clamp passed"; exit 1; fi
+    grep -q 'lightcuts: --vpl-clamp missing from docs/methods/lightcuts.md' "$st/out" ||
+        { echo "self-test: missing flag not named:"; cat "$st/out"; exit 1; }
+    echo "self-test: passes unchanged, fails on a foreign and on a missing flag"
+    exit 0
+fi
 SRC=$1
 BIN=$2
 tmp=$(mktemp -d) || exit 2
