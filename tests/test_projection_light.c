@@ -517,6 +517,59 @@ static void test_vpl_first_bounce(void) {
 /* The cuts' bound for one VPL at one point (shade/bounds.c: M_max G_max I, the degenerate
  * clusters of Lightcuts) is at least the VPL's contribution, for the projection light's VPL whose
  * image exceeds 1 (peak 4 here), at receivers all over its frustum and normals towards it. */
+/* The bound check of one scene's first omni VPL at a light: see test_vpl_bound_holds. */
+static void check_light_vpl_bound(pn_scene scene, const char *what) {
+    pn_vpl_settings s = {1, 1, 0.05f, 5};
+    pn_vpl_set set;
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_vpl_trace(scene, scene->lights, scene->accel, &s, &set, &err) == PN_OK);
+    const pn_vpl *v = NULL;
+    for (uint32_t i = 0; i < set.count; i++)
+        if (set.vpls[i].kind == PN_VPL_OMNI) v = &set.vpls[i];
+    CHECK(v != NULL);
+    pn_rng rng;
+    pn_rng_seed(&rng, 31, 3);
+    int lit = 0, violated = 0;
+    double worst = 0.0;
+    for (int k = 0; v && k < 5000; k++) {
+        pn_vpl_receiver r;
+        memset(&r, 0, sizeof r);
+        r.p = v3((float)(4.0 * (double)pn_rng_float(&rng) - 2.0), (float)(4.0 * (double)pn_rng_float(&rng) - 2.0),
+                 (float)(1.5 * (double)pn_rng_float(&rng)));
+        vec3 to = v3_normalize(v3_sub(v->p, r.p));
+        r.ng = r.ns = v3_normalize(v3_add(to, v3(0.3f, 0.0f, 0.0f)));
+        r.wo = v3(0, 0, 1);
+        r.kd = v3(0.7f, 0.5f, 0.3f);
+        vec3 wi;
+        float dist;
+        vec3 c = pn_vpl_contribution(scene->lights, v, &r, set.min_dist2, &wi, &dist);
+        double actual = (double)v3_luminance(c);
+        if (actual <= 0.0) continue;
+        lit++;
+        pn_receiver_bounds rb;
+        memset(&rb, 0, sizeof rb);
+        rb.lo = rb.hi = r.p;
+        rb.n_axis = r.ns;
+        rb.r_axis = r.ns;
+        rb.kd_max = r.kd;
+        pn_receiver_bounds_set_cones(&rb);
+        pn_light_bounds lb;
+        memset(&lb, 0, sizeof lb);
+        lb.kind = PN_VPL_OMNI;
+        lb.lo = lb.hi = v->p;
+        lb.axis = v3(0, 0, 1);
+        pn_light_bounds_set_cone(&lb);
+        double bound = (double)pn_bound_error(&rb, &lb, v->intensity, set.min_dist2);
+        if (bound < actual * (1.0 - 1e-5)) violated++;
+        worst = fmax(worst, actual / bound);
+    }
+    CHECK(lit > 1000);
+    CHECK_MSG(violated == 0, "%s: %d of %d contributions above their bound (worst ratio %.3f)", what, violated, lit,
+              worst);
+    pn_vpl_set_free(&set);
+}
+
 static void test_vpl_bound_holds(void) {
     float rgb[3 * EW * EH];
     emission_image(rgb);
@@ -533,56 +586,31 @@ static void test_vpl_bound_holds(void) {
                         "LightSource \"projection\" \"string filename\" \"emit.pfm\" \"float fov\" [ 70 ]\n"
                         "AttributeEnd\n"));
     CHECK_MSG(scene != NULL, "%s", pn_context_error_message(ctx));
-    if (scene) {
-        pn_vpl_settings s = {1, 1, 0.05f, 5};
-        pn_vpl_set set;
-        pn_err err;
-        pn_err_init(&err);
-        CHECK(pn_vpl_trace(scene, scene->lights, scene->accel, &s, &set, &err) == PN_OK);
-        const pn_vpl *v = NULL;
-        for (uint32_t i = 0; i < set.count; i++)
-            if (set.vpls[i].kind == PN_VPL_OMNI) v = &set.vpls[i];
-        CHECK(v != NULL);
-        pn_rng rng;
-        pn_rng_seed(&rng, 31, 3);
-        int lit = 0, violated = 0;
-        double worst = 0.0;
-        for (int k = 0; v && k < 5000; k++) {
-            pn_vpl_receiver r;
-            memset(&r, 0, sizeof r);
-            r.p = v3((float)(4.0 * (double)pn_rng_float(&rng) - 2.0), (float)(4.0 * (double)pn_rng_float(&rng) - 2.0),
-                     (float)(1.5 * (double)pn_rng_float(&rng)));
-            vec3 to = v3_normalize(v3_sub(v->p, r.p));
-            r.ng = r.ns = v3_normalize(v3_add(to, v3(0.3f, 0.0f, 0.0f)));
-            r.wo = v3(0, 0, 1);
-            r.kd = v3(0.7f, 0.5f, 0.3f);
-            vec3 wi;
-            float dist;
-            vec3 c = pn_vpl_contribution(scene->lights, v, &r, set.min_dist2, &wi, &dist);
-            double actual = (double)v3_luminance(c);
-            if (actual <= 0.0) continue;
-            lit++;
-            pn_receiver_bounds rb;
-            memset(&rb, 0, sizeof rb);
-            rb.lo = rb.hi = r.p;
-            rb.n_axis = r.ns;
-            rb.r_axis = r.ns;
-            rb.kd_max = r.kd;
-            pn_receiver_bounds_set_cones(&rb);
-            pn_light_bounds lb;
-            memset(&lb, 0, sizeof lb);
-            lb.kind = PN_VPL_OMNI;
-            lb.lo = lb.hi = v->p;
-            lb.axis = v3(0, 0, 1);
-            pn_light_bounds_set_cone(&lb);
-            double bound = (double)pn_bound_error(&rb, &lb, v->intensity, set.min_dist2);
-            if (bound < actual * (1.0 - 1e-5)) violated++;
-            worst = fmax(worst, actual / bound);
-        }
-        CHECK(lit > 1000);
-        CHECK_MSG(violated == 0, "%d of %d contributions above their bound (worst ratio %.3f)", violated, lit, worst);
-        pn_vpl_set_free(&set);
-    }
+    if (scene) check_light_vpl_bound(scene, "projection");
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* The same for a goniometric light whose image exceeds 1 (up to 4): its VPL carries the image's
+ * peak in its intensity and the factor relative to it, as the projection light's. */
+static void test_gonio_vpl_bound_holds(void) {
+    enum { GW = 16 };
+    float rgb[3 * GW * GW];
+    for (int i = 0; i < GW * GW; i++)
+        for (int c = 0; c < 3; c++) rgb[3 * i + c] = 0.25f + 3.75f * (float)((i * 7 + c) % 23) / 22.0f;
+    CHECK(write_pfm("gonio.pfm", rgb, GW, GW));
+    pn_context ctx = pn_context_new();
+    pn_context_set_log(ctx, quiet_log, NULL);
+    pn_scene scene = load(ctx, "gbound.pbrt",
+                          scene_text(8, 8, 40,
+                                     "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+                                     "Shape \"trianglemesh\" \"point3 P\" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "
+                                     "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                                     "AttributeBegin\nTranslate 0 0 2\n"
+                                     "LightSource \"goniometric\" \"string filename\" \"gonio.pfm\"\n"
+                                     "AttributeEnd\n"));
+    CHECK_MSG(scene != NULL, "%s", pn_context_error_message(ctx));
+    if (scene) check_light_vpl_bound(scene, "goniometric");
     pn_scene_free(scene);
     pn_context_free(ctx);
 }
@@ -763,5 +791,5 @@ static void teardown(void) {
 }
 
 PN_TESTS(TEST(setup), TEST(test_irradiance_closed_form), TEST(test_two_colour_pixels), TEST(test_emission_sampling),
-         TEST(test_vpl_first_bounce), TEST(test_vpl_bound_holds), TEST(test_integrators_agree), TEST(test_bad_input),
-         TEST(teardown))
+         TEST(test_vpl_first_bounce), TEST(test_vpl_bound_holds), TEST(test_gonio_vpl_bound_holds),
+         TEST(test_integrators_agree), TEST(test_bad_input), TEST(teardown))

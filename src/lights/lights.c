@@ -393,12 +393,16 @@ static pn_status gonio_prepare(const struct pn_scene_s *scene, const pn_light_de
     swap.m[2][1] = 1.0;
     swap.m[2][2] = 0.0;
     g->light_from_world = mat4_mul(swap, d->light_from_world);
+    g->peak = 1.0f;
     if (d->image < 0) return PN_OK;
     const pn_texture_image *img = &scene->images[d->image];
     size_t n = (size_t)img->width * (size_t)img->height;
     g->mono = malloc(n * sizeof *g->mono);
     if (!g->mono) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a goniometric image");
-    for (size_t i = 0; i < n; i++) g->mono[i] = (img->rgb[3 * i] + img->rgb[3 * i + 1] + img->rgb[3 * i + 2]) / 3.0f;
+    for (size_t i = 0; i < n; i++) {
+        g->mono[i] = (img->rgb[3 * i] + img->rgb[3 * i + 1] + img->rgb[3 * i + 2]) / 3.0f;
+        if (g->mono[i] > g->peak) g->peak = g->mono[i];
+    }
     g->width = img->width;
     g->height = img->height;
     return PN_OK;

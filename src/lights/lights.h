@@ -79,6 +79,8 @@ typedef struct pn_light_soa {
 typedef struct pn_gonio {
     int width, height;
     float *mono;
+    float peak; /* max(1, largest mono value): the VPL of the light carries emit * peak and the
+                   factor relative to it (<= 1), so that the cuts' bounds hold (lights/vpl.c) */
     mat4 light_from_world;
 } pn_gonio;
 

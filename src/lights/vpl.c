@@ -280,7 +280,11 @@ pn_status pn_vpl_trace_with(const struct pn_scene_s *scene, const pn_lights *L, 
     for (int i = 0; i < n; i++) {
         const pn_light *l = &L->lights[i];
         if (l->kind == PN_LIGHT_POINT || l->kind == PN_LIGHT_SPOT || l->kind == PN_LIGHT_GONIOMETRIC) {
-            pn_vpl v = {l->p, l->kind == PN_LIGHT_SPOT ? l->n : v3(0, 0, 0), l->emit, PN_VPL_OMNI, i};
+            /* A goniometric image may exceed 1: its VPL carries emit * peak and the factor
+             * relative to the peak (pn_vpl_contribution_with), so that the cuts' bound M_max G_max
+             * I holds as for a point light. peak is 1 for images within [0, 1]: same floats. */
+            float peak = l->kind == PN_LIGHT_GONIOMETRIC ? L->gonios[l->env].peak : 1.0f;
+            pn_vpl v = {l->p, l->kind == PN_LIGHT_SPOT ? l->n : v3(0, 0, 0), v3_scale(l->emit, peak), PN_VPL_OMNI, i};
             if (!buf_push(&buf, v, false)) goto oom;
         } else if (l->kind == PN_LIGHT_DISTANT) {
             pn_vpl v = {v3_normalize(l->n), v3(0, 0, 0), l->emit, PN_VPL_DIRECTIONAL, -1};
@@ -459,8 +463,10 @@ vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 int
     const pn_light *l = &lights->lights[v->light];
     if (l->kind == PN_LIGHT_SPOT)
         g *= spot_falloff(l, -v3_dot(w, l->n));
-    else if (l->kind == PN_LIGHT_GONIOMETRIC)
-        g *= pn_gonio_factor(lights, l, v3_neg(w));
+    else if (l->kind == PN_LIGHT_GONIOMETRIC) {
+        float peak = lights->gonios[l->env].peak; /* the VPL carries emit * peak (pn_vpl_trace) */
+        g *= pn_gonio_factor(lights, l, v3_neg(w)) / peak;
+    }
     *wi = w;
     *dist = len;
     if (g <= 0.0f) return v3(0, 0, 0);
