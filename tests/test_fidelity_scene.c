@@ -19,60 +19,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#define PN_SCENE_FILES_PREFIX "pn_test_fidelity"
+#include "scene_files.h"
+
 /* ---- helpers ----------------------------------------------------------------------------- */
-
-static void silent_log(void *user, pn_log_level level, const char *message) {
-    (void)user;
-    (void)level;
-    (void)message;
-}
-
-static pn_context test_context(void) {
-    static pn_context ctx;
-    if (!ctx) {
-        ctx = pn_context_new();
-        pn_context_set_log(ctx, silent_log, NULL);
-    }
-    return ctx;
-}
-
-static const char *temp_dir(void) {
-    static char dir[64];
-    if (!dir[0]) {
-        strcpy(dir, "/tmp/pn_test_fidelity_XXXXXX");
-        if (!mkdtemp(dir)) {
-            fprintf(stderr, "mkdtemp failed: %s\n", strerror(errno));
-            exit(1);
-        }
-    }
-    return dir;
-}
-
-/* Absolute path of `rel` inside the temp folder (8 static buffers in rotation). */
-static const char *tpath(const char *rel) {
-    static char bufs[8][512];
-    static int next;
-    char *b = bufs[next++ % 8];
-    snprintf(b, 512, "%s/%s", temp_dir(), rel);
-    return b;
-}
-
-/* Writes dir/rel, creating one level of sub-folder. */
-static void write_file(const char *rel, const char *text) {
-    const char *slash = strchr(rel, '/');
-    if (slash) {
-        char sub[256];
-        snprintf(sub, sizeof sub, "%.*s", (int)(slash - rel), rel);
-        mkdir(tpath(sub), 0700);
-    }
-    FILE *f = fopen(tpath(rel), "w");
-    if (!f) {
-        fprintf(stderr, "cannot write %s\n", tpath(rel));
-        exit(1);
-    }
-    fputs(text, f);
-    fclose(f);
-}
 
 static struct pn_scene_s *parse_text(const char *rel, const char *text, pn_err *err) {
     write_file(rel, text);

@@ -16,62 +16,10 @@
 #include <time.h>
 #include <unistd.h>
 
+#define PN_SCENE_FILES_PREFIX "pn_test_parser"
+#include "scene_files.h"
+
 /* ---- helpers ----------------------------------------------------------------------------- */
-
-static void silent_log(void *user, pn_log_level level, const char *message) {
-    (void)user;
-    (void)level;
-    (void)message;
-}
-
-static pn_context test_context(void) {
-    static pn_context ctx;
-    if (!ctx) {
-        ctx = pn_context_new();
-        pn_context_set_log(ctx, silent_log, NULL);
-    }
-    return ctx;
-}
-
-static const char *temp_dir(void) {
-    static char dir[64];
-    if (!dir[0]) {
-        strcpy(dir, "/tmp/pn_test_parser_XXXXXX");
-        if (!mkdtemp(dir)) {
-            fprintf(stderr, "mkdtemp failed: %s\n", strerror(errno));
-            exit(1);
-        }
-    }
-    return dir;
-}
-
-/* Absolute path of `rel` inside the temp folder (a static buffer per call, 8 in rotation). */
-static const char *tpath(const char *rel) {
-    static char bufs[8][512];
-    static int next;
-    char *b = bufs[next++ % 8];
-    snprintf(b, 512, "%s/%s", temp_dir(), rel);
-    return b;
-}
-
-static void write_file(const char *rel, const char *text) {
-    char path[512];
-    snprintf(path, sizeof path, "%s", tpath(rel));
-    /* create one level of sub-folder when needed */
-    char *slash = strrchr(path, '/');
-    if (slash) {
-        *slash = '\0';
-        mkdir(path, 0755);
-        *slash = '/';
-    }
-    FILE *f = fopen(path, "wb");
-    if (!f) {
-        fprintf(stderr, "cannot write %s\n", path);
-        exit(1);
-    }
-    fputs(text, f);
-    fclose(f);
-}
 
 static struct pn_scene_s *parse_ok(const char *rel, const char *text) {
     write_file(rel, text);
