@@ -515,9 +515,9 @@ static void test_vpl_first_bounce(void) {
 }
 
 /* The cuts' bound for one VPL at one point (shade/bounds.c: M_max G_max I, the degenerate
- * clusters of Lightcuts) is at least the VPL's contribution, for the projection light's VPL whose
- * image exceeds 1 (peak 4 here), at receivers all over its frustum and normals towards it. */
-/* The bound check of one scene's first omni VPL at a light: see test_vpl_bound_holds. */
+ * clusters of Lightcuts) is at least the VPL's contribution: checked for the scene's omni VPL at
+ * its light, at receivers all around below it with normals towards it. The tests below use it for
+ * lights whose image exceeds 1 (the projection light's peak is 4). */
 static void check_light_vpl_bound(pn_scene scene, const char *what) {
     pn_vpl_settings s = {1, 1, 0.05f, 5};
     pn_vpl_set set;
@@ -570,25 +570,33 @@ static void check_light_vpl_bound(pn_scene scene, const char *what) {
     pn_vpl_set_free(&set);
 }
 
+/* A 12 x 12 floor under a light 2 above its centre (`light`: the pbrt lines after the
+ * Translate), loaded and bound-checked by check_light_vpl_bound. */
+static void check_light_bound_scene(const char *file, const char *light, const char *what) {
+    static char world[1024];
+    snprintf(world, sizeof world,
+             "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "
+             "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
+             "AttributeBegin\nTranslate 0 0 2\n%sAttributeEnd\n",
+             light);
+    pn_context ctx = pn_context_new();
+    pn_context_set_log(ctx, quiet_log, NULL);
+    pn_scene scene = load(ctx, file, scene_text(8, 8, 40, world));
+    CHECK_MSG(scene != NULL, "%s", pn_context_error_message(ctx));
+    if (scene) check_light_vpl_bound(scene, what);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 static void test_vpl_bound_holds(void) {
     float rgb[3 * EW * EH];
     emission_image(rgb);
     CHECK(write_pfm("emit.pfm", rgb, EW, EH));
-    pn_context ctx = pn_context_new();
-    pn_context_set_log(ctx, quiet_log, NULL);
-    pn_scene scene =
-        load(ctx, "bound.pbrt",
-             scene_text(8, 8, 40,
-                        "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
-                        "Shape \"trianglemesh\" \"point3 P\" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "
-                        "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                        "AttributeBegin\nTranslate 0 0 2\nRotate 180 1 0 0\n"
-                        "LightSource \"projection\" \"string filename\" \"emit.pfm\" \"float fov\" [ 70 ]\n"
-                        "AttributeEnd\n"));
-    CHECK_MSG(scene != NULL, "%s", pn_context_error_message(ctx));
-    if (scene) check_light_vpl_bound(scene, "projection");
-    pn_scene_free(scene);
-    pn_context_free(ctx);
+    check_light_bound_scene("bound.pbrt",
+                            "Rotate 180 1 0 0\n"
+                            "LightSource \"projection\" \"string filename\" \"emit.pfm\" \"float fov\" [ 70 ]\n",
+                            "projection");
 }
 
 /* The same for a goniometric light whose image exceeds 1 (up to 4): its VPL carries the image's
@@ -599,20 +607,8 @@ static void test_gonio_vpl_bound_holds(void) {
     for (int i = 0; i < GW * GW; i++)
         for (int c = 0; c < 3; c++) rgb[3 * i + c] = 0.25f + 3.75f * (float)((i * 7 + c) % 23) / 22.0f;
     CHECK(write_pfm("gonio.pfm", rgb, GW, GW));
-    pn_context ctx = pn_context_new();
-    pn_context_set_log(ctx, quiet_log, NULL);
-    pn_scene scene = load(ctx, "gbound.pbrt",
-                          scene_text(8, 8, 40,
-                                     "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
-                                     "Shape \"trianglemesh\" \"point3 P\" [ -6 -6 0  6 -6 0  6 6 0  -6 6 0 ] "
-                                     "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
-                                     "AttributeBegin\nTranslate 0 0 2\n"
-                                     "LightSource \"goniometric\" \"string filename\" \"gonio.pfm\"\n"
-                                     "AttributeEnd\n"));
-    CHECK_MSG(scene != NULL, "%s", pn_context_error_message(ctx));
-    if (scene) check_light_vpl_bound(scene, "goniometric");
-    pn_scene_free(scene);
-    pn_context_free(ctx);
+    check_light_bound_scene("gbound.pbrt", "LightSource \"goniometric\" \"string filename\" \"gonio.pfm\"\n",
+                            "goniometric");
 }
 
 /* ---- integrators agree ------------------------------------------------------------------------- */
