@@ -1,0 +1,2 @@
+# Spectral mode's data, RGB upsampling and wavelength sampling (issue 20).
+pn_add_test(test_spectral)
