@@ -84,9 +84,11 @@ static void spectrum_lab(const quadrature *q, const double c[3], double lab[3], 
     for (int k = 0; k < QUAD_NODES; k++) {
         double t = q->t[k];
         double x = (c[0] * t + c[1]) * t + c[2];
-        double s = pn_sigmoid(x);
-        double r = 1.0 / (1.0 + x * x);
-        double ds = 0.5 * r * sqrt(r);
+        /* S(x) = 1/2 + x sqrt(r) / 2 and S'(x) = r sqrt(r) / 2 with r = 1 / (1 + x²): one division
+         * and one square root per node (the fit's inner loop). */
+        double r = 1.0 / (1.0 + x * x), root = sqrt(r);
+        double s = 0.5 + 0.5 * x * root;
+        double ds = 0.5 * r * root;
         double basis[3] = {t * t, t, 1.0};
         for (int j = 0; j < 3; j++) {
             xyz[j] += s * q->w_xyz[k][j];
