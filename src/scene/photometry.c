@@ -91,7 +91,8 @@ static bool next_token(reader *r, char *buf, size_t size) {
 /* Reads one finite number; `what` names it in messages. */
 static pn_status read_number(reader *r, const char *what, double *out) {
     char tok[128];
-    if (!next_token(r, tok, sizeof tok)) return fail(r, r->line, "the file ends before %s (truncated?)", what);
+    if (!next_token(r, tok, sizeof tok))
+        return fail(r, r->last_line ? r->last_line : r->line, "the file ends before %s (truncated?)", what);
     char *endp = NULL;
     errno = 0;
     double v = strtod(tok, &endp);
