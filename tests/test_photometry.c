@@ -504,6 +504,50 @@ static void test_every_integrator_renders_it(void) {
     pn_scene_free(scene);
 }
 
+/* ---- penumbra info ---------------------------------------------------------------------------------- */
+
+static void read_text(const char *path, char *out, size_t size) {
+    out[0] = '\0';
+    FILE *f = fopen(path, "r");
+    if (!f) return;
+    size_t n = fread(out, 1, size - 1, f);
+    out[n] = '\0';
+    fclose(f);
+}
+
+/* Each luminaire's lumens integrated from its distribution next to the file's stated lumens,
+ * through the library and the CLI. */
+static void test_info_lumens(void) {
+    const char *text =
+        plane_scene(4, "Translate 0 0 2",
+                    "LightSource \"goniometric\" \"string filename\" \"" DATA "cosine.ies\"\n"
+                    "LightSource \"goniometric\" \"string filename\" \"" DATA "street.ldt\" \"float power\" [ 500 ]\n"
+                    "LightSource \"goniometric\" \"string filename\" \"" DATA
+                    "tilt.ies\" \"float tilt\" [ 45 ] \"float scale\" [ 2 ]");
+    pn_scene scene = load_text("info.pbrt", text);
+    CHECK(scene != NULL);
+    if (!scene) return;
+    CHECK(pn_scene_luminaire_count(scene) == 3);
+    pn_luminaire_info li[3];
+    for (uint32_t i = 0; i < 3; i++) CHECK(pn_scene_luminaire_get(scene, i, &li[i]) == PN_OK);
+    CHECK(pn_scene_luminaire_get(scene, 3, &li[0]) == PN_ERROR_INVALID_ARGUMENT);
+    CHECK_NEAR(li[0].stated_lumens, 1000.0, 1e-9);
+    CHECK(fabs(li[0].lumens / 1000.0 - 1.0) < 0.01);
+    CHECK_NEAR(li[1].lumens, 500.0, 1e-6);
+    CHECK(li[1].file_lumens > 500.0);
+    CHECK_NEAR(li[1].stated_luminaire_lumens, 1000.0, 1e-9);
+    CHECK_NEAR(li[2].lumens, 2.0 * 0.9 * li[2].file_lumens, 1e-6); /* scale 2, tilt factor 0.9 at 45 */
+    pn_scene_free(scene);
+    char cmd[1024], out[4096];
+    snprintf(cmd, sizeof cmd, "%s info %s >%s 2>&1", PN_CLI_PATH, tpath("info.pbrt"), tpath("info.txt"));
+    int status = system(cmd);
+    CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    read_text(tpath("info.txt"), out, sizeof out);
+    CHECK_MSG(strstr(out, "luminaires     3") && strstr(out, "street.ldt: 500.0 lm emitted") &&
+                  strstr(out, "1000.0 lm of lamps stated") && strstr(out, "1000.0 lm luminaire (LOR) stated"),
+              "info printed:\n%s", out);
+}
+
 /* ---- bad files ------------------------------------------------------------------------------------ */
 
 static void test_bad_files_refused(void) {
@@ -559,4 +603,4 @@ static void test_bad_files_refused(void) {
 PN_TESTS(TEST(test_lumens_match_stated), TEST(test_symmetry_forms_agree), TEST(test_ies_and_eulumdat_agree),
          TEST(test_type_b), TEST(test_tilt_table), TEST(test_illuminance_closed_form), TEST(test_render_units),
          TEST(test_symmetry_forms_render_identically), TEST(test_emission_sampling),
-         TEST(test_every_integrator_renders_it), TEST(test_bad_files_refused))
+         TEST(test_every_integrator_renders_it), TEST(test_bad_files_refused), TEST(test_info_lumens))

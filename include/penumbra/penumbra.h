@@ -104,6 +104,23 @@ typedef struct pn_scene_info {
 
 PN_API pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info);
 
+/* A measured luminaire: a LightSource "goniometric" whose "filename" is an IES LM-63 or EULUMDAT
+ * file (docs/luminaires.md), for `penumbra info`. Strings are owned by the scene. */
+typedef struct pn_luminaire_info {
+    const char *file;               /* the photometric file, as resolved */
+    const char *source;             /* "scene.pbrt:line:column" of the LightSource */
+    double lumens;                  /* what the light emits: the file's integral times scale, tilt, power */
+    double file_lumens;             /* the file's distribution integrated over the sphere */
+    double stated_lumens;           /* lamp lumens the file states; -1: absolute photometry */
+    double stated_luminaire_lumens; /* EULUMDAT: lamp flux x light output ratio; -1 when not stated */
+    double peak_candela;            /* the light's largest intensity (cd) */
+} pn_luminaire_info;
+
+/* Number of measured luminaires, and luminaire i's numbers; index out of range:
+ * PN_ERROR_INVALID_ARGUMENT. */
+PN_API uint32_t pn_scene_luminaire_count(pn_scene scene);
+PN_API pn_status pn_scene_luminaire_get(pn_scene scene, uint32_t index, pn_luminaire_info *info);
+
 /* Number of materials and, for material i, a NUL-terminated line saying what the pbrt material
  * was and how penumbra mapped it. Owned by the scene. */
 PN_API uint32_t pn_scene_material_count(pn_scene scene);

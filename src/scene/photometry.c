@@ -37,6 +37,8 @@
  * C) or cos V dV dH (type B) each cell is a closed form (cell_integral). */
 #include "scene/photometry.h"
 
+#include "scene/scene.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
@@ -736,4 +738,33 @@ double pn_photometry_tilt_factor(const pn_photometry *p, double tilt_deg) {
     double t;
     int i = bracket(p->tilt_deg, p->tilt_count, tilt_deg, &t);
     return p->tilt_factor[i] + (p->tilt_factor[i + 1] - p->tilt_factor[i]) * t;
+}
+
+/* ---------------------------------------------------------------- the scene's luminaires */
+
+static const pn_light_def *luminaire_def(pn_scene scene, uint32_t index) {
+    uint32_t k = 0;
+    for (int i = 0; scene && i < scene->light_def_count; i++)
+        if (scene->light_defs[i].photometry >= 0 && k++ == index) return &scene->light_defs[i];
+    return NULL;
+}
+
+uint32_t pn_scene_luminaire_count(pn_scene scene) {
+    uint32_t n = 0;
+    for (int i = 0; scene && i < scene->light_def_count; i++) n += scene->light_defs[i].photometry >= 0;
+    return n;
+}
+
+pn_status pn_scene_luminaire_get(pn_scene scene, uint32_t index, pn_luminaire_info *info) {
+    const pn_light_def *d = luminaire_def(scene, index);
+    if (!d || !info) return PN_ERROR_INVALID_ARGUMENT;
+    const pn_photometry *p = scene->photometries[d->photometry];
+    info->file = p->path;
+    info->source = d->source ? d->source : "";
+    info->file_lumens = p->lumens;
+    info->lumens = p->lumens * d->photometry_scale;
+    info->stated_lumens = p->stated_lumens;
+    info->stated_luminaire_lumens = p->stated_luminaire_lumens;
+    info->peak_candela = p->peak_cd * d->photometry_scale;
+    return PN_OK;
 }
