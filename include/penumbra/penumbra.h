@@ -418,6 +418,15 @@ PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_i
  * temporary name in the same folder and renamed, so a failed write leaves no broken file. */
 PN_API pn_status pn_image_write(pn_context ctx, pn_image image, const char *path, float exposure);
 
+/* pbrt-v4's goniometric image of the measured luminaire in `path` (IES LM-63 .ies or EULUMDAT
+ * .ldt), for `penumbra ies2goniometric`: a resolution x resolution image in pbrt-v4's
+ * equal-area octahedral mapping of the light's frame with y and z swapped (pbrt-v4's
+ * GoniometricLight), each pixel the mean candela over its solid angle (4 x 4 samples), R = G =
+ * B. pbrt-v4 (and penumbra) render LightSource "goniometric" with this image as the luminaire
+ * placed by the same transform. On success *out_image is new (free with pn_image_free); bad
+ * files: PN_ERROR_BAD_INPUT with "file:line: message". */
+PN_API pn_status pn_photometry_goniometric_image(pn_context ctx, const char *path, int resolution, pn_image *out_image);
+
 /* Writes size bytes to path by the same atomic route as pn_image_write (a temporary beside it,
  * synced and renamed), so that a failed write leaves no broken file. For the CLI's JSON. */
 PN_API pn_status pn_file_write(pn_context ctx, const char *path, const void *data, size_t size);

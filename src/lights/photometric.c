@@ -17,7 +17,9 @@
  * and shared by the lights that use it. */
 #include "lights/lights.h"
 
+#include "core/context.h"
 #include "core/sampling.h"
+#include "io/image.h"
 #include "scene/photometry.h"
 #include "scene/scene.h"
 
@@ -137,4 +139,50 @@ float pn_gonio_pdf(const pn_lights *lights, const pn_light *l, vec3 w) {
 float pn_gonio_photometric_power(const pn_lights *lights, const pn_light *l) {
     const pn_gonio *g = &lights->gonios[l->env];
     return fmaxf(0.0f, v3_luminance(l->emit)) * (float)(g->photo->lumens * g->inv_peak_cd);
+}
+
+/* ---------------------------------------------------------------- pbrt-v4's goniometric image */
+
+pn_status pn_photometry_goniometric_image(pn_context ctx, const char *path, int resolution, pn_image *out_image) {
+    if (out_image) *out_image = NULL;
+    if (!ctx || !path || !out_image || resolution < 1 || resolution > 16384) {
+        if (ctx) pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_photometry_goniometric_image: bad arguments");
+        return PN_ERROR_INVALID_ARGUMENT;
+    }
+    pn_err err;
+    pn_err_init(&err);
+    if (!pn_photometry_is_file(path)) {
+        pn_err_set(&err, PN_ERROR_BAD_INPUT, "%s: not a photometric file (.ies or .ldt)", path);
+        return pn_context_fail_from(ctx, &err);
+    }
+    pn_photometry *p = NULL;
+    pn_status st = pn_photometry_read(path, path, &p, &err);
+    if (st != PN_OK) return pn_context_fail_from(ctx, &err);
+    pn_image img = pn_image_create(resolution, resolution);
+    if (!img) {
+        pn_photometry_free(p);
+        return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %d x %d image", resolution,
+                               resolution);
+    }
+    float *rgb = img->layers[0].data;
+    enum { SUB = 4 };
+    for (int y = 0; y < resolution; y++)
+        for (int x = 0; x < resolution; x++) {
+            /* the equal-area map: equal solid angle per sub-sample, so their mean is the pixel's
+             * mean candela (and pbrt-v4's 4 pi mean(image) its lumens) */
+            double sum = 0.0;
+            for (int sy = 0; sy < SUB; sy++)
+                for (int sx = 0; sx < SUB; sx++) {
+                    float u = ((float)x + ((float)sx + 0.5f) / SUB) / (float)resolution;
+                    float v = ((float)y + ((float)sy + 0.5f) / SUB) / (float)resolution;
+                    vec3 w = pn_equal_area_square_to_sphere(u, v); /* pbrt's light frame (y, z swapped) */
+                    sum += pn_photometry_eval(p, v3(w.x, w.z, w.y));
+                }
+            float c = (float)(sum / (SUB * SUB));
+            float *px = rgb + 3 * ((size_t)y * (size_t)resolution + (size_t)x);
+            px[0] = px[1] = px[2] = c;
+        }
+    pn_photometry_free(p);
+    *out_image = img;
+    return PN_OK;
 }
