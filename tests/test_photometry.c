@@ -20,6 +20,7 @@
 
 #define PN_SCENE_FILES_PREFIX "pn_test_photometry"
 #include "scene_files.h"
+#include "stats_checks.h"
 
 #define PI_D 3.14159265358979323846
 #define DATA PN_SOURCE_DIR "/tests/data/photometry/"
@@ -270,6 +271,21 @@ static void test_illuminance_closed_form(void) {
     pn_scene_free(scene);
 }
 
+/* The reference integrator's beauty layer of `scene` (2 threads, seed 3) into out (floats). */
+static bool render_scene(pn_scene scene, int spp, float *out, size_t floats) {
+    pn_render_settings rs;
+    memset(&rs, 0, sizeof rs);
+    rs.integrator = PN_INTEGRATOR_REFERENCE;
+    rs.spp = (uint32_t)spp;
+    rs.threads = 2;
+    rs.seed = 3;
+    pn_image img = NULL;
+    bool ok = scene && pn_render(test_context(), scene, &rs, &img, NULL) == PN_OK && img;
+    if (ok) memcpy(out, pn_image_layer_data(img, 0), sizeof(float) * floats);
+    pn_image_free(img);
+    return ok;
+}
+
 /* A rendered pixel is luminance rho E / pi in cd/m^2 when the luminaire is in candela
  * (docs/units.md); here a Lambertian downlight I0 cos theta of 1000 lm, 2 m up: E = I0 h^2 /
  * d^4, and with "power" 500 and "scale" 2 it emits 1000 lm again. */
@@ -283,15 +299,10 @@ static void test_render_units(void) {
         if (!scene) continue;
         const pn_light *l = first_gonio(scene);
         if (k == 1 && l) CHECK_NEAR(pn_gonio_photometric_power(scene->lights, l), 1000.0, 0.5);
-        pn_render_settings rs;
-        memset(&rs, 0, sizeof rs);
-        rs.integrator = PN_INTEGRATOR_REFERENCE;
-        rs.spp = 16;
-        rs.threads = 2;
-        pn_image img = NULL;
-        CHECK(pn_render(test_context(), scene, &rs, &img, NULL) == PN_OK);
-        if (img) {
-            const float *px = pn_image_layer_data(img, 0);
+        static float px[3 * 16 * 16];
+        bool ok = render_scene(scene, 16, px, 3 * 16 * 16);
+        CHECK(ok);
+        if (ok) {
             pn_photometry *p = read_data("cosine.ies");
             double i0 = p ? p->cd[0] : 0.0, worst = 0.0;
             pn_photometry_free(p);
@@ -313,24 +324,13 @@ static void test_render_units(void) {
                 }
             CHECK_MSG(worst < 0.005, "case %d: pixel luminance off rho E / pi by %.3g%% at worst", k, 100.0 * worst);
         }
-        pn_image_free(img);
         pn_scene_free(scene);
     }
 }
 
 static bool render_ref(const char *name, const char *light, float *out, int res) {
     pn_scene scene = load_text(name, plane_scene(res, "Translate 0 0 1.5\nRotate 20 1 0 0", light));
-    if (!scene) return false;
-    pn_render_settings rs;
-    memset(&rs, 0, sizeof rs);
-    rs.integrator = PN_INTEGRATOR_REFERENCE;
-    rs.spp = 4;
-    rs.threads = 2;
-    rs.seed = 3;
-    pn_image img = NULL;
-    bool ok = pn_render(test_context(), scene, &rs, &img, NULL) == PN_OK && img;
-    if (ok) memcpy(out, pn_image_layer_data(img, 0), sizeof(float) * 3 * (size_t)res * (size_t)res);
-    pn_image_free(img);
+    bool ok = render_scene(scene, 4, out, 3 * (size_t)res * (size_t)res);
     pn_scene_free(scene);
     return ok;
 }
@@ -361,34 +361,6 @@ static void test_symmetry_forms_render_identically(void) {
 }
 
 /* ---- emission sampling ---------------------------------------------------------------------------- */
-
-static bool chi2_ok(const double *obs, const double *prob, int n, double total) {
-    double stat = 0.0, pe = 0.0, po = 0.0;
-    int cells = 0;
-    for (int i = 0; i < n; i++) {
-        if (prob[i] <= 0.0) {
-            if (obs[i] > 0.0) return false;
-            continue;
-        }
-        double e = prob[i] * total;
-        if (e < 5.0) {
-            pe += e;
-            po += obs[i];
-            continue;
-        }
-        stat += (obs[i] - e) * (obs[i] - e) / e;
-        cells++;
-    }
-    if (pe > 0.0) {
-        stat += (po - pe) * (po - pe) / pe;
-        cells++;
-    }
-    int dof = cells - 1;
-    double z = 3.090232; /* upper 0.001 quantile of the normal */
-    double a = 2.0 / (9.0 * dof), crit = dof * pow(1.0 - a + z * sqrt(a), 3.0);
-    fprintf(stderr, "  chi2 = %.1f  dof = %d  crit(p=0.001) = %.1f\n", stat, dof, crit);
-    return dof > 0 && stat <= crit;
-}
 
 /* Directions from pn_gonio_sample_direction against the density pn_gonio_pdf reports, binned
  * 16 x 16 in (C, gamma) of the light (a luminaire turned about x, so world and light differ);
@@ -445,7 +417,7 @@ static void test_emission_sampling(void) {
         flux += (double)v3_luminance(l->emit) * (double)pn_gonio_factor(scene->lights, l, w) / (double)pdf;
     }
     CHECK_MSG(pdf_mismatch < N / 1000, "%d of %d sampled densities differ from pn_gonio_pdf", pdf_mismatch, N);
-    CHECK(chi2_ok(obs, prob, NB * NB, N));
+    CHECK(pn_test_chi2_ok(obs, prob, NB * NB, N));
     pn_photometry *p = read_data("street.ies");
     if (p) {
         flux /= N;
@@ -580,15 +552,7 @@ static void test_goniometric_image_renders_the_same(void) {
         pn_scene scene = load_text(k ? "gimg.pbrt" : "gies.pbrt", plane_scene(R, xf, which[k]));
         CHECK(scene != NULL);
         if (!scene) return;
-        pn_render_settings rs;
-        memset(&rs, 0, sizeof rs);
-        rs.integrator = PN_INTEGRATOR_REFERENCE;
-        rs.spp = 4;
-        rs.threads = 2;
-        pn_image r = NULL;
-        CHECK(pn_render(test_context(), scene, &rs, &r, NULL) == PN_OK);
-        if (r) memcpy(out[k], pn_image_layer_data(r, 0), sizeof a);
-        pn_image_free(r);
+        CHECK(render_scene(scene, 4, out[k], 3 * R * R));
         pn_scene_free(scene);
     }
     double rel = 0.0, worst = 0.0, total = 0.0;
