@@ -11,6 +11,7 @@
 
 #include "lights/light_bvh.h"
 #include "lights/lights.h"
+#include "lights/vpl.h"
 #include "penumbra/penumbra.h"
 #include "scene/photometry.h"
 #include "scene/scene.h"
@@ -427,34 +428,79 @@ static void test_emission_sampling(void) {
     pn_scene_free(scene);
 }
 
+/* VPL light paths from a luminaire: a Lambertian downlight of 1000 lm, 2 m above a 400 m floor of
+ * kd 0.5, leaves first-bounce VPLs whose power sums to kd x 1000 lm (the floor misses the
+ * directions beyond atan(100) of nadir, 1e-4 of the flux), within 5 standard errors. */
+static void test_vpl_first_bounce(void) {
+    pn_scene scene =
+        load_text("vpl.pbrt", "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"orthographic\"\nWorldBegin\n"
+                              "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n"
+                              "Shape \"trianglemesh\" \"point3 P\" [ -200 -200 0  200 -200 0  200 200 0  -200 200 0 ] "
+                              "\"integer indices\" [ 0 1 2 0 2 3 ]\nAttributeBegin\nTranslate 0 0 2\n"
+                              "LightSource \"goniometric\" \"string filename\" \"" DATA "cosine.ies\"\nAttributeEnd\n");
+    CHECK(scene != NULL);
+    if (!scene) return;
+    pn_vpl_settings vs = {20001, 1, 0.05f, 5};
+    pn_vpl_set set;
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_vpl_trace(scene, scene->lights, scene->accel, &vs, &set, &err) == PN_OK);
+    double sum = 0.0, sum2 = 0.0;
+    int omni = 0;
+    for (uint32_t i = 0; i < set.count; i++) {
+        const pn_vpl *v = &set.vpls[i];
+        if (v->kind == PN_VPL_OMNI) {
+            omni++;
+            continue;
+        }
+        double e = PI_D * (double)v->intensity.y;
+        sum += e;
+        sum2 += e * e;
+    }
+    CHECK(omni == 1);
+    double n = (double)set.paths, se = sqrt(fmax(0.0, sum2 * n - sum * sum) / n);
+    pn_photometry *p = read_data("cosine.ies");
+    double want = p ? 0.5 * p->lumens * (1.0 - 1e-4) : 0.0;
+    pn_photometry_free(p);
+    fprintf(stderr, "  first-bounce power %.2f lm, kd x lumens %.2f lm (se %.2f)\n", sum, want, se);
+    CHECK_MSG(fabs(sum - want) <= 5.0 * se + 1e-3 * want, "first-bounce power %g, expected %g (se %g)", sum, want, se);
+    pn_vpl_set_free(&set);
+    pn_scene_free(scene);
+}
+
 /* ---- integrators ---------------------------------------------------------------------------------- */
 
-/* Every integrator renders the street light over the plane; with one plane there is no
- * interreflection, so the VPL integrators' total equals the direct light: all means agree with
- * the reference. The light BVH sampler's cone bound (a downlight) is exercised too. */
+/* Every integrator (and every driver, with the reference integrator) renders the street light
+ * over the plane; with one plane there is no interreflection, so the VPL integrators' total
+ * equals the direct light: all means agree with the reference. The light BVH sampler's cone bound (a downlight) is exercised too. */
 static void test_every_integrator_renders_it(void) {
     pn_scene scene = load_text("all.pbrt", plane_scene(16, "Translate 0.3 0 1.5",
                                                        "LightSource \"goniometric\" \"string filename\" \"" DATA
                                                        "street.ldt\" \"float power\" [ 2000 ]"));
     CHECK(scene != NULL);
     if (!scene) return;
-    enum { NM = 8 };
+    enum { NM = 12 };
     pn_integrator_kind kinds[NM] = {PN_INTEGRATOR_REFERENCE, PN_INTEGRATOR_REFERENCE,  PN_INTEGRATOR_IAS,
                                     PN_INTEGRATOR_CONTOUR,   PN_INTEGRATOR_CONTOUR_MC, PN_INTEGRATOR_VPL,
-                                    PN_INTEGRATOR_LIGHTCUTS, PN_INTEGRATOR_ILLUMCUT};
-    const char *names[NM] = {"reference",  "reference bvh", "ias",       "contour",
-                             "contour-mc", "vpl",           "lightcuts", "illumcut"};
+                                    PN_INTEGRATOR_LIGHTCUTS, PN_INTEGRATOR_ILLUMCUT,   PN_INTEGRATOR_REFERENCE,
+                                    PN_INTEGRATOR_REFERENCE, PN_INTEGRATOR_REFERENCE,  PN_INTEGRATOR_REFERENCE};
+    pn_driver_kind drivers[NM] = {PN_DRIVER_DEFAULT, PN_DRIVER_DEFAULT, PN_DRIVER_DEFAULT, PN_DRIVER_DEFAULT,
+                                  PN_DRIVER_DEFAULT, PN_DRIVER_DEFAULT, PN_DRIVER_DEFAULT, PN_DRIVER_DEFAULT,
+                                  PN_DRIVER_FULL,    PN_DRIVER_DCM,     PN_DRIVER_PAINTER, PN_DRIVER_UNIFORM};
+    const char *names[NM] = {"reference", "reference bvh", "ias",  "contour", "contour-mc", "vpl",
+                             "lightcuts", "illumcut",      "full", "dcm",     "painter",    "uniform"};
     double mean[NM] = {0};
     for (int m = 0; m < NM; m++) {
         pn_render_settings rs;
         memset(&rs, 0, sizeof rs);
         rs.integrator = kinds[m];
+        rs.driver = drivers[m];
         rs.threads = 2;
         rs.seed = 5;
         rs.spp = kinds[m] == PN_INTEGRATOR_IAS ? 0 : 8;
         rs.options = pn_options_new();
         if (m == 1) CHECK(pn_options_set(test_context(), rs.options, "light-sampler", "bvh") == PN_OK);
-        if (m >= 5) {
+        if (m >= 5 && m <= 7) {
             CHECK(pn_options_set_int(test_context(), rs.options, "vpls", 300) == PN_OK);
             CHECK(pn_options_set_int(test_context(), rs.options, "vpl-depth", 1) == PN_OK);
         }
@@ -644,6 +690,6 @@ static void test_bad_files_refused(void) {
 
 PN_TESTS(TEST(test_lumens_match_stated), TEST(test_symmetry_forms_agree), TEST(test_ies_and_eulumdat_agree),
          TEST(test_type_b), TEST(test_tilt_table), TEST(test_illuminance_closed_form), TEST(test_render_units),
-         TEST(test_symmetry_forms_render_identically), TEST(test_emission_sampling),
+         TEST(test_symmetry_forms_render_identically), TEST(test_emission_sampling), TEST(test_vpl_first_bounce),
          TEST(test_every_integrator_renders_it), TEST(test_bad_files_refused), TEST(test_info_lumens),
          TEST(test_goniometric_image_renders_the_same))
