@@ -283,7 +283,13 @@ static void finish(pn_photometry *p) {
     p->lumens = table_integral(p);
 }
 
+/* Largest table read: 10^7 values (a 0.1 degree grid over the whole sphere is 6.5 x 10^6). */
+#define MAX_TABLE_VALUES 10000000.0
+
 static pn_status alloc_table(reader *r, pn_photometry *p) {
+    if ((double)p->nv * (double)p->nh > MAX_TABLE_VALUES)
+        return fail(r, r->last_line ? r->last_line : r->line,
+                    "%d vertical x %d horizontal angles is more than the 10^7 values penumbra reads", p->nv, p->nh);
     p->v_deg = malloc((size_t)p->nv * sizeof *p->v_deg);
     p->h_deg = malloc((size_t)p->nh * sizeof *p->h_deg);
     p->cd = malloc((size_t)p->nv * (size_t)p->nh * sizeof *p->cd);
