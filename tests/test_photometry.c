@@ -158,8 +158,16 @@ static void test_symmetry_forms_agree(void) {
     for (int k = 0; k < 6; k++) check_same_lookup("quad_quadrant.ies", quad[k], 1.0, 1e-9);
 }
 
+static bool render_ref(const char *name, const char *light, float *out, int res);
+
 static void test_ies_and_eulumdat_agree(void) {
     check_same_lookup("street.ies", "street.ldt", 1.0, 1e-12);
+    enum { R = 12 };
+    static float a[3 * R * R], b[3 * R * R];
+    bool ok = render_ref("ies.pbrt", "LightSource \"goniometric\" \"string filename\" \"" DATA "street.ies\"", a, R) &&
+              render_ref("ldt.pbrt", "LightSource \"goniometric\" \"string filename\" \"" DATA "street.ldt\"", b, R);
+    CHECK(ok);
+    if (ok) CHECK_MSG(memcmp(a, b, sizeof a) == 0, "street.ies and street.ldt render differently");
     /* 2000 lm of lamps against 1000: the EULUMDAT intensities are per 1000 lm of lamp flux. */
     check_same_lookup("isotropic.ies", "isotropic.ldt", 0.5, 1e-12);
     pn_photometry *p = read_data("street.ldt");
@@ -517,6 +525,48 @@ static void test_vpl_first_bounce(void) {
     pn_scene_free(scene);
 }
 
+/* The light BVH's bound of a narrow beam (lit to gamma = 15 degrees): wherever the beam gives a
+ * receiver light, the bound's importance is positive; well outside the cone it is 0 (the cone
+ * prunes), for a luminaire turned 50 degrees. */
+static void test_bvh_cone_bounds_the_beam(void) {
+    pn_scene scene =
+        load_text("cone.pbrt", plane_scene(4, "Translate 0 0 2\nRotate 50 1 1 0",
+                                           "LightSource \"goniometric\" \"string filename\" \"" DATA "beam.ies\""));
+    const pn_light *l = first_gonio(scene);
+    CHECK(l != NULL);
+    if (!l) {
+        pn_scene_free(scene);
+        return;
+    }
+    pn_light_bvh_bounds b;
+    CHECK(pn_light_bounds_of(scene->lights, l, &b));
+    const pn_gonio *g = &scene->lights->gonios[l->env];
+    int lit = 0, missed = 0, pruned = 0;
+    uint64_t s = 3;
+    for (int k = 0; k < 20000; k++) {
+        double u[4];
+        for (int j = 0; j < 4; j++) {
+            s = s * 6364136223846793005ull + 1442695040888963407ull;
+            u[j] = (double)(s >> 11) / 9007199254740992.0;
+        }
+        double z = 1.0 - 2.0 * u[0], r = sqrt(fmax(0.0, 1.0 - z * z)), ph = 2.0 * PI_D * u[1];
+        vec3 w = v3((float)(r * cos(ph)), (float)(r * sin(ph)), (float)z);
+        vec3 p = v3_add(l->p, v3_scale(w, (float)(0.5 + 3.0 * u[2])));
+        vec3 n = v3_neg(w); /* facing the light */
+        float e = pn_light_irradiance_estimate(scene->lights, l, p, n);
+        float imp = pn_light_bounds_importance(&b, p, n);
+        if (e > 0.0f) {
+            lit++;
+            if (!(imp > 0.0f)) missed++;
+        }
+        if (v3_dot(w, g->nadir) < cosf(20.0f * (float)PI_D / 180.0f) && imp == 0.0f) pruned++;
+    }
+    CHECK(lit > 100);
+    CHECK_MSG(missed == 0, "%d of %d lit receivers have importance 0", missed, lit);
+    CHECK_MSG(pruned > 15000, "only %d receivers outside the cone pruned", pruned);
+    pn_scene_free(scene);
+}
+
 /* ---- integrators ---------------------------------------------------------------------------------- */
 
 /* Every integrator (and every driver, with the reference integrator) renders the street light
@@ -740,5 +790,6 @@ static void test_bad_files_refused(void) {
 PN_TESTS(TEST(test_lumens_match_stated), TEST(test_symmetry_forms_agree), TEST(test_ies_and_eulumdat_agree),
          TEST(test_type_b), TEST(test_tilt_table), TEST(test_mutated_files_never_crash),
          TEST(test_illuminance_closed_form), TEST(test_render_units), TEST(test_symmetry_forms_render_identically),
-         TEST(test_emission_sampling), TEST(test_vpl_first_bounce), TEST(test_every_integrator_renders_it),
-         TEST(test_bad_files_refused), TEST(test_info_lumens), TEST(test_goniometric_image_renders_the_same))
+         TEST(test_emission_sampling), TEST(test_vpl_first_bounce), TEST(test_bvh_cone_bounds_the_beam),
+         TEST(test_every_integrator_renders_it), TEST(test_bad_files_refused), TEST(test_info_lumens),
+         TEST(test_goniometric_image_renders_the_same))
