@@ -567,6 +567,28 @@ static void test_bvh_cone_bounds_the_beam(void) {
     pn_scene_free(scene);
 }
 
+/* docs/luminaires.md's aiming: LM-72 Orient 90 then Tilt 90 (Rotate 90 0 0 1, Rotate -90 0 1 0)
+ * turns a luminaire's nadir from -z to due north, +y, and its C = 0 axis (+x, its front) up. */
+static void test_aiming_convention(void) {
+    pn_scene scene =
+        load_text("aim.pbrt", plane_scene(4, "Translate 0 0 2\nRotate 90 0 0 1\nRotate -90 0 1 0",
+                                          "LightSource \"goniometric\" \"string filename\" \"" DATA "street.ies\""));
+    const pn_light *l = first_gonio(scene);
+    CHECK(l != NULL);
+    if (l) {
+        const pn_gonio *g = &scene->lights->gonios[l->env];
+        CHECK_NEAR(g->nadir.x, 0.0, 1e-6);
+        CHECK_NEAR(g->nadir.y, 1.0, 1e-6);
+        CHECK_NEAR(g->nadir.z, 0.0, 1e-6);
+        /* gamma 60 in the C = 0 plane (street_cd's brighter side) now lies between north and up */
+        double g60 = 60.0 * PI_D / 180.0;
+        vec3 w = v3(0.0f, (float)cos(g60), (float)sin(g60));
+        double want = street_cd(60.0, 0.0) / (scene->photometries[0]->peak_cd);
+        CHECK_NEAR(pn_gonio_factor(scene->lights, l, w), want, 1e-5);
+    }
+    pn_scene_free(scene);
+}
+
 /* ---- integrators ---------------------------------------------------------------------------------- */
 
 /* Every integrator (and every driver, with the reference integrator) renders the street light
@@ -791,5 +813,5 @@ PN_TESTS(TEST(test_lumens_match_stated), TEST(test_symmetry_forms_agree), TEST(t
          TEST(test_type_b), TEST(test_tilt_table), TEST(test_mutated_files_never_crash),
          TEST(test_illuminance_closed_form), TEST(test_render_units), TEST(test_symmetry_forms_render_identically),
          TEST(test_emission_sampling), TEST(test_vpl_first_bounce), TEST(test_bvh_cone_bounds_the_beam),
-         TEST(test_every_integrator_renders_it), TEST(test_bad_files_refused), TEST(test_info_lumens),
-         TEST(test_goniometric_image_renders_the_same))
+         TEST(test_aiming_convention), TEST(test_every_integrator_renders_it), TEST(test_bad_files_refused),
+         TEST(test_info_lumens), TEST(test_goniometric_image_renders_the_same))
