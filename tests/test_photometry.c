@@ -26,6 +26,12 @@
 #define PI_D 3.14159265358979323846
 #define DATA PN_SOURCE_DIR "/tests/data/photometry/"
 
+/* A deterministic uniform number in [0, 1) (PCG's LCG step, top 53 bits). */
+static double rnd(uint64_t *s) {
+    *s = *s * 6364136223846793005ull + 1442695040888963407ull;
+    return (double)(*s >> 11) / 9007199254740992.0;
+}
+
 static pn_photometry *read_data(const char *name) {
     pn_err err;
     pn_err_init(&err);
@@ -134,10 +140,7 @@ static void check_same_lookup(const char *a, const char *b, double scale_b, doub
         double worst = 0.0;
         uint64_t s = 12345;
         for (int k = 0; k < 20000; k++) {
-            s = s * 6364136223846793005ull + 1442695040888963407ull;
-            double g = (double)(s >> 11) / 9007199254740992.0 * 180.0;
-            s = s * 6364136223846793005ull + 1442695040888963407ull;
-            double c = (double)(s >> 11) / 9007199254740992.0 * 360.0;
+            double g = rnd(&s) * 180.0, c = rnd(&s) * 360.0;
             vec3 w = dir_c(g, c);
             double x = pn_photometry_eval(p, w), y = pn_photometry_eval(q, w) * scale_b;
             worst = fmax(worst, fabs(x - y) / fmax(1.0, fabs(x)));
@@ -290,14 +293,22 @@ static const pn_light *first_gonio(pn_scene scene) {
     return NULL;
 }
 
+/* plane_scene with the luminaire `file` (in tests/data/photometry) under `xform`, and its light
+ * record (NULL, with a failed check, when the scene does not load). */
+static pn_scene load_luminaire(const char *name, const char *xform, const char *file, const pn_light **l) {
+    char light[512];
+    snprintf(light, sizeof light, "LightSource \"goniometric\" \"string filename\" \"" DATA "%s\"", file);
+    pn_scene scene = load_text(name, plane_scene(4, xform, light));
+    *l = first_gonio(scene);
+    CHECK(*l != NULL);
+    return scene;
+}
+
 /* E = I(theta, C) cos theta / d^2 on the plane, from the light's own sample (direct light
  * evaluation), against I interpolated here; the luminaire 2 m up, turned 30 degrees about z. */
 static void test_illuminance_closed_form(void) {
-    pn_scene scene =
-        load_text("street.pbrt", plane_scene(8, "Translate 0 0 2\nRotate 30 0 0 1",
-                                             "LightSource \"goniometric\" \"string filename\" \"" DATA "street.ies\""));
-    const pn_light *l = first_gonio(scene);
-    CHECK(l != NULL);
+    const pn_light *l = NULL;
+    pn_scene scene = load_luminaire("street.pbrt", "Translate 0 0 2\nRotate 30 0 0 1", "street.ies", &l);
     if (!l) {
         pn_scene_free(scene);
         return;
@@ -424,11 +435,8 @@ static void test_symmetry_forms_render_identically(void) {
  * 16 x 16 in (C, gamma) of the light (a luminaire turned about x, so world and light differ);
  * E[I / pdf] is the luminaire's lumens. */
 static void test_emission_sampling(void) {
-    pn_scene scene =
-        load_text("chi2.pbrt", plane_scene(4, "Translate 0 0 2\nRotate 40 1 0 0",
-                                           "LightSource \"goniometric\" \"string filename\" \"" DATA "street.ies\""));
-    const pn_light *l = first_gonio(scene);
-    CHECK(l != NULL);
+    const pn_light *l = NULL;
+    pn_scene scene = load_luminaire("chi2.pbrt", "Translate 0 0 2\nRotate 40 1 0 0", "street.ies", &l);
     if (!l) {
         pn_scene_free(scene);
         return;
@@ -454,10 +462,9 @@ static void test_emission_sampling(void) {
     double flux = 0.0;
     int pdf_mismatch = 0;
     for (int k = 0; k < N; k++) {
-        s = s * 6364136223846793005ull + 1442695040888963407ull;
-        float u1 = (float)((s >> 40) * (1.0 / 16777216.0));
-        s = s * 6364136223846793005ull + 1442695040888963407ull;
-        float u2 = (float)((s >> 40) * (1.0 / 16777216.0));
+        float u1 = (float)rnd(&s), u2 = (float)rnd(&s);
+        u1 = u1 < 1.0f ? u1 : 0x1.fffffep-1f;
+        u2 = u2 < 1.0f ? u2 : 0x1.fffffep-1f;
         vec3 w;
         float pdf;
         if (!pn_gonio_sample_direction(scene->lights, l, u1, u2, &w, &pdf)) continue;
@@ -529,11 +536,8 @@ static void test_vpl_first_bounce(void) {
  * receiver light, the bound's importance is positive; well outside the cone it is 0 (the cone
  * prunes), for a luminaire turned 50 degrees. */
 static void test_bvh_cone_bounds_the_beam(void) {
-    pn_scene scene =
-        load_text("cone.pbrt", plane_scene(4, "Translate 0 0 2\nRotate 50 1 1 0",
-                                           "LightSource \"goniometric\" \"string filename\" \"" DATA "beam.ies\""));
-    const pn_light *l = first_gonio(scene);
-    CHECK(l != NULL);
+    const pn_light *l = NULL;
+    pn_scene scene = load_luminaire("cone.pbrt", "Translate 0 0 2\nRotate 50 1 1 0", "beam.ies", &l);
     if (!l) {
         pn_scene_free(scene);
         return;
@@ -544,11 +548,7 @@ static void test_bvh_cone_bounds_the_beam(void) {
     int lit = 0, missed = 0, pruned = 0;
     uint64_t s = 3;
     for (int k = 0; k < 20000; k++) {
-        double u[4];
-        for (int j = 0; j < 4; j++) {
-            s = s * 6364136223846793005ull + 1442695040888963407ull;
-            u[j] = (double)(s >> 11) / 9007199254740992.0;
-        }
+        double u[3] = {rnd(&s), rnd(&s), rnd(&s)};
         double z = 1.0 - 2.0 * u[0], r = sqrt(fmax(0.0, 1.0 - z * z)), ph = 2.0 * PI_D * u[1];
         vec3 w = v3((float)(r * cos(ph)), (float)(r * sin(ph)), (float)z);
         vec3 p = v3_add(l->p, v3_scale(w, (float)(0.5 + 3.0 * u[2])));
@@ -570,11 +570,8 @@ static void test_bvh_cone_bounds_the_beam(void) {
 /* docs/luminaires.md's aiming: LM-72 Orient 90 then Tilt 90 (Rotate 90 0 0 1, Rotate -90 0 1 0)
  * turns a luminaire's nadir from -z to due north, +y, and its C = 0 axis (+x, its front) up. */
 static void test_aiming_convention(void) {
-    pn_scene scene =
-        load_text("aim.pbrt", plane_scene(4, "Translate 0 0 2\nRotate 90 0 0 1\nRotate -90 0 1 0",
-                                          "LightSource \"goniometric\" \"string filename\" \"" DATA "street.ies\""));
-    const pn_light *l = first_gonio(scene);
-    CHECK(l != NULL);
+    const pn_light *l = NULL;
+    pn_scene scene = load_luminaire("aim.pbrt", "Translate 0 0 2\nRotate 90 0 0 1\nRotate -90 0 1 0", "street.ies", &l);
     if (l) {
         const pn_gonio *g = &scene->lights->gonios[l->env];
         CHECK_NEAR(g->nadir.x, 0.0, 1e-6);
