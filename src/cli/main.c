@@ -48,8 +48,9 @@ const char info_help[] =
     "usage: penumbra info SCENE.pbrt\n"
     "\n"
     "Loads SCENE.pbrt and prints what penumbra made of it: triangles, meshes, instances, spheres,\n"
-    "lights by kind, materials and how each pbrt material was mapped, textures, bounds, film\n"
-    "resolution, load times and the warnings raised while loading.\n";
+    "lights by kind, measured luminaires (IES, EULUMDAT: the lumens each emits, integrated from its\n"
+    "distribution, next to the lumens its file states), materials and how each pbrt material was\n"
+    "mapped, textures, bounds, film resolution, load times and the warnings raised while loading.\n";
 
 static void print_version(void) {
     printf("penumbra %s\n", pn_version_string());
