@@ -9,6 +9,7 @@
  * malformed file is refused with file:line and its message (the CLI exits 3). */
 #include "harness.h"
 
+#include "lights/cluster_tree.h"
 #include "lights/light_bvh.h"
 #include "lights/lights.h"
 #include "lights/vpl.h"
@@ -532,9 +533,10 @@ static void test_vpl_first_bounce(void) {
     pn_scene_free(scene);
 }
 
-/* The light BVH's bound of a narrow beam (lit to gamma = 15 degrees): wherever the beam gives a
- * receiver light, the bound's importance is positive; well outside the cone it is 0 (the cone
- * prunes), for a luminaire turned 50 degrees. */
+/* The light BVH's bound and ias's leaf culling of a narrow beam (lit to gamma = 15 degrees):
+ * wherever the beam gives a receiver light, the bound's importance is positive and the leaf is
+ * not culled; well outside the cone the importance is 0 and the leaf culled, for a luminaire
+ * turned 50 degrees. */
 static void test_bvh_cone_bounds_the_beam(void) {
     const pn_light *l = NULL;
     pn_scene scene = load_luminaire("cone.pbrt", "Translate 0 0 2\nRotate 50 1 1 0", "beam.ies", &l);
@@ -545,7 +547,7 @@ static void test_bvh_cone_bounds_the_beam(void) {
     pn_light_bvh_bounds b;
     CHECK(pn_light_bounds_of(scene->lights, l, &b));
     const pn_gonio *g = &scene->lights->gonios[l->env];
-    int lit = 0, missed = 0, pruned = 0;
+    int lit = 0, missed = 0, pruned = 0, culled_lit = 0, culled_far = 0;
     uint64_t s = 3;
     for (int k = 0; k < 20000; k++) {
         double u[3] = {rnd(&s), rnd(&s), rnd(&s)};
@@ -555,14 +557,21 @@ static void test_bvh_cone_bounds_the_beam(void) {
         vec3 n = v3_neg(w); /* facing the light */
         float e = pn_light_irradiance_estimate(scene->lights, l, p, n);
         float imp = pn_light_bounds_importance(&b, p, n);
+        bool culled = pn_cluster_light_culled(l, p, n);
         if (e > 0.0f) {
             lit++;
             if (!(imp > 0.0f)) missed++;
+            if (culled) culled_lit++;
         }
-        if (v3_dot(w, g->nadir) < cosf(20.0f * (float)PI_D / 180.0f) && imp == 0.0f) pruned++;
+        if (v3_dot(w, g->nadir) < cosf(20.0f * (float)PI_D / 180.0f)) {
+            if (imp == 0.0f) pruned++;
+            if (culled) culled_far++;
+        }
     }
     CHECK(lit > 100);
     CHECK_MSG(missed == 0, "%d of %d lit receivers have importance 0", missed, lit);
+    CHECK_MSG(culled_lit == 0, "ias culls %d of %d lit receivers", culled_lit, lit);
+    CHECK_MSG(culled_far > 15000, "ias culls only %d receivers outside the cone", culled_far);
     CHECK_MSG(pruned > 15000, "only %d receivers outside the cone pruned", pruned);
     pn_scene_free(scene);
 }

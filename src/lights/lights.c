@@ -482,9 +482,17 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             l->p = d->position;
             l->emit = d->intensity;
             l->env = L->gonio_count;
-            if (d->photometry >= 0)
-                st = pn_gonio_prepare_photometric(scene, d, &L->gonios[L->gonio_count], L->gonios, L->gonio_count, err);
-            else
+            if (d->photometry >= 0) {
+                pn_gonio *g = &L->gonios[L->gonio_count];
+                st = pn_gonio_prepare_photometric(scene, d, g, L->gonios, L->gonio_count, err);
+                /* A luminaire dark beyond gamma_max: its cone in the record (axis n, cosine in
+                 * cos_total_width, as a spot's), so that ias culls it exactly outside; image
+                 * lights keep n = 0 (no cone). */
+                if (st == PN_OK && g->rigid && g->cos_max_gamma > -1.0f) {
+                    l->n = g->nadir;
+                    l->cos_total_width = g->cos_max_gamma - 1e-5f;
+                }
+            } else
                 st = gonio_prepare(scene, d, &L->gonios[L->gonio_count], err);
             L->gonio_count++;
             break;
