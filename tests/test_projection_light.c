@@ -6,6 +6,7 @@
  * per-pixel solid angles, the first-bounce VPL energy, agreement of the reference, ias, vpl and
  * lightcuts integrators on one small scene, and bad input (file:line:column, exit 3). */
 #include "harness.h"
+#include "stats_checks.h"
 
 #include "core/rng.h"
 #include "lights/lights.h"
@@ -315,36 +316,6 @@ static void test_two_colour_pixels(void) {
 
 /* ---- emission sampling (VPL light paths) ------------------------------------------------------- */
 
-/* Pearson's chi-square against probabilities prob (bins of expectation < 5 pooled); accepted at
- * p = 0.001 via the Wilson-Hilferty approximation of the critical value. */
-static bool chi2_ok(const double *obs, const double *prob, int n, double total) {
-    double stat = 0.0, pe = 0.0, po = 0.0;
-    int cells = 0;
-    for (int i = 0; i < n; i++) {
-        if (prob[i] <= 0.0) {
-            if (obs[i] > 0.0) return false;
-            continue;
-        }
-        double e = prob[i] * total;
-        if (e < 5.0) {
-            pe += e;
-            po += obs[i];
-            continue;
-        }
-        stat += (obs[i] - e) * (obs[i] - e) / e;
-        cells++;
-    }
-    if (pe > 0.0) {
-        stat += (po - pe) * (po - pe) / pe;
-        cells++;
-    }
-    int dof = cells - 1;
-    double z = 3.090232; /* upper 0.001 quantile of the normal */
-    double a = 2.0 / (9.0 * dof), crit = dof * pow(1.0 - a + z * sqrt(a), 3.0);
-    fprintf(stderr, "  chi2 = %.1f  dof = %d  crit(p=0.001) = %.1f\n", stat, dof, crit);
-    return dof > 0 && stat <= crit;
-}
-
 #define EW 6
 #define EH 4
 #define SUB 3
@@ -437,7 +408,7 @@ static void test_emission_sampling(void) {
         }
         CHECK_MSG(failed == 0, "%d samples failed or left the frustum", failed);
         CHECK_MSG(bad_pdf == 0, "%d sample pdfs differ from pbrt-v4's density", bad_pdf);
-        CHECK(chi2_ok(obs, prob, NB, (double)(N - failed)));
+        CHECK(pn_test_chi2_ok(obs, prob, NB, (double)(N - failed)));
         double mean = est / N, se = sqrt(fmax(0.0, est2 / N - mean * mean) / N);
         CHECK_MSG(fabs(mean - phi_exact) <= 4.5 * se, "E[lum(I)/pdf] = %.6g, exact power %.6g (se %.2g)", mean,
                   phi_exact, se);

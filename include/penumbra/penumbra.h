@@ -104,6 +104,23 @@ typedef struct pn_scene_info {
 
 PN_API pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info);
 
+/* A measured luminaire: a LightSource "goniometric" whose "filename" is an IES LM-63 or EULUMDAT
+ * file (docs/luminaires.md), for `penumbra info`. Strings are owned by the scene. */
+typedef struct pn_luminaire_info {
+    const char *file;               /* the photometric file, as resolved */
+    const char *source;             /* "scene.pbrt:line:column" of the LightSource */
+    double lumens;                  /* what the light emits: the file's integral times scale, tilt, power */
+    double file_lumens;             /* the file's distribution integrated over the sphere */
+    double stated_lumens;           /* lamp lumens the file states; -1: absolute photometry */
+    double stated_luminaire_lumens; /* EULUMDAT: lamp flux x light output ratio; -1 when not stated */
+    double peak_candela;            /* the light's largest intensity (cd) */
+} pn_luminaire_info;
+
+/* Number of measured luminaires, and luminaire i's numbers; index out of range:
+ * PN_ERROR_INVALID_ARGUMENT. */
+PN_API uint32_t pn_scene_luminaire_count(pn_scene scene);
+PN_API pn_status pn_scene_luminaire_get(pn_scene scene, uint32_t index, pn_luminaire_info *info);
+
 /* Number of materials and, for material i, a NUL-terminated line saying what the pbrt material
  * was and how penumbra mapped it. Owned by the scene. */
 PN_API uint32_t pn_scene_material_count(pn_scene scene);
@@ -400,6 +417,15 @@ PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_i
  * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a
  * temporary name in the same folder and renamed, so a failed write leaves no broken file. */
 PN_API pn_status pn_image_write(pn_context ctx, pn_image image, const char *path, float exposure);
+
+/* pbrt-v4's goniometric image of the measured luminaire in `path` (IES LM-63 .ies or EULUMDAT
+ * .ldt), for `penumbra ies2goniometric`: a resolution x resolution image in pbrt-v4's
+ * equal-area octahedral mapping of the light's frame with y and z swapped (pbrt-v4's
+ * GoniometricLight), each pixel the mean candela over its solid angle (4 x 4 samples), R = G =
+ * B. pbrt-v4 (and penumbra) render LightSource "goniometric" with this image as the luminaire
+ * placed by the same transform. On success *out_image is new (free with pn_image_free); bad
+ * files: PN_ERROR_BAD_INPUT with "file:line: message". */
+PN_API pn_status pn_photometry_goniometric_image(pn_context ctx, const char *path, int resolution, pn_image *out_image);
 
 /* Writes size bytes to path by the same atomic route as pn_image_write (a temporary beside it,
  * synced and renamed), so that a failed write leaves no broken file. For the CLI's JSON. */

@@ -99,6 +99,7 @@ char *json_print(const void *tree);
 int command_render(int argc, char **argv);
 int command_diff(int argc, char **argv);
 int command_info(int argc, char **argv);
-extern const char diff_help[], info_help[];
+int command_ies2goniometric(int argc, char **argv);
+extern const char diff_help[], info_help[], ies2goniometric_help[];
 
 #endif

@@ -117,6 +117,28 @@ done:
 /* ---------------------------------------------------------------------------------------- */
 /* info */
 
+/* Measured luminaires: the lumens each emits, integrated from its distribution, next to what
+ * its file states (docs/luminaires.md). */
+static void print_luminaires(pn_scene scene) {
+    uint32_t n = pn_scene_luminaire_count(scene);
+    if (!n) return;
+    printf("luminaires     %u (lumens integrated from the distribution; stated by the file)\n", n);
+    for (uint32_t i = 0; i < n; i++) {
+        pn_luminaire_info li;
+        if (pn_scene_luminaire_get(scene, i, &li) != PN_OK) continue;
+        const char *base = strrchr(li.file, '/');
+        base = base ? base + 1 : li.file;
+        printf("  %s %s: %.1f lm emitted, peak %.1f cd; file %.1f lm integrated", li.source, base, li.lumens,
+               li.peak_candela, li.file_lumens);
+        if (li.stated_lumens < 0.0)
+            printf(", absolute photometry (no lamp lumens stated)");
+        else
+            printf(", %.1f lm of lamps stated", li.stated_lumens);
+        if (li.stated_luminaire_lumens >= 0.0) printf(", %.1f lm luminaire (LOR) stated", li.stated_luminaire_lumens);
+        printf("\n");
+    }
+}
+
 int command_info(int argc, char **argv) {
     const char *cmd = "info";
     const char *scene_path = NULL, *positional = NULL;
@@ -174,6 +196,7 @@ int command_info(int argc, char **argv) {
     printf("  projection   %u\n", info.lights_projection);
     printf("  area         %llu (triangle %u, rectangle %u, disk %u, sphere %u)\n", (unsigned long long)area,
            info.lights_area_triangle, info.lights_area_rectangle, info.lights_area_disk, info.lights_area_sphere);
+    print_luminaires(scene);
     uint32_t material_count = pn_scene_material_count(scene);
     printf("materials      %u\n", info.materials);
     for (uint32_t i = 0; i < material_count; i++) {

@@ -25,6 +25,7 @@ static const char main_help[] =
     "  penumbra methods [NAME]                list the integrators and drivers and their options\n"
     "  penumbra diff REFERENCE IMAGE [options] compare two images (RMSE, relMSE, ...)\n"
     "  penumbra info SCENE.pbrt               describe a scene: geometry, lights, materials\n"
+    "  penumbra ies2goniometric LAMP.ies -o LAMP.exr  a measured luminaire as pbrt-v4's goniometric image\n"
     "  penumbra --help | --version\n"
     "\n"
     "Run 'penumbra COMMAND --help' for the options of a command.\n"
@@ -47,8 +48,9 @@ const char info_help[] =
     "usage: penumbra info SCENE.pbrt\n"
     "\n"
     "Loads SCENE.pbrt and prints what penumbra made of it: triangles, meshes, instances, spheres,\n"
-    "lights by kind, materials and how each pbrt material was mapped, textures, bounds, film\n"
-    "resolution, load times and the warnings raised while loading.\n";
+    "lights by kind, measured luminaires (IES, EULUMDAT: the lumens each emits, integrated from its\n"
+    "distribution, next to the lumens its file states), materials and how each pbrt material was\n"
+    "mapped, textures, bounds, film resolution, load times and the warnings raised while loading.\n";
 
 static void print_version(void) {
     printf("penumbra %s\n", pn_version_string());
@@ -66,6 +68,7 @@ int main(int argc, char **argv) {
     if (strcmp(command, "methods") == 0) return command_methods(argc - 1, argv + 1);
     if (strcmp(command, "diff") == 0) return command_diff(argc - 1, argv + 1);
     if (strcmp(command, "info") == 0) return command_info(argc - 1, argv + 1);
+    if (strcmp(command, "ies2goniometric") == 0) return command_ies2goniometric(argc - 1, argv + 1);
     if (strcmp(command, "--help") == 0 || strcmp(command, "-h") == 0 || strcmp(command, "help") == 0) {
         if (argc >= 3 && strcmp(command, "help") == 0) {
             if (strcmp(argv[2], "render") == 0)
@@ -76,6 +79,8 @@ int main(int argc, char **argv) {
                 fputs(diff_help, stdout);
             else if (strcmp(argv[2], "info") == 0)
                 fputs(info_help, stdout);
+            else if (strcmp(argv[2], "ies2goniometric") == 0)
+                fputs(ies2goniometric_help, stdout);
             else
                 return usage_error(NULL, "unknown command '%s'", argv[2]);
             return EXIT_OK;

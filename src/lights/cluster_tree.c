@@ -222,8 +222,14 @@ float pn_cluster_solid_angle(vec3 center, float radius, vec3 p) {
 bool pn_cluster_light_culled(const pn_light *l, vec3 p, vec3 n) {
     bool horizon = !v3_is_zero(n);
     switch (l->kind) {
-    case PN_LIGHT_POINT:
-    case PN_LIGHT_GONIOMETRIC: return horizon && v3_dot(v3_sub(l->p, p), n) <= 0.0f;
+    case PN_LIGHT_POINT: return horizon && v3_dot(v3_sub(l->p, p), n) <= 0.0f;
+    case PN_LIGHT_GONIOMETRIC: {
+        if (horizon && v3_dot(v3_sub(l->p, p), n) <= 0.0f) return true;
+        if (v3_is_zero(l->n)) return false;
+        /* a measured luminaire dark beyond its cone (lights/lights.c sets n and the cosine) */
+        vec3 d = v3_sub(p, l->p);
+        return v3_dot(d, l->n) < l->cos_total_width * sqrtf(v3_length2(d));
+    }
     case PN_LIGHT_SPOT: {
         vec3 d = v3_sub(p, l->p);
         float d2 = v3_length2(d);

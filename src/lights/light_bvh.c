@@ -51,6 +51,16 @@ bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bvh
         }
         b->bmin = b->bmax = l->p;
         b->phi = 4.0f * PN_PI * lum * peak;
+        if (l->kind == PN_LIGHT_GONIOMETRIC && l->env >= 0 && l->env < lights->gonio_count) {
+            /* A measured luminaire dark beyond gamma_max (a downlight): its emission cone about
+             * the nadir, when the light's transform keeps angles (lights/photometric.c). */
+            const pn_gonio *g = &lights->gonios[l->env];
+            if (g->photo && g->rigid && g->cos_max_gamma > -1.0f) {
+                b->w = g->nadir;
+                b->cos_o = fmaxf(-1.0f, fminf(1.0f, g->cos_max_gamma - 1e-5f));
+                b->cos_e = cosf(1e-2f); /* theta_e > 0: pbrt's test is cos theta' <= cos theta_e */
+            }
+        }
         break;
     }
     case PN_LIGHT_SPOT:

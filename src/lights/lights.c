@@ -5,6 +5,7 @@
 #include "accel/accel.h"
 #include "core/sampling.h"
 #include "core/warn.h"
+#include "scene/photometry.h"
 #include "scene/scene.h"
 
 #include <stdlib.h>
@@ -374,6 +375,8 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
 
 float pn_gonio_factor(const pn_lights *lights, const pn_light *l, vec3 w) {
     const pn_gonio *g = &lights->gonios[l->env];
+    if (g->photo)
+        return (float)(pn_photometry_eval(g->photo, mat4_apply_vector(&g->light_from_world, w)) * g->inv_peak_cd);
     if (!g->mono) return 1.0f;
     vec3 wl = v3_normalize(mat4_apply_vector(&g->light_from_world, w));
     float u, v;
@@ -410,7 +413,10 @@ static pn_status gonio_prepare(const struct pn_scene_s *scene, const pn_light_de
 
 void pn_lights_free(pn_lights *lights) {
     if (!lights) return;
-    for (int i = 0; i < lights->gonio_count; i++) free(lights->gonios[i].mono);
+    for (int i = 0; i < lights->gonio_count; i++) {
+        free(lights->gonios[i].mono);
+        if (lights->gonios[i].owns_dist) pn_distribution2d_free(lights->gonios[i].dist);
+    }
     free(lights->gonios);
     for (int i = 0; i < lights->projection_count; i++) pn_distribution2d_free(lights->projections[i].dist);
     free(lights->projections);
@@ -476,7 +482,19 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             l->p = d->position;
             l->emit = d->intensity;
             l->env = L->gonio_count;
-            st = gonio_prepare(scene, d, &L->gonios[L->gonio_count++], err);
+            if (d->photometry >= 0) {
+                pn_gonio *g = &L->gonios[L->gonio_count];
+                st = pn_gonio_prepare_photometric(scene, d, g, L->gonios, L->gonio_count, err);
+                /* A luminaire dark beyond gamma_max: its cone in the record (axis n, cosine in
+                 * cos_total_width, as a spot's), so that ias culls it exactly outside; image
+                 * lights keep n = 0 (no cone). */
+                if (st == PN_OK && g->rigid && g->cos_max_gamma > -1.0f) {
+                    l->n = g->nadir;
+                    l->cos_total_width = g->cos_max_gamma - 1e-5f;
+                }
+            } else
+                st = gonio_prepare(scene, d, &L->gonios[L->gonio_count], err);
+            L->gonio_count++;
             break;
         case PN_LIGHTDEF_PROJECTION: {
             pn_projection *pr = &L->projections[L->projection_count];

@@ -82,6 +82,18 @@ typedef struct pn_gonio {
     float peak; /* max(1, largest mono value): the VPL of the light carries emit * peak and the
                    factor relative to it (<= 1), so that the cuts' bounds hold (lights/vpl.c) */
     mat4 light_from_world;
+    /* A measured luminaire (IES / EULUMDAT, lights/photometric.c) instead of an image: the
+     * factor is candela / peak candela (<= 1; emit carries the peak), looked up in the light's
+     * own frame (nadir -z, C = 0 along +x; no y-z swap). NULL for image lights. */
+    const struct pn_photometry *photo;
+    double inv_peak_cd;
+    mat4 world_from_light;
+    float abs_det;                  /* |det| of world_from_light's 3x3 (solid-angle Jacobian) */
+    struct pn_distribution2d *dist; /* directions by intensity over (phi, gamma) cells */
+    bool owns_dist;                 /* false when it is shared with an earlier light of the same file */
+    vec3 nadir;                     /* world direction of gamma = 0, unit */
+    float cos_max_gamma;            /* cosine of the largest lit gamma (type C), -1 when all */
+    bool rigid;                     /* world_from_light preserves angles (the cone bound holds) */
 } pn_gonio;
 
 /* A projection light (pbrt-v4 "projection", lights/projection.c): a point that shines an image
@@ -169,6 +181,20 @@ float pn_emission_area_scale(const struct pn_mesh *m, const struct pn_emission *
 
 /* The goniometric factor of light l towards world direction w (unit, from the light outwards). */
 float pn_gonio_factor(const pn_lights *lights, const pn_light *l, vec3 w);
+
+struct pn_light_def;
+/* Measured luminaires (lights/photometric.c). Fills g's photometric fields from the scene's
+ * light definition (its photometry, frame and a sampling table shared between lights of the
+ * same file: pass the gonios already prepared). */
+pn_status pn_gonio_prepare_photometric(const struct pn_scene_s *scene, const struct pn_light_def *d, pn_gonio *g,
+                                       const pn_gonio *earlier, int earlier_count, pn_err *err);
+/* A direction leaving goniometric light l (photometric) by its intensity; *pdf in world solid
+ * angle. False when nothing can be sampled. */
+bool pn_gonio_sample_direction(const pn_lights *lights, const pn_light *l, float u1, float u2, vec3 *w, float *pdf);
+/* The world solid-angle density of pn_gonio_sample_direction at world unit direction w. */
+float pn_gonio_pdf(const pn_lights *lights, const pn_light *l, vec3 w);
+/* Luminous power of a photometric light l: luminance(emit) times lumens / peak candela. */
+float pn_gonio_photometric_power(const pn_lights *lights, const pn_light *l);
 
 /* Projection lights (lights/projection.c). The rgb factor of light l (PROJECTION) towards world
  * unit direction w from the light outwards: the nearest pixel, clamped at 0; zero outside the

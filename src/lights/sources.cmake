@@ -9,4 +9,5 @@ list(APPEND PN_SOURCES
   src/lights/vpl.c
   src/lights/light_tree.c
   src/lights/projection.c
+  src/lights/photometric.c
 )

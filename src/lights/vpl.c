@@ -22,6 +22,7 @@
 #include "core/optics.h"
 #include "core/rng.h"
 #include "core/sampling.h"
+#include "scene/photometry.h"
 #include "scene/scene.h"
 #include "shade/bsdf.h"
 
@@ -77,8 +78,12 @@ static vec3 env_integral(const pn_lights *L, const pn_light *l) {
 static vec3 light_power(const pn_lights *L, const pn_light *l) {
     float R = L->scene_radius;
     switch (l->kind) {
-    case PN_LIGHT_POINT:
-    case PN_LIGHT_GONIOMETRIC: return v3_scale(l->emit, 4.0f * PN_PI);
+    case PN_LIGHT_POINT: return v3_scale(l->emit, 4.0f * PN_PI);
+    case PN_LIGHT_GONIOMETRIC:
+        /* A measured luminaire: its lumens (emit carries the peak candela, lights/photometric.c). */
+        if (L->gonios[l->env].photo)
+            return v3_scale(l->emit, (float)(L->gonios[l->env].photo->lumens * L->gonios[l->env].inv_peak_cd));
+        return v3_scale(l->emit, 4.0f * PN_PI);
     case PN_LIGHT_SPOT: return v3_scale(l->emit, 2.0f * PN_PI * (1.0f - l->cos_total_width));
     case PN_LIGHT_TRIANGLE:
     case PN_LIGHT_RECTANGLE:
@@ -335,8 +340,18 @@ pn_status pn_vpl_trace_with(const struct pn_scene_s *scene, const pn_lights *L, 
             float u1 = pn_rng_float(&rng), u2 = pn_rng_float(&rng);
             vec3 o, d;
             switch (l->kind) {
-            case PN_LIGHT_POINT:
             case PN_LIGHT_GONIOMETRIC:
+                if (L->gonios[l->env].photo) {
+                    /* A measured luminaire: directions by its intensity (lights/photometric.c);
+                     * the path carries I(d) / (pdf(d) prob). */
+                    float pdf;
+                    if (!pn_gonio_sample_direction(L, l, u1, u2, &d, &pdf)) continue;
+                    o = l->p;
+                    beta = v3_scale(l->emit, pn_gonio_factor(L, l, d) / (pdf * prob));
+                    break;
+                }
+                /* fall through */
+            case PN_LIGHT_POINT:
                 o = l->p;
                 d = pn_sample_uniform_sphere(u1, u2);
                 if (l->kind == PN_LIGHT_GONIOMETRIC) beta = v3_scale(beta, pn_gonio_factor(L, l, d));

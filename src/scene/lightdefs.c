@@ -49,6 +49,7 @@
 
 #include "lights/lights.h"
 #include "scene/parser_internal.h"
+#include "scene/photometry.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -183,11 +184,77 @@ static pn_status projection_from_pbrt(struct pn_scene_s *scene, const pn_params 
     return PN_OK;
 }
 
+/* The scene's photometric file at `path` (resolved), read once however many lights use it. */
+static pn_status scene_photometry(struct pn_scene_s *scene, const pn_params *ps, const char *file, int *index,
+                                  pn_err *err) {
+    char *path = pn_path_resolve(ps->base_dir, file);
+    if (!path) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    for (int i = 0; i < scene->photometry_count; i++)
+        if (strcmp(scene->photometries[i]->path, path) == 0) {
+            *index = i;
+            free(path);
+            return PN_OK;
+        }
+    pn_photometry **grown = realloc(scene->photometries, (size_t)(scene->photometry_count + 1) * sizeof *grown);
+    if (!grown) {
+        free(path);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    }
+    scene->photometries = grown;
+    pn_err perr;
+    pn_err_init(&perr);
+    pn_photometry *p = NULL;
+    pn_status st = pn_photometry_read(path, path, &p, &perr);
+    free(path);
+    if (st != PN_OK) {
+        const pn_param *fp = pn_params_find(ps, "filename");
+        pn_srcloc loc = fp ? fp->loc : ps->loc;
+        return pn_err_set(err, st, "%s (the goniometric light's \"filename\" at %s:%d:%d)", perr.message,
+                          loc.file ? loc.file : "?", loc.line, loc.column);
+    }
+    *index = scene->photometry_count;
+    scene->photometries[scene->photometry_count++] = p;
+    return PN_OK;
+}
+
+/* LightSource "goniometric" with an IES or EULUMDAT "filename" (docs/luminaires.md): the file's
+ * candela, times "scale", times the tilt table's factor at "tilt" degrees (TILT=INCLUDE files),
+ * and with "power" P > 0 rescaled so the luminaire emits P lumens (times "scale", as pbrt-v4
+ * keeps scale on top of power). "I" gives the colour only: it is divided by its luminance, so a
+ * luminaire of I candela renders luminance Y = I (docs/units.md). Light space: nadir -z, C = 0
+ * along +x (scene/photometry.h); no y-z swap, unlike pbrt-v4's image-based goniometric light. */
+static pn_status goniometric_from_photometry(struct pn_scene_s *scene, const pn_params *ps, const char *file, vec3 I,
+                                             double scale, double power, pn_light_def *d, pn_err *err) {
+    double tilt = 0.0;
+    pn_status st = pn_params_float(ps, "tilt", 0.0, &tilt, err);
+    if (st != PN_OK) return st;
+    if (!isfinite(tilt) || tilt < 0.0 || tilt > 180.0)
+        return pn_param_error(pn_params_find(ps, "tilt"), err, "\"tilt\" %g is outside 0..180 degrees", tilt);
+    double y = (double)v3_luminance(I);
+    if (!(y > 0.0) || !v3_is_finite(I))
+        return pn_param_error(pn_params_find(ps, "I"), err,
+                              "the colour \"I\" of a measured luminaire needs a positive luminance");
+    int index = -1;
+    st = scene_photometry(scene, ps, file, &index, err);
+    if (st != PN_OK) return st;
+    const pn_photometry *p = scene->photometries[index];
+    if (!p->tilt_count)
+        warn_ignored(scene, ps, "tilt", "has no effect: the file has no tilt table (TILT=INCLUDE); ignored");
+    double factor = scale * pn_photometry_tilt_factor(p, tilt);
+    if (power > 0.0) factor *= power / p->lumens;
+    d->photometry = index;
+    d->photometry_scale = factor;
+    d->intensity = v3_scale(I, (float)(factor * p->peak_cd / y));
+    d->position = mat4_apply_point(&d->world_from_light, v3(0, 0, 0));
+    return PN_OK;
+}
+
 pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
                              const mat4 *world_from_light, pn_err *err) {
     pn_light_def d;
     memset(&d, 0, sizeof d);
     d.image = -1;
+    d.photometry = -1;
     d.world_from_light = *world_from_light;
     if (!mat4_is_finite(*world_from_light) || !mat4_inverse(*world_from_light, &d.light_from_world))
         return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "LightSource \"%s\" under a singular transform", type);
@@ -233,7 +300,13 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             const char *file = NULL;
             st = pn_params_string(ps, "filename", "", &file, err);
             if (st != PN_OK) return st;
-            if (file[0]) {
+            bool measured = pn_photometry_is_file(file);
+            if (measured) {
+                st = goniometric_from_photometry(scene, ps, file, I, scale, power, &d, err);
+                if (st != PN_OK) return st;
+            }
+            if (!measured) warn_ignored(scene, ps, "tilt", "applies to IES files with TILT=INCLUDE only; ignored");
+            if (file[0] && !measured) {
                 st = load_image_param(scene, ps, file, &d.image, err);
                 if (st != PN_OK) return st;
                 const pn_texture_image *img = &scene->images[d.image];
@@ -254,7 +327,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
                 for (size_t i = 0; i < 3 * texels; i++) sum += (double)img->rgb[i];
                 mean = texels ? sum / (3.0 * (double)texels) : 0.0;
             }
-            d.intensity = apply_power(d.intensity, photometric(ps, "I", I), power, 4.0 * PN_PI_D * mean);
+            if (!measured) d.intensity = apply_power(d.intensity, photometric(ps, "I", I), power, 4.0 * PN_PI_D * mean);
         }
     } else if (strcmp(type, "distant") == 0) {
         vec3 L, from = v3(0, 0, 0), to = v3(0, 0, 1);

@@ -11,6 +11,7 @@
 #include "core/context.h"
 #include "scene/build.h"
 #include "scene/parser_internal.h"
+#include "scene/photometry.h"
 #include "scene/ply.h"
 #include "scene/scene.h"
 #include "scene/tokenizer.h"
@@ -2057,6 +2058,8 @@ void pn_scene_parse_free(struct pn_scene_s *scene) {
     free(scene->emissions);
     for (int i = 0; i < scene->light_def_count; i++) free(scene->light_defs[i].source);
     free(scene->light_defs);
+    for (int i = 0; i < scene->photometry_count; i++) pn_photometry_free(scene->photometries[i]);
+    free(scene->photometries);
     pn_warning_list_free(&scene->warnings);
     free(scene);
 }

@@ -192,8 +192,10 @@ typedef struct pn_light_def {
                            false: equirectangular (latitude-longitude) */
     mat4 world_from_light;                    /* INFINITE / GONIOMETRIC orientation */
     mat4 light_from_world;
-    char *source;  /* "file:line" */
-    float fov_deg; /* PROJECTION: the frustum's angle across the image's shorter side */
+    char *source;            /* "file:line" */
+    float fov_deg;           /* PROJECTION: the frustum's angle across the image's shorter side */
+    int photometry;          /* GONIOMETRIC from an IES / EULUMDAT file: index into photometries, or -1 */
+    double photometry_scale; /* that file's candela times this is what the light emits */
 } pn_light_def;
 
 /* ---- camera and film --------------------------------------------------------------------- */
@@ -280,6 +282,8 @@ struct pn_scene_s {
     int emission_count;
     pn_light_def *light_defs;
     int light_def_count;
+    struct pn_photometry **photometries; /* measured luminaires, one per distinct file (scene/photometry.h) */
+    int photometry_count;
 
     pn_warning_list warnings; /* "file:line:column: message"; parser and light builder (core/warn.h) */
 
