@@ -263,9 +263,14 @@ enum {
     PN_AOV_PHASE1 = 1u << 13,            /* illumcut: the Phase I approximate image (RGB) */
     PN_AOV_SAMPLING_PATTERN = 1u << 14,  /* progressive: fraction of the work pixels evaluated */
     PN_AOV_BLOCK_MAP = 1u << 15,         /* dcm: 0 smooth, 1 simple, 2 complex, 3 evaluating edge block */
-    PN_AOV_BLOCK_DIRECTION = 1u << 16    /* dcm: least-discrepancy direction (degrees), -1 if none */
+    PN_AOV_BLOCK_DIRECTION = 1u << 16,   /* dcm: least-discrepancy direction (degrees), -1 if none */
+    PN_AOV_ILLUMINANCE = 1u << 17,       /* illuminance (lux) on the first non-specular surface seen:
+                                            direct (reference), total (vpl, lightcuts); see
+                                            docs/lighting-design.md */
+    PN_AOV_LUMINANCE = 1u << 18          /* luminance (cd/m^2) of the pixel's radiance */
 };
-#define PN_AOV_COMMON 0x3fu /* the six layers every integrator writes under the tiled driver */
+/* the layers every integrator writes under the tiled driver: the first six and luminance */
+#define PN_AOV_COMMON (0x3fu | PN_AOV_LUMINANCE)
 
 /* Number of AOV layers, and the name and PN_AOV_* bit of layer i (NULL when out of range). */
 PN_API int pn_aov_count(void);
@@ -362,6 +367,25 @@ typedef struct pn_render_stats {
                                          grid of primary rays (--primary-grid) */
     double reconstruct_seconds_max;                 /* longest reconstruction of an approximate image */
 } pn_render_stats;
+
+/* ---- lighting design: illuminance at points, no camera (docs/lighting-design.md) ---------- */
+
+/* A calculation point: position and the unit normal of the surface it measures. */
+typedef struct pn_illuminance_point {
+    float p[3];
+    float n[3];
+} pn_illuminance_point;
+
+/* Computes the illuminance in lux at each of the count points, on the side of its normal, into
+ * lux[i] (the caller's array of count values): with settings->integrator reference the direct
+ * light, by the reference integrator's light estimator (settings->spp, default 64, times its
+ * shadow-rays option light samples per point); with vpl or lightcuts the total (VPLs of
+ * vpl-depth bounces) by that integrator's estimator for a white Lambertian receiver. Other
+ * integrators: PN_ERROR_INVALID_ARGUMENT (the method table lists "illuminance" among the AOVs of
+ * those that can). Points are independent (point i draws its numbers from (seed, i)), so the
+ * result does not depend on the thread count. Driver and image settings are ignored. */
+PN_API pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
+                                const pn_illuminance_point *points, int count, double *lux);
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the
  * beauty and the requested AOVs; stats (may be NULL) is filled. If cancelled, the partial image

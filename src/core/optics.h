@@ -18,4 +18,21 @@ static inline float pn_fresnel_dielectric(float cos_i, float eta) {
     return 0.5f * (r_par * r_par + r_perp * r_perp);
 }
 
+/* The transmittance of a thin non-absorbing slab (a pane of glass) at the cosine cos_i of the
+ * angle of incidence. Each face reflects R (per polarisation); summing the light that passes
+ * after 0, 2, 4, ... internal reflections gives (1 - R)^2 sum R^(2k) = (1 - R) / (1 + R). The
+ * series is summed for the s and p polarisations apart and averaged, as physics has it and as
+ * RADIANCE's glass does; pbrt-v4's ThinDielectricBxDF sums it once with the averaged R, which
+ * gives 0.06% less at 30 degrees, 0.36% at 45 and 1.5% at 60 (eta 1.52). */
+static inline float pn_thin_glass_transmittance(float cos_i, float eta) {
+    cos_i = fminf(1.0f, fmaxf(0.0f, cos_i));
+    float sin2_t = (1.0f - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0f) return 0.0f;
+    float cos_t = sqrtf(1.0f - sin2_t);
+    float r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    float rp = r_par * r_par, rs = r_perp * r_perp;
+    return 0.5f * ((1.0f - rp) / (1.0f + rp) + (1.0f - rs) / (1.0f + rs));
+}
+
 #endif

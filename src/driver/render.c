@@ -10,6 +10,7 @@
 #include "integrators/registry.h"
 #include "io/image.h"
 #include "render/progress.h"
+#include "driver/points.h"
 
 #include <pthread.h>
 #include <stdlib.h>
@@ -100,8 +101,8 @@ static void free_batches(render_shared *rs, int workers) {
 }
 
 /* Resolves the settings (zero = default) into the job. */
-static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *s,
-                                  const pn_method_entry *integ, const pn_method_entry *driver, pn_render_job *job) {
+pn_status pn_driver_resolve_settings(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *s,
+                                     const pn_method_entry *integ, const pn_method_entry *driver, pn_render_job *job) {
     memset(job, 0, sizeof *job);
     job->scene = scene;
     job->accel = scene->accel;
@@ -182,7 +183,7 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     if (!dentry) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)settings->driver);
     const pn_integrator *integ = ientry->integrator;
     pn_render_job job;
-    pn_status st = resolve_settings(ctx, scene, settings, ientry, dentry, &job);
+    pn_status st = pn_driver_resolve_settings(ctx, scene, settings, ientry, dentry, &job);
     if (st != PN_OK) {
         atomic_store(&ctx->cancel, 0);
         return st;

@@ -10,4 +10,5 @@ list(APPEND PN_SOURCES
   src/scene/texture.c
   src/scene/spectrum.c
   src/scene/lightdefs.c
+  src/scene/sky.c
 )
