@@ -419,6 +419,9 @@ PN_API const float *pn_image_layer_data(pn_image image, int layer);
 /* Reads an image (EXR, PFM, PNG, TGA, JPG, HDR) as linear RGB into a one-layer image. 8-bit
  * formats are decoded from sRGB. Errors read "file: message". */
 PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image);
+/* Reads the single-channel AOV layer `layer` of an EXR file written by pn_image_write into an
+ * image with that layer (and its values as a grey beauty). Errors read "file: message". */
+PN_API pn_status pn_image_read_layer(pn_context ctx, const char *path, const char *layer, pn_image *out_image);
 
 /* Writes the image; the format follows the extension: .exr (all layers, 32-bit float), .pfm
  * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a
@@ -440,6 +443,36 @@ PN_API pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, i
  * two end values drawn below the image. The new image has the layer's width and a taller height;
  * write it with pn_image_write(..., ".png", 0). */
 PN_API pn_status pn_image_false_color(pn_context ctx, pn_image image, const char *layer, double vmin, double vmax,
+                                      pn_image *out_image);
+
+/* False colour for lighting analysis, as RADIANCE's falsecolor draws it (docs/lighting-design.md):
+ * a legend at the left with `divisions` boxes, each labelled with its lower value in real units,
+ * the label on top. */
+typedef enum pn_false_color_style {
+    PN_FALSE_COLOR_SMOOTH = 0, /* continuous colours */
+    PN_FALSE_COLOR_LINES = 1,  /* contour lines at the division values, on black (falsecolor -cl) */
+    PN_FALSE_COLOR_BANDS = 2   /* one colour per division (falsecolor -cb) */
+} pn_false_color_style;
+
+typedef struct pn_false_color_options {
+    double scale;      /* top of the scale (falsecolor -s); <= 0: the layer's largest finite value */
+    double multiplier; /* the layer's values are multiplied by it first (-m); 0 means 1 */
+    int log_decades;   /* > 0: logarithmic over this many decades below scale (-log); 0: linear from 0 */
+    int divisions;     /* legend boxes and contour levels (-n); 0 means 8 */
+    pn_false_color_style style;
+    const char *label; /* legend title (-l), e.g. "lux" or "cd/m2"; NULL: none */
+} pn_false_color_options;
+
+/* The false-colour picture of single-channel layer `layer` with its legend (options NULL: the
+ * defaults above). Colours run from dark purple (low) through blue, green and red to yellow
+ * (high). The picture is the layer's height (at least 128 rows, for the legend) and its width
+ * plus the legend's. Write it with pn_image_write(..., ".png", 0). */
+PN_API pn_status pn_image_false_color_legend(pn_context ctx, pn_image image, const char *layer,
+                                             const pn_false_color_options *options, pn_image *out_image);
+
+/* A new image of width x height holding `values` (row-major, top row first) as its single-channel
+ * layer `layer` (the beauty is black), e.g. for pn_image_false_color_legend of a grid. */
+PN_API pn_status pn_image_from_values(pn_context ctx, int width, int height, const char *layer, const float *values,
                                       pn_image *out_image);
 
 /* Image comparison for `penumbra diff`. */
