@@ -248,6 +248,17 @@ static int write_csv(pn_context ctx, const char *path, const pn_illuminance_poin
     return st == PN_OK ? EXIT_OK : report_failure(ctx, st);
 }
 
+/* "direct" or "total": what the method table says the integrator computes (VPL global
+ * illumination or direct light). */
+static const char *quantity_of(const char *integrator, pn_options options) {
+    int m = pn_method_find(PN_METHOD_INTEGRATOR, integrator);
+    const pn_method_info *mi = m >= 0 ? pn_method_get(m) : NULL;
+    double direct_only = 0.0;
+    int opt = pn_option_find("vpl-direct-only");
+    if (opt >= 0) pn_options_get(options, opt, &direct_only, NULL, 0);
+    return mi && strncmp(mi->computes, "global", 6) == 0 && direct_only == 0.0 ? "total" : "direct";
+}
+
 static void add_stats(cJSON *root, const char *prefix, grid_stats s) {
     char name[64];
     snprintf(name, sizeof name, "%s_min", prefix);
@@ -258,13 +269,14 @@ static void add_stats(cJSON *root, const char *prefix, grid_stats s) {
     cJSON_AddNumberToObject(root, name, s.max);
 }
 
-static int write_json(pn_context ctx, const char *path, const char *scene, const char *integrator, const grid_spec *g,
-                      const pn_illuminance_point *pts, const double *lux, int n, double df_reference, double seconds) {
+static int write_json(pn_context ctx, const char *path, const char *scene, const char *integrator, pn_options options,
+                      const grid_spec *g, const pn_illuminance_point *pts, const double *lux, int n,
+                      double df_reference, double seconds) {
     cJSON *root = cJSON_CreateObject();
     if (!root) return EXIT_SYSTEM;
     cJSON_AddStringToObject(root, "scene", scene);
     cJSON_AddStringToObject(root, "integrator", integrator);
-    cJSON_AddStringToObject(root, "quantity", strcmp(integrator, "reference") == 0 ? "direct" : "total");
+    cJSON_AddStringToObject(root, "quantity", quantity_of(integrator, options));
     cJSON_AddNumberToObject(root, "points", n);
     grid_stats s = stats_of(lux, n, 1.0);
     add_stats(root, "E", s);
@@ -494,8 +506,8 @@ int command_illuminance(int argc, char **argv) {
     }
     const char *integrator = pn_method_get(o.integrator)->name;
     if ((code = write_csv(ctx, csv_path, pts, lux, n, df_reference)) != EXIT_OK) goto done;
-    if ((code = write_json(ctx, json_path, o.scene_path, integrator, &g, pts, lux, n, df_reference, seconds)) !=
-        EXIT_OK)
+    if ((code = write_json(ctx, json_path, o.scene_path, integrator, o.options, &g, pts, lux, n, df_reference,
+                           seconds)) != EXIT_OK)
         goto done;
     if (g.has && (code = write_isolux(ctx, png_path, &g, lux, df_reference > 0.0 ? 100.0 / df_reference : 1.0, style,
                                       df_reference > 0.0 ? "DF %" : "lux")) != EXIT_OK)
@@ -503,8 +515,7 @@ int command_illuminance(int argc, char **argv) {
     if (!o.quiet) {
         grid_stats s = stats_of(lux, n, 1.0);
         printf("%d points (%s, %s light) in %.3f s: E_min %.6g lx, E_mean %.6g lx, E_max %.6g lx, U0 %.4f\n", n,
-               integrator, strcmp(integrator, "reference") == 0 ? "direct" : "total", seconds, s.min, s.mean, s.max,
-               s.u0);
+               integrator, quantity_of(integrator, o.options), seconds, s.min, s.mean, s.max, s.u0);
         if (df_reference > 0.0) {
             grid_stats d = stats_of(lux, n, 100.0 / df_reference);
             printf("daylight factor: min %.4g%%, mean %.4g%%, max %.4g%%\n", d.min, d.mean, d.max);

@@ -488,7 +488,8 @@ static pn_status map_dielectric(builder *b, pn_err *err) {
     if (alpha >= PN_SMOOTH_ALPHA)
         snprintf(b->note, sizeof b->note, "(roughness %g ignored: smooth)", roughness);
     else if (thin)
-        snprintf(b->note, sizeof b->note, "(thin: rendered as a refracting surface)");
+        snprintf(b->note, sizeof b->note,
+                 "(thin: a refracting surface for eye rays; shadow rays pass it with its slab transmittance)");
     warn_bump(b);
     return PN_OK;
 }
