@@ -73,24 +73,9 @@ pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_setting
                                    "point %d has a non-finite coordinate or a zero normal", i);
     }
     pn_render_job job;
-    pn_status st = pn_driver_resolve_settings(ctx, scene, settings, ientry, dentry, &job);
-    if (st != PN_OK) {
-        atomic_store(&ctx->cancel, 0);
-        return st;
-    }
     pn_progress progress;
-    pn_progress_init(&progress, settings->progress, settings->progress_user, &ctx->cancel);
-    job.progress = &progress;
-    if (integ->prepare) {
-        pn_err perr;
-        pn_err_init(&perr);
-        st = integ->prepare(&job, &perr);
-        if (st != PN_OK) {
-            pn_progress_destroy(&progress);
-            atomic_store(&ctx->cancel, 0);
-            return pn_context_fail_from(ctx, &perr);
-        }
-    }
+    pn_status st = pn_driver_prepare_job(ctx, scene, settings, ientry, dentry, &job, &progress);
+    if (st != PN_OK) return st;
     pn_threadpool *pool = pn_threadpool_create(settings->threads);
     int workers = pool ? pn_threadpool_size(pool) : 0;
     points_shared ps = {&job, integ, points, count, lux, NULL, 0};

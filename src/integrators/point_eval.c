@@ -32,21 +32,17 @@ bool pn_point_supported(const pn_integrator *integrator) {
            integrator == &pn_integrator_lightcuts;
 }
 
+/* The reference's own per-worker scratch (its pn_reference_direct_scratch); the VPL paths need
+ * none (a byte, so that NULL still means out of memory). */
 void *pn_point_scratch_create(const pn_render_job *job, const pn_integrator *integrator) {
-    if (integrator != &pn_integrator_reference) return calloc(1, 1);
-    pn_reference_direct_scratch *s = calloc(1, sizeof *s);
-    if (!s) return NULL;
-    if (!pn_reference_direct_init(s, job)) {
-        free(s);
-        return NULL;
-    }
-    return s;
+    return integrator == &pn_integrator_reference ? integrator->scratch_create(job) : calloc(1, 1);
 }
 
 void pn_point_scratch_free(const pn_integrator *integrator, void *scratch) {
-    if (!scratch) return;
-    if (integrator == &pn_integrator_reference) pn_reference_direct_free(scratch);
-    free(scratch);
+    if (integrator == &pn_integrator_reference)
+        integrator->scratch_free(scratch);
+    else
+        free(scratch);
 }
 
 /* The receiver of a calculation point: white Lambert (f = 1 after pn_vpl_irradiance_receiver),
