@@ -220,6 +220,50 @@ static void test_grid_matches_illuminance_aov(void) {
     pn_scene_free(scene);
 }
 
+/* The VPL integrators' illuminance AOV (total light; here direct only, the spot being one exact
+ * VPL) against the reference's, pixel for pixel: the same quantity by other estimators. */
+static const float *layer_named(pn_image img, const char *name) {
+    for (int l = 0; l < pn_image_layer_count(img); l++)
+        if (strcmp(pn_image_layer_name(img, l), name) == 0) return pn_image_layer_data(img, l);
+    return NULL;
+}
+
+static void test_vpl_illuminance_aov_matches_reference(void) {
+    pn_scene scene = load_text("spot2.pbrt", "LightSource \"spot\" \"point3 from\" [0.5 0.2 1.5] \"point3 to\" "
+                                             "[0 0 0] \"rgb I\" [2 2 2] \"float coneangle\" 50 "
+                                             "\"float conedeltaangle\" 15\n");
+    if (!scene) return;
+    const pn_integrator_kind kinds[3] = {PN_INTEGRATOR_REFERENCE, PN_INTEGRATOR_VPL, PN_INTEGRATOR_LIGHTCUTS};
+    pn_image img[3] = {NULL, NULL, NULL};
+    for (int k = 0; k < 3; k++) {
+        pn_render_settings s;
+        memset(&s, 0, sizeof s);
+        s.integrator = kinds[k];
+        s.spp = 64;
+        s.threads = 2;
+        s.aovs = PN_AOV_ILLUMINANCE;
+        pn_options o = pn_options_new();
+        if (k > 0) pn_options_set(test_context(), o, "vpl-direct-only", "1");
+        s.options = o;
+        CHECK(pn_render(test_context(), scene, &s, &img[k], NULL) == PN_OK);
+        pn_options_free(o);
+    }
+    if (img[0] && img[1] && img[2]) {
+        const float *ref = layer_named(img[0], "illuminance");
+        const float *vpl = layer_named(img[1], "illuminance"), *lc = layer_named(img[2], "illuminance");
+        CHECK(ref && vpl && lc);
+        double sum = 0.0;
+        for (int i = 0; ref && vpl && lc && i < 16 * 16; i++) {
+            CHECK_NEAR(vpl[i], ref[i], 0.02 * ref[i] + 2.0);
+            CHECK_NEAR(lc[i], ref[i], 0.04 * ref[i] + 2.0); /* lightcuts' 2% error bound, and noise */
+            sum += ref[i];
+        }
+        CHECK(sum > 16 * 16 * 50.0); /* the image is lit */
+    }
+    for (int k = 0; k < 3; k++) pn_image_free(img[k]);
+    pn_scene_free(scene);
+}
+
 /* ---- glazing --------------------------------------------------------------------------------- */
 
 /* Our own double-precision Fresnel slab transmittance (s and p apart). */
@@ -516,5 +560,6 @@ static void test_false_color_bands_and_log(void) {
 
 PN_TESTS(TEST(test_overcast_sky_illuminance), TEST(test_overcast_sky_luminance_profile), TEST(test_sky_bad_input),
          TEST(test_grid_point_light_closed_form), TEST(test_grid_matches_illuminance_aov),
-         TEST(test_thin_glass_transmittance), TEST(test_thin_glass_every_integrator), TEST(test_cli_csv_json),
-         TEST(test_cli_daylight_factor), TEST(test_cli_bad_point_files), TEST(test_false_color_bands_and_log))
+         TEST(test_vpl_illuminance_aov_matches_reference), TEST(test_thin_glass_transmittance),
+         TEST(test_thin_glass_every_integrator), TEST(test_cli_csv_json), TEST(test_cli_daylight_factor),
+         TEST(test_cli_bad_point_files), TEST(test_false_color_bands_and_log))
