@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps configure build demo test sanitize bench format format-check clean
+.PHONY: all deps configure build demo demo-office test sanitize bench format format-check clean
 
 all: build
 
@@ -19,6 +19,14 @@ build: configure
 demo: build
 	mkdir -p out
 	$(BUILD)/penumbra render scenes/demo/demo.pbrt -o out/demo.exr --png out/demo.png --stats out/demo-stats.json
+
+# The lighting-design demo (docs/lighting-design.md): the office rendered with its lux and cd/m2
+# layers, its false-colour picture and its 0.75 m work-plane grid (CSV, JSON, isolux PNG).
+demo-office: build
+	mkdir -p out
+	$(BUILD)/penumbra render scenes/office/office.pbrt -o out/office.exr --png out/office.png --exposure -9 --spp 16 --aov illuminance,luminance
+	$(BUILD)/penumbra falsecolor out/office.exr --layer illuminance -o out/office-lux.png -s 1500 -cb
+	$(BUILD)/penumbra illuminance scenes/office/office.pbrt --grid 0,0,12,8 --height 0.75 --spacing 0.5 -o out/office-grid.csv
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)

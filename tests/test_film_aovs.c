@@ -9,7 +9,7 @@
 
 #include <stdint.h>
 
-#define ALL_BITS ((PN_AOV_BLOCK_DIRECTION << 1) - 1u) /* bits 0..16 of the public enum */
+#define ALL_BITS ((PN_AOV_LUMINANCE << 1) - 1u) /* bits 0..18 of the public enum */
 
 static void test_every_bit_has_one_selectable_layer(void) {
     uint32_t seen = 0;
@@ -37,7 +37,7 @@ static void test_public_names_are_the_table(void) {
     int n = 0;
     for (int i = 0; i < pn_aov_layer_count(); i++) n += !pn_aov_layer_at(i)->derived;
     CHECK(pn_aov_count() == n);
-    CHECK(n == 17);
+    CHECK(n == 19);
     for (int i = 0; i < n; i++) {
         uint32_t bit = 0;
         const char *name = pn_aov_name(i, &bit);
@@ -46,13 +46,13 @@ static void test_public_names_are_the_table(void) {
         CHECK(l && strcmp(l->name, name) == 0);
     }
     CHECK(pn_aov_name(n, NULL) == NULL && pn_aov_name(-1, NULL) == NULL);
-    /* The common six are the first six names. */
+    /* The common layers: the first six names, and luminance (every integrator's radiance). */
     uint32_t common = 0, bit;
     for (int i = 0; i < 6; i++) {
         pn_aov_name(i, &bit);
         common |= bit;
     }
-    CHECK(common == PN_AOV_COMMON);
+    CHECK((common | PN_AOV_LUMINANCE) == PN_AOV_COMMON);
 }
 
 static void test_method_aovs_exist(void) {
@@ -86,6 +86,7 @@ static void fill_estimates(pn_pixel_estimate *px, int n) {
         px[i].cut_size = 4.0f + f;
         px[i].phase1 = v3(f, 2 * f, 3 * f);
         px[i].gradient = v3(-f, 0.5f, f);
+        px[i].illuminance = 250.0f + f;
     }
 }
 
@@ -123,6 +124,8 @@ static void test_assemble_all(void) {
     const float *gr = pn_image_layer_data(img, layer_index(img, "gradient"));
     const float *vf = pn_image_layer_data(img, layer_index(img, "visible_fraction"));
     const float *pa = pn_image_layer_data(img, layer_index(img, "passes"));
+    const float *lx = pn_image_layer_data(img, layer_index(img, "illuminance"));
+    const float *lm = pn_image_layer_data(img, layer_index(img, "luminance"));
     for (int i = 0; i < N; i++) {
         CHECK(b[3 * i] == px[i].radiance.x && b[3 * i + 2] == px[i].radiance.z);
         CHECK(sr[i] == (float)(10 * i + 1));
@@ -131,6 +134,10 @@ static void test_assemble_all(void) {
         CHECK(vf[i] == 0.125f * (float)i);
         CHECK(pa[i] == (float)(5 + i));
         CHECK(gr[3 * i] == -(float)i && gr[3 * i + 1] == 0.5f);
+        CHECK(lx[i] == 250.0f + (float)i);
+        /* the Rec. 709 Y of the radiance (docs/units.md) */
+        double y = 0.2126 * (i + 0.5) + 0.7152 * (i + 0.25) + 0.0722 * (i + 0.125);
+        CHECK_NEAR(lm[i], y, 1e-4 * y);
     }
     CHECK_NEAR(lb[0], 2.0, 1e-6);
     CHECK_NEAR(lb[1], 3.0, 1e-6);

@@ -378,7 +378,7 @@ static void test_lightcut_guarantee(void) {
             if (!v3_is_zero(c) && pn_vpl_visible(scene->accel, &r, wi, dist)) exact = v3_add(exact, c);
         }
         uint32_t max_cut = (t % 4 == 3) ? 8u : 0u;
-        pn_lightcut_context cx = {scene->lights, scene->accel, &set, &tree, 0.01f, max_cut};
+        pn_lightcut_context cx = {scene->lights, scene->accel, &set, &tree, 0.01f, max_cut, false};
         vec3 est;
         float bound_sum;
         uint32_t cut, rays;

@@ -237,7 +237,7 @@ static void test_lightcuts_within_bound_of_vpl(void) {
             vec3 c = pn_vpl_contribution(L, &set.vpls[k], &rc, set.min_dist2, &wi, &dist);
             if (!v3_is_zero(c) && pn_vpl_visible(scene->accel, &rc, wi, dist)) exact = v3_add(exact, c);
         }
-        pn_lightcut_context cx = {L, scene->accel, &set, &tree, 0.01f, 0};
+        pn_lightcut_context cx = {L, scene->accel, &set, &tree, 0.01f, 0, false};
         vec3 est;
         float bound_sum;
         uint32_t cut, rays;

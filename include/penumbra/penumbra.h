@@ -280,9 +280,14 @@ enum {
     PN_AOV_PHASE1 = 1u << 13,            /* illumcut: the Phase I approximate image (RGB) */
     PN_AOV_SAMPLING_PATTERN = 1u << 14,  /* progressive: fraction of the work pixels evaluated */
     PN_AOV_BLOCK_MAP = 1u << 15,         /* dcm: 0 smooth, 1 simple, 2 complex, 3 evaluating edge block */
-    PN_AOV_BLOCK_DIRECTION = 1u << 16    /* dcm: least-discrepancy direction (degrees), -1 if none */
+    PN_AOV_BLOCK_DIRECTION = 1u << 16,   /* dcm: least-discrepancy direction (degrees), -1 if none */
+    PN_AOV_ILLUMINANCE = 1u << 17,       /* illuminance (lux) on the first non-specular surface seen:
+                                            direct (reference), total (vpl, lightcuts); see
+                                            docs/lighting-design.md */
+    PN_AOV_LUMINANCE = 1u << 18          /* luminance (cd/m^2) of the pixel's radiance */
 };
-#define PN_AOV_COMMON 0x3fu /* the six layers every integrator writes under the tiled driver */
+/* the layers every integrator writes under the tiled driver: the first six and luminance */
+#define PN_AOV_COMMON (0x3fu | PN_AOV_LUMINANCE)
 
 /* Number of AOV layers, and the name and PN_AOV_* bit of layer i (NULL when out of range). */
 PN_API int pn_aov_count(void);
@@ -380,6 +385,25 @@ typedef struct pn_render_stats {
     double reconstruct_seconds_max;                 /* longest reconstruction of an approximate image */
 } pn_render_stats;
 
+/* ---- lighting design: illuminance at points, no camera (docs/lighting-design.md) ---------- */
+
+/* A calculation point: position and the unit normal of the surface it measures. */
+typedef struct pn_illuminance_point {
+    float p[3];
+    float n[3];
+} pn_illuminance_point;
+
+/* Computes the illuminance in lux at each of the count points, on the side of its normal, into
+ * lux[i] (the caller's array of count values): with settings->integrator reference the direct
+ * light, by the reference integrator's light estimator (settings->spp, default 64, times its
+ * shadow-rays option light samples per point); with vpl or lightcuts the total (VPLs of
+ * vpl-depth bounces) by that integrator's estimator for a white Lambertian receiver. Other
+ * integrators: PN_ERROR_INVALID_ARGUMENT (the method table lists "illuminance" among the AOVs of
+ * those that can). Points are independent (point i draws its numbers from (seed, i)), so the
+ * result does not depend on the thread count. Driver and image settings are ignored. */
+PN_API pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
+                                const pn_illuminance_point *points, int count, double *lux);
+
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the
  * beauty and the requested AOVs; stats (may be NULL) is filled. If cancelled, the partial image
  * is still returned together with PN_ERROR_CANCELLED. */
@@ -412,6 +436,9 @@ PN_API const float *pn_image_layer_data(pn_image image, int layer);
 /* Reads an image (EXR, PFM, PNG, TGA, JPG, HDR) as linear RGB into a one-layer image. 8-bit
  * formats are decoded from sRGB. Errors read "file: message". */
 PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image);
+/* Reads the single-channel AOV layer `layer` of an EXR file written by pn_image_write into an
+ * image with that layer (and its values as a grey beauty). Errors read "file: message". */
+PN_API pn_status pn_image_read_layer(pn_context ctx, const char *path, const char *layer, pn_image *out_image);
 
 /* Writes the image; the format follows the extension: .exr (all layers, 32-bit float), .pfm
  * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a
@@ -442,6 +469,36 @@ PN_API pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, i
  * two end values drawn below the image. The new image has the layer's width and a taller height;
  * write it with pn_image_write(..., ".png", 0). */
 PN_API pn_status pn_image_false_color(pn_context ctx, pn_image image, const char *layer, double vmin, double vmax,
+                                      pn_image *out_image);
+
+/* False colour for lighting analysis, as RADIANCE's falsecolor draws it (docs/lighting-design.md):
+ * a legend at the left with `divisions` boxes, each labelled with its lower value in real units,
+ * the label on top. */
+typedef enum pn_false_color_style {
+    PN_FALSE_COLOR_SMOOTH = 0, /* continuous colours */
+    PN_FALSE_COLOR_LINES = 1,  /* contour lines at the division values, on black (falsecolor -cl) */
+    PN_FALSE_COLOR_BANDS = 2   /* one colour per division (falsecolor -cb) */
+} pn_false_color_style;
+
+typedef struct pn_false_color_options {
+    double scale;      /* top of the scale (falsecolor -s); <= 0: the layer's largest finite value */
+    double multiplier; /* the layer's values are multiplied by it first (-m); 0 means 1 */
+    int log_decades;   /* > 0: logarithmic over this many decades below scale (-log); 0: linear from 0 */
+    int divisions;     /* legend boxes and contour levels (-n); 0 means 8 */
+    pn_false_color_style style;
+    const char *label; /* legend title (-l), e.g. "lux" or "cd/m2"; NULL: none */
+} pn_false_color_options;
+
+/* The false-colour picture of single-channel layer `layer` with its legend (options NULL: the
+ * defaults above). Colours run from dark purple (low) through blue, green and red to yellow
+ * (high). The picture is the layer's height (at least 128 rows, for the legend) and its width
+ * plus the legend's. Write it with pn_image_write(..., ".png", 0). */
+PN_API pn_status pn_image_false_color_legend(pn_context ctx, pn_image image, const char *layer,
+                                             const pn_false_color_options *options, pn_image *out_image);
+
+/* A new image of width x height holding `values` (row-major, top row first) as its single-channel
+ * layer `layer` (the beauty is black), e.g. for pn_image_false_color_legend of a grid. */
+PN_API pn_status pn_image_from_values(pn_context ctx, int width, int height, const char *layer, const float *values,
                                       pn_image *out_image);
 
 /* Image comparison for `penumbra diff`. */

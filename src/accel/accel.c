@@ -1,7 +1,13 @@
 /* accel.c — Embree 3 scene construction (triangles, spheres as RTC_GEOMETRY_TYPE_SPHERE_POINT,
- * instances) and single-ray queries, with alpha cut-outs done in Embree filter callbacks. */
+ * instances) and single-ray queries, with alpha cut-outs done in Embree filter callbacks.
+ *
+ * Ray masks: bit 0 (0x1) eye and light-path rays, bit 1 (0x2) opaque shadow blockers, bit 2 (0x4)
+ * thin glass panes (meshes whose material is a thin dielectric). Plain occlusion queries use 0x6,
+ * so that panes block them as before; pn_accel_transmittance asks 0x2 and then walks the panes
+ * (0x4) along the ray, multiplying their slab transmittance (glass.c describes the optics). */
 #include "accel/accel.h"
 
+#include "core/optics.h"
 #include "core/rng.h"
 
 #include "scene/scene.h"
@@ -31,6 +37,7 @@ struct pn_accel {
     scene_table *objects; /* one per scene object */
     int object_count;
     float epsilon_base;
+    bool thin_glass; /* some mesh is a thin glass pane (mask 0x4) */
 };
 
 /* Alpha filter: per-geometry user data. */
@@ -123,6 +130,10 @@ static pn_status add_mesh(pn_accel *acc, scene_table *tab, int mesh_index, pn_er
     /* Geometry mask: bit 1 = blocks shadow rays; interface materials block nothing. */
     unsigned mask = 0x3;
     if (mat && mat->kind == PN_MATERIAL_INTERFACE) mask = 0x0;
+    if (mat && mat->kind == PN_MATERIAL_DIELECTRIC && mat->thin) {
+        mask = 0x5; /* seen by eye rays; a pane, not an opaque blocker, to shadow rays */
+        acc->thin_glass = true;
+    }
     rtcSetGeometryMask(g, mask);
     rtcCommitGeometry(g);
     unsigned id = rtcAttachGeometry(tab->rtc, g);
@@ -235,7 +246,7 @@ pn_status pn_accel_build(struct pn_scene_s *scene, pn_accel **out, pn_err *err) 
         for (int c = 0; c < 4; c++)
             for (int r = 0; r < 3; r++) xf[c * 3 + r] = (float)in->world_from_object.m[r][c];
         rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xf);
-        rtcSetGeometryMask(g, 0x3);
+        rtcSetGeometryMask(g, 0x7);
         rtcCommitGeometry(g);
         unsigned id = rtcAttachGeometry(acc->world.rtc, g);
         rtcReleaseGeometry(g);
@@ -308,7 +319,17 @@ static void fill_triangle_hit(const struct pn_scene_s *scene, const pn_mesh *m, 
     (void)scene;
 }
 
+bool pn_accel_has_thin_glass(const pn_accel *acc) {
+    return acc->thin_glass;
+}
+
+static bool intersect_mask(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, unsigned mask, pn_hit *h);
+
 bool pn_accel_intersect(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, pn_hit *h) {
+    return intersect_mask(acc, o, d, tmin, tmax, 0x1, h);
+}
+
+static bool intersect_mask(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, unsigned mask, pn_hit *h) {
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);
     struct RTCRayHit rh;
@@ -321,7 +342,7 @@ bool pn_accel_intersect(const pn_accel *acc, vec3 o, vec3 d, float tmin, float t
     rh.ray.dir_z = d.z;
     rh.ray.time = 0.0f;
     rh.ray.tfar = tmax;
-    rh.ray.mask = 0x1;
+    rh.ray.mask = mask;
     rh.ray.id = 0;
     rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -378,7 +399,35 @@ bool pn_accel_intersect(const pn_accel *acc, vec3 o, vec3 d, float tmin, float t
     return true;
 }
 
+static bool occluded_mask(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, unsigned mask);
+
 bool pn_accel_occluded(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax) {
+    return occluded_mask(acc, o, d, tmin, tmax, 0x6);
+}
+
+/* The panes crossed by o + t d for t in (tmin, tmax), each multiplying the transmittance. */
+static float glass_walk(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax) {
+    float transmittance = 1.0f;
+    const float inv_len = 1.0f / v3_length(d);
+    vec3 du = v3_scale(d, inv_len);
+    pn_hit h;
+    /* A bound on the panes counted, against rays that graze a pane along its own plane. */
+    for (int crossings = 0; crossings < PN_ACCEL_MAX_PANES && tmin < tmax; crossings++) {
+        if (!intersect_mask(acc, o, d, tmin, tmax, 0x4, &h)) break;
+        const pn_material *m = &acc->scene->materials[h.material];
+        transmittance *= pn_thin_glass_transmittance(fabsf(v3_dot(du, h.ng)), m->eta);
+        if (!(transmittance > 0.0f)) return 0.0f;
+        tmin = h.t + pn_accel_ray_epsilon(acc, h.p) * inv_len;
+    }
+    return transmittance;
+}
+
+float pn_accel_transmittance(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax) {
+    if (occluded_mask(acc, o, d, tmin, tmax, 0x2)) return 0.0f;
+    return acc->thin_glass ? glass_walk(acc, o, d, tmin, tmax) : 1.0f;
+}
+
+static bool occluded_mask(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, unsigned mask) {
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);
     struct RTCRay ray;
@@ -391,7 +440,7 @@ bool pn_accel_occluded(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tm
     ray.dir_z = d.z;
     ray.time = 0.0f;
     ray.tfar = tmax;
-    ray.mask = 0x2;
+    ray.mask = mask;
     ray.id = 0;
     ray.flags = 0;
     rtcOccluded1(acc->world.rtc, &ictx, &ray);
@@ -404,16 +453,39 @@ bool pn_accel_occluded(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tm
  * pass exactly through a triangle edge: Embree's packet and single-ray triangle tests differ
  * there (ics12: 1 ray in ~10^8 of illumcut's shadow rays, a directional VPL's ray through a
  * shared edge at u + v = 1, found free by the packet and occluded by rtcOccluded1). */
+static void occluded_packet_mask(const pn_accel *acc, int count, const vec3 *o, const vec3 *d, const float *tmin,
+                                 const float *tmax, unsigned mask, bool *occluded);
+
 void pn_accel_occluded_packet(const pn_accel *acc, int count, const vec3 *o, const vec3 *d, const float *tmin,
                               const float *tmax, bool *occluded) {
+    occluded_packet_mask(acc, count, o, d, tmin, tmax, 0x6, occluded);
+}
+
+void pn_accel_transmittance_packet(const pn_accel *acc, int count, const vec3 *o, const vec3 *d, const float *tmin,
+                                   const float *tmax, float *transmittance) {
+    for (int base = 0; base < count; base += 16) {
+        int n = count - base < 16 ? count - base : 16;
+        bool occluded[16];
+        occluded_packet_mask(acc, n, o + base, d + base, tmin + base, tmax + base, 0x2, occluded);
+        for (int i = 0; i < n; i++) {
+            int k = base + i;
+            transmittance[k] = occluded[i]       ? 0.0f
+                               : acc->thin_glass ? glass_walk(acc, o[k], d[k], tmin[k], tmax[k])
+                                                 : 1.0f;
+        }
+    }
+}
+
+static void occluded_packet_mask(const pn_accel *acc, int count, const vec3 *o, const vec3 *d, const float *tmin,
+                                 const float *tmax, unsigned mask, bool *occluded) {
     if (count <= 0) return;
     if (count == 1) {
-        occluded[0] = pn_accel_occluded(acc, o[0], d[0], tmin[0], tmax[0]);
+        occluded[0] = occluded_mask(acc, o[0], d[0], tmin[0], tmax[0], mask);
         return;
     }
     if (count > 16) {
-        pn_accel_occluded_packet(acc, 16, o, d, tmin, tmax, occluded);
-        pn_accel_occluded_packet(acc, count - 16, o + 16, d + 16, tmin + 16, tmax + 16, occluded + 16);
+        occluded_packet_mask(acc, 16, o, d, tmin, tmax, mask, occluded);
+        occluded_packet_mask(acc, count - 16, o + 16, d + 16, tmin + 16, tmax + 16, mask, occluded + 16);
         return;
     }
     /* The context stays incoherent (the default): with RTC_INTERSECT_CONTEXT_FLAG_COHERENT,
@@ -441,9 +513,9 @@ void pn_accel_occluded_packet(const pn_accel *acc, int count, const vec3 *o, con
         f[6 * width + i] = d[j].z;
         f[7 * width + i] = 0.0f;    /* time */
         f[8 * width + i] = tmax[j]; /* tfar */
-        u[9 * width + i] = 0x2;     /* mask: as pn_accel_occluded */
-        u[10 * width + i] = 0;      /* id */
-        u[11 * width + i] = 0;      /* flags */
+        u[9 * width + i] = mask;
+        u[10 * width + i] = 0; /* id */
+        u[11 * width + i] = 0; /* flags */
     }
     if (width == 4)
         rtcOccluded4(valid, acc->world.rtc, &ictx, (struct RTCRay4 *)&ray);

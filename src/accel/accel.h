@@ -43,6 +43,20 @@ bool pn_accel_occluded(const pn_accel *accel, vec3 o, vec3 d, float tmin, float 
 void pn_accel_occluded_packet(const pn_accel *accel, int count, const vec3 *o, const vec3 *d, const float *tmin,
                               const float *tmax, bool *occluded);
 
+/* Thin glass (a thindielectric, or a dielectric marked thin): plain occlusion queries above treat
+ * panes as opaque, as pbrt-v4 does; these pass them. The transmittance of o + t d for t in
+ * (tmin, tmax): 0 when an opaque surface blocks it, else the product over the thin panes crossed
+ * of their slab transmittance pn_thin_glass_transmittance (core/optics.h) at the crossing's
+ * angle (at most PN_ACCEL_MAX_PANES panes are counted). Exactly 1 when the scene has no pane. */
+#define PN_ACCEL_MAX_PANES 64
+float pn_accel_transmittance(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax);
+/* transmittance[i] = pn_accel_transmittance(...) for i < count, the opaque test traced as packets
+ * (as pn_accel_occluded_packet). */
+void pn_accel_transmittance_packet(const pn_accel *accel, int count, const vec3 *o, const vec3 *d, const float *tmin,
+                                   const float *tmax, float *transmittance);
+/* Whether the scene has a thin glass pane. */
+bool pn_accel_has_thin_glass(const pn_accel *accel);
+
 /* A distance scale for ray-origin offsets: 1e-4 of the scene's bounding-box diagonal at most, and
  * relative to the coordinates' magnitude. */
 float pn_accel_ray_epsilon(const pn_accel *accel, vec3 p);

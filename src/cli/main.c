@@ -26,6 +26,8 @@ static const char main_help[] =
     "  penumbra diff REFERENCE IMAGE [options] compare two images (RMSE, relMSE, ...)\n"
     "  penumbra info SCENE.pbrt               describe a scene: geometry, lights, materials\n"
     "  penumbra ies2goniometric LAMP.ies -o LAMP.exr  a measured luminaire as pbrt-v4's goniometric image\n"
+    "  penumbra illuminance SCENE.pbrt ...    illuminance (lux) on a work-plane grid or at points\n"
+    "  penumbra falsecolor IN.exr -o OUT.png  false colour of a layer with a legend in lux or cd/m2\n"
     "  penumbra --help | --version\n"
     "\n"
     "Run 'penumbra COMMAND --help' for the options of a command.\n"
@@ -69,6 +71,8 @@ int main(int argc, char **argv) {
     if (strcmp(command, "diff") == 0) return command_diff(argc - 1, argv + 1);
     if (strcmp(command, "info") == 0) return command_info(argc - 1, argv + 1);
     if (strcmp(command, "ies2goniometric") == 0) return command_ies2goniometric(argc - 1, argv + 1);
+    if (strcmp(command, "illuminance") == 0) return command_illuminance(argc - 1, argv + 1);
+    if (strcmp(command, "falsecolor") == 0) return command_falsecolor(argc - 1, argv + 1);
     if (strcmp(command, "--help") == 0 || strcmp(command, "-h") == 0 || strcmp(command, "help") == 0) {
         if (argc >= 3 && strcmp(command, "help") == 0) {
             if (strcmp(argv[2], "render") == 0)

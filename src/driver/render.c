@@ -10,6 +10,7 @@
 #include "integrators/registry.h"
 #include "io/image.h"
 #include "render/progress.h"
+#include "driver/points.h"
 
 #include <pthread.h>
 #include <stdlib.h>
@@ -100,8 +101,8 @@ static void free_batches(render_shared *rs, int workers) {
 }
 
 /* Resolves the settings (zero = default) into the job. */
-static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *s,
-                                  const pn_method_entry *integ, const pn_method_entry *driver, pn_render_job *job) {
+pn_status pn_driver_resolve_settings(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *s,
+                                     const pn_method_entry *integ, const pn_method_entry *driver, pn_render_job *job) {
     memset(job, 0, sizeof *job);
     job->scene = scene;
     job->accel = scene->accel;
@@ -166,6 +167,32 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
 static pn_status run_job(pn_context ctx, const pn_render_settings *settings, const pn_integrator *integ,
                          pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats);
 
+pn_status pn_driver_prepare_job(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *settings,
+                                const pn_method_entry *integ, const pn_method_entry *driver, pn_render_job *job,
+                                pn_progress *progress) {
+    pn_status st = pn_driver_resolve_settings(ctx, scene, settings, integ, driver, job);
+    if (st != PN_OK) {
+        atomic_store(&ctx->cancel, 0);
+        return st;
+    }
+    /* One progress and cancel path from here on: the integrator's preparation reports into the
+     * first window it picks, the driver's work into the rest. A cancel issued before this call
+     * or during preparation is honoured; the request is cleared when the render returns. */
+    pn_progress_init(progress, settings->progress, settings->progress_user, &ctx->cancel);
+    job->progress = progress;
+    if (integ->integrator->prepare) {
+        pn_err perr;
+        pn_err_init(&perr);
+        st = integ->integrator->prepare(job, &perr);
+        if (st != PN_OK) {
+            pn_progress_destroy(progress);
+            atomic_store(&ctx->cancel, 0);
+            return pn_context_fail_from(ctx, &perr);
+        }
+    }
+    return PN_OK;
+}
+
 pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
                     pn_render_stats *stats) {
     if (out_image) *out_image = NULL;
@@ -182,27 +209,9 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     if (!dentry) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)settings->driver);
     const pn_integrator *integ = ientry->integrator;
     pn_render_job job;
-    pn_status st = resolve_settings(ctx, scene, settings, ientry, dentry, &job);
-    if (st != PN_OK) {
-        atomic_store(&ctx->cancel, 0);
-        return st;
-    }
-    /* One progress and cancel path from here on: the integrator's preparation reports into the
-     * first window it picks, the driver's work into the rest. A cancel issued before this call
-     * or during preparation is honoured; the request is cleared when the render returns. */
     pn_progress progress;
-    pn_progress_init(&progress, settings->progress, settings->progress_user, &ctx->cancel);
-    job.progress = &progress;
-    if (integ->prepare) {
-        pn_err perr;
-        pn_err_init(&perr);
-        st = integ->prepare(&job, &perr);
-        if (st != PN_OK) {
-            pn_progress_destroy(&progress);
-            atomic_store(&ctx->cancel, 0);
-            return pn_context_fail_from(ctx, &perr);
-        }
-    }
+    pn_status st = pn_driver_prepare_job(ctx, scene, settings, ientry, dentry, &job, &progress);
+    if (st != PN_OK) return st;
     pn_progress_window(&progress, pn_progress_value(&progress), 1.0);
     /* Progressive drivers (issue 6: dcm, painter, uniform, full) render a work image of their own. */
     if (dentry->info.capabilities & PN_CAP_PROGRESSIVE)

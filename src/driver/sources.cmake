@@ -4,4 +4,5 @@ list(APPEND PN_SOURCES
   src/driver/progressive.c
   src/driver/dcm.c
   src/driver/painter.c
+  src/driver/points.c
 )

@@ -2,6 +2,7 @@
  * aovs.h). The public pn_aov_count / pn_aov_name walk the selectable entries of this table. */
 #include "film/aovs.h"
 
+#include "core/photometry.h"
 #include "io/image.h"
 
 #include <math.h>
@@ -31,6 +32,9 @@ static const pn_aov_layer layers[] = {
     {"sampling_pattern", PN_AOV_SAMPLING_PATTERN, 1, PN_AOV_FROM_DRIVER, 0, false},
     {"block_map", PN_AOV_BLOCK_MAP, 1, PN_AOV_FROM_DRIVER, 0, false},
     {"block_direction", PN_AOV_BLOCK_DIRECTION, 1, PN_AOV_FROM_DRIVER, 0, false},
+    /* Lighting design (docs/lighting-design.md): lux and cd/m^2. */
+    {"illuminance", PN_AOV_ILLUMINANCE, 1, PN_AOV_FROM_FLOAT, EST(illuminance), false},
+    {"luminance", PN_AOV_LUMINANCE, 1, PN_AOV_FROM_LUMINANCE, EST(radiance), false},
 };
 
 #define LAYER_COUNT ((int)(sizeof layers / sizeof layers[0]))
@@ -98,6 +102,12 @@ static void fill_layer(const pn_aov_layer *l, const pn_pixel_estimate *pixels, s
             dst[3 * i] = v.x;
             dst[3 * i + 1] = v.y;
             dst[3 * i + 2] = v.z;
+            break;
+        }
+        case PN_AOV_FROM_LUMINANCE: {
+            vec3 v;
+            memcpy(&v, field, sizeof v);
+            dst[i] = pn_photometric(v);
             break;
         }
         case PN_AOV_FROM_DRIVER: break;

@@ -36,15 +36,19 @@ typedef struct pn_pixel_estimate {
     vec3 phase1;
     /* contour: gradient of the irradiance luminance from contour lights (PN_AOV_GRADIENT) */
     vec3 gradient;
+    /* PN_AOV_ILLUMINANCE: illuminance (lux) on the first non-specular surface of the eye
+     * samples, filter-weighted as radiance (reference: direct; vpl, lightcuts: total) */
+    float illuminance;
 } pn_pixel_estimate;
 
 /* How a layer's value is obtained. */
 typedef enum pn_aov_source {
-    PN_AOV_FROM_U32,     /* (float) of a uint32_t field of pn_pixel_estimate */
-    PN_AOV_FROM_FLOAT,   /* a float field */
-    PN_AOV_FROM_VEC3,    /* a vec3 field, 3 channels */
-    PN_AOV_FROM_LOG10P1, /* log10(1 + float field): a derived layer for false-colour pictures */
-    PN_AOV_FROM_DRIVER   /* not in the estimate: a progressive driver fills it from its own state */
+    PN_AOV_FROM_U32,      /* (float) of a uint32_t field of pn_pixel_estimate */
+    PN_AOV_FROM_FLOAT,    /* a float field */
+    PN_AOV_FROM_VEC3,     /* a vec3 field, 3 channels */
+    PN_AOV_FROM_LOG10P1,  /* log10(1 + float field): a derived layer for false-colour pictures */
+    PN_AOV_FROM_DRIVER,   /* not in the estimate: a progressive driver fills it from its own state */
+    PN_AOV_FROM_LUMINANCE /* the luminance Y of a vec3 field, in SI units (core/photometry.h, docs/units.md) */
 } pn_aov_source;
 
 /* One layer of the output image besides the beauty. Layers are written in table order. */

@@ -782,7 +782,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                     float tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-4f) - r->eps;
                     bool timed = q % IAS_TIMING_STRIDE == 0u;
                     double t0 = timed ? pn_clock_seconds() : 0.0;
-                    visible = !pn_accel_occluded(job->accel, r->origin, wi, 0.0f, tmax);
+                    float transmittance = pn_shadow_transmittance(job, r->origin, wi, 0.0f, tmax);
+                    visible = transmittance > 0.0f;
                     if (timed) px->embree_seconds += (pn_clock_seconds() - t0) * IAS_TIMING_STRIDE;
                     if (visible) {
                         px->visible++;
@@ -797,6 +798,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                             }
                         }
                         v = v3_scale(v3_mul(v3_mul(f, radiance), r->throughput), cos_i / pdf);
+                        if (transmittance != 1.0f) v = v3_scale(v, transmittance);
                     }
                 }
             }

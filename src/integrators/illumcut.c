@@ -369,7 +369,8 @@ static vec3 shade_point(const ic_render *ir, ic_point *p, const pn_light_node *q
     if (v3_is_zero(c)) return c;
     if (assume_visible) return c;
     p->shadow_rays++;
-    return pn_vpl_visible(ir->job->accel, &p->r, wi, dist) ? c : v3(0, 0, 0);
+    float t = pn_vpl_transmittance(ir->job->accel, &p->r, wi, dist, !ir->job->opaque_glass);
+    return t == 1.0f ? c : v3_scale(c, t);
 }
 
 /* ---- Phase I ----------------------------------------------------------------------------- */
@@ -552,12 +553,28 @@ typedef struct ic_rays {
     float tmin[IC_PACKET], tmax[IC_PACKET];
 } ic_rays;
 
+/* The packet's shadow-ray visibilities: 0 or 1 by pn_accel_occluded_packet, or with thin glass
+ * passed (pn_shadow_transmittance) the panes' transmittance. */
+static void ic_packet_visibility(const ic_render *ir, int n, const vec3 *o, const vec3 *d, const float *tmin,
+                                 const float *tmax, float *visibility) {
+    const pn_render_job *job = ir->job;
+    if (job->opaque_glass || !pn_accel_has_thin_glass(job->accel)) {
+        bool occluded[IC_PACKET];
+        pn_accel_occluded_packet(job->accel, n, o, d, tmin, tmax, occluded);
+        for (int i = 0; i < n; i++) visibility[i] = occluded[i] ? 0.0f : 1.0f;
+        return;
+    }
+    pn_accel_transmittance_packet(job->accel, n, o, d, tmin, tmax, visibility);
+}
+
 static void rays_flush(const ic_render *ir, ic_rays *rb) {
-    bool occluded[IC_PACKET];
-    pn_accel_occluded_packet(ir->job->accel, rb->nr, rb->o, rb->d, rb->tmin, rb->tmax, occluded);
+    float visibility[IC_PACKET];
+    ic_packet_visibility(ir, rb->nr, rb->o, rb->d, rb->tmin, rb->tmax, visibility);
     ic_point *pts = ir->tree.points;
-    for (int i = 0; i < rb->n; i++)
-        if (rb->ray[i] < 0 || !occluded[rb->ray[i]]) pts[rb->point[i]].L = v3_add(pts[rb->point[i]].L, rb->c[i]);
+    for (int i = 0; i < rb->n; i++) {
+        float t = rb->ray[i] < 0 ? 1.0f : visibility[rb->ray[i]];
+        if (t > 0.0f) pts[rb->point[i]].L = v3_add(pts[rb->point[i]].L, t == 1.0f ? rb->c[i] : v3_scale(rb->c[i], t));
+    }
     rb->n = rb->nr = 0;
 }
 
@@ -624,7 +641,7 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
     int32_t slot[16];
     vec3 ro[16], rd[16];
     float rt0[16], rt1[16];
-    bool occ[16];
+    float occ[16];
     int nr = 0;
     for (int32_t k = 0; k < vs; k++) {
         int32_t s0 = a + (int32_t)((int64_t)n * k / vs), s1 = a + (int32_t)((int64_t)n * (k + 1) / vs);
@@ -652,14 +669,14 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
             slot[nr++] = k;
         }
     }
-    pn_accel_occluded_packet(ir->job->accel, nr, ro, rd, rt0, rt1, occ);
-    for (int i = 0; i < nr; i++) vis[slot[i]] = occ[i] ? 0 : 1;
+    /* A sample behind thin glass (0 < visibility < 1) votes both ways, so that its sub-array is
+     * refined down to plain shading, which applies each point's transmittance. */
+    ic_packet_visibility(ir, nr, ro, rd, rt0, rt1, occ);
+    for (int i = 0; i < nr; i++) vis[slot[i]] = occ[i] == 1.0f ? 1 : occ[i] > 0.0f ? 2 : 0;
     int visible = 0, occluded = 0;
     for (int32_t k = 0; k < vs; k++) {
-        if (vis[k] == 1)
-            visible++;
-        else if (vis[k] == 0)
-            occluded++;
+        if (vis[k] == 1 || vis[k] == 2) visible++;
+        if (vis[k] == 0 || vis[k] == 2) occluded++;
     }
     if (visible > 0 && occluded == 0) {
         for (int32_t i = a; i < b; i++) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1));

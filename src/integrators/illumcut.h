@@ -32,6 +32,10 @@ static inline uint32_t pn_vpl_spp(const pn_render_job *job) {
     return job->spp > 0 ? job->spp : 1u;
 }
 /* The same, as pn_integrator.batch_points: vpl and lightcuts take their points from the batch. */
+/* The receiver r with its BRDF replaced by a white Lambertian of reflectance pi (f = 1): what it
+ * reflects, M G I = cos G I, is the irradiance from each VPL, for PN_AOV_ILLUMINANCE and the
+ * calculation grids (vpl_common.c). */
+pn_vpl_receiver pn_vpl_irradiance_receiver(const pn_vpl_receiver *r);
 uint32_t pn_vpl_batch_points(const pn_render_job *job);
 
 /* pn_shading_point, one eye sample of a pixel followed through specular chains, is render/'s
@@ -47,6 +51,7 @@ typedef struct pn_lightcut_context {
     const pn_light_tree *tree;
     float error_bound;
     uint32_t max_cut;
+    bool thin_glass; /* shadow rays pass thin glass panes (pn_vpl_transmittance); false: they block */
 } pn_lightcut_context;
 bool pn_lightcut_eval(const pn_lightcut_context *cx, const pn_vpl_receiver *r, vec3 *radiance, float *bound_sum,
                       uint32_t *cut_size, uint32_t *shadow_rays);

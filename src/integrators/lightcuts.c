@@ -11,6 +11,8 @@
  * M · G · V (no new shadow ray), so a refinement costs one shadow ray. */
 #include "integrators/illumcut.h"
 
+#include "core/photometry.h"
+
 #include "shade/bsdf.h"
 
 #include <stdlib.h>
@@ -90,7 +92,8 @@ static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_r
     vec3 v = pn_vpl_contribution_inline(c->lights, &c->set->vpls[rep], v3(1, 1, 1), r, c->set->min_dist2, &wi, &dist);
     if (v3_is_zero(v)) return v;
     (*shadow_rays)++;
-    return pn_vpl_visible(c->accel, r, wi, dist) ? v : v3(0, 0, 0);
+    float t = pn_vpl_transmittance(c->accel, r, wi, dist, c->thin_glass);
+    return t == 1.0f ? v : v3_scale(v, t);
 }
 
 /* The radiance at one receiver by a lightcut; adds bound evaluations and the cut size, and the
@@ -165,7 +168,8 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
                                  void *scratch) {
     pn_vpl_data *d = job->integrator_data;
     lc_scratch *s = scratch;
-    pn_lightcut_context cx = {job->lights, job->accel, &d->set, &d->tree, job->error_bound, job->max_cut};
+    pn_lightcut_context cx = {job->lights,      job->accel,   &d->set,           &d->tree,
+                              job->error_bound, job->max_cut, !job->opaque_glass};
     const uint32_t spp = pn_vpl_spp(job);
     uint64_t bounds_total = 0, cut_total = 0, points = 0;
     for (int pi = 0; pi < batch->count; pi++) {
@@ -174,7 +178,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
         vec3 sum = v3(0, 0, 0);
-        double wsum = 0.0;
+        double wsum = 0.0, lux_sum = 0.0;
         uint64_t bounds = 0, cut = 0, pts = 0;
         for (uint32_t smp = 0; smp < spp; smp++) {
             pn_shading_point sp;
@@ -186,12 +190,24 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
                     return PN_ERROR_OUT_OF_MEMORY;
                 pts++;
                 value = v3_add(value, v3_mul(sp.throughput, L));
+                if (job->aovs & PN_AOV_ILLUMINANCE) {
+                    /* Illuminance: a lightcut of its own for a white Lambertian receiver (the same
+                     * error bound, relative to the irradiance). */
+                    pn_vpl_receiver white = pn_vpl_irradiance_receiver(&sp.r);
+                    vec3 E;
+                    uint64_t b2 = 0, c2 = 0;
+                    if (!lightcut_point(&cx, s, &white, &E, &o->shadow_rays, &b2, &c2, NULL))
+                        return PN_ERROR_OUT_OF_MEMORY;
+                    float lx = pn_photometric(E);
+                    if (isfinite(lx)) lux_sum += (double)lx * (double)sp.weight;
+                }
             }
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             sum = v3_madd(sum, value, sp.weight);
             wsum += (double)sp.weight;
         }
         if (wsum != 0.0) o->radiance = v3_scale(sum, (float)(1.0 / wsum));
+        if (wsum != 0.0) o->illuminance = (float)(lux_sum / wsum);
         o->bound_evaluations = (float)bounds;
         o->cut_size = pts ? (float)cut / (float)pts : 0.0f;
         bounds_total += bounds;

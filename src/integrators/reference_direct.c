@@ -76,11 +76,19 @@ static int choose_light(const pn_reference_direct_scratch *s, int m, float total
 bool pn_reference_direct(const pn_render_job *job, pn_reference_direct_scratch *s, const pn_light_bvh *bvh,
                          const pn_bsdf *b, vec3 p, vec3 wo, uint32_t i, uint32_t scramble, const unsigned char *skip,
                          bool timed, vec3 *sum, uint32_t *shadow_rays, double *embree_seconds) {
+    return pn_reference_direct_irradiance(job, s, bvh, b, p, wo, i, scramble, skip, timed, sum, NULL, shadow_rays,
+                                          embree_seconds);
+}
+
+bool pn_reference_direct_irradiance(const pn_render_job *job, pn_reference_direct_scratch *s, const pn_light_bvh *bvh,
+                                    const pn_bsdf *b, vec3 p, vec3 wo, uint32_t i, uint32_t scramble,
+                                    const unsigned char *skip, bool timed, vec3 *sum, vec3 *irradiance,
+                                    uint32_t *shadow_rays, double *embree_seconds) {
     const uint32_t S = job->shadow_rays;
     float total = 0.0f;
     int m = bvh ? 0 : build_light_pdf(job, p, b->ng, s, skip, &total);
     if (!bvh && !(m > 0 && total > 0.0f)) return false;
-    vec3 direct = v3(0, 0, 0);
+    vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0);
     float eps = pn_accel_ray_epsilon(job->accel, p);
     vec3 origin = v3_madd(p, b->ng, eps);
     pn_light_sample_cache cache = {0};
@@ -101,17 +109,20 @@ bool pn_reference_direct(const pn_render_job *job, pn_reference_direct_scratch *
                                           pn_sobol_sample(k, 7, scramble), &cache, &ls))
             continue;
         vec3 f = pn_bsdf_eval(b, wo, ls.wi);
-        if (v3_is_zero(f)) continue;
         float cos_i = v3_dot(b->ns, ls.wi);
+        if (v3_is_zero(f) && !(irradiance && cos_i > 0.0f)) continue;
         (*shadow_rays)++;
         float tmax = isinf(ls.dist) ? INFINITY : ls.dist * (1.0f - 1e-4f) - eps;
         double t_ray = timed ? pn_clock_seconds() : 0.0;
-        bool blocked = pn_accel_occluded(job->accel, origin, ls.wi, 0.0f, tmax);
+        float visibility = pn_shadow_transmittance(job, origin, ls.wi, 0.0f, tmax);
         if (timed) *embree_seconds += pn_clock_seconds() - t_ray;
-        if (blocked) continue;
+        if (!(visibility > 0.0f)) continue;
         float w = cos_i / (ls.pdf * prob);
+        if (visibility != 1.0f) w *= visibility;
         direct = v3_add(direct, v3_scale(v3_mul(f, ls.radiance), w));
+        if (irradiance) incident = v3_madd(incident, ls.radiance, w);
     }
     *sum = direct;
+    if (irradiance) *irradiance = incident;
     return true;
 }

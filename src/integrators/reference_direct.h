@@ -31,4 +31,13 @@ bool pn_reference_direct(const pn_render_job *job, pn_reference_direct_scratch *
                          const pn_bsdf *b, vec3 p, vec3 wo, uint32_t i, uint32_t scramble, const unsigned char *skip,
                          bool timed, vec3 *sum, uint32_t *shadow_rays, double *embree_seconds);
 
+/* pn_reference_direct that also estimates, from the same light samples, the irradiance at the
+ * point on the side of b->ns (sum over the S samples of L cos / pdf, without the BSDF; RGB
+ * W/m^2) into *irradiance. Samples the BSDF turns to zero above the horizon (a black surface)
+ * still cast their shadow ray for it. With irradiance NULL it is pn_reference_direct. */
+bool pn_reference_direct_irradiance(const pn_render_job *job, pn_reference_direct_scratch *s, const pn_light_bvh *bvh,
+                                    const pn_bsdf *b, vec3 p, vec3 wo, uint32_t i, uint32_t scramble,
+                                    const unsigned char *skip, bool timed, vec3 *sum, vec3 *irradiance,
+                                    uint32_t *shadow_rays, double *embree_seconds);
+
 #endif

@@ -55,7 +55,7 @@ static const pn_method_entry methods[M_COUNT] = {
           "Donikian et al. 2006, section 5.1", DIRECT,
           PN_CAP_PER_PIXEL | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP | PN_CAP_THRESHOLD | PN_CAP_EMITTED |
               PN_CAP_EYE_SAMPLES,
-          0, "", 64},
+          PN_AOV_ILLUMINANCE, "", 64},
          &pn_integrator_reference},
     [M_IAS] = {{"ias", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_IAS,
                 "Iterative Adaptive Sampling: per-block PDFs over light clusters, refined pass by pass",
@@ -79,13 +79,13 @@ static const pn_method_entry methods[M_COUNT] = {
     [M_VPL] = {{"vpl", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_VPL,
                 "every shading point against every virtual point light (the reference of IlluminationCut)",
                 "Keller 1997, Instant Radiosity", GLOBAL,
-                PN_CAP_PER_PIXEL | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP, 0, "vpl_cuts", 1},
+                PN_CAP_PER_PIXEL | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP, PN_AOV_ILLUMINANCE, "vpl_cuts", 1},
                &pn_integrator_vpl},
     [M_LIGHTCUTS] = {{"lightcuts", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_LIGHTCUTS,
                       "Lightcuts: a cut of the VPL tree per shading point under a relative error bound",
                       "Walter et al. 2005, Lightcuts: A Scalable Approach to Illumination", GLOBAL,
                       PN_CAP_PER_PIXEL | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP,
-                      PN_AOV_BOUND_EVALUATIONS | PN_AOV_CUT_SIZE, "vpl_cuts", 1},
+                      PN_AOV_BOUND_EVALUATIONS | PN_AOV_CUT_SIZE | PN_AOV_ILLUMINANCE, "vpl_cuts", 1},
                      &pn_integrator_lightcuts},
     [M_ILLUMCUT] = {{"illumcut", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_ILLUMCUT,
                      "IlluminationCut: cuts of the product of a point tree and the VPL tree, over the whole image",
@@ -343,6 +343,14 @@ static const pn_option_decl options[] = {
      PROGRESSIVE_DRIVERS,
      F(primary_grid),
      PN_FIELD_INT,
+     0},
+    {{"opaque-glass", PN_OPTION_FLAG, "0", 0, 0, 0, 0, "", "",
+      "thin glass panes (thindielectric, or dielectric with \"bool thin\" true) block shadow rays, as in pbrt-v4, "
+      "instead of passing them attenuated by their Fresnel transmittance (contour and contour-mc: always, for the "
+      "area lights they integrate themselves)"},
+     BIT(M_REFERENCE) | BIT(M_IAS) | CONTOUR_FAMILY | VPL_FAMILY,
+     F(opaque_glass),
+     PN_FIELD_BOOL,
      0},
 };
 #define OPTION_COUNT ((int)(sizeof options / sizeof options[0]))

@@ -13,4 +13,5 @@ list(APPEND PN_SOURCES
   src/integrators/contour.c
   src/integrators/contour_render.c
   src/integrators/contour_mc.c
+  src/integrators/point_eval.c
 )

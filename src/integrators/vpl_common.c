@@ -94,6 +94,14 @@ void pn_vpl_report(const pn_render_job *job, pn_render_stats *stats) {
     stats->illumcut_pairs = d->pairs;
 }
 
+pn_vpl_receiver pn_vpl_irradiance_receiver(const pn_vpl_receiver *r) {
+    pn_vpl_receiver w = *r;
+    w.kd = v3(PN_PI, PN_PI, PN_PI);
+    w.ks = v3(0, 0, 0);
+    w.exponent = 1.0f;
+    return w;
+}
+
 uint32_t pn_vpl_batch_points(const pn_render_job *job) {
     return pn_vpl_spp(job);
 }

@@ -153,6 +153,7 @@ typedef struct pn_exr_reader {
     const char *source[3]; /* channel feeding R, G, B (NULL = none) */
     exr_decode_pipeline_t decode;
     int decode_ready;
+    const char *channel; /* pn_exr_read_channel: the one channel wanted (read as grey), else NULL */
 } pn_exr_reader;
 
 static pn_status pn_exr_fail(pn_exr_reader *r, exr_result_t rv, const char *what) {
@@ -242,7 +243,16 @@ static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_
     static const char *const rgb_names[3] = {"R", "G", "B"};
     int found = 0;
     *grey = 0;
-    for (int c = 0; c < 3; c++) {
+    if (r->channel) { /* one named channel (an AOV layer), as grey */
+        int i = pn_exr_find_channel(list, r->channel);
+        if (i < 0)
+            return pn_err_set(r->err, PN_ERROR_BAD_INPUT, "%s: EXR file has no channel '%s'", r->name, r->channel);
+        r->source[0] = list->entries[i].name.str;
+        r->source[1] = r->source[2] = NULL;
+        *grey = 1;
+        found = -1;
+    }
+    for (int c = 0; c < 3 && found >= 0; c++) {
         int i = pn_exr_find_channel(list, rgb_names[c]);
         r->source[c] = i >= 0 ? list->entries[i].name.str : NULL;
         found += i >= 0;
@@ -271,7 +281,17 @@ static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_
     return PN_OK;
 }
 
+static pn_status exr_read(FILE *file, const char *name, const char *channel, pn_image *out, pn_err *err);
+
 pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err) {
+    return exr_read(file, name, NULL, out, err);
+}
+
+pn_status pn_exr_read_channel(FILE *file, const char *name, const char *channel, pn_image *out, pn_err *err) {
+    return exr_read(file, name, channel, out, err);
+}
+
+static pn_status exr_read(FILE *file, const char *name, const char *channel, pn_image *out, pn_err *err) {
     *out = NULL;
     pn_exr_stream stream;
     memset(&stream, 0, sizeof stream);
@@ -284,6 +304,7 @@ pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
     r.stream = &stream;
     r.name = name;
     r.err = err;
+    r.channel = channel;
 
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
     init.error_handler_fn = pn_exr_read_error;

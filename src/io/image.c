@@ -6,6 +6,7 @@
 
 #include "core/context.h"
 
+#include <errno.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -112,6 +113,29 @@ pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image) {
         if (err.status == PN_OK) pn_err_set(&err, status, "%s: cannot read image", path);
         return pn_context_fail_from(ctx, &err);
     }
+    return PN_OK;
+}
+
+pn_status pn_image_read_layer(pn_context ctx, const char *path, const char *layer, pn_image *out_image) {
+    if (out_image) *out_image = NULL;
+    if (!ctx || !path || !layer || !out_image) return PN_ERROR_INVALID_ARGUMENT;
+    FILE *f = fopen(path, "rb");
+    if (!f) return pn_context_fail(ctx, PN_ERROR_IO, "%s: %s", path, strerror(errno));
+    pn_err err;
+    pn_err_init(&err);
+    pn_image grey = NULL;
+    pn_status st = pn_exr_read_channel(f, path, layer, &grey, &err);
+    fclose(f);
+    if (st != PN_OK) return pn_context_fail_from(ctx, &err);
+    const size_t n = (size_t)grey->width * (size_t)grey->height;
+    float *dst = pn_image_add_layer(grey, layer, 1);
+    if (!dst) {
+        pn_image_free(grey);
+        return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for layer %s", layer);
+    }
+    const float *rgb = grey->layers[0].data;
+    for (size_t i = 0; i < n; i++) dst[i] = rgb[3 * i];
+    *out_image = grey;
     return PN_OK;
 }
 

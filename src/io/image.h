@@ -52,6 +52,8 @@ pn_status pn_image_write_file(pn_image image, const char *path, float exposure, 
  * fileno(file) and leaves the FILE buffer untouched). `name` is the path shown in messages,
  * which always read "name: message". */
 pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err);
+/* pn_exr_read of the one channel `channel` (an AOV layer's, e.g. "illuminance"), as grey. */
+pn_status pn_exr_read_channel(FILE *file, const char *name, const char *channel, pn_image *out, pn_err *err);
 pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err);
 pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, pn_err *err);
 pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err);

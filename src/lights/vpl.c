@@ -507,6 +507,15 @@ bool pn_vpl_shadow_ray(const pn_accel *accel, const pn_vpl_receiver *r, float di
     return *tmax > 0.0f;
 }
 
+float pn_vpl_transmittance(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist, bool thin_glass) {
+    vec3 o;
+    float tmax;
+    if (!pn_vpl_shadow_ray(accel, r, dist, &o, &tmax)) return 1.0f;
+    if (!thin_glass || !pn_accel_has_thin_glass(accel))
+        return pn_accel_occluded(accel, o, wi, 0.0f, tmax) ? 0.0f : 1.0f;
+    return pn_accel_transmittance(accel, o, wi, 0.0f, tmax);
+}
+
 bool pn_vpl_visible(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist) {
     vec3 o;
     float tmax;

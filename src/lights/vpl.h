@@ -162,6 +162,9 @@ static inline vec3 pn_vpl_contribution_inline(const pn_lights *lights, const pn_
 }
 
 /* True when nothing blocks the segment from r towards the VPL (a shadow ray). */
+/* The shadow ray's transmittance in [0, 1] (render/render_job.h's pn_shadow_transmittance for a
+ * VPL receiver): thin glass panes pass it attenuated when thin_glass is true, else block it. */
+float pn_vpl_transmittance(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist, bool thin_glass);
 bool pn_vpl_visible(const pn_accel *accel, const pn_vpl_receiver *r, vec3 wi, float dist);
 
 /* The shadow ray pn_vpl_visible traces (origin *o, direction wi, t in (0, *tmax)), for callers

@@ -77,6 +77,7 @@ typedef struct pn_render_job {
     float vpl_clamp_fraction, error_bound;
     bool visibility_sampling;
     bool vpl_direct_only; /* the lights themselves as VPLs, no bounces (direct light only) */
+    bool opaque_glass;    /* thin glass panes block shadow rays (option opaque-glass; render/shadow.c) */
     /* contour / contour-mc (Vedel 1993; Kok & Jansen 1992) */
     uint32_t contour_grid, contour_steps, contour_span, contour_flags;
     double contour_mc_threshold;
@@ -94,6 +95,13 @@ typedef struct pn_render_job {
     atomic_int *cancel;
     struct pn_progress *progress; /* render/progress.h: the render's progress path (may be NULL) */
 } pn_render_job;
+
+/* The visibility of a shadow ray o + t d, t in (tmin, tmax), in [0, 1]: 0 when something opaque
+ * blocks it; else the Fresnel transmittance of the thin glass panes it crosses
+ * (pn_accel_transmittance), or 0 if it crosses one and job->opaque_glass is set. Exactly 0 or 1
+ * in scenes without thin glass, with the answer pn_accel_occluded gives. The one place every
+ * integrator's shadow rays are answered (render/shadow.c). */
+float pn_shadow_transmittance(const pn_render_job *job, vec3 o, vec3 d, float tmin, float tmax);
 
 /* The result of following an eye ray through perfect specular interactions to the first
  * non-specular surface. */

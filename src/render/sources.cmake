@@ -4,4 +4,5 @@ list(APPEND PN_SOURCES
   src/render/camera.c
   src/render/eye_path.c
   src/render/progress.c
+  src/render/shadow.c
 )

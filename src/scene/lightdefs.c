@@ -50,6 +50,7 @@
 #include "lights/lights.h"
 #include "scene/parser_internal.h"
 #include "scene/photometry.h"
+#include "scene/sky.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -354,10 +355,20 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
         if (st == PN_OK) st = pn_params_float(ps, "scale", 1.0, &scale, err);
         if (st == PN_OK) st = pn_params_string(ps, "filename", "", &file, err);
         if (st == PN_OK) st = read_positive(ps, "illuminance", &illuminance, err);
+        const char *sky = "";
+        if (st == PN_OK) st = pn_sky_requested(ps, &sky, err);
         if (st != PN_OK) return st;
         d.kind = PN_LIGHTDEF_INFINITE;
         warn_ignored(scene, ps, "portal", "is not supported; the infinite light is sampled without its portal");
-        if (file[0]) {
+        if (sky[0]) { /* penumbra's daylight skies (scene/sky.c), in absolute units */
+            if (has_L || file[0])
+                return error_at(ps->loc, PN_ERROR_BAD_INPUT, err,
+                                "infinite light: \"sky\" cannot be given with \"L\" or \"filename\"");
+            st = pn_sky_image(scene, ps, sky, illuminance, &d.image, err);
+            if (st != PN_OK) return st;
+            d.equal_area = true;
+            d.intensity = v3((float)scale, (float)scale, (float)scale);
+        } else if (file[0]) {
             if (has_L)
                 return error_at(ps->loc, PN_ERROR_BAD_INPUT, err,
                                 "infinite light: \"L\" and \"filename\" cannot both be given");

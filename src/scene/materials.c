@@ -466,6 +466,9 @@ static pn_status map_dielectric(builder *b, pn_err *err) {
     const bool thin = strcmp(b->type, "thindielectric") == 0;
     double eta = 1.5;
     pn_status st = pn_params_spectrum_value(b->ps, "eta", 550.0, 1.5, &eta, NULL, err);
+    /* A dielectric pane marked thin (penumbra extension, docs/pbrt-v4-differences.md). */
+    bool marked_thin = false;
+    if (st == PN_OK && !thin) st = pn_params_bool(b->ps, "thin", false, &marked_thin, err);
     double roughness = 0, alpha = 0;
     if (st == PN_OK && !thin) st = read_roughness(b, "", &roughness, &alpha, err);
     if (st != PN_OK) return st;
@@ -476,6 +479,7 @@ static pn_status map_dielectric(builder *b, pn_err *err) {
                    roughness);
     b->m.kind = PN_MATERIAL_DIELECTRIC;
     b->m.eta = (float)eta;
+    b->m.thin = thin || marked_thin;
     b->m.specular = v3(1, 1, 1);
     b->m.kd = constant_ref(v3(0, 0, 0));
     b->m.ks = constant_ref(v3(0, 0, 0));
@@ -484,7 +488,8 @@ static pn_status map_dielectric(builder *b, pn_err *err) {
     if (alpha >= PN_SMOOTH_ALPHA)
         snprintf(b->note, sizeof b->note, "(roughness %g ignored: smooth)", roughness);
     else if (thin)
-        snprintf(b->note, sizeof b->note, "(thin: rendered as a refracting surface)");
+        snprintf(b->note, sizeof b->note,
+                 "(thin: a refracting surface for eye rays; shadow rays pass it with its slab transmittance)");
     warn_bump(b);
     return PN_OK;
 }

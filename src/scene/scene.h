@@ -88,6 +88,8 @@ typedef struct pn_material {
     float exponent; /* Blinn–Phong exponent n */
     vec3 specular;  /* MIRROR / DIELECTRIC tint */
     float eta;      /* DIELECTRIC */
+    bool thin;      /* DIELECTRIC: a thin pane (thindielectric, or dielectric "bool thin" true): shadow rays
+                       pass it attenuated by its slab transmittance (accel/glass.c) */
     /* Lambert under a smooth dielectric coating (pbrt-v4 coateddiffuse): the diffuse reflectance
      * seen from outside is kd * coat_transmission / (1 - kd * coat_internal) per channel, with
      * coat_transmission = (1 - Fbar)^2 / eta^2 (in through the coating and out again, radiance

@@ -11,4 +11,5 @@ list(APPEND PN_SOURCES
   src/scene/spectrum.c
   src/scene/lightdefs.c
   src/scene/photometry.c
+  src/scene/sky.c
 )
