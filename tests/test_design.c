@@ -127,7 +127,7 @@ static void test_sky_bad_input(void) {
 
 /* A point light of 1000 cd at (0.4, -0.3, 2): E = I cos(theta) / d^2 on the floor. */
 static const char *point_light = "LightSource \"point\" \"point3 from\" [0.4 -0.3 2] \"rgb I\" "
-                                 "[1.46412884 1.46412884 1.46412884]\n";
+                                 "[1000 1000 1000]\n";
 
 static double point_closed_form(const pn_illuminance_point *p) {
     double dx = 0.4 - (double)p->p[0], dy = -0.3 - (double)p->p[1], dz = 2.0 - (double)p->p[2];
@@ -164,7 +164,7 @@ static void test_grid_point_light_closed_form(void) {
  * positions (the camera's own ray through each pixel centre), with a spot light. */
 static void test_grid_matches_illuminance_aov(void) {
     pn_scene scene = load_text("spot.pbrt", "LightSource \"spot\" \"point3 from\" [0.5 0.2 1.5] \"point3 to\" "
-                                            "[0 0 0] \"rgb I\" [2 2 2] \"float coneangle\" 50 "
+                                            "[0 0 0] \"rgb I\" [1366 1366 1366] \"float coneangle\" 50 "
                                             "\"float conedeltaangle\" 15\n");
     if (!scene) return;
     const int W = 16, H = 16;
@@ -230,7 +230,7 @@ static const float *layer_named(pn_image img, const char *name) {
 
 static void test_vpl_illuminance_aov_matches_reference(void) {
     pn_scene scene = load_text("spot2.pbrt", "LightSource \"spot\" \"point3 from\" [0.5 0.2 1.5] \"point3 to\" "
-                                             "[0 0 0] \"rgb I\" [2 2 2] \"float coneangle\" 50 "
+                                             "[0 0 0] \"rgb I\" [1366 1366 1366] \"float coneangle\" 50 "
                                              "\"float conedeltaangle\" 15\n");
     if (!scene) return;
     const pn_integrator_kind kinds[3] = {PN_INTEGRATOR_REFERENCE, PN_INTEGRATOR_VPL, PN_INTEGRATOR_LIGHTCUTS};
@@ -331,7 +331,7 @@ static void test_thin_glass_transmittance(void) {
  * the ratio of the transmittance at normal incidence (a point light straight above). */
 static void test_thin_glass_every_integrator(void) {
     char body[2048];
-    const char *light = "LightSource \"point\" \"point3 from\" [0 0 3] \"rgb I\" [5 5 5]\n";
+    const char *light = "LightSource \"point\" \"point3 from\" [0 0 3] \"rgb I\" [3415 3415 3415]\n";
     snprintf(body, sizeof body, "%s%s", light,
              "AttributeBegin\nMaterial \"thindielectric\" \"float eta\" 1.5\n"
              "Shape \"trianglemesh\" \"point3 P\" [-8 -8 2  8 -8 2  8 8 2  -8 8 2] "
