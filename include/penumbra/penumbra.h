@@ -410,6 +410,20 @@ PN_API pn_status pn_file_write(pn_context ctx, const char *path, const void *dat
 PN_API pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, int width, int height,
                                pn_image *out_image);
 
+/* Crop renders and their assembly (docs/distributed.md). A crop render's image remembers where
+ * it lies: window[0], window[1] receive the position of its pixel (0, 0) in the whole image and
+ * window[2], window[3] the whole image's size (for an uncropped image 0, 0, width, height). The
+ * EXR writer stores it as the data window inside the display window, as pbrt-v4 does. */
+PN_API void pn_image_window(pn_image image, int window[4]);
+/* Reads every layer of an EXR file (beauty "R,G,B", "x.R/G/B" as layer x, other channels as
+ * one-channel layers) with its data and display windows. Errors read "file: message". */
+PN_API pn_status pn_image_read_layers(pn_context ctx, const char *path, pn_image *out_image);
+/* Assembles crop images of one render into the whole image: every part must have the same
+ * display window and the same layers, no two may overlap, and together they must cover the
+ * image; otherwise PN_ERROR_BAD_INPUT with a message naming the part (names[i] is parts[i]'s). */
+PN_API pn_status pn_image_merge(pn_context ctx, const pn_image *parts, const char *const *names, int count,
+                                pn_image *out_image);
+
 /* A false-colour picture of one single-channel layer (e.g. "passes", "shadow_rays"), as the IAS
  * paper's Figs. 9 and 11 show them: values mapped linearly from [vmin, vmax] (both 0: the layer's
  * finite minimum and maximum) onto a blue-cyan-green-yellow-red scale, with a colour bar and its

@@ -99,6 +99,8 @@ char *json_print(const void *tree);
 int command_render(int argc, char **argv);
 int command_diff(int argc, char **argv);
 int command_info(int argc, char **argv);
+int command_merge(int argc, char **argv);
+
 extern const char diff_help[], info_help[];
 
 #endif

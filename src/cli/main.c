@@ -25,6 +25,7 @@ static const char main_help[] =
     "  penumbra methods [NAME]                list the integrators and drivers and their options\n"
     "  penumbra diff REFERENCE IMAGE [options] compare two images (RMSE, relMSE, ...)\n"
     "  penumbra info SCENE.pbrt               describe a scene: geometry, lights, materials\n"
+    "  penumbra merge PARTS... -o FULL.exr    assemble crop renders (--crop, --tiles K/M) into one image\n"
     "  penumbra --help | --version\n"
     "\n"
     "Run 'penumbra COMMAND --help' for the options of a command.\n"
@@ -66,6 +67,7 @@ int main(int argc, char **argv) {
     if (strcmp(command, "methods") == 0) return command_methods(argc - 1, argv + 1);
     if (strcmp(command, "diff") == 0) return command_diff(argc - 1, argv + 1);
     if (strcmp(command, "info") == 0) return command_info(argc - 1, argv + 1);
+    if (strcmp(command, "merge") == 0) return command_merge(argc - 1, argv + 1);
     if (strcmp(command, "--help") == 0 || strcmp(command, "-h") == 0 || strcmp(command, "help") == 0) {
         if (argc >= 3 && strcmp(command, "help") == 0) {
             if (strcmp(argv[2], "render") == 0)

@@ -166,6 +166,16 @@ static pn_status resolve_settings(pn_context ctx, struct pn_scene_s *scene, cons
 static pn_status run_job(pn_context ctx, const pn_render_settings *settings, const pn_integrator *integ,
                          pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats);
 
+/* A crop's image remembers where it lies in the whole image (its EXR data window). */
+static void pn_image_set_crop_window(pn_image image, const pn_camera *cam) {
+    if (!image || image->width != cam->x1 - cam->x0 || image->height != cam->y1 - cam->y0) return;
+    if (cam->x0 == 0 && cam->y0 == 0 && cam->x1 == cam->full_width && cam->y1 == cam->full_height) return;
+    image->origin_x = cam->x0;
+    image->origin_y = cam->y0;
+    image->display_width = cam->full_width;
+    image->display_height = cam->full_height;
+}
+
 pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
                     pn_render_stats *stats) {
     if (out_image) *out_image = NULL;
@@ -210,6 +220,7 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     else
         st = run_job(ctx, settings, integ, &job, out_image, stats);
     if (st == PN_OK) pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
+    pn_image_set_crop_window(*out_image, &job.camera);
     if (integ->release) integ->release(&job);
     pn_progress_destroy(&progress);
     atomic_store(&ctx->cancel, 0);
