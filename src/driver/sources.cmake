@@ -4,4 +4,7 @@ list(APPEND PN_SOURCES
   src/driver/progressive.c
   src/driver/dcm.c
   src/driver/painter.c
+  src/driver/tiles.c
+  src/driver/checkpoint.c
+  src/driver/mpi.c
 )
