@@ -47,6 +47,7 @@ typedef struct render_shared {
     double progress_start;
     long tiles_rendered;
     pn_context ctx;
+    const pn_method_entry *entry; /* the integrator's entry in the method table */
 } render_shared;
 
 static void render_block(void *user, size_t job_index, int worker) {
@@ -286,7 +287,7 @@ static pn_status resolve_tiles(pn_context ctx, pn_render_job *job, const pn_meth
                                "tiles '%s': expected K/M with 1 <= K <= M (piece K of M), e.g. 3/8", job->tiles_piece);
     pn_camera *cam = &job->camera;
     pn_tile_grid g;
-    pn_tile_grid_init(&g, cam->x0, cam->y0, cam->x1, cam->y1, (int)job->tile_size);
+    pn_tile_grid_init(&g, cam->x0, cam->y0, cam->x1, cam->y1, (int)job->tile_size, false);
     if (m > g.tiles_y)
         return pn_context_fail(
             ctx, PN_ERROR_INVALID_ARGUMENT,
@@ -372,13 +373,18 @@ static pn_status run_tiled(pn_context ctx, render_shared *rs, pn_threadpool *poo
                            pn_render_stats *stats) {
     const pn_render_job *job = rs->job;
     const pn_camera *cam = &job->camera;
-    pn_tile_grid_init(&rs->grid, cam->x0, cam->y0, cam->x1, cam->y1, (int)job->tile_size);
+    /* A whole-image integrator with crop-exact pixels (contour) renders each row as one whole:
+     * its tiles are bands of whole rows of the window, so that every row is the plain render's. */
+    const uint32_t caps = rs->entry->info.capabilities;
+    pn_tile_grid_init(&rs->grid, cam->x0, cam->y0, cam->x1, cam->y1, (int)job->tile_size,
+                      (caps & PN_CAP_WHOLE_IMAGE) && (caps & PN_CAP_CROP));
     rs->pool = pool;
     rs->ctx = ctx;
     rs->progress_start = pn_progress_value(job->progress);
     const int B = (int)job->block_size;
-    size_t tile_blocks = job->tile_size > 0 ? (size_t)(job->tile_size / (uint32_t)B) * (job->tile_size / (uint32_t)B)
-                                            : (size_t)rs->block_count;
+    size_t tile_blocks = (size_t)rs->block_count;
+    if (job->tile_size > 0 && !rs->grid.bands)
+        tile_blocks = (size_t)(job->tile_size / (uint32_t)B) * (job->tile_size / (uint32_t)B);
     rs->tile_blocks = malloc(tile_blocks * sizeof *rs->tile_blocks);
     rs->tile_done = calloc((size_t)rs->grid.count, 1);
     size_t max_pixels = 0;
@@ -430,6 +436,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     memset(&rs, 0, sizeof rs);
     rs.job = &job;
     rs.integrator = integ;
+    rs.entry = pn_registry_integrator_entry(integ);
     rs.settings = settings;
     rs.width = job.camera.x1 - job.camera.x0;
     rs.height = job.camera.y1 - job.camera.y0;

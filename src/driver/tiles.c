@@ -5,7 +5,7 @@
 
 #include <string.h>
 
-void pn_tile_grid_init(pn_tile_grid *g, int x0, int y0, int x1, int y1, int size) {
+void pn_tile_grid_init(pn_tile_grid *g, int x0, int y0, int x1, int y1, int size, bool bands) {
     memset(g, 0, sizeof *g);
     g->x0 = x0;
     g->y0 = y0;
@@ -16,9 +16,10 @@ void pn_tile_grid_init(pn_tile_grid *g, int x0, int y0, int x1, int y1, int size
         g->tiles_x = g->tiles_y = g->count = 1;
         return;
     }
-    g->tx0 = x0 / size;
+    g->bands = bands;
+    g->tx0 = bands ? 0 : x0 / size;
     g->ty0 = y0 / size;
-    g->tiles_x = (x1 - 1) / size - g->tx0 + 1;
+    g->tiles_x = bands ? 1 : (x1 - 1) / size - g->tx0 + 1;
     g->tiles_y = (y1 - 1) / size - g->ty0 + 1;
     g->count = g->tiles_x * g->tiles_y;
 }
@@ -33,6 +34,7 @@ void pn_tile_rect(const pn_tile_grid *g, int tile, int r[4]) {
     r[1] = ty * g->size > g->y0 ? ty * g->size : g->y0;
     r[2] = (tx + 1) * g->size < g->x1 ? (tx + 1) * g->size : g->x1;
     r[3] = (ty + 1) * g->size < g->y1 ? (ty + 1) * g->size : g->y1;
+    if (g->bands) r[0] = g->x0, r[2] = g->x1;
 }
 
 size_t pn_tile_pixel_count(const pn_tile_grid *g, int tile) {

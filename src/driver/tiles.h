@@ -18,12 +18,14 @@
 typedef struct pn_tile_grid {
     int x0, y0, x1, y1; /* the window [x0, x1) x [y0, y1) */
     int size;           /* tile side in pixels; 0: one tile, the window */
+    bool bands;         /* tiles are bands of whole rows of the window (tiles_x 1) */
     int tx0, ty0;       /* the first tile's position in tile units of the whole image */
     int tiles_x, tiles_y, count;
 } pn_tile_grid;
 
-/* The tiles of tile side `size` (0: one tile) over the camera's window. */
-void pn_tile_grid_init(pn_tile_grid *g, int x0, int y0, int x1, int y1, int size);
+/* The tiles of tile side `size` (0: one tile) over the camera's window; with `bands`, bands of
+ * `size` rows across the whole window (for integrators whose rows are each one whole, contour). */
+void pn_tile_grid_init(pn_tile_grid *g, int x0, int y0, int x1, int y1, int size, bool bands);
 /* Tile `tile`'s pixels, clipped to the window: r = {x0, y0, x1, y1}. */
 void pn_tile_rect(const pn_tile_grid *g, int tile, int r[4]);
 size_t pn_tile_pixel_count(const pn_tile_grid *g, int tile);
