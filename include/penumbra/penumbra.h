@@ -156,7 +156,7 @@ enum {
     PN_CAP_EMITTED = 1u << 7,     /* integrator: reports the emitted part of each estimate */
     PN_CAP_EYE_SAMPLES = 1u << 8, /* integrator: at a fixed spp, traces pixel eye samples 0..spp-1 */
     PN_CAP_OWN_AOVS = 1u << 9,    /* driver: writes only its own AOVs, none of the integrator's */
-    PN_CAP_DISTRIBUTED = 1u << 10 /* driver: renders in tiles that MPI ranks, --tiles pieces and
+    PN_CAP_DISTRIBUTED = 1u << 10 /* driver: renders in tiles that MPI ranks, --piece parts and
                                      checkpoints share out (integrators without PN_CAP_CROP need an
                                      explicit tile-size) */
 };

@@ -25,7 +25,7 @@ static const char main_help[] =
     "  penumbra methods [NAME]                list the integrators and drivers and their options\n"
     "  penumbra diff REFERENCE IMAGE [options] compare two images (RMSE, relMSE, ...)\n"
     "  penumbra info SCENE.pbrt               describe a scene: geometry, lights, materials\n"
-    "  penumbra merge PARTS... -o FULL.exr    assemble crop renders (--crop, --tiles K/M) into one image\n"
+    "  penumbra merge PARTS... -o FULL.exr    assemble crop renders (--crop, --piece K/M) into one image\n"
     "  penumbra --help | --version\n"
     "\n"
     "Run 'penumbra COMMAND --help' for the options of a command.\n"

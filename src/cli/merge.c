@@ -1,11 +1,11 @@
 /* merge.c — `penumbra merge PARTS... -o FULL.exr [--stats FULL.json]`: crop renders of one image
- * (`--crop`, `--tiles K/M`, render-farm regions) assembled into the whole image, bit for bit what
+ * (`--crop`, `--piece K/M`, render-farm regions) assembled into the whole image, bit for bit what
  * one render of the whole window writes (docs/distributed.md).
  *
  * The pixels are assembled by the library (pn_image_merge: same display window and layers, no
  * overlap, full coverage, else exit 3 naming the part). Statistics: every PART.json given among
  * the arguments is a part's `--stats` file; the parts must have been rendered with the same
- * settings (crop, threads and the per-piece options tiles and checkpoint aside), and --stats
+ * settings (crop, threads and the per-piece options piece and checkpoint aside), and --stats
  * writes one JSON whose `stats` combine them: counts and seconds summed, `*_max` the maximum,
  * per-pixel means and fractions weighted by each part's pixels, `partial` if any part was. */
 #include "cli/cli.h"
@@ -17,7 +17,7 @@
 static const char merge_help[] =
     "usage: penumbra merge PART.exr... [PART.json...] -o FULL.exr [--stats FULL.json]\n"
     "\n"
-    "Assembles crop renders of one image (--crop, --tiles K/M) into the whole image: every layer,\n"
+    "Assembles crop renders of one image (--crop, --piece K/M) into the whole image: every layer,\n"
     "bit-identical to a render of the whole window. The parts must share the display window and\n"
     "the layers, must not overlap and must cover the image (exit 3 otherwise). PART.json files are\n"
     "the parts' --stats files; with --stats their statistics are combined into FULL.json.\n"
@@ -57,7 +57,7 @@ static cJSON *comparable_settings(const cJSON *root) {
     cJSON_DeleteItemFromObjectCaseSensitive(set, "crop");
     cJSON_DeleteItemFromObjectCaseSensitive(set, "threads");
     cJSON *opts = cJSON_GetObjectItemCaseSensitive(set, "options");
-    cJSON_DeleteItemFromObjectCaseSensitive(opts, "tiles");
+    cJSON_DeleteItemFromObjectCaseSensitive(opts, "piece");
     cJSON_DeleteItemFromObjectCaseSensitive(opts, "checkpoint");
     return set;
 }

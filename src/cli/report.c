@@ -283,7 +283,7 @@ int write_stats_json(const render_options *o, const char *image_path, pn_scene s
                                     ? (double)stats->contour_shadow_rays / (double)stats->contour_viewing_rays
                                     : 0.0);
     /* the tiled driver's distribution (docs/distributed.md) */
-    cJSON_AddNumberToObject(sj, "tiles", stats->tiles);
+    cJSON_AddNumberToObject(sj, "tile_count", stats->tiles);
     cJSON_AddNumberToObject(sj, "tiles_resumed", stats->tiles_resumed);
     cJSON_AddNumberToObject(sj, "ranks", stats->ranks > 1 ? stats->ranks : 1);
     if (stats->ranks > 1) {

@@ -253,7 +253,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
                          pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats);
 
 /* The tiling of a distributed, split or checkpointed render (docs/distributed.md): the tile side
- * in force, and for --tiles K/M the piece's band of tile rows as the job's window. What cannot be
+ * in force, and for --piece K/M the piece's band of tile rows as the job's window. What cannot be
  * split is refused here, by capability: a driver without PN_CAP_DISTRIBUTED under MPI, and an
  * integrator without PN_CAP_CROP split without an explicit tile-size. */
 static pn_status resolve_tiles(pn_context ctx, pn_render_job *job, const pn_method_entry *integ,
@@ -273,7 +273,7 @@ static pn_status resolve_tiles(pn_context ctx, pn_render_job *job, const pn_meth
                                    "%s renders the window as one whole (%s), so its pixels change when the image is "
                                    "split over %s; give --tile-size N to render it as N x N tiles: a single process "
                                    "given the same --tile-size renders the identical image",
-                                   integ->info.name, integ->info.description, ranks ? "MPI ranks" : "--tiles pieces");
+                                   integ->info.name, integ->info.description, ranks ? "MPI ranks" : "--piece pieces");
         job->tile_size = 64;
     }
     if (job->tile_size == 0 && job->checkpoint_path && crop_exact) job->tile_size = 64;
@@ -284,14 +284,14 @@ static pn_status resolve_tiles(pn_context ctx, pn_render_job *job, const pn_meth
     char tail = 0;
     if (sscanf(job->tiles_piece, "%ld/%ld%c", &k, &m, &tail) != 2 || m < 1 || k < 1 || k > m)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "tiles '%s': expected K/M with 1 <= K <= M (piece K of M), e.g. 3/8", job->tiles_piece);
+                               "piece '%s': expected K/M with 1 <= K <= M (piece K of M), e.g. 3/8", job->tiles_piece);
     pn_camera *cam = &job->camera;
     pn_tile_grid g;
     pn_tile_grid_init(&g, cam->x0, cam->y0, cam->x1, cam->y1, (int)job->tile_size, false);
     if (m > g.tiles_y)
         return pn_context_fail(
             ctx, PN_ERROR_INVALID_ARGUMENT,
-            "tiles %ld/%ld: the window has only %d rows of %d-pixel tiles; give at most %d pieces or "
+            "piece %ld/%ld: the window has only %d rows of %d-pixel tiles; give at most %d pieces or "
             "a smaller --tile-size",
             k, m, g.tiles_y, (int)job->tile_size, g.tiles_y);
     /* Piece k: tile rows [floor((k-1) R / M), floor(k R / M)); every row holds the same tiles. */

@@ -1,5 +1,5 @@
 /* tiles.c — the tiles of the tiled driver's distribution (tiles.h): a grid of square tiles
- * aligned to the whole image (so that a crop or a --tiles piece cuts the same tiles as the whole
+ * aligned to the whole image (so that a crop or a --piece cuts the same tiles as the whole
  * window), and the copies between a window of estimates and one packed tile. */
 #include "driver/tiles.h"
 

@@ -198,14 +198,14 @@ static const pn_option_decl options[] = {
      0},
     /* tiles: distribution over processes, pieces and checkpoints (docs/distributed.md) */
     {{"tile-size", PN_OPTION_INT, "0", 0, 65536, 0, 0, "pixels", "",
-      "side of the square tiles that MPI ranks, --tiles pieces and --checkpoint records are made of, rounded up to a "
+      "side of the square tiles that MPI ranks, --piece pieces and --checkpoint records are made of, rounded up to a "
       "multiple of block-size; 0: 64, or one tile of the whole window for an integrator without crop-exact pixels "
       "(illumcut: each tile is one point tree, the same in one process as in many)"},
      BIT(M_TILES),
      F(tile_size),
      PN_FIELD_U32,
      0},
-    {{"tiles", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
+    {{"piece", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
       "render only piece K of M (K/M, 1 <= K <= M): a band of whole rows of tiles, the bands balanced by tile count, "
       "written as a crop EXR; penumbra merge assembles the M pieces"},
      BIT(M_TILES),

@@ -91,7 +91,7 @@ typedef struct pn_render_job {
     bool raw_radiance, no_light_guide;
     pn_job_list snapshots; /* percentages of the work pixels */
     /* the tiled driver's distribution (docs/distributed.md): tile side (0: 64, or the whole
-     * window for integrators without PN_CAP_CROP), the piece "K/M" and the checkpoint file */
+     * window for integrators without PN_CAP_CROP), the piece "K/M" (option piece) and the checkpoint file */
     uint32_t tile_size;
     const char *tiles_piece;     /* NULL: the whole window */
     const char *checkpoint_path; /* NULL: none */
