@@ -61,8 +61,9 @@ static bool same_layers(pn_image a, pn_image b, char *why, size_t size) {
 pn_status pn_image_merge(pn_context ctx, const pn_image *parts, const char *const *names, int count,
                          pn_image *out_image) {
     if (out_image) *out_image = NULL;
-    if (!ctx || !parts || !names || count < 1 || !out_image)
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_image_merge: no parts");
+    bool given = ctx && parts && names && count >= 1 && out_image;
+    for (int i = 0; given && i < count; i++) given = parts[i] && names[i];
+    if (!given) return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_image_merge: no parts, or a NULL part");
     int w0[4];
     pn_image_window(parts[0], w0);
     const int W = w0[2], H = w0[3];
