@@ -123,10 +123,11 @@ uint64_t pn_render_key(const pn_render_job *job, const pn_render_settings *setti
     fnv_u64(&f, job->seed);
     fnv_u64(&f, job->max_specular_depth);
     fnv_u64(&f, job->aovs);
-    /* Every option's value in force, by name (the checkpoint's own file name aside). */
-    int skip = pn_option_find("checkpoint");
+    /* Every option's value in force, by name (the checkpoint's own file name and the bench's
+     * tile-times file aside: neither changes a pixel). */
+    int skip = pn_option_find("checkpoint"), skip_times = pn_option_find("tile-times");
     for (int i = 0; i < pn_option_count(); i++) {
-        if (i == skip) continue;
+        if (i == skip || i == skip_times) continue;
         char text[512] = "";
         pn_options_get(settings->options, i, NULL, text, sizeof text);
         fnv_str(&f, pn_option_get(i)->name);

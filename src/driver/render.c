@@ -160,15 +160,43 @@ static pn_status store_tile(void *user, int tile, const pn_pixel_estimate *packe
     return st == PN_OK ? PN_OK : pn_context_fail_from(rs->ctx, &err);
 }
 
-/* The tiles of one process, in order, skipping those the checkpoint holds. */
-static pn_status render_tiles_locally(render_shared *rs) {
-    for (int t = 0; t < rs->grid.count; t++) {
-        if (rs->tile_done[t]) continue;
-        pn_status st = render_tile(rs, t, rs->checkpoint ? rs->tile_pack : NULL);
-        if (st == PN_OK) st = store_tile(rs, t, rs->tile_pack, true);
-        if (st != PN_OK) return st;
+typedef struct tile_times {
+    const pn_tile_grid *grid;
+    const double *seconds;
+} tile_times;
+
+static pn_status write_tile_times(void *user, FILE *file, const char *path, pn_err *err) {
+    const tile_times *tt = user;
+    fprintf(file, "# tile x0 y0 x1 y1 seconds\n");
+    for (int t = 0; t < tt->grid->count; t++) {
+        int r[4];
+        pn_tile_rect(tt->grid, t, r);
+        fprintf(file, "%d %d %d %d %d %.6f\n", t, r[0], r[1], r[2], r[3], tt->seconds[t]);
     }
-    return PN_OK;
+    return ferror(file) ? pn_err_set(err, PN_ERROR_IO, "%s: write failed", path) : PN_OK;
+}
+
+/* The tiles of one process, in order, skipping those the checkpoint holds; with tile-times, each
+ * tile's render seconds written at the end (bench/mpi). */
+static pn_status render_tiles_locally(render_shared *rs) {
+    double *seconds = rs->job->tile_times_path ? calloc((size_t)rs->grid.count, sizeof *seconds) : NULL;
+    pn_status st = PN_OK;
+    for (int t = 0; t < rs->grid.count && st == PN_OK; t++) {
+        if (rs->tile_done[t]) continue;
+        double t0 = pn_clock_seconds();
+        st = render_tile(rs, t, rs->checkpoint ? rs->tile_pack : NULL);
+        if (seconds) seconds[t] = pn_clock_seconds() - t0;
+        if (st == PN_OK) st = store_tile(rs, t, rs->tile_pack, true);
+    }
+    if (st == PN_OK && seconds) {
+        tile_times tt = {&rs->grid, seconds};
+        pn_err err;
+        pn_err_init(&err);
+        st = pn_write_atomic(rs->job->tile_times_path, write_tile_times, &tt, &err);
+        if (st != PN_OK) pn_context_fail_from(rs->ctx, &err);
+    }
+    free(seconds);
+    return st;
 }
 
 static void free_batches(render_shared *rs, int workers) {
@@ -276,7 +304,7 @@ static pn_status resolve_tiles(pn_context ctx, pn_render_job *job, const pn_meth
                                    integ->info.name, integ->info.description, ranks ? "MPI ranks" : "--piece pieces");
         job->tile_size = 64;
     }
-    if (job->tile_size == 0 && job->checkpoint_path && crop_exact) job->tile_size = 64;
+    if (job->tile_size == 0 && (job->checkpoint_path || job->tile_times_path) && crop_exact) job->tile_size = 64;
     const uint32_t B = job->block_size;
     if (job->tile_size % B) job->tile_size += B - job->tile_size % B;
     if (!job->tiles_piece) return PN_OK;
@@ -484,7 +512,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
      * the window in one call. */
     pn_render_image_fn whole_image = integ->render_image;
     pn_status tiled_status = PN_OK;
-    bool tiled = job.tile_size > 0 || job.checkpoint_path || pn_dist_size() > 1;
+    bool tiled = job.tile_size > 0 || job.checkpoint_path || job.tile_times_path || pn_dist_size() > 1;
     if (tiled) {
         tiled_status = run_tiled(ctx, &rs, pool, settings, stats);
         if (tiled_status == PN_ERROR_CANCELLED) tiled_status = PN_OK; /* a partial image, as below */

@@ -35,7 +35,7 @@ void pn_tile_copy_in(const pn_tile_grid *g, int tile, const pn_pixel_estimate *p
 
 /* What identifies a render's image (checkpoint.c): a 64-bit FNV-1a hash of the scene's contents
  * (the scene file's bytes, geometry, materials as mapped, lights, textures), the integrator and
- * driver, every option's value in force (checkpoint aside), the resolution, window, spp,
+ * driver, every option's value in force (checkpoint and tile-times aside), the resolution, window, spp,
  * threshold, seed, specular depth, AOVs and the tiling. */
 uint64_t pn_render_key(const pn_render_job *job, const pn_render_settings *settings, int integrator, int driver);
 

@@ -219,6 +219,13 @@ static const pn_option_decl options[] = {
      F(checkpoint_path),
      PN_FIELD_STRING,
      0},
+    {{"tile-times", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
+      "bench instrumentation: write each tile's window and render seconds to this file (one process; "
+      "bench/mpi/simulate.py replays them)"},
+     BIT(M_TILES),
+     F(tile_times_path),
+     PN_FIELD_STRING,
+     0},
     /* vpl, lightcuts, illumcut */
     {{"vpls", PN_OPTION_INT, "600000", 1, 100000000, 0, 0, "VPLs", "", "virtual point lights to trace"},
      VPL_FAMILY,

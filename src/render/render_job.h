@@ -95,6 +95,7 @@ typedef struct pn_render_job {
     uint32_t tile_size;
     const char *tiles_piece;     /* NULL: the whole window */
     const char *checkpoint_path; /* NULL: none */
+    const char *tile_times_path; /* NULL: none (bench instrumentation) */
     void *integrator_data;       /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
     struct pn_progress *progress; /* render/progress.h: the render's progress path (may be NULL) */
