@@ -15,7 +15,7 @@
  *   0 -> worker, TAG_TILE: the next tile's index, or -1: stop.
  * Only the main thread of a rank calls MPI (MPI_THREAD_FUNNELED). Rank 0's main thread polls
  * (MPI_Iprobe, then a 100 us sleep when nothing came), so that it leaves the core to the
- * renderer thread; a worker waits for its next tile in MPI_Recv.
+ * renderer thread; a worker waits for its next tile the same way (MPI_Test every 50 us).
  *
  * Failure: a rank that cannot load the scene or prepare reports it in the first collective
  * (pn_mpi_agree, pn_dist_start), and every rank stops with rank 0 printing "rank R: message";
@@ -321,6 +321,20 @@ static pn_status run_rank0(pn_context ctx, pn_tile_work *w, pn_dist_report *repo
     return pn_context_fail(ctx, d.failed, "rank %d of %d: %s", d.failed_rank, world_size, d.failure);
 }
 
+/* A worker's wait for its next tile: tested every 50 us rather than in MPI_Recv, which spins a
+ * core (on an oversubscribed machine, the one rank 0 needs to answer). */
+static void wait_for_tile(int32_t *tile) {
+    MPI_Request request;
+    MPI_Irecv(tile, 1, MPI_INT32_T, 0, TAG_TILE, MPI_COMM_WORLD, &request);
+    for (;;) {
+        int done = 0;
+        MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+        if (done) return;
+        struct timespec pause = {0, 50000};
+        nanosleep(&pause, NULL);
+    }
+}
+
 static pn_status run_worker(pn_context ctx, pn_tile_work *w) {
     size_t cap = sizeof(ask_header) + w->max_tile_pixels * sizeof(pn_pixel_estimate);
     char *buf = malloc(cap);
@@ -337,7 +351,7 @@ static pn_status run_worker(pn_context ctx, pn_tile_work *w) {
         if (buf) memcpy(buf, &h, sizeof h);
         MPI_Send(buf ? buf : (char *)&h, (int)bytes, MPI_BYTE, 0, TAG_ASK, MPI_COMM_WORLD);
         int32_t tile = -1;
-        MPI_Recv(&tile, 1, MPI_INT32_T, 0, TAG_TILE, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        wait_for_tile(&tile);
         if (tile < 0 || h.what == ASK_FAILED) break;
         double t0 = now_seconds();
         pn_status st = w->render(w->user, tile, (pn_pixel_estimate *)(void *)(buf + sizeof h));
