@@ -13,8 +13,9 @@ the answer. The model of the machine:
   - a message takes `latency` seconds from sender to receiver, plus size / `bandwidth` on rank 0's
     inbound link, which carries one message at a time (every tile's estimates, bytes_per_pixel a
     pixel, arrive through it: this is what a single rank 0 serialises);
-  - rank 0's main thread sees a message `poll` / 2 after it arrives on average (it sleeps `poll`
-    seconds when nothing came) and handles one message at a time, `handle` seconds each;
+  - rank 0's main thread sees a message `poll` / 2 after it arrives on average (while nothing
+    comes it sleeps from 50 us doubling up to 1 ms: `poll` 1 ms is the worst case) and handles
+    one message at a time, `handle` seconds each;
   - every rank loads the scene and prepares at the same time, in `load` seconds (replicated, as
     penumbra does: a shared file system serving every rank at once is assumed), after an MPI job
     start of `startup` seconds;
@@ -92,7 +93,7 @@ def main():
     ap.add_argument("--ranks", type=int, nargs="+", default=[1, 2, 16, 64, 256])
     ap.add_argument("--latency", type=float, default=5e-6, help="seconds per message (default 5 us)")
     ap.add_argument("--bandwidth", type=float, default=1.25e9, help="rank 0 inbound bytes/s (10 GbE)")
-    ap.add_argument("--poll", type=float, default=100e-6, help="rank 0's sleep when idle (mpi.c: 100 us)")
+    ap.add_argument("--poll", type=float, default=1e-3, help="rank 0's longest sleep when idle (mpi.c: 1 ms)")
     ap.add_argument("--handle", type=float, default=5e-6, help="rank 0's seconds per message")
     ap.add_argument("--bytes-per-pixel", type=int, default=136, help="sizeof(pn_pixel_estimate)")
     ap.add_argument("--load", type=float, default=0.0, help="scene load + preparation seconds, every rank")

@@ -387,7 +387,8 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
         st = pn_progressive_render(ctx, settings, integ, &job, out_image, stats);
     else
         st = run_job(ctx, settings, integ, &job, out_image, stats);
-    if (st == PN_OK) pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
+    if (st == PN_OK && *out_image)
+        pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
     pn_image_set_crop_window(*out_image, &job.camera);
     if (integ->release) integ->release(&job);
     pn_progress_destroy(&progress);
