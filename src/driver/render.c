@@ -1,7 +1,12 @@
 /* render.c — the default driver: the image window cut into 8x8 blocks (the IAS paper's block,
  * which also seeds each block's quasi-random sequence), blocks handed to worker threads by an
  * atomic counter, per-pixel estimates gathered into the film, AOVs, statistics. The image does
- * not depend on the thread count: every block is computed by one thread from its own seed. */
+ * not depend on the thread count: every block is computed by one thread from its own seed.
+ *
+ * Split, checkpointed and MPI renders (issue 16, docs/distributed.md) go through the tiled mode
+ * (run_tiled): the window cut into tiles of whole blocks aligned to the whole image
+ * (driver/tiles.h), rendered one after the other over the pool, recorded in the checkpoint, or
+ * handed out to MPI ranks (driver/mpi.c). The plain render is unchanged. */
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/threadpool.h"
