@@ -172,7 +172,10 @@ enum {
     PN_CAP_THRESHOLD = 1u << 6,   /* integrator: takes a relative-variance target (settings.threshold) */
     PN_CAP_EMITTED = 1u << 7,     /* integrator: reports the emitted part of each estimate */
     PN_CAP_EYE_SAMPLES = 1u << 8, /* integrator: at a fixed spp, traces pixel eye samples 0..spp-1 */
-    PN_CAP_OWN_AOVS = 1u << 9     /* driver: writes only its own AOVs, none of the integrator's */
+    PN_CAP_OWN_AOVS = 1u << 9,    /* driver: writes only its own AOVs, none of the integrator's */
+    PN_CAP_DISTRIBUTED = 1u << 10 /* driver: renders in tiles that MPI ranks, --piece parts and
+                                     checkpoints share out (integrators without PN_CAP_CROP need an
+                                     explicit tile-size) */
 };
 
 typedef struct pn_method_info {
@@ -331,6 +334,7 @@ typedef struct pn_render_settings {
 
 typedef struct pn_image_s *pn_image;
 
+#define PN_STATS_MAX_RANKS 256
 /* Statistics of one render. */
 typedef struct pn_render_stats {
     double render_seconds;
@@ -383,6 +387,13 @@ typedef struct pn_render_stats {
     uint64_t primary_grid_pixels;                   /* work pixels whose albedo and emitted radiance came from a
                                          grid of primary rays (--primary-grid) */
     double reconstruct_seconds_max;                 /* longest reconstruction of an approximate image */
+    /* The tiled driver's distribution (docs/distributed.md): tiles of the window and those a
+     * checkpoint already held; under MPI the ranks, and per rank (the first PN_STATS_MAX_RANKS)
+     * the seconds it spent rendering tiles and the tiles it rendered. */
+    uint32_t tiles, tiles_resumed;
+    int ranks;
+    double rank_busy_seconds[PN_STATS_MAX_RANKS];
+    uint32_t rank_tiles[PN_STATS_MAX_RANKS];
 } pn_render_stats;
 
 /* ---- lighting design: illuminance at points, no camera (docs/lighting-design.md) ---------- */
@@ -409,6 +420,21 @@ PN_API pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_
  * is still returned together with PN_ERROR_CANCELLED. */
 PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
                            pn_render_stats *stats);
+
+/* Rendering across MPI processes (docs/distributed.md). A program started by mpirun calls
+ * pn_mpi_init once before anything else: it joins the job (MPI_Init; nothing when the process
+ * was not started by an MPI launcher) and tells this process's rank and the number of ranks.
+ * From then on pn_render with the tiles driver renders across all ranks, which must all call it
+ * with the same scene and settings: rank 0 hands out tiles and receives the image (the other
+ * ranks get PN_OK and no image, *out_image NULL). pn_mpi_agree is a collective check of every
+ * rank's status (e.g. after pn_scene_load): the first failure's status on every rank, and on
+ * rank 0 the context's message "rank R of N: message". Without MPI in the build, pn_mpi_init
+ * fails when started as one of several MPI processes, and otherwise these are the one-process
+ * case. pn_mpi_finalize ends MPI at exit. */
+PN_API int pn_mpi_available(void);
+PN_API pn_status pn_mpi_init(pn_context ctx, int *argc, char ***argv, int *rank, int *size);
+PN_API pn_status pn_mpi_agree(pn_context ctx, pn_status local);
+PN_API void pn_mpi_finalize(void);
 
 /* Asks running renders of this context to stop after their current tiles, or during their
  * preparation (VPL tracing, light trees). A cancel issued while no render runs applies to the
@@ -462,6 +488,20 @@ PN_API pn_status pn_file_write(pn_context ctx, const char *path, const void *dat
  * (for comparing a crop-window render with the matching part of a full reference). */
 PN_API pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, int width, int height,
                                pn_image *out_image);
+
+/* Crop renders and their assembly (docs/distributed.md). A crop render's image remembers where
+ * it lies: window[0], window[1] receive the position of its pixel (0, 0) in the whole image and
+ * window[2], window[3] the whole image's size (for an uncropped image 0, 0, width, height). The
+ * EXR writer stores it as the data window inside the display window, as pbrt-v4 does. */
+PN_API void pn_image_window(pn_image image, int window[4]);
+/* Reads every layer of an EXR file (beauty "R,G,B", "x.R/G/B" as layer x, other channels as
+ * one-channel layers) with its data and display windows. Errors read "file: message". */
+PN_API pn_status pn_image_read_layers(pn_context ctx, const char *path, pn_image *out_image);
+/* Assembles crop images of one render into the whole image: every part must have the same
+ * display window and the same layers, no two may overlap, and together they must cover the
+ * image; otherwise PN_ERROR_BAD_INPUT with a message naming the part (names[i] is parts[i]'s). */
+PN_API pn_status pn_image_merge(pn_context ctx, const pn_image *parts, const char *const *names, int count,
+                                pn_image *out_image);
 
 /* A false-colour picture of one single-channel layer (e.g. "passes", "shadow_rays"), as the IAS
  * paper's Figs. 9 and 11 show them: values mapped linearly from [vmin, vmax] (both 0: the layer's

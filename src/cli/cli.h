@@ -103,6 +103,8 @@ int command_ies2goniometric(int argc, char **argv);
 /* illuminance.c: calculation grids and false colour (docs/lighting-design.md) */
 int command_illuminance(int argc, char **argv);
 int command_falsecolor(int argc, char **argv);
+int command_merge(int argc, char **argv);
+
 extern const char diff_help[], info_help[], ies2goniometric_help[];
 
 #endif

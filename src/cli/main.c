@@ -28,6 +28,7 @@ static const char main_help[] =
     "  penumbra ies2goniometric LAMP.ies -o LAMP.exr  a measured luminaire as pbrt-v4's goniometric image\n"
     "  penumbra illuminance SCENE.pbrt ...    illuminance (lux) on a work-plane grid or at points\n"
     "  penumbra falsecolor IN.exr -o OUT.png  false colour of a layer with a legend in lux or cd/m2\n"
+    "  penumbra merge PARTS... -o FULL.exr    assemble crop renders (--crop, --piece K/M) into one image\n"
     "  penumbra --help | --version\n"
     "\n"
     "Run 'penumbra COMMAND --help' for the options of a command.\n"
@@ -73,6 +74,7 @@ int main(int argc, char **argv) {
     if (strcmp(command, "ies2goniometric") == 0) return command_ies2goniometric(argc - 1, argv + 1);
     if (strcmp(command, "illuminance") == 0) return command_illuminance(argc - 1, argv + 1);
     if (strcmp(command, "falsecolor") == 0) return command_falsecolor(argc - 1, argv + 1);
+    if (strcmp(command, "merge") == 0) return command_merge(argc - 1, argv + 1);
     if (strcmp(command, "--help") == 0 || strcmp(command, "-h") == 0 || strcmp(command, "help") == 0) {
         if (argc >= 3 && strcmp(command, "help") == 0) {
             if (strcmp(argv[2], "render") == 0)

@@ -538,6 +538,7 @@ int command_methods(int argc, char **argv) {
                          {PN_CAP_WHOLE_IMAGE, "whole image"},
                          {PN_CAP_PROGRESSIVE, "progressive drivers"},
                          {PN_CAP_CROP, "crops"},
+                         {PN_CAP_DISTRIBUTED, "distributed"},
                          {PN_CAP_OWN_AOVS, "own AOVs only"}};
         for (size_t i = 0; i < sizeof cap_names / sizeof cap_names[0]; i++)
             if (mi->capabilities & cap_names[i].bit)

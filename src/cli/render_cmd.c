@@ -134,7 +134,32 @@ static int write_aov_pngs(pn_context ctx, pn_image image, const char *image_path
     return EXIT_OK;
 }
 
+static int render_main(int argc, char **argv, int rank, int ranks);
+
+/* Under mpirun (docs/distributed.md) every rank runs this command: it joins the MPI job first;
+ * only rank 0 shows progress, messages and the summary and writes files (the other ranks' stderr
+ * goes to /dev/null; their failures reach rank 0, which names the rank). */
 int command_render(int argc, char **argv) {
+    pn_context mctx = pn_context_new();
+    if (!mctx) {
+        fprintf(stderr, "penumbra: out of memory\n");
+        return EXIT_SYSTEM;
+    }
+    int rank = 0, ranks = 1;
+    pn_status ms = pn_mpi_init(mctx, NULL, NULL, &rank, &ranks);
+    if (ms != PN_OK) {
+        int code = report_failure(mctx, ms);
+        pn_context_free(mctx);
+        return code;
+    }
+    pn_context_free(mctx);
+    if (rank > 0 && !freopen("/dev/null", "w", stderr)) return EXIT_SYSTEM;
+    int code = render_main(argc, argv, rank, ranks);
+    pn_mpi_finalize();
+    return code;
+}
+
+static int render_main(int argc, char **argv, int rank, int ranks) {
     render_options o;
     memset(&o, 0, sizeof o);
     o.options = pn_options_new();
@@ -187,6 +212,7 @@ int command_render(int argc, char **argv) {
     memset(&info, 0, sizeof info);
     memset(&stats, 0, sizeof stats);
     pn_status status = pn_scene_load(ctx, o.scene_path, &scene);
+    if (ranks > 1) status = pn_mpi_agree(ctx, status); /* a rank that cannot load ends the job */
     if (status != PN_OK) {
         code = report_failure(ctx, status);
         goto done;
@@ -197,7 +223,7 @@ int command_render(int argc, char **argv) {
     }
 
     progress_state progress = {monotonic_seconds(), 0.0, 0};
-    if (!o.quiet && isatty(STDERR_FILENO)) {
+    if (!o.quiet && rank == 0 && isatty(STDERR_FILENO)) {
         st->progress = on_progress;
         st->progress_user = &progress;
     }
@@ -246,6 +272,10 @@ int command_render(int argc, char **argv) {
     }
     if (status != PN_OK) {
         code = report_failure(ctx, status);
+        goto done;
+    }
+    if (rank > 0) { /* rank 0 writes the image */
+        code = EXIT_OK;
         goto done;
     }
 

@@ -282,6 +282,19 @@ int write_stats_json(const render_options *o, const char *image_path, pn_scene s
                                 stats->contour_viewing_rays
                                     ? (double)stats->contour_shadow_rays / (double)stats->contour_viewing_rays
                                     : 0.0);
+    /* the tiled driver's distribution (docs/distributed.md) */
+    cJSON_AddNumberToObject(sj, "tile_count", stats->tiles);
+    cJSON_AddNumberToObject(sj, "tiles_resumed", stats->tiles_resumed);
+    cJSON_AddNumberToObject(sj, "ranks", stats->ranks > 1 ? stats->ranks : 1);
+    if (stats->ranks > 1) {
+        int n = stats->ranks < PN_STATS_MAX_RANKS ? stats->ranks : PN_STATS_MAX_RANKS;
+        cJSON *busy = cJSON_AddArrayToObject(sj, "rank_busy_seconds");
+        cJSON *tiles = cJSON_AddArrayToObject(sj, "rank_tiles");
+        for (int r = 0; r < n; r++) {
+            cJSON_AddItemToArray(busy, cJSON_CreateNumber(stats->rank_busy_seconds[r]));
+            cJSON_AddItemToArray(tiles, cJSON_CreateNumber(stats->rank_tiles[r]));
+        }
+    }
     cJSON_AddItemToObject(root, "scene_info", scene_info_json(info, scene));
 
     char *text = json_print(root);
@@ -339,6 +352,14 @@ void print_render_summary(const render_options *o, const pn_scene_info *info, co
         printf("sampling       adaptive, threshold %g\n", threshold);
     printf("time           parse %.2f s, BVH %.2f s, render %.2f s (%d threads)\n", info->parse_seconds,
            info->bvh_seconds, stats->render_seconds, stats->threads);
+    if (stats->tiles_resumed)
+        printf("resumed        %u of %u tiles from the checkpoint\n", stats->tiles_resumed, stats->tiles);
+    if (stats->ranks > 1) {
+        printf("ranks          %d, busy", stats->ranks);
+        for (int r = 0; r < stats->ranks && r < PN_STATS_MAX_RANKS; r++)
+            printf("%s %.2f s (%u tiles)", r ? "," : "", stats->rank_busy_seconds[r], stats->rank_tiles[r]);
+        printf("\n");
+    }
     print_count("eye rays", stats->eye_rays);
     print_count("shadow rays", stats->shadow_rays);
     print_count("specular rays", stats->specular_rays);

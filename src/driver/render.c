@@ -1,11 +1,17 @@
 /* render.c — the default driver: the image window cut into 8x8 blocks (the IAS paper's block,
  * which also seeds each block's quasi-random sequence), blocks handed to worker threads by an
  * atomic counter, per-pixel estimates gathered into the film, AOVs, statistics. The image does
- * not depend on the thread count: every block is computed by one thread from its own seed. */
+ * not depend on the thread count: every block is computed by one thread from its own seed.
+ *
+ * Split, checkpointed and MPI renders (issue 16, docs/distributed.md) go through the tiled mode
+ * (run_tiled): the window cut into tiles of whole blocks aligned to the whole image
+ * (driver/tiles.h), rendered one after the other over the pool, recorded in the checkpoint, or
+ * handed out to MPI ranks (driver/mpi.c). The plain render is unchanged. */
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/threadpool.h"
 #include "driver/progressive.h" /* issue 6: progressive drivers */
+#include "driver/tiles.h"       /* issue 16: tiles for MPI ranks, pieces and checkpoints */
 #include "film/aovs.h"
 #include "integrators/registry.h"
 #include "io/image.h"
@@ -13,6 +19,7 @@
 #include "driver/points.h"
 
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -35,6 +42,18 @@ typedef struct render_shared {
     pn_pixel_estimate **batch_estimates; /* per worker: block_size^2 estimates */
     uint32_t points_per_pixel;           /* integrator->batch_points, 0 when it traces its own */
     pn_batch_point **batch_points;       /* per worker: block_size^2 * points_per_pixel points */
+    /* Distributed, split or checkpointed renders (driver/tiles.h): the tiles, the blocks of the
+     * tile being rendered (indices of the window's blocks), the pool, the checkpoint. */
+    pn_tile_grid grid;
+    int *tile_blocks;
+    pn_threadpool *pool;
+    pn_checkpoint *checkpoint;
+    unsigned char *tile_done;
+    pn_pixel_estimate *tile_pack; /* one packed tile, for the checkpoint */
+    double progress_start;
+    long tiles_rendered;
+    pn_context ctx;
+    const pn_method_entry *entry; /* the integrator's entry in the method table */
 } render_shared;
 
 static void render_block(void *user, size_t job_index, int worker) {
@@ -84,6 +103,106 @@ static void render_block(void *user, size_t job_index, int worker) {
     rs->block_finished[job_index] = 1;
     long done = atomic_fetch_add(&rs->blocks_done, 1) + 1;
     pn_progress_report(job->progress, (double)done / (double)rs->block_count);
+}
+
+static void render_tile_block(void *user, size_t index, int worker) {
+    render_shared *rs = user;
+    render_block(rs, (size_t)rs->tile_blocks[index], worker);
+}
+
+/* Renders one tile (driver/tiles.h) into rs->pixels and packs it into `packed` when not NULL:
+ * its blocks over the pool, or for a whole-image integrator one call on the tile's window. A
+ * tile that a cancel cut short is PN_ERROR_CANCELLED (never stored nor recorded). */
+static pn_status render_tile(void *user, int tile, pn_pixel_estimate *packed) {
+    render_shared *rs = user;
+    const pn_render_job *job = rs->job;
+    const int B = (int)job->block_size;
+    int r[4];
+    pn_tile_rect(&rs->grid, tile, r);
+    const pn_camera *cam = &job->camera;
+    if (atomic_load(job->cancel)) return PN_ERROR_CANCELLED;
+    if (rs->integrator->render_image) {
+        /* The tile is the integrator's window (illumcut: one point tree per tile). */
+        pn_render_job tjob = *job;
+        tjob.camera.x0 = r[0], tjob.camera.y0 = r[1], tjob.camera.x1 = r[2], tjob.camera.y1 = r[3];
+        int tw = r[2] - r[0], th = r[3] - r[1];
+        pn_pixel_estimate *buf = calloc((size_t)tw * (size_t)th, sizeof *buf);
+        if (!buf) return PN_ERROR_OUT_OF_MEMORY;
+        for (size_t i = 0; i < (size_t)tw * (size_t)th; i++) buf[i].depth = INFINITY;
+        double span = (1.0 - rs->progress_start) / (double)rs->grid.count;
+        pn_progress_window(job->progress, rs->progress_start + span * (double)rs->tiles_rendered,
+                           rs->progress_start + span * (double)(rs->tiles_rendered + 1));
+        pn_status st = rs->integrator->render_image(&tjob, rs->pool, buf, tw, th);
+        if (st == PN_OK && atomic_load(job->cancel)) st = PN_ERROR_CANCELLED;
+        if (st == PN_OK) pn_tile_copy_in(&rs->grid, tile, buf, rs->pixels);
+        free(buf);
+        if (st != PN_OK) return st;
+    } else {
+        int bx0 = r[0] / B - cam->x0 / B, bx1 = (r[2] - 1) / B - cam->x0 / B;
+        int by0 = r[1] / B - cam->y0 / B, by1 = (r[3] - 1) / B - cam->y0 / B;
+        int n = 0;
+        for (int by = by0; by <= by1; by++)
+            for (int bx = bx0; bx <= bx1; bx++) rs->tile_blocks[n++] = by * rs->blocks_x + bx;
+        pn_threadpool_run(rs->pool, (size_t)n, render_tile_block, rs);
+        int failed = atomic_load(&rs->failed);
+        if (failed) return (pn_status)failed;
+        for (int i = 0; i < n; i++)
+            if (!rs->block_finished[rs->tile_blocks[i]]) return PN_ERROR_CANCELLED;
+    }
+    rs->tiles_rendered++;
+    if (packed) pn_tile_copy_out(&rs->grid, tile, rs->pixels, packed);
+    return PN_OK;
+}
+
+/* A finished tile: into the window (tiles from other ranks) and into the checkpoint. */
+static pn_status store_tile(void *user, int tile, const pn_pixel_estimate *packed, bool local) {
+    render_shared *rs = user;
+    if (!local) pn_tile_copy_in(&rs->grid, tile, packed, rs->pixels);
+    rs->tile_done[tile] = 1;
+    if (!rs->checkpoint) return PN_OK;
+    pn_err err;
+    pn_err_init(&err);
+    pn_status st = pn_checkpoint_append(rs->checkpoint, tile, packed, pn_tile_pixel_count(&rs->grid, tile), &err);
+    return st == PN_OK ? PN_OK : pn_context_fail_from(rs->ctx, &err);
+}
+
+typedef struct tile_times {
+    const pn_tile_grid *grid;
+    const double *seconds;
+} tile_times;
+
+static pn_status write_tile_times(void *user, FILE *file, const char *path, pn_err *err) {
+    const tile_times *tt = user;
+    fprintf(file, "# tile x0 y0 x1 y1 seconds\n");
+    for (int t = 0; t < tt->grid->count; t++) {
+        int r[4];
+        pn_tile_rect(tt->grid, t, r);
+        fprintf(file, "%d %d %d %d %d %.6f\n", t, r[0], r[1], r[2], r[3], tt->seconds[t]);
+    }
+    return ferror(file) ? pn_err_set(err, PN_ERROR_IO, "%s: write failed", path) : PN_OK;
+}
+
+/* The tiles of one process, in order, skipping those the checkpoint holds; with tile-times, each
+ * tile's render seconds written at the end (bench/mpi). */
+static pn_status render_tiles_locally(render_shared *rs) {
+    double *seconds = rs->job->tile_times_path ? calloc((size_t)rs->grid.count, sizeof *seconds) : NULL;
+    pn_status st = PN_OK;
+    for (int t = 0; t < rs->grid.count && st == PN_OK; t++) {
+        if (rs->tile_done[t]) continue;
+        double t0 = pn_clock_seconds();
+        st = render_tile(rs, t, rs->checkpoint ? rs->tile_pack : NULL);
+        if (seconds) seconds[t] = pn_clock_seconds() - t0;
+        if (st == PN_OK) st = store_tile(rs, t, rs->tile_pack, true);
+    }
+    if (st == PN_OK && seconds) {
+        tile_times tt = {&rs->grid, seconds};
+        pn_err err;
+        pn_err_init(&err);
+        st = pn_write_atomic(rs->job->tile_times_path, write_tile_times, &tt, &err);
+        if (st != PN_OK) pn_context_fail_from(rs->ctx, &err);
+    }
+    free(seconds);
+    return st;
 }
 
 static void free_batches(render_shared *rs, int workers) {
@@ -167,10 +286,71 @@ pn_status pn_driver_resolve_settings(pn_context ctx, struct pn_scene_s *scene, c
 static pn_status run_job(pn_context ctx, const pn_render_settings *settings, const pn_integrator *integ,
                          pn_render_job *job_in, pn_image *out_image, pn_render_stats *stats);
 
+/* The tiling of a distributed, split or checkpointed render (docs/distributed.md): the tile side
+ * in force, and for --piece K/M the piece's band of tile rows as the job's window. What cannot be
+ * split is refused here, by capability: a driver without PN_CAP_DISTRIBUTED under MPI, and an
+ * integrator without PN_CAP_CROP split without an explicit tile-size. */
+static pn_status resolve_tiles(pn_context ctx, pn_render_job *job, const pn_method_entry *integ,
+                               const pn_method_entry *driver) {
+    bool ranks = pn_dist_size() > 1;
+    if (ranks && !(driver->info.capabilities & PN_CAP_DISTRIBUTED))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "the %s driver does not run over MPI ranks: it picks every next pixel from the results "
+                               "of all earlier ones over the whole image (one refinement order), which ranks rendering "
+                               "tiles of their own cannot follow; run it in one process, without mpirun",
+                               driver->info.name);
+    if (!(driver->info.capabilities & PN_CAP_DISTRIBUTED)) return PN_OK;
+    bool crop_exact = (integ->info.capabilities & PN_CAP_CROP) != 0;
+    if (job->tile_size == 0 && (ranks || job->tiles_piece)) {
+        if (!crop_exact)
+            return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                                   "%s renders the window as one whole (%s), so its pixels change when the image is "
+                                   "split over %s; give --tile-size N to render it as N x N tiles: a single process "
+                                   "given the same --tile-size renders the identical image",
+                                   integ->info.name, integ->info.description, ranks ? "MPI ranks" : "--piece pieces");
+        job->tile_size = 64;
+    }
+    if (job->tile_size == 0 && (job->checkpoint_path || job->tile_times_path) && crop_exact) job->tile_size = 64;
+    const uint32_t B = job->block_size;
+    if (job->tile_size % B) job->tile_size += B - job->tile_size % B;
+    if (!job->tiles_piece) return PN_OK;
+    long k = 0, m = 0;
+    char tail = 0;
+    if (sscanf(job->tiles_piece, "%ld/%ld%c", &k, &m, &tail) != 2 || m < 1 || k < 1 || k > m)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "piece '%s': expected K/M with 1 <= K <= M (piece K of M), e.g. 3/8", job->tiles_piece);
+    pn_camera *cam = &job->camera;
+    pn_tile_grid g;
+    pn_tile_grid_init(&g, cam->x0, cam->y0, cam->x1, cam->y1, (int)job->tile_size, false);
+    if (m > g.tiles_y)
+        return pn_context_fail(
+            ctx, PN_ERROR_INVALID_ARGUMENT,
+            "piece %ld/%ld: the window has only %d rows of %d-pixel tiles; give at most %d pieces or "
+            "a smaller --tile-size",
+            k, m, g.tiles_y, (int)job->tile_size, g.tiles_y);
+    /* Piece k: tile rows [floor((k-1) R / M), floor(k R / M)); every row holds the same tiles. */
+    long r0 = (k - 1) * g.tiles_y / m, r1 = k * g.tiles_y / m;
+    int y0 = (g.ty0 + (int)r0) * (int)job->tile_size, y1 = (g.ty0 + (int)r1) * (int)job->tile_size;
+    if (y0 > cam->y0) cam->y0 = y0;
+    if (y1 < cam->y1) cam->y1 = y1;
+    return PN_OK;
+}
+
+/* A crop's image remembers where it lies in the whole image (its EXR data window). */
+static void pn_image_set_crop_window(pn_image image, const pn_camera *cam) {
+    if (!image || image->width != cam->x1 - cam->x0 || image->height != cam->y1 - cam->y0) return;
+    if (cam->x0 == 0 && cam->y0 == 0 && cam->x1 == cam->full_width && cam->y1 == cam->full_height) return;
+    image->origin_x = cam->x0;
+    image->origin_y = cam->y0;
+    image->display_width = cam->full_width;
+    image->display_height = cam->full_height;
+}
+
 pn_status pn_driver_prepare_job(pn_context ctx, struct pn_scene_s *scene, const pn_render_settings *settings,
                                 const pn_method_entry *integ, const pn_method_entry *driver, pn_render_job *job,
                                 pn_progress *progress) {
     pn_status st = pn_driver_resolve_settings(ctx, scene, settings, integ, driver, job);
+    if (st == PN_OK) st = resolve_tiles(ctx, job, integ, driver);
     if (st != PN_OK) {
         atomic_store(&ctx->cancel, 0);
         return st;
@@ -185,9 +365,12 @@ pn_status pn_driver_prepare_job(pn_context ctx, struct pn_scene_s *scene, const 
         pn_err_init(&perr);
         st = integ->integrator->prepare(job, &perr);
         if (st != PN_OK) {
+            pn_context_fail_from(ctx, &perr);
+            /* The other ranks wait for this one's word before they hand out tiles. */
+            if (pn_dist_size() > 1 && (driver->info.capabilities & PN_CAP_DISTRIBUTED)) pn_dist_start(ctx, st, 0);
             pn_progress_destroy(progress);
             atomic_store(&ctx->cancel, 0);
-            return pn_context_fail_from(ctx, &perr);
+            return st;
         }
     }
     return PN_OK;
@@ -218,10 +401,71 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
         st = pn_progressive_render(ctx, settings, integ, &job, out_image, stats);
     else
         st = run_job(ctx, settings, integ, &job, out_image, stats);
-    if (st == PN_OK) pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
+    if (st == PN_OK && *out_image)
+        pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
+    pn_image_set_crop_window(*out_image, &job.camera);
     if (integ->release) integ->release(&job);
     pn_progress_destroy(&progress);
     atomic_store(&ctx->cancel, 0);
+    return st;
+}
+
+/* The tiled mode (driver/tiles.h): the checkpoint opened (rank 0), the ranks agreed, then the
+ * tiles rendered here or handed out to the MPI ranks. */
+static pn_status run_tiled(pn_context ctx, render_shared *rs, pn_threadpool *pool, const pn_render_settings *settings,
+                           pn_render_stats *stats) {
+    const pn_render_job *job = rs->job;
+    const pn_camera *cam = &job->camera;
+    /* A whole-image integrator with crop-exact pixels (contour) renders each row as one whole:
+     * its tiles are bands of whole rows of the window, so that every row is the plain render's. */
+    const uint32_t caps = rs->entry->info.capabilities;
+    pn_tile_grid_init(&rs->grid, cam->x0, cam->y0, cam->x1, cam->y1, (int)job->tile_size,
+                      (caps & PN_CAP_WHOLE_IMAGE) && (caps & PN_CAP_CROP));
+    rs->pool = pool;
+    rs->ctx = ctx;
+    rs->progress_start = pn_progress_value(job->progress);
+    const int B = (int)job->block_size;
+    size_t tile_blocks = (size_t)rs->block_count;
+    if (job->tile_size > 0 && !rs->grid.bands)
+        tile_blocks = (size_t)(job->tile_size / (uint32_t)B) * (job->tile_size / (uint32_t)B);
+    rs->tile_blocks = malloc(tile_blocks * sizeof *rs->tile_blocks);
+    rs->tile_done = calloc((size_t)rs->grid.count, 1);
+    size_t max_pixels = 0;
+    for (int t = 0; t < rs->grid.count; t++)
+        if (pn_tile_pixel_count(&rs->grid, t) > max_pixels) max_pixels = pn_tile_pixel_count(&rs->grid, t);
+    rs->tile_pack = malloc(max_pixels * sizeof *rs->tile_pack);
+    pn_status st = rs->tile_blocks && rs->tile_done && rs->tile_pack ? PN_OK : PN_ERROR_OUT_OF_MEMORY;
+    if (st != PN_OK) pn_context_fail(ctx, st, "out of memory for the tiles of a %dx%d image", rs->width, rs->height);
+    uint64_t key = pn_render_key(job, settings, (int)settings->integrator, (int)settings->driver);
+    int resumed = 0;
+    if (st == PN_OK && job->checkpoint_path && pn_dist_rank() == 0) {
+        pn_err err;
+        pn_err_init(&err);
+        st = pn_checkpoint_open(job->checkpoint_path, key, &rs->grid, rs->pixels, rs->tile_done, &resumed,
+                                &rs->checkpoint, &err);
+        if (st != PN_OK) pn_context_fail_from(ctx, &err);
+        if (st == PN_OK && resumed)
+            pn_context_log(ctx, PN_LOG_INFO, "resuming from %s: %d of %d tiles done", job->checkpoint_path, resumed,
+                           rs->grid.count);
+    }
+    if (stats) {
+        stats->tiles = (uint32_t)rs->grid.count;
+        stats->tiles_resumed = (uint32_t)resumed;
+    }
+    if (pn_dist_size() <= 1) return st == PN_OK ? render_tiles_locally(rs) : st;
+    st = pn_dist_start(ctx, st, key);
+    if (st != PN_OK) return st;
+    pn_tile_work work = {&rs->grid, render_tile, store_tile, rs, rs->tile_done, job->cancel, max_pixels, job->progress};
+    pn_dist_report report;
+    memset(&report, 0, sizeof report);
+    st = pn_dist_run_tiles(ctx, &work, &report);
+    if (stats && pn_dist_rank() == 0) {
+        stats->ranks = report.ranks;
+        for (int r = 0; r < report.ranks && r < PN_STATS_MAX_RANKS; r++) {
+            stats->rank_busy_seconds[r] = report.busy_seconds[r];
+            stats->rank_tiles[r] = report.tiles[r];
+        }
+    }
     return st;
 }
 
@@ -235,6 +479,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     memset(&rs, 0, sizeof rs);
     rs.job = &job;
     rs.integrator = integ;
+    rs.entry = pn_registry_integrator_entry(integ);
     rs.settings = settings;
     rs.width = job.camera.x1 - job.camera.x0;
     rs.height = job.camera.y1 - job.camera.y0;
@@ -281,7 +526,13 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     /* Integrators with a whole-image hook (illumcut's point tree, contour's scanlines) render
      * the window in one call. */
     pn_render_image_fn whole_image = integ->render_image;
-    if (whole_image) {
+    pn_status tiled_status = PN_OK;
+    bool tiled = job.tile_size > 0 || job.checkpoint_path || job.tile_times_path || pn_dist_size() > 1;
+    if (tiled) {
+        tiled_status = run_tiled(ctx, &rs, pool, settings, stats);
+        if (tiled_status == PN_ERROR_CANCELLED) tiled_status = PN_OK; /* a partial image, as below */
+        if (tiled_status != PN_OK && !atomic_load(&rs.failed)) atomic_store(&rs.failed, (int)tiled_status);
+    } else if (whole_image) {
         pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
         if (ws != PN_OK)
             atomic_store(&rs.failed, (int)ws);
@@ -302,16 +553,33 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     pn_threadpool_destroy(pool);
 
     int failed = atomic_load(&rs.failed);
-    if (failed) {
+    pn_checkpoint_close(rs.checkpoint);
+    free(rs.tile_blocks);
+    free(rs.tile_pack);
+    bool worker_rank = tiled && pn_dist_rank() != 0;
+    if (tiled && pn_dist_size() > 1) {
+        /* Every rank adds what its integrator counted (collective, also after a failure). */
+        pn_render_stats local;
+        memset(&local, 0, sizeof local);
+        if (integ->report && !worker_rank && stats) integ->report(&job, stats);
+        if (integ->report && worker_rank) integ->report(&job, &local);
+        pn_dist_reduce_stats(worker_rank || !stats ? &local : stats);
+    }
+    if (failed || worker_rank) {
         free(rs.pixels);
         free(rs.block_finished);
+        free(rs.tile_done);
+        if (!failed) return PN_OK; /* a worker rank: rank 0 holds the image */
         return pn_context_fail(ctx, (pn_status)failed, "render failed: %s", pn_status_string((pn_status)failed));
     }
     bool cancelled = atomic_load(&ctx->cancel) != 0;
-    if (cancelled) {
+    if (cancelled && !tiled) {
         for (long b = 0; b < rs.block_count; b++)
             if (!rs.block_finished[b]) cancelled = true;
     }
+    for (int t = 0; tiled && t < rs.grid.count; t++)
+        if (!rs.tile_done[t]) cancelled = true;
+    free(rs.tile_done);
     st = pn_film_assemble(rs.pixels, rs.width, rs.height, settings->aovs, out_image);
     if (st != PN_OK) {
         free(rs.pixels);
@@ -361,7 +629,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         stats->clusters_per_point_mean = clusters / (double)n;
         stats->visible_fraction_mean = visible_rays ? visible / (double)visible_rays : 0.0;
         stats->visible_lights_per_pixel_mean = vis_lights / (double)n;
-        if (integ->report) integ->report(&job, stats);
+        if (integ->report && !(tiled && pn_dist_size() > 1)) integ->report(&job, stats);
         stats->threads = workers;
         stats->width = rs.width;
         stats->height = rs.height;

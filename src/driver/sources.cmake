@@ -5,4 +5,7 @@ list(APPEND PN_SOURCES
   src/driver/dcm.c
   src/driver/painter.c
   src/driver/points.c
+  src/driver/tiles.c
+  src/driver/checkpoint.c
+  src/driver/mpi.c
 )

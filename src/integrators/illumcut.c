@@ -1087,13 +1087,14 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
         pair_total += (double)pr;
     }
     if (!coords) {
-        d->point_tree_seconds = t1 - t0;
-        d->phase1_seconds = t2 - t1;
-        d->phase2_seconds = t3 - t2;
-        d->pairs = pairs;
-        atomic_store(&d->bound_evaluations, bound_evals);
-        atomic_store(&d->points, points_total);
-        atomic_store(&d->cut_nodes, (uint64_t)(pair_total + 0.5));
+        /* Summed: the tiled driver's split renders (--tile-size) call this once per tile. */
+        d->point_tree_seconds += t1 - t0;
+        d->phase1_seconds += t2 - t1;
+        d->phase2_seconds += t3 - t2;
+        d->pairs += pairs;
+        atomic_fetch_add(&d->bound_evaluations, bound_evals);
+        atomic_fetch_add(&d->points, points_total);
+        atomic_fetch_add(&d->cut_nodes, (uint64_t)(pair_total + 0.5));
     } else {
         /* Batches: counters only (the phase times of concurrent batches do not add up). */
         atomic_fetch_add(&d->bound_evaluations, bound_evals);

@@ -94,7 +94,7 @@ static const pn_method_entry methods[M_COUNT] = {
                     &pn_integrator_illumcut},
     [M_TILES] = {{"tiles", PN_METHOD_DRIVER, PN_DRIVER_DEFAULT,
                   "the default: every pixel of the window, in square blocks handed to the worker threads", "",
-                  "every pixel at the output resolution", PN_CAP_CROP, 0, "", 0},
+                  "every pixel at the output resolution", PN_CAP_CROP | PN_CAP_DISTRIBUTED, 0, "", 0},
                  NULL},
     [M_FULL] = {{"full", PN_METHOD_DRIVER, PN_DRIVER_FULL,
                  "every pixel of the work image (work-scale x the resolution), then the Gaussian filter: the "
@@ -195,6 +195,36 @@ static const pn_option_decl options[] = {
      BIT(M_TILES),
      F(block_size),
      PN_FIELD_U32,
+     0},
+    /* tiles: distribution over processes, pieces and checkpoints (docs/distributed.md) */
+    {{"tile-size", PN_OPTION_INT, "0", 0, 65536, 0, 0, "pixels", "",
+      "side of the square tiles that MPI ranks, --piece pieces and --checkpoint records are made of, rounded up to a "
+      "multiple of block-size; 0: 64, or one tile of the whole window for an integrator without crop-exact pixels "
+      "(illumcut: each tile is one point tree, the same in one process as in many)"},
+     BIT(M_TILES),
+     F(tile_size),
+     PN_FIELD_U32,
+     0},
+    {{"piece", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
+      "render only piece K of M (K/M, 1 <= K <= M): a band of whole rows of tiles, the bands balanced by tile count, "
+      "written as a crop EXR; penumbra merge assembles the M pieces"},
+     BIT(M_TILES),
+     F(tiles_piece),
+     PN_FIELD_STRING,
+     0},
+    {{"checkpoint", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
+      "record each finished tile in this file and, when it exists, resume from it (refused if it was written for "
+      "another scene, options or seed)"},
+     BIT(M_TILES),
+     F(checkpoint_path),
+     PN_FIELD_STRING,
+     0},
+    {{"tile-times", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
+      "bench instrumentation: write each tile's window and render seconds to this file (one process; "
+      "bench/mpi/simulate.py replays them)"},
+     BIT(M_TILES),
+     F(tile_times_path),
+     PN_FIELD_STRING,
      0},
     /* vpl, lightcuts, illumcut */
     {{"vpls", PN_OPTION_INT, "600000", 1, 100000000, 0, 0, "VPLs", "", "virtual point lights to trace"},

@@ -154,6 +154,9 @@ typedef struct pn_exr_reader {
     exr_decode_pipeline_t decode;
     int decode_ready;
     const char *channel; /* pn_exr_read_channel: the one channel wanted (read as grey), else NULL */
+    /* pn_exr_read_layers: one float plane per channel of `list` (NULL: the RGB path above). */
+    float **planes;
+    const exr_attr_chlist_t *list;
 } pn_exr_reader;
 
 static pn_status pn_exr_fail(pn_exr_reader *r, exr_result_t rv, const char *what) {
@@ -184,7 +187,16 @@ static pn_status pn_exr_decode_chunk(pn_exr_reader *r, const exr_chunk_info_t *c
     for (int i = 0; i < r->decode.channel_count; i++) {
         exr_coding_channel_info_t *ch = &r->decode.channels[i];
         ch->decode_to_ptr = NULL;
-        for (int c = 0; c < 3; c++) {
+        int plane = r->planes && ch->channel_name ? pn_exr_find_channel(r->list, ch->channel_name) : -1;
+        if (plane >= 0) {
+            ch->decode_to_ptr = (uint8_t *)(r->planes[plane] + (size_t)oy * (size_t)r->width + (size_t)ox);
+            ch->user_pixel_stride = (int32_t)sizeof(float);
+            ch->user_line_stride = (int32_t)((size_t)r->width * sizeof(float));
+            ch->user_data_type = (uint16_t)EXR_PIXEL_FLOAT;
+            ch->user_bytes_per_element = (int16_t)sizeof(float);
+            continue;
+        }
+        for (int c = 0; c < 3 && !r->planes; c++) {
             if (r->source[c] && ch->channel_name && strcmp(ch->channel_name, r->source[c]) == 0) {
                 ch->decode_to_ptr = (uint8_t *)(base + c);
                 ch->user_pixel_stride = (int32_t)(3 * sizeof(float));
@@ -485,6 +497,24 @@ static pn_status pn_exr_write_fail(const pn_exr_stream *s, exr_result_t rv, cons
     return pn_err_set(err, PN_ERROR_IO, "%s: EXR writing failed while %s: %s", name, what, pn_exr_reason(s, rv));
 }
 
+/* Sets the data and display windows of a crop (image->display_width > 0) after the simple
+ * header, whose windows are both (0, 0)-(width-1, height-1); returns the data window's first
+ * scanline. Keeps *rv at success for whole images, so their files are unchanged. */
+static int pn_exr_set_windows(exr_context_t ex, int part, pn_image image, exr_result_t *rv) {
+    if (*rv != EXR_ERR_SUCCESS || image->display_width <= 0 || image->display_height <= 0) return 0;
+    exr_attr_box2i_t data, display;
+    data.min.x = image->origin_x;
+    data.min.y = image->origin_y;
+    data.max.x = image->origin_x + image->width - 1;
+    data.max.y = image->origin_y + image->height - 1;
+    display.min.x = display.min.y = 0;
+    display.max.x = image->display_width - 1;
+    display.max.y = image->display_height - 1;
+    *rv = exr_set_display_window(ex, part, &display);
+    if (*rv == EXR_ERR_SUCCESS) *rv = exr_set_data_window(ex, part, &data);
+    return image->origin_y;
+}
+
 pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err) {
     pn_exr_out_channel *chans = NULL;
     int count = 0;
@@ -513,6 +543,8 @@ pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err
     if (rv == EXR_ERR_SUCCESS) {
         rv = exr_initialize_required_attr_simple(ex, part, width, height, EXR_COMPRESSION_ZIP);
     }
+    /* A crop: the data window is the crop inside the whole image's display window. */
+    const int oy = pn_exr_set_windows(ex, part, image, &rv);
     if (rv != EXR_ERR_SUCCESS) {
         status = pn_exr_write_fail(&stream, rv, name, "setting up the header", err);
         goto done;
@@ -550,7 +582,7 @@ pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err
     int encode_ready = 0;
     for (int y = 0; y < height && status == PN_OK; y += lines) {
         exr_chunk_info_t cinfo;
-        rv = exr_write_scanline_chunk_info(ex, part, y, &cinfo);
+        rv = exr_write_scanline_chunk_info(ex, part, oy + y, &cinfo);
         if (rv == EXR_ERR_SUCCESS) {
             rv = encode_ready ? exr_encoding_update(ex, part, &cinfo, &encode)
                               : exr_encoding_initialize(ex, part, &cinfo, &encode);
@@ -604,4 +636,168 @@ done:
     }
     pn_exr_free_channels(chans, count);
     return status;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Reading every layer, with its windows (`penumbra merge`) */
+
+/* The layer a channel belongs to: "" for R, G, B; "x" for "x.R"/"x.G"/"x.B" (component in
+ * *component, 0..2); otherwise the channel itself (component -1). Writes the layer name. */
+static void pn_exr_channel_layer(const char *channel, char *layer, size_t size, int *component) {
+    static const char *const suffix[3] = {"R", "G", "B"};
+    size_t n = strlen(channel);
+    *component = -1;
+    for (int c = 0; c < 3; c++) {
+        if (strcmp(channel, suffix[c]) == 0) {
+            *component = c;
+            snprintf(layer, size, "%s", "");
+            return;
+        }
+        if (n > 2 && channel[n - 2] == '.' && strcmp(channel + n - 1, suffix[c]) == 0) {
+            *component = c;
+            snprintf(layer, size, "%.*s", (int)(n - 2), channel);
+            return;
+        }
+    }
+    snprintf(layer, size, "%s", channel);
+}
+
+/* Builds the layers of *out from the decoded planes: the beauty first, then the other layers in
+ * the file's (sorted) channel order; an RGB triple with a missing member is three 1-channel
+ * layers. */
+static pn_status pn_exr_planes_to_layers(pn_exr_reader *r, pn_image image) {
+    const exr_attr_chlist_t *list = r->list;
+    size_t pixels = (size_t)r->width * (size_t)r->height;
+    char *used = calloc((size_t)list->num_channels, 1);
+    if (!used) return pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->name);
+    pn_status st = PN_OK;
+    for (int pass = 0; pass < 2 && st == PN_OK; pass++) {
+        for (int i = 0; i < list->num_channels && st == PN_OK; i++) {
+            if (used[i]) continue;
+            char layer[256];
+            int comp;
+            pn_exr_channel_layer(list->entries[i].name.str, layer, sizeof layer, &comp);
+            if ((pass == 0) != (layer[0] == '\0' && comp >= 0)) continue;
+            int members[3] = {-1, -1, -1};
+            if (comp >= 0) {
+                for (int c = 0; c < 3; c++) {
+                    char want[300];
+                    snprintf(want, sizeof want, "%s%s%s", layer, layer[0] ? "." : "",
+                             c == 0   ? "R"
+                             : c == 1 ? "G"
+                                      : "B");
+                    members[c] = pn_exr_find_channel(list, want);
+                }
+            }
+            int triple = members[0] >= 0 && members[1] >= 0 && members[2] >= 0;
+            float *dst;
+            if (triple && layer[0] == '\0') {
+                dst = image->layers[0].data;
+            } else {
+                dst = pn_image_add_layer(image, triple ? layer : list->entries[i].name.str, triple ? 3 : 1);
+                if (!dst) st = pn_err_set(r->err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", r->name);
+            }
+            if (st != PN_OK) break;
+            if (triple) {
+                for (int c = 0; c < 3; c++) {
+                    used[members[c]] = 1;
+                    for (size_t p = 0; p < pixels; p++) dst[p * 3 + (size_t)c] = r->planes[members[c]][p];
+                }
+            } else {
+                used[i] = 1;
+                memcpy(dst, r->planes[i], pixels * sizeof *dst);
+            }
+        }
+    }
+    free(used);
+    return st;
+}
+
+pn_status pn_exr_read_layers(FILE *file, const char *name, pn_image *out, pn_err *err) {
+    *out = NULL;
+    pn_exr_stream stream;
+    memset(&stream, 0, sizeof stream);
+    stream.fd = fileno(file);
+    struct stat fst;
+    stream.size = (fstat(stream.fd, &fst) == 0 && S_ISREG(fst.st_mode)) ? (int64_t)fst.st_size : -1;
+    pn_exr_reader r;
+    memset(&r, 0, sizeof r);
+    r.stream = &stream;
+    r.name = name;
+    r.err = err;
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = pn_exr_read_error;
+    init.user_data = &stream;
+    init.read_fn = pn_exr_read_fn;
+    init.size_fn = pn_exr_size_fn;
+    init.flags |= EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+    exr_result_t rv = exr_start_read(&r.ex, name, &init);
+    pn_status status = rv == EXR_ERR_SUCCESS ? PN_OK : pn_exr_fail(&r, rv, "reading the header");
+    exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
+    exr_attr_box2i_t dw, disp;
+    pn_image image = NULL;
+    if (status == PN_OK) {
+        rv = exr_get_storage(r.ex, 0, &storage);
+        if (rv != EXR_ERR_SUCCESS)
+            status = pn_exr_fail(&r, rv, "reading the storage type");
+        else if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED)
+            status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: deep EXR images are not supported", name);
+    }
+    if (status == PN_OK && ((rv = exr_get_data_window(r.ex, 0, &dw)) != EXR_ERR_SUCCESS ||
+                            (rv = exr_get_display_window(r.ex, 0, &disp)) != EXR_ERR_SUCCESS))
+        status = pn_exr_fail(&r, rv, "reading the windows");
+    if (status == PN_OK) {
+        int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
+        int64_t fw = (int64_t)disp.max.x + 1, fh = (int64_t)disp.max.y + 1;
+        if (w <= 0 || h <= 0 || w > PN_EXR_MAX_DIMENSION || h > PN_EXR_MAX_DIMENSION || w * h > PN_EXR_MAX_PIXELS ||
+            disp.min.x != 0 || disp.min.y != 0 || fw > PN_EXR_MAX_DIMENSION || fh > PN_EXR_MAX_DIMENSION ||
+            dw.min.x < 0 || dw.min.y < 0 || dw.max.x >= fw || dw.max.y >= fh) {
+            status = pn_err_set(err, PN_ERROR_BAD_INPUT,
+                                "%s: unsupported windows: data (%d, %d)-(%d, %d) must lie inside a display window "
+                                "starting at (0, 0), here (%d, %d)-(%d, %d)",
+                                name, dw.min.x, dw.min.y, dw.max.x, dw.max.y, disp.min.x, disp.min.y, disp.max.x,
+                                disp.max.y);
+        } else {
+            r.width = (int)w;
+            r.height = (int)h;
+            r.min_x = dw.min.x;
+            r.min_y = dw.min.y;
+        }
+    }
+    if (status == PN_OK && ((rv = exr_get_channels(r.ex, 0, &r.list)) != EXR_ERR_SUCCESS || !r.list))
+        status = pn_exr_fail(&r, rv, "reading the channels");
+    size_t pixels = (size_t)r.width * (size_t)r.height;
+    if (status == PN_OK) {
+        for (int i = 0; i < r.list->num_channels && status == PN_OK; i++)
+            if (r.list->entries[i].x_sampling != 1 || r.list->entries[i].y_sampling != 1)
+                status =
+                    pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: EXR channel '%s' is subsampled, which is not supported",
+                               name, r.list->entries[i].name.str);
+        r.planes = status == PN_OK ? calloc((size_t)r.list->num_channels, sizeof *r.planes) : NULL;
+        image = status == PN_OK ? pn_image_create(r.width, r.height) : NULL;
+        if (status == PN_OK && (!r.planes || !image))
+            status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", name);
+        for (int i = 0; status == PN_OK && i < r.list->num_channels; i++)
+            if (!(r.planes[i] = calloc(pixels, sizeof(float))))
+                status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", name);
+    }
+    if (status == PN_OK) status = pn_exr_read_pixels(&r, storage);
+    if (status == PN_OK) status = pn_exr_planes_to_layers(&r, image);
+    if (r.planes)
+        for (int i = 0; i < r.list->num_channels; i++) free(r.planes[i]);
+    free(r.planes);
+    if (r.decode_ready) exr_decoding_destroy(r.ex, &r.decode);
+    if (r.ex) exr_finish(&r.ex);
+    if (status != PN_OK) {
+        pn_image_free(image);
+        return status;
+    }
+    if (r.min_x != 0 || r.min_y != 0 || disp.max.x + 1 != r.width || disp.max.y + 1 != r.height) {
+        image->origin_x = (int)r.min_x;
+        image->origin_y = (int)r.min_y;
+        image->display_width = disp.max.x + 1;
+        image->display_height = disp.max.y + 1;
+    }
+    *out = image;
+    return PN_OK;
 }

@@ -23,6 +23,10 @@ struct pn_image_s {
     int width, height;
     int layer_count;
     pn_image_layer *layers;
+    /* Where the pixels lie in the whole image (a crop render's data window inside its display
+     * window, as pbrt-v4 writes crops): origin of pixel (0, 0) and the full size. All zero: the
+     * image is the whole picture. The EXR writer and pn_image_read_layers keep these. */
+    int origin_x, origin_y, display_width, display_height;
 };
 
 /* A new image with a zeroed 3-channel beauty layer; NULL when out of memory or w/h <= 0. */
@@ -57,6 +61,11 @@ pn_status pn_exr_read_channel(FILE *file, const char *name, const char *channel,
 pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err);
 pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, pn_err *err);
 pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err);
+/* Reads every channel of the first flat part as float layers (the writer's naming reversed:
+ * R, G, B the beauty; "x.R", "x.G", "x.B" a three-channel layer "x"; any other channel a
+ * one-channel layer), with the data window inside the display window in origin_x/y and
+ * display_width/height. For `penumbra merge`. */
+pn_status pn_exr_read_layers(FILE *file, const char *name, pn_image *out, pn_err *err);
 pn_status pn_pfm_write(pn_image image, FILE *file, const char *name, pn_err *err);
 pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *name, pn_err *err);
 

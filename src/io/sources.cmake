@@ -6,4 +6,5 @@ list(APPEND PN_SOURCES
   src/io/pfm.c
   src/io/ldr.c
   src/io/write.c
+  src/io/image_merge.c
 )

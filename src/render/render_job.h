@@ -91,7 +91,13 @@ typedef struct pn_render_job {
     double stop_percent, snapshot_every_seconds;
     bool raw_radiance, no_light_guide;
     pn_job_list snapshots; /* percentages of the work pixels */
-    void *integrator_data; /* what the integrator's prepare() built for this render */
+    /* the tiled driver's distribution (docs/distributed.md): tile side (0: 64, or the whole
+     * window for integrators without PN_CAP_CROP), the piece "K/M" (option piece) and the checkpoint file */
+    uint32_t tile_size;
+    const char *tiles_piece;     /* NULL: the whole window */
+    const char *checkpoint_path; /* NULL: none */
+    const char *tile_times_path; /* NULL: none (bench instrumentation) */
+    void *integrator_data;       /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
     struct pn_progress *progress; /* render/progress.h: the render's progress path (may be NULL) */
 } pn_render_job;
