@@ -196,6 +196,10 @@ void pn_dcm_element_value(const float *loop, int channels, int w, int h, int dir
 }
 
 int pn_dcm_least_discrepancy(const float *lum, int w, int h, float *d) {
+    return pn_dcm_least_discrepancy_variant(lum, w, h, d, false);
+}
+
+int pn_dcm_least_discrepancy_variant(const float *lum, int w, int h, float *d, bool paper) {
     int n = pn_dcm_loop_length(w, h);
     int best = 0;
     float best_d = INFINITY;
@@ -210,17 +214,20 @@ int pn_dcm_least_discrepancy(const float *lum, int w, int h, float *d) {
             float tmin, tmax;
             slab(w, h, (float)px, (float)py, nx, ny, &tmin, &tmax);
             float t = fabsf(tmin) > fabsf(tmax) ? tmin : tmax;
-            if (fabsf(t) < 1e-3f) continue;
-            /* Leave out lines that run along the boundary (their midpoint lies on it). */
-            float mx = (float)px + 0.5f * t * nx, my = (float)py + 0.5f * t * ny;
-            float margin = fminf(fminf(mx, (float)w - mx), fminf(my, (float)h - my));
-            if (margin < 1e-3f) continue;
+            if (!paper) {
+                if (fabsf(t) < 1e-3f) continue;
+                /* Leave out lines that run along the boundary (their midpoint lies on it). */
+                float mx = (float)px + 0.5f * t * nx, my = (float)py + 0.5f * t * ny;
+                float margin = fminf(fminf(mx, (float)w - mx), fminf(my, (float)h - my));
+                if (margin < 1e-3f) continue;
+            }
             float qx = clampf((float)px + t * nx, 0.0f, (float)w), qy = clampf((float)py + t * ny, 0.0f, (float)h);
             float diff = pn_dcm_boundary_value(lum, 1, 0, w, h, qx, qy) - lum[k];
             sum += (double)diff * (double)diff;
             count++;
         }
-        float di = count ? (float)(sum / count) : INFINITY;
+        /* the paper: the sum over all 4(k - 1) boundary pixels, over their number */
+        float di = paper ? (float)(sum / n) : count ? (float)(sum / count) : INFINITY;
         if (d) d[i] = di;
         if (di < best_d) {
             best_d = di;
@@ -237,6 +244,10 @@ float pn_dcm_contrast(const float g[4]) {
 }
 
 bool pn_dcm_zero_order_test(const float *lum, int w, int h, pn_dcm_zero_order *z) {
+    return pn_dcm_zero_order_test_variant(lum, w, h, z, true);
+}
+
+bool pn_dcm_zero_order_test_variant(const float *lum, int w, int h, pn_dcm_zero_order *z, bool flat_guard) {
     memset(z, 0, sizeof *z);
     int n = pn_dcm_loop_length(w, h);
     if (n < 3 || n > DCM_MAX_LOOP) return true;
@@ -249,7 +260,7 @@ bool pn_dcm_zero_order_test(const float *lum, int w, int h, pn_dcm_zero_order *z
         d1 = fminf(d1, f[i]);
     }
     z->tb = 0.5f * (b1 + d1);
-    if (!(b1 - d1 > PN_DCM_CONTRAST * (b1 + d1))) return true; /* flat boundary */
+    if (flat_guard && !(b1 - d1 > PN_DCM_CONTRAST * (b1 + d1))) return true; /* flat boundary */
     for (int i = 0; i < n; i++) b[i] = f[i] > z->tb;
     for (int i = 0; i < n; i++) /* median filter of length 3 */
         m[i] = (unsigned char)(b[(i + n - 1) % n] + b[i] + b[(i + 1) % n] >= 2);
@@ -389,6 +400,7 @@ typedef struct dcm_state {
     bool regular_done; /* elementary blocks are final */
     dcm_level lv[DCM_MAX_LEVELS];
     uint32_t simple, complex, lazy;
+    uint32_t off; /* PN_DCM_OFF_*: departures switched off (dcm.h) */
 } dcm_state;
 
 static void block_extent(const pn_prog *p, const dcm_block *b, int *x1, int *y1) {
@@ -476,9 +488,9 @@ static void lattice_mean(const pn_prog *p, int x, int y, int k, float *out) {
     for (int ch = 0; ch < 3; ch++) out[ch] = (float)(acc[ch] / count);
 }
 
-static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, int y1) {
+static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, int y1, bool filtered) {
     float s00[3], s10[3], s01[3], s11[3];
-    int k = x1 - x0 > y1 - y0 ? x1 - x0 : y1 - y0;
+    int k = !filtered ? 0 : x1 - x0 > y1 - y0 ? x1 - x0 : y1 - y0; /* k 0: the corners themselves */
     lattice_mean(p, x0, y0, k, s00);
     lattice_mean(p, x1, y0, k, s10);
     lattice_mean(p, x0, y1, k, s01);
@@ -499,15 +511,17 @@ static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, 
 
 static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir);
 
-static void draw_elements(const pn_prog *p, float *img, const dcm_block *b) {
+static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, const dcm_block *b) {
     int x1, y1;
     block_extent(p, b, &x1, &y1);
     int w = x1 - b->x0, h = y1 - b->y0;
     float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
     gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
     /* an edge block still under boundary evaluation: oriented by what its boundary holds now */
-    int dir = b->kind == DCM_PENDING ? pn_dcm_least_discrepancy(lum, w, h, NULL) : b->dir;
-    if (draw_segmented(p, img, b, rgb, dir)) return;
+    int dir = b->kind == DCM_PENDING
+                  ? pn_dcm_least_discrepancy_variant(lum, w, h, NULL, (d->off & PN_DCM_OFF_DISCREPANCY) != 0)
+                  : b->dir;
+    if (!(d->off & PN_DCM_OFF_SEGMENTS) && draw_segmented(p, img, b, rgb, dir)) return;
     int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
     for (int y = 0; y < ye; y++)
         for (int x = 0; x < xe; x++)
@@ -628,7 +642,8 @@ static void draw_regular_row(void *user, size_t job, int worker) {
     const pn_prog *p = r->p;
     int s = r->spacing, y = (int)job * s;
     for (int x = 0; x < p->W - 1 || x == 0; x += s)
-        draw_bilinear(p, r->img, x, y, x + s < p->W - 1 ? x + s : p->W - 1, y + s < p->H - 1 ? y + s : p->H - 1);
+        draw_bilinear(p, r->img, x, y, x + s < p->W - 1 ? x + s : p->W - 1, y + s < p->H - 1 ? y + s : p->H - 1,
+                      !(r->d->off & PN_DCM_OFF_LATTICE_MEAN));
 }
 
 static void draw_chunk(void *user, size_t job, int worker) {
@@ -644,9 +659,9 @@ static void draw_chunk(void *user, size_t job, int worker) {
         int x1, y1;
         block_extent(p, b, &x1, &y1);
         if (b->kind == DCM_SMOOTH)
-            draw_bilinear(p, r->img, b->x0, b->y0, x1, y1);
+            draw_bilinear(p, r->img, b->x0, b->y0, x1, y1, !(r->d->off & PN_DCM_OFF_LATTICE_MEAN));
         else
-            draw_elements(p, r->img, b);
+            draw_elements(p, r->d, r->img, b);
         if (r->cls) {
             int xe = draw_end(x1, p->W - 1), ye = draw_end(y1, p->H - 1);
             for (int y = b->y0; y < ye; y++)
@@ -704,7 +719,7 @@ static bool request_block_corners(pn_prog *p, const dcm_block *b) {
  * Carlo pixels, the luminance range exceeds the noise of its two ends (PN_DCM_NOISE standard
  * deviations of the difference, from the integrator's variance estimates), so that noise alone
  * does not make every block an edge block. */
-static bool contrasted(const pn_prog *p, int x0, int y0, int x1, int y1) {
+static bool contrasted(const pn_prog *p, int x0, int y0, int x1, int y1, bool noise_test) {
     int cx[4] = {x0, x1, x0, x1}, cy[4] = {y0, y0, y1, y1};
     float g[4];
     int lo = 0, hi = 0;
@@ -714,6 +729,7 @@ static bool contrasted(const pn_prog *p, int x0, int y0, int x1, int y1) {
         if (g[i] > g[hi]) hi = i;
     }
     if (!(pn_dcm_contrast(g) > PN_DCM_CONTRAST)) return false;
+    if (!noise_test) return true;
     float sl = pn_prog_lum_sigma(p, cx[lo], cy[lo]), sh = pn_prog_lum_sigma(p, cx[hi], cy[hi]);
     return g[hi] - g[lo] > PN_DCM_NOISE * sqrtf(sl * sl + sh * sh);
 }
@@ -721,7 +737,7 @@ static bool contrasted(const pn_prog *p, int x0, int y0, int x1, int y1) {
 /* Lazy boundary evaluation test (Fig. 6): the child's corners against the parent's elements,
  * within 1% — or, for Monte Carlo pixels, within PN_DCM_NOISE standard deviations of the
  * pixel's estimate (a departure: a 1% test on noisy pixels fails everywhere). */
-static bool lazy_ok(const pn_prog *p, const dcm_block *parent, const dcm_block *child) {
+static bool lazy_ok(const pn_prog *p, const dcm_block *parent, const dcm_block *child, bool noise_test) {
     int px1, py1, cx1, cy1;
     block_extent(p, parent, &px1, &py1);
     block_extent(p, child, &cx1, &cy1);
@@ -734,7 +750,8 @@ static bool lazy_ok(const pn_prog *p, const dcm_block *parent, const dcm_block *
         pn_dcm_element_value(rgb, 3, w, h, parent->dir, (float)(cx[i] - parent->x0), (float)(cy[i] - parent->y0), pred);
         float lp = 0.2126f * pred[0] + 0.7152f * pred[1] + 0.0722f * pred[2];
         float la = pn_prog_lum(p, cx[i], cy[i]);
-        float tol = fmaxf(PN_DCM_LAZY_TOLERANCE * fabsf(la), PN_DCM_NOISE * pn_prog_lum_sigma(p, cx[i], cy[i]));
+        float tol = PN_DCM_LAZY_TOLERANCE * fabsf(la);
+        if (noise_test) tol = fmaxf(tol, PN_DCM_NOISE * pn_prog_lum_sigma(p, cx[i], cy[i]));
         if (!(fabsf(lp - la) <= tol + 1e-7f)) return false;
     }
     return true;
@@ -784,7 +801,8 @@ static float corner_radiance(const pn_prog *p, int x, int y) {
 }
 
 /* Queues the boundary pixels of the edge blocks in task order (see process()). */
-static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k) {
+static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k,
+                                bool by_error) {
     int rounds = 0;
     for (int sp = k / 2; sp >= 1; sp /= 2) rounds++;
     if (np == 0 || rounds == 0) return PN_OK;
@@ -800,6 +818,7 @@ static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_
         for (int c = 0; c < 4; c++) g[c] = corner_radiance(p, cx[c], cy[c]);
         float range = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3])) - fminf(fminf(g[0], g[1]), fminf(g[2], g[3]));
         if (!(range >= 0.0f)) range = 0.0f;
+        if (!by_error) range = 1.0f; /* the paper's order: spacing by spacing, blocks in turn */
         for (int sp = k / 2; sp >= 1; sp /= 2) {
             t[nt].key = range * (float)sp;
             t[nt].spacing = sp;
@@ -854,9 +873,10 @@ static void test_block(void *user, size_t job, int worker) {
     int w = x1 - b->x0, h = y1 - b->y0;
     float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
     int n = gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
-    b->dir = (uint8_t)pn_dcm_least_discrepancy(lum, w, h, NULL);
+    uint32_t off = r->d->off;
+    b->dir = (uint8_t)pn_dcm_least_discrepancy_variant(lum, w, h, NULL, (off & PN_DCM_OFF_DISCREPANCY) != 0);
     pn_dcm_zero_order z;
-    bool simple = pn_dcm_zero_order_test(lum, w, h, &z);
+    bool simple = pn_dcm_zero_order_test_variant(lum, w, h, &z, !(off & PN_DCM_OFF_NOISE));
     if (simple) {
         inner_ctx ic = {p, b->x0, b->y0, worker};
         simple = pn_dcm_first_order_test(w, h, &z, inner_eval, &ic);
@@ -895,13 +915,14 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
         b->kind = DCM_SMOOTH;
         if (d->uniform || degenerate) continue;
         if (b->parent_kind == DCM_SMOOTH) {
-            if (contrasted(p, b->x0, b->y0, x1, y1) || pn_prog_visible_line(p, b->x0, b->y0, x1, y1))
+            if (contrasted(p, b->x0, b->y0, x1, y1, !(d->off & PN_DCM_OFF_NOISE)) ||
+                pn_prog_visible_line(p, b->x0, b->y0, x1, y1))
                 b->kind = DCM_PENDING;
         } else if (b->parent_kind == DCM_COMPLEX) {
             b->kind = DCM_PENDING;
         } else {
             const dcm_block *parent = &d->lv[l - 1].b[b->parent];
-            if (lazy_ok(p, parent, b)) {
+            if (lazy_ok(p, parent, b, !(d->off & PN_DCM_OFF_NOISE))) {
                 b->kind = DCM_SIMPLE;
                 b->lazy = 1;
                 b->dir = parent->dir;
@@ -925,7 +946,7 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
      * its spacings coarse to fine, and blocks with a large range (the largest errors of the
      * image) reach the fine spacings before flat ones get their coarse ones. */
     int k = L->b[start].size;
-    st = boundary_tasks(p, L->b, pending, np, k);
+    st = boundary_tasks(p, L->b, pending, np, k, !(d->off & PN_DCM_OFF_ORDER));
     if (st != PN_OK || p->stopped) {
         free(pending);
         return st;
@@ -1000,11 +1021,14 @@ static pn_status dcm_iterate(dcm_state *d) {
         int k = d->elem >> l;
         dcm_level *prev = &d->lv[l - 1];
         if (k < 1) break;
+        /* Edge blocks' quads first (pass 0), then smooth blocks' (pass 1); the paper's order is
+         * one pass over all blocks (pass -1). */
+        int first_pass = (d->off & PN_DCM_OFF_EDGE_FIRST) ? -1 : 0, last_pass = first_pass < 0 ? -1 : 1;
         if (k == 1) { /* the quads are pixels: evaluate everything, edge blocks first */
-            for (int pass = 0; pass < 2; pass++) {
+            for (int pass = first_pass; pass <= last_pass; pass++) {
                 for (size_t i = 0; i < prev->n; i++) {
                     const dcm_block *b = &prev->b[i];
-                    if ((b->kind == DCM_SMOOTH) != (pass == 1)) continue;
+                    if (pass >= 0 && (b->kind == DCM_SMOOTH) != (pass == 1)) continue;
                     int x1, y1;
                     block_extent(p, b, &x1, &y1);
                     for (int y = b->y0; y <= y1; y++)
@@ -1013,14 +1037,14 @@ static pn_status dcm_iterate(dcm_state *d) {
                 }
                 if ((st = pn_prog_flush(p)) != PN_OK || p->stopped) return st;
                 for (size_t i = 0; i < prev->n; i++)
-                    if ((prev->b[i].kind == DCM_SMOOTH) == (pass == 1)) prev->b[i].replaced = 1;
+                    if (pass < 0 || (prev->b[i].kind == DCM_SMOOTH) == (pass == 1)) prev->b[i].replaced = 1;
             }
             break;
         }
-        for (int pass = 0; pass < 2; pass++) { /* quads of edge blocks, then of smooth blocks */
+        for (int pass = first_pass; pass <= last_pass; pass++) { /* quads of edge blocks, then of smooth */
             size_t start = d->lv[l].n;
             for (size_t i = 0; i < prev->n; i++)
-                if ((prev->b[i].kind == DCM_SMOOTH) == (pass == 1))
+                if (pass < 0 || (prev->b[i].kind == DCM_SMOOTH) == (pass == 1))
                     if (!add_children(d, l, i)) return PN_ERROR_OUT_OF_MEMORY;
             if ((st = process(d, l, start, d->lv[l].n)) != PN_OK || p->stopped) return st;
         }
@@ -1041,6 +1065,7 @@ pn_status pn_dcm_run(pn_prog *p, bool uniform_only) {
     d->p = p;
     d->uniform = uniform_only;
     d->elem = 8;
+    d->off = pn_dcm_off_flags(p->job.dcm_variant, p->job.dcm_off);
     p->draw = dcm_draw;
     p->driver = d;
     p->free_driver = dcm_free;

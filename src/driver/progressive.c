@@ -12,6 +12,7 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/rng.h"
+#include "driver/dcm.h"
 #include "film/aovs.h"
 #include "film/downsample.h"
 #include "integrators/registry.h"
@@ -843,6 +844,9 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->job = *job;
     p->scale = scale;
     p->primary_grid = job->primary_grid > 0 ? job->primary_grid : 3;
+    /* --dcm-variant paper / --dcm-off demod: the paper interpolates radiance itself */
+    if (s->driver == PN_DRIVER_DCM && (pn_dcm_off_flags(job->dcm_variant, job->dcm_off) & PN_DCM_OFF_DEMOD))
+        p->job.raw_radiance = true;
     p->integ_emitted = pn_integrator_reports_emitted(integ);
     p->pixel_samples = pn_integrator_pixel_eye_samples(integ, &p->job);
     float crop[4] = {0, 1, 0, 1};

@@ -344,6 +344,23 @@ static const pn_option_decl options[] = {
      F(primary_grid),
      PN_FIELD_INT,
      0},
+    /* dcm (issue 18): the paper's DCM or ours, and our departures one by one */
+    {{"dcm-variant", PN_OPTION_CHOICE, "default", 0, 0, 0, 0, "", "default,paper",
+      "'paper': Guo 1998 as published (8x8 blocks, its thresholds, radiance interpolated, every departure of "
+      "--dcm-off switched off); 'default': with our departures (docs/methods/progressive.md)"},
+     BIT(M_DCM),
+     F(dcm_variant),
+     PN_FIELD_INT,
+     0},
+    {{"dcm-off", PN_OPTION_SET, "", 0, 0, 0, 0, "",
+      "edge-first,order,discrepancy,noise,lattice-mean,segments,demod,guided",
+      "departures from Guo 1998 switched off for comparisons: edge quads before smooth ones, boundary steps by "
+      "expected error, the discrepancy as a mean, the Monte Carlo noise tests, noise-filtered smooth corners, "
+      "segment-wise edge blocks, demodulation (as --raw-radiance), the guided reconstruction of edge blocks"},
+     BIT(M_DCM),
+     F(dcm_off),
+     PN_FIELD_U32,
+     0},
 };
 #define OPTION_COUNT ((int)(sizeof options / sizeof options[0]))
 

@@ -90,6 +90,8 @@ typedef struct pn_render_job {
     double stop_percent, snapshot_every_seconds;
     bool raw_radiance, no_light_guide;
     pn_job_list snapshots; /* percentages of the work pixels */
+    int dcm_variant;       /* 0 default, 1 paper (driver/dcm.h) */
+    uint32_t dcm_off;      /* PN_DCM_OFF_* bits: departures switched off */
     void *integrator_data; /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
     struct pn_progress *progress; /* render/progress.h: the render's progress path (may be NULL) */
