@@ -509,7 +509,7 @@ static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, 
     }
 }
 
-static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir);
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided);
 
 static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, const dcm_block *b) {
     int x1, y1;
@@ -521,7 +521,8 @@ static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, cons
     int dir = b->kind == DCM_PENDING
                   ? pn_dcm_least_discrepancy_variant(lum, w, h, NULL, (d->off & PN_DCM_OFF_DISCREPANCY) != 0)
                   : b->dir;
-    if (!(d->off & PN_DCM_OFF_SEGMENTS) && draw_segmented(p, img, b, rgb, dir)) return;
+    bool guided = b->kind == DCM_PENDING && !(d->off & PN_DCM_OFF_GUIDED);
+    if (!(d->off & PN_DCM_OFF_SEGMENTS) && draw_segmented(p, img, b, rgb, dir, guided)) return;
     int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
     for (int y = 0; y < ye; y++)
         for (int x = 0; x < xe; x++)
@@ -529,30 +530,16 @@ static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, cons
                                  img + 3 * pn_prog_index(p, b->x0 + x, b->y0 + y));
 }
 
-/* Segment-aware drawing of an edge block (a departure, see the header). The visible lines of the
- * primary buffer cut the block, widened by DCM_SEG_MARGIN pixels on each side, into segments:
- * 4-connected pixels that no visible line separates. When a visible line crosses the block, a
- * pixel keeps its element value where both ends of the element's line are evaluated pixels of
- * its own segment, and otherwise takes the inverse-squared-distance mean of the evaluated
- * pixels of its segment, preferring those that are, like it, next to a visible line or not; a
- * pixel whose segment holds none keeps the element. Returns false (nothing drawn) for blocks
- * without a visible line or too large. */
+/* Segments (a departure, see the header): the visible lines of the primary buffer cut a window
+ * of the work image into 4-connected pixels that no visible line separates. Labels the ww x wh
+ * window at (wx0, wy0) and returns the number of segments. */
 #define DCM_SEG_MARGIN 1
-#define DCM_SEG_SIDE (16 + 1 + 2 * DCM_SEG_MARGIN)
+#define DCM_GUIDE_MARGIN 4 /* the guided reconstruction also reads the neighbours' pixels */
+#define DCM_SEG_SIDE (16 + 1 + 2 * DCM_GUIDE_MARGIN)
 
-static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir) {
-    int x1, y1;
-    block_extent(p, b, &x1, &y1);
-    int wx0 = b->x0 > DCM_SEG_MARGIN ? b->x0 - DCM_SEG_MARGIN : 0;
-    int wy0 = b->y0 > DCM_SEG_MARGIN ? b->y0 - DCM_SEG_MARGIN : 0;
-    int wx1 = x1 + DCM_SEG_MARGIN < p->W - 1 ? x1 + DCM_SEG_MARGIN : p->W - 1;
-    int wy1 = y1 + DCM_SEG_MARGIN < p->H - 1 ? y1 + DCM_SEG_MARGIN : p->H - 1;
-    if (!pn_prog_visible_line(p, b->x0, b->y0, x1, y1)) return false;
-    int ww = wx1 - wx0 + 1, wh = wy1 - wy0 + 1;
-    if (ww > DCM_SEG_SIDE || wh > DCM_SEG_SIDE) return false;
-    int16_t label[DCM_SEG_SIDE * DCM_SEG_SIDE], stack[DCM_SEG_SIDE * DCM_SEG_SIDE];
-    int16_t known[DCM_SEG_SIDE * DCM_SEG_SIDE];
-    int n = ww * wh, segments = 0, nk = 0;
+static int label_segments(const pn_prog *p, int wx0, int wy0, int ww, int wh, int16_t *label) {
+    int16_t stack[DCM_SEG_SIDE * DCM_SEG_SIDE];
+    int n = ww * wh, segments = 0;
     for (int i = 0; i < n; i++) label[i] = -1;
     for (int i = 0; i < n; i++) {
         if (label[i] >= 0) continue;
@@ -574,6 +561,49 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
         }
         segments++;
     }
+    return segments;
+}
+
+/* How much evaluated work pixel j may stand for pixel i of the same segment in the guided
+ * reconstruction: the inverse squared distance, times the agreement of their primary rays'
+ * normals (cosine to the 8th) and depths (a Gaussian in the relative depth difference, 2%). */
+static double guide_weight(const pn_prog *p, size_t i, size_t j, int dx, int dy) {
+    double w = 1.0 / (double)(dx * dx + dy * dy);
+    if (!p->normal || !p->depth) return w;
+    float c = v3_dot(p->normal[i], p->normal[j]);
+    c = c > 0.0f ? c : 0.0f;
+    float c2 = c * c, c4 = c2 * c2;
+    float zi = p->depth[i], zj = p->depth[j];
+    double fz = 1.0;
+    if (isfinite(zi) && isfinite(zj) && zi > 0.0f) {
+        double r = (double)(zi - zj) / (0.02 * (double)zi);
+        fz = exp(-0.5 * r * r);
+    }
+    return w * (double)(c4 * c4) * fz + 1e-12 * w;
+}
+
+/* Segment-aware drawing of an edge block (a departure, see the header). The visible lines of the
+ * primary buffer cut the block, widened by `margin` pixels on each side, into segments. When a
+ * visible line crosses the block, a pixel keeps its element value where both ends of the
+ * element's line are evaluated pixels of its own segment, and otherwise takes the
+ * inverse-squared-distance mean of the evaluated pixels of its segment, preferring those that
+ * are, like it, next to a visible line or not; a pixel whose segment holds none keeps the
+ * element. Guided (issue 18), the margin is DCM_GUIDE_MARGIN, so that the neighbours' evaluated
+ * pixels count, and the weights also ask for agreeing normals and depths (guide_weight).
+ * Returns false (nothing drawn) for blocks without a visible line or too large. */
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided) {
+    int x1, y1, margin = guided ? DCM_GUIDE_MARGIN : DCM_SEG_MARGIN;
+    block_extent(p, b, &x1, &y1);
+    int wx0 = b->x0 > margin ? b->x0 - margin : 0;
+    int wy0 = b->y0 > margin ? b->y0 - margin : 0;
+    int wx1 = x1 + margin < p->W - 1 ? x1 + margin : p->W - 1;
+    int wy1 = y1 + margin < p->H - 1 ? y1 + margin : p->H - 1;
+    if (!pn_prog_visible_line(p, b->x0, b->y0, x1, y1)) return false;
+    int ww = wx1 - wx0 + 1, wh = wy1 - wy0 + 1;
+    if (ww > DCM_SEG_SIDE || wh > DCM_SEG_SIDE) return false;
+    int16_t label[DCM_SEG_SIDE * DCM_SEG_SIDE], known[DCM_SEG_SIDE * DCM_SEG_SIDE];
+    int n = ww * wh, nk = 0;
+    label_segments(p, wx0, wy0, ww, wh, label);
     unsigned char near[DCM_SEG_SIDE * DCM_SEG_SIDE]; /* next to a visible line: a mixed pixel */
     for (int i = 0; i < n; i++) {
         int gx = wx0 + i % ww, gy = wy0 + i / ww;
@@ -586,9 +616,10 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
     for (int y = b->y0; y < ye; y++)
         for (int x = b->x0; x < xe; x++) {
             int i = (y - wy0) * ww + (x - wx0);
-            float *o = img + 3 * pn_prog_index(p, x, y);
+            size_t gi = pn_prog_index(p, x, y);
+            float *o = img + 3 * gi;
             if (pn_prog_known(p, x, y)) { /* restored from the integrator's value anyway */
-                memcpy(o, p->rad + 3 * pn_prog_index(p, x, y), 3 * sizeof *o);
+                memcpy(o, p->rad + 3 * gi, 3 * sizeof *o);
                 continue;
             }
             /* The element stays where both ends of its line through the pixel are evaluated
@@ -613,8 +644,9 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
                     int j = known[m];
                     if (label[j] != label[i] || (pass == 0 && near[j] != near[i])) continue;
                     int dx = wx0 + j % ww - x, dy = wy0 + j / ww - y;
-                    double wt = 1.0 / (double)(dx * dx + dy * dy);
-                    const float *v = p->rad + 3 * pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
+                    size_t gj = pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
+                    double wt = guided ? guide_weight(p, gi, gj, dx, dy) : 1.0 / (double)(dx * dx + dy * dy);
+                    const float *v = p->rad + 3 * gj;
                     for (int c = 0; c < 3; c++) acc[c] += wt * (double)v[c];
                     wsum += wt;
                 }
@@ -623,6 +655,49 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
             else
                 pn_dcm_element_value(loop, 3, w, h, dir, fx, fy, o);
         }
+    return true;
+}
+
+/* Segment seeds (issue 18, part of the guided reconstruction): before the boundary evaluation
+ * of an edge block that a visible line crosses, the pixel nearest the centroid of every segment
+ * of at least DCM_SEED_MIN pixels that holds no evaluated pixel yet is queued, so that each
+ * segment is reconstructed from its own radiance instead of its neighbours'. */
+#define DCM_SEED_MIN 3
+static bool request_segment_seeds(pn_prog *p, const dcm_block *b) {
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    if (!pn_prog_visible_line(p, b->x0, b->y0, x1, y1)) return true;
+    int ww = x1 - b->x0 + 1, wh = y1 - b->y0 + 1;
+    if (ww > DCM_SEG_SIDE || wh > DCM_SEG_SIDE) return true;
+    int16_t label[DCM_SEG_SIDE * DCM_SEG_SIDE];
+    int segments = label_segments(p, b->x0, b->y0, ww, wh, label), n = ww * wh;
+    for (int s = 0; s < segments; s++) {
+        int count = 0;
+        double cx = 0, cy = 0;
+        bool has = false;
+        for (int i = 0; i < n; i++) {
+            if (label[i] != s) continue;
+            int gx = b->x0 + i % ww, gy = b->y0 + i / ww;
+            if (p->state[pn_prog_index(p, gx, gy)] & (PN_PX_EVALUATED | PN_PX_QUEUED)) has = true;
+            cx += gx;
+            cy += gy;
+            count++;
+        }
+        if (has || count < DCM_SEED_MIN) continue;
+        cx /= count;
+        cy /= count;
+        int best = -1;
+        double best_d = INFINITY;
+        for (int i = 0; i < n; i++) {
+            if (label[i] != s) continue;
+            double dx = b->x0 + i % ww - cx, dy = b->y0 + i / ww - cy, dd = dx * dx + dy * dy;
+            if (dd < best_d) {
+                best_d = dd;
+                best = i;
+            }
+        }
+        if (best >= 0 && !pn_prog_request(p, b->x0 + best % ww, b->y0 + best / ww)) return false;
+    }
     return true;
 }
 
@@ -946,6 +1021,12 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
      * its spacings coarse to fine, and blocks with a large range (the largest errors of the
      * image) reach the fine spacings before flat ones get their coarse ones. */
     int k = L->b[start].size;
+    if (!(d->off & (PN_DCM_OFF_GUIDED | PN_DCM_OFF_SEGMENTS)))
+        for (size_t j = 0; j < np; j++)
+            if (!request_segment_seeds(p, &L->b[pending[j]])) {
+                free(pending);
+                return PN_ERROR_OUT_OF_MEMORY;
+            }
     st = boundary_tasks(p, L->b, pending, np, k, !(d->off & PN_DCM_OFF_ORDER));
     if (st != PN_OK || p->stopped) {
         free(pending);

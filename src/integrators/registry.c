@@ -361,6 +361,19 @@ static const pn_option_decl options[] = {
      F(dcm_off),
      PN_FIELD_U32,
      0},
+    /* every progressive driver (issue 18): a preview file a viewer can watch */
+    {{"preview", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
+      "rewrite this image (.exr, .png or .pfm) atomically every --preview-every seconds with the approximate "
+      "image so far, for viewers that reload changed files (tev)"},
+     PROGRESSIVE_DRIVERS,
+     F(preview),
+     PN_FIELD_STRING,
+     0},
+    {{"preview-every", PN_OPTION_DOUBLE, "2", 0, INFINITY, 1, 0, "s", "", "the interval of --preview"},
+     PROGRESSIVE_DRIVERS,
+     F(preview_every_seconds),
+     PN_FIELD_F64,
+     0},
 };
 #define OPTION_COUNT ((int)(sizeof options / sizeof options[0]))
 

@@ -89,10 +89,12 @@ typedef struct pn_render_job {
     int work_scale, primary_grid;
     double stop_percent, snapshot_every_seconds;
     bool raw_radiance, no_light_guide;
-    pn_job_list snapshots; /* percentages of the work pixels */
-    int dcm_variant;       /* 0 default, 1 paper (driver/dcm.h) */
-    uint32_t dcm_off;      /* PN_DCM_OFF_* bits: departures switched off */
-    void *integrator_data; /* what the integrator's prepare() built for this render */
+    pn_job_list snapshots;        /* percentages of the work pixels */
+    int dcm_variant;              /* 0 default, 1 paper (driver/dcm.h) */
+    uint32_t dcm_off;             /* PN_DCM_OFF_* bits: departures switched off */
+    const char *preview;          /* NULL: none; else rewritten every preview_every_seconds */
+    double preview_every_seconds; /* > 0 */
+    void *integrator_data;        /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
     struct pn_progress *progress; /* render/progress.h: the render's progress path (may be NULL) */
 } pn_render_job;
