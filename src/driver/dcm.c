@@ -141,7 +141,8 @@ void pn_dcm_loop_pixel(int w, int h, int i, int *x, int *y) {
     }
 }
 
-float pn_dcm_boundary_value(const float *loop, int channels, int c, int w, int h, float x, float y) {
+/* Where (x, y) lies on the loop: between loop pixels *a and *b at fraction *f. */
+static void loop_position(int w, int h, float x, float y, int *a, int *b, float *f) {
     int n = pn_dcm_loop_length(w, h);
     float dt = y, db = (float)h - y, dl = x, dr = (float)w - x;
     float s;
@@ -156,8 +157,15 @@ float pn_dcm_boundary_value(const float *loop, int channels, int c, int w, int h
     if (s < 0.0f) s = 0.0f;
     if (s > (float)n) s = (float)n;
     int i0 = (int)floorf(s);
-    float f = s - (float)i0;
-    int a = i0 % n, b = (i0 + 1) % n;
+    *f = s - (float)i0;
+    *a = i0 % n;
+    *b = (i0 + 1) % n;
+}
+
+float pn_dcm_boundary_value(const float *loop, int channels, int c, int w, int h, float x, float y) {
+    int a, b;
+    float f;
+    loop_position(w, h, x, y, &a, &b, &f);
     return loop[a * channels + c] + f * (loop[b * channels + c] - loop[a * channels + c]);
 }
 
@@ -208,9 +216,14 @@ void pn_dcm_element_value(const float *loop, int channels, int w, int h, int dir
     float ax = clampf(x + tmin * nx, 0.0f, (float)w), ay = clampf(y + tmin * ny, 0.0f, (float)h);
     float bx = clampf(x + tmax * nx, 0.0f, (float)w), by = clampf(y + tmax * ny, 0.0f, (float)h);
     float len = tmax - tmin, f = len > 1e-6f ? -tmin / len : 0.0f;
+    /* the two ends' places on the loop once, then every channel (pn_dcm_boundary_value's sums) */
+    int a0, a1, b0, b1;
+    float fa, fb;
+    loop_position(w, h, ax, ay, &a0, &a1, &fa);
+    loop_position(w, h, bx, by, &b0, &b1, &fb);
     for (int c = 0; c < channels; c++) {
-        float va = pn_dcm_boundary_value(loop, channels, c, w, h, ax, ay);
-        float vb = pn_dcm_boundary_value(loop, channels, c, w, h, bx, by);
+        float va = loop[a0 * channels + c] + fa * (loop[a1 * channels + c] - loop[a0 * channels + c]);
+        float vb = loop[b0 * channels + c] + fb * (loop[b1 * channels + c] - loop[b0 * channels + c]);
         out[c] = va + f * (vb - va);
     }
 }
@@ -403,6 +416,8 @@ typedef struct dcm_block {
     int32_t parent; /* index in the previous level, -1 for elementary blocks */
     uint16_t size;
     uint8_t kind, dir, lazy, replaced, final, parent_kind;
+    uint8_t drawn_dir;    /* an edge block under boundary evaluation: its direction when last drawn ... */
+    uint32_t drawn_known; /* ... from this loop state (loop_state_key plus one; 0: never drawn) */
 } dcm_block;
 
 typedef struct dcm_level {
@@ -442,7 +457,7 @@ static bool push_block(dcm_level *l, dcm_block b) {
 
 /* The block's boundary values (RGB and luminance); pixels neither evaluated nor predicted are
  * interpolated linearly along the loop between known ones (Fig. 9). Returns the loop length. */
-static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rgb, float *lum) {
+static int gather_loop_known(const pn_prog *p, int x0, int y0, int w, int h, float *rgb, float *lum, int *known_count) {
     int n = pn_dcm_loop_length(w, h);
     unsigned char known[DCM_MAX_LOOP];
     int first_known = -1;
@@ -455,6 +470,19 @@ static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rg
             memcpy(rgb + 3 * i, p->rad + 3 * k, 3 * sizeof *rgb);
             if (first_known < 0) first_known = i;
         }
+    }
+    if (known_count) {
+        /* evaluated and predicted pixels counted apart: a predicted pixel evaluated later
+         * changes the key too (known pixels never go back to unknown) */
+        int evaluated = 0, predicted = 0;
+        for (int i = 0; i < n; i++) {
+            int x, y;
+            pn_dcm_loop_pixel(w, h, i, &x, &y);
+            int st = p->state[pn_prog_index(p, x0 + x, y0 + y)] & 3;
+            evaluated += st == PN_PX_EVALUATED;
+            predicted += st == PN_PX_PREDICTED;
+        }
+        *known_count = evaluated * (DCM_MAX_LOOP + 1) + predicted;
     }
     if (first_known < 0) {
         memset(rgb, 0, 3 * (size_t)n * sizeof *rgb);
@@ -474,6 +502,10 @@ static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rg
     }
     for (int i = 0; i < n; i++) lum[i] = 0.2126f * rgb[3 * i] + 0.7152f * rgb[3 * i + 1] + 0.0722f * rgb[3 * i + 2];
     return n;
+}
+
+static int gather_loop(const pn_prog *p, int x0, int y0, int w, int h, float *rgb, float *lum) {
+    return gather_loop_known(p, x0, y0, w, h, rgb, lum, NULL);
 }
 
 /* Blocks share their boundary pixels; each draws [x0, x1) x [y0, y1) (closed at the image's last
@@ -531,16 +563,24 @@ static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, 
 
 static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided);
 
-static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, const dcm_block *b) {
-    int x1, y1;
+static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, dcm_block *b) {
+    int x1, y1, known;
     block_extent(p, b, &x1, &y1);
     int w = x1 - b->x0, h = y1 - b->y0;
     float rgb[3 * DCM_MAX_LOOP], lum[DCM_MAX_LOOP];
-    gather_loop(p, b->x0, b->y0, w, h, rgb, lum);
-    /* an edge block still under boundary evaluation: oriented by what its boundary holds now */
-    int dir = b->kind == DCM_PENDING
-                  ? pn_dcm_least_discrepancy_variant(lum, w, h, NULL, (d->off & PN_DCM_OFF_DISCREPANCY) != 0)
-                  : b->dir;
+    gather_loop_known(p, b->x0, b->y0, w, h, rgb, lum, &known);
+    /* An edge block still under boundary evaluation: oriented by what its boundary holds now,
+     * found again only when its boundary gained pixels since it was last drawn (known pixels
+     * never change, so the same count means the same loop). */
+    int dir = b->dir;
+    if (b->kind == DCM_PENDING) {
+        if (b->drawn_known != (uint32_t)known + 1u) {
+            b->drawn_dir =
+                (uint8_t)pn_dcm_least_discrepancy_variant(lum, w, h, NULL, (d->off & PN_DCM_OFF_DISCREPANCY) != 0);
+            b->drawn_known = (uint32_t)known + 1u;
+        }
+        dir = b->drawn_dir;
+    }
     bool guided = b->kind == DCM_PENDING && !(d->off & PN_DCM_OFF_GUIDED);
     if (!(d->off & PN_DCM_OFF_SEGMENTS) && draw_segmented(p, img, b, rgb, dir, guided)) return;
     int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
@@ -744,11 +784,11 @@ static void draw_chunk(void *user, size_t job, int worker) {
     (void)worker;
     draw_run *r = user;
     const pn_prog *p = r->p;
-    const dcm_level *L = &r->d->lv[r->chunks[job][0]];
+    dcm_level *L = &r->d->lv[r->chunks[job][0]];
     size_t end = (size_t)r->chunks[job][1] + DCM_DRAW_CHUNK;
     if (end > L->n) end = L->n;
     for (size_t i = (size_t)r->chunks[job][1]; i < end; i++) {
-        const dcm_block *b = &L->b[i];
+        dcm_block *b = &L->b[i]; /* each block is drawn by one job: its direction cache is its own */
         if (!b->final || b->replaced) continue;
         int x1, y1;
         block_extent(p, b, &x1, &y1);
@@ -1090,7 +1130,7 @@ static bool add_children(dcm_state *d, int l, size_t parent_index) {
         if (cy != pb.y0 && cy >= y1) break;
         for (int cx = pb.x0; cx <= pb.x0 + half; cx += half) {
             if (cx != pb.x0 && cx >= x1) break;
-            dcm_block c = {cx, cy, (int32_t)parent_index, (uint16_t)half, DCM_SMOOTH, 0, 0, 0, 0, pb.kind};
+            dcm_block c = {cx, cy, (int32_t)parent_index, (uint16_t)half, DCM_SMOOTH, 0, 0, 0, 0, pb.kind, 0, 0};
             if (!push_block(&d->lv[l], c)) return false;
         }
     }
@@ -1120,7 +1160,7 @@ static pn_status dcm_iterate(dcm_state *d) {
     /* Elementary blocks: the pool of the first DCM iteration. */
     for (int y = 0; y < p->H - 1 || y == 0; y += d->elem)
         for (int x = 0; x < p->W - 1 || x == 0; x += d->elem) {
-            dcm_block b = {x, y, -1, (uint16_t)d->elem, DCM_SMOOTH, 0, 0, 0, 0, DCM_SMOOTH};
+            dcm_block b = {x, y, -1, (uint16_t)d->elem, DCM_SMOOTH, 0, 0, 0, 0, DCM_SMOOTH, 0, 0};
             if (!push_block(&d->lv[0], b)) return PN_ERROR_OUT_OF_MEMORY;
         }
     if ((st = process(d, 0, 0, d->lv[0].n)) != PN_OK || p->stopped) return st;
