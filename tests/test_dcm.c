@@ -712,10 +712,11 @@ static void test_dcm_paper_variant(void) {
 }
 
 /* Every integrator under dcm, run to the end. Those whose pixels do not depend on their batch
- * (PN_CAP_PER_PIXEL: reference, vpl, lightcuts) give the full render bit for bit; the others
- * (ias's block statistics, contour's spans, contour-mc's blocks, illumcut's batches) pool over
- * the pixels of a batch, which a progressive driver fills differently, so they give another
- * estimate of the same image: within a few percent of the full render in rel L1. */
+ * (PN_CAP_PER_PIXEL: reference, vpl, lightcuts) give the full render bit for bit; contour's
+ * spans, contour-mc's blocks and illumcut's batches pool over the pixels of a batch, which a
+ * progressive driver fills differently, so they give another estimate of the same image: within
+ * a few percent of the full render in rel L1. Integrators without PN_CAP_PROGRESSIVE (ias) are
+ * refused by dcm with the reason of their method table entry, and taken by full. */
 static void test_every_integrator_under_dcm(void) {
     pn_context ctx = pn_context_new();
     pn_scene scene = load_scene(ctx);
@@ -726,7 +727,7 @@ static void test_every_integrator_under_dcm(void) {
     for (int k = 0; k < pn_method_count(); k++) {
         const pn_method_info *m = pn_method_get(k);
         if (m->role != PN_METHOD_INTEGRATOR) continue;
-        CHECK_MSG(m->capabilities & PN_CAP_PROGRESSIVE, "%s", m->name);
+        bool refused = !(m->capabilities & PN_CAP_PROGRESSIVE);
         pn_image img[2] = {NULL, NULL};
         for (int d = 0; d < 2; d++) {
             pn_render_settings s = {0};
@@ -742,10 +743,19 @@ static void test_every_integrator_under_dcm(void) {
             s.height = 16;
             if (strstr(m->stats, "vpl")) pn_options_set_int(ctx, o, "vpls", 200);
             pn_status st = pn_render(ctx, scene, &s, &img[d], NULL);
-            CHECK_MSG(st == PN_OK, "%s: %s", m->name, pn_context_error_message(ctx));
+            if (refused && d == 1) {
+                CHECK_MSG(st == PN_ERROR_INVALID_ARGUMENT && img[d] == NULL, "%s", m->name);
+                CHECK_STR_CONTAINS(pn_context_error_message(ctx), "does not run under the dcm driver: ");
+                CHECK_STR_CONTAINS(pn_context_error_message(ctx), "scattered pixels per block");
+                pn_context_clear_error(ctx);
+            } else {
+                CHECK_MSG(st == PN_OK, "%s: %s", m->name, pn_context_error_message(ctx));
+            }
             pn_options_free(o);
         }
-        if (m->capabilities & PN_CAP_PER_PIXEL)
+        if (refused)
+            CHECK_MSG(img[0] != NULL, "%s under full", m->name);
+        else if (m->capabilities & PN_CAP_PER_PIXEL)
             CHECK_MSG(same_pixels(img[0], img[1]), "%s", m->name);
         else if (img[0] && img[1]) {
             double e = rel_l1(ctx, img[0], img[1]);
@@ -896,6 +906,8 @@ static void test_cli_preview(void) {
     CHECK(run(bad4, err) == 2);
     const char *bad5[] = {PN_CLI_PATH, "render", scene, "-o", out, "--preview", prev, NULL};
     CHECK(run(bad5, err) == 2);
+    const char *bad6[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--integrator", "ias", NULL};
+    CHECK(run(bad6, err) == 2);
 }
 
 static void test_setup(void) {

@@ -864,6 +864,14 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
                                 const pn_render_job *job, pn_image *out_image, pn_render_stats *stats) {
     if (s->driver < PN_DRIVER_FULL || s->driver > PN_DRIVER_UNIFORM)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)s->driver);
+    const char *refusal = s->driver != PN_DRIVER_FULL ? pn_integrator_progressive_refusal(integ) : NULL;
+    if (refusal)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "%s does not run under the %s driver: %s",
+                               pn_registry_integrator_entry(integ)->info.name,
+                               s->driver == PN_DRIVER_DCM       ? "dcm"
+                               : s->driver == PN_DRIVER_PAINTER ? "painter"
+                                                                : "uniform",
+                               refusal);
     int scale = job->work_scale > 0 ? job->work_scale : 3;
     if (job->work_scale < 0 || scale > 16)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)",
