@@ -768,6 +768,59 @@ static void test_every_integrator_under_dcm(void) {
     pn_context_free(ctx);
 }
 
+/* The progress note of the progressive drivers (the CLI's progress bar shows it): after every
+ * chunk, the evaluated share of the work pixels, never decreasing and 100 at the end, and the
+ * error estimate, unknown (-1) until two previews exist and then the rel L1 change between them. */
+typedef struct note_log {
+    int count, estimates;
+    double last_percent;
+    bool decreasing, bad_estimate;
+} note_log;
+
+static void on_note(void *user, double percent, double estimate) {
+    note_log *l = user;
+    if (percent < l->last_percent) l->decreasing = true;
+    l->last_percent = percent;
+    if (estimate >= 0.0) l->estimates++;
+    if (!(estimate == -1.0 || (estimate >= 0.0 && estimate < 10.0))) l->bad_estimate = true;
+    l->count++;
+}
+
+static void test_progress_note(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    char prev[600];
+    snprintf(prev, sizeof prev, "%s/note-preview.pfm", tmpdir);
+    pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
+    s.spp = 2;
+    s.threads = 2;
+    s.driver = PN_DRIVER_DCM;
+    note_log log = {0, 0, 0.0, false, false};
+    s.progress_user = &log;
+    s.progress_note = on_note;
+    CHECK(pn_options_set(ctx, o, "preview", prev) == PN_OK);
+    CHECK(pn_options_set(ctx, o, "preview-every", "0.000001") == PN_OK);
+    pn_image img = NULL;
+    CHECK(pn_render(ctx, scene, &s, &img, NULL) == PN_OK);
+    CHECK_MSG(log.count >= 3 && log.estimates >= 1, "%d notes, %d estimates", log.count, log.estimates);
+    CHECK(!log.decreasing && !log.bad_estimate);
+    CHECK_NEAR(log.last_percent, 100.0, 1e-9);
+    pn_image shown = NULL;
+    CHECK(pn_image_read(ctx, prev, &shown) == PN_OK);
+    CHECK(same_pixels(img, shown));
+    pn_image_free(shown);
+    pn_image_free(img);
+    pn_options_free(o);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 /* ---- CLI ---- */
 
 static int run(const char *const *args, const char *err_path) {
@@ -946,4 +999,4 @@ PN_TESTS(TEST(test_setup), TEST(test_loop_geometry), TEST(test_least_discrepancy
          TEST(test_snapshots_and_error_at_6_percent), TEST(test_emitters_from_primary_rays),
          TEST(test_segments_across_visible_lines), TEST(test_smooth_blocks_filter_noise), TEST(test_light_guide_glow),
          TEST(test_stop_and_aovs), TEST(test_cli_snapshots), TEST(test_dcm_paper_variant),
-         TEST(test_every_integrator_under_dcm), TEST(test_cli_preview), TEST(test_cleanup))
+         TEST(test_every_integrator_under_dcm), TEST(test_progress_note), TEST(test_cli_preview), TEST(test_cleanup))

@@ -278,6 +278,7 @@ static void write_preview(pn_prog *p) {
         return;
     }
     p->preview_count++;
+    if (p->settings->progress_note) return; /* the progress bar shows it */
     pn_context_log(p->ctx, PN_LOG_INFO, "preview %s: %.2f%% of the work pixels, estimated error (change) %.4f",
                    p->job.preview, (double)pn_prog_evaluated_percent(p), p->preview_change);
 }
@@ -330,6 +331,9 @@ pn_status pn_prog_flush(pn_prog *p) {
          * work image, or the stop percentage's); the driver reports 1 when it ends earlier. */
         size_t target = p->stop_pixels > 0 ? p->stop_pixels : total;
         pn_progress_report(p->job.progress, (double)p->evaluated / (double)target);
+        if (p->settings->progress_note)
+            p->settings->progress_note(p->settings->progress_user, (double)pn_prog_evaluated_percent(p),
+                                       p->preview_count > 1 ? p->preview_change : -1.0);
         if (atomic_load(p->job.cancel)) {
             st = PN_ERROR_CANCELLED;
             break;
@@ -868,10 +872,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     if (refusal)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "%s does not run under the %s driver: %s",
                                pn_registry_integrator_entry(integ)->info.name,
-                               s->driver == PN_DRIVER_DCM       ? "dcm"
-                               : s->driver == PN_DRIVER_PAINTER ? "painter"
-                                                                : "uniform",
-                               refusal);
+                               pn_registry_method_kind(PN_METHOD_DRIVER, (int)s->driver)->info.name, refusal);
     int scale = job->work_scale > 0 ? job->work_scale : 3;
     if (job->work_scale < 0 || scale > 16)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)",
