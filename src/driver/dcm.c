@@ -96,8 +96,11 @@
  *    agreement of the primary rays' normals (cos^8) and depths (Gaussian, 2% relative) — a joint
  *    bilateral filter guided by the primary buffer within the segment; (c) a block that a visible
  *    line crosses enters the boundary order with at least half its brightest corner's radiance as
- *    its range (what lies behind the line is unknown). Measured effect at 6% in
- *    bench/progressive/README.md ("Issue 18"). A margin of 4 pixels instead of 1 around the block
+ *    its range (what lies behind the line is unknown). Effect at 6% (prog-hr64 crops at a quarter
+ *    of their pixels, rel L1 / L2): staircase 0.0344 / 0.0324 -> 0.0316 / 0.0279, hall-many
+ *    0.0164 / 0.0317 -> 0.0152 / 0.0293, bathroom 0.0423 / 0.0342 -> 0.0333 / 0.0235, glossy
+ *    bathroom-72 0.0324 / 0.0335 -> 0.0289 / 0.0323 (bench/progressive/README.md, "Issue 18",
+ *    with each part alone). A margin of 4 pixels instead of 1 around the block
  *    (reading the neighbours' evaluated pixels) was measured and dropped: staircase rel L2 0.0283
  *    -> 0.0382.
  *
