@@ -44,7 +44,7 @@ run dcm                "$CORNELL" --resolution 64x64 --threads 2 --quiet --drive
 run painter            "$CORNELL" --resolution 64x64 --threads 2 --quiet --driver painter --spp 2 --stop-at 20
 run uniform            "$CORNELL" --resolution 64x64 --threads 2 --quiet --driver uniform --spp 2 --work-scale 2
 run full               "$CORNELL" --resolution 64x64 --threads 2 --quiet --driver full --spp 2
-run dcm-ias            "$CORNELL" --resolution 64x64 --threads 2 --quiet --driver dcm --integrator ias --threshold 0.05
+run dcm-ias            "$CORNELL" --resolution 64x64 --threads 2 --quiet --driver full --integrator ias --threshold 0.05
 run demo               "$DEMO"    $SMALL --spp 4
 run demo-ias           "$DEMO"    $SMALL --integrator ias --threshold 0.05
 run ref-default      "$CORNELL" $SMALL

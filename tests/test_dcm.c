@@ -645,6 +645,182 @@ static void test_stop_and_aovs(void) {
     pn_context_free(ctx);
 }
 
+/* ---- issue 18: the paper variant, every integrator, the preview ---- */
+
+/* Renders the shadow scene under `driver` with the reference integrator (2 eye rays, 1 shadow
+ * ray) and the given option pairs (name, value, ..., NULL); stop 0 runs to the end. */
+static pn_image render_with(pn_context ctx, pn_scene scene, pn_driver_kind driver, const char *const *pairs,
+                            double stop) {
+    pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
+    s.spp = 2;
+    s.seed = 3;
+    s.threads = 2;
+    s.driver = driver;
+    pn_options_set_int(ctx, o, "shadow-rays", 1);
+    for (int i = 0; pairs && pairs[i]; i += 2) CHECK(pn_options_set(ctx, o, pairs[i], pairs[i + 1]) == PN_OK);
+    if (stop > 0.0) pn_options_set_double(ctx, o, "stop-at", stop);
+    pn_image img = NULL;
+    pn_status st = pn_render(ctx, scene, &s, &img, NULL);
+    CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
+    pn_options_free(o);
+    return img;
+}
+
+/* --dcm-variant paper is the paper's DCM: exactly the default with every departure of dcm.c's
+ * header switched off one by one (--dcm-off with all eight), which is not the default's image;
+ * it interpolates radiance, so the options of our demodulation change nothing in it; and run to
+ * the end it equals the full render. Each departure switched off alone changes the 6% image of
+ * some setting (those that never did would be dead switches): checked for the ones this scene
+ * exercises at 6%. */
+static void test_dcm_paper_variant(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    const char *paper[] = {"dcm-variant", "paper", NULL};
+    const char *all_off[] = {"dcm-off", "edge-first,order,discrepancy,noise,lattice-mean,segments,demod,guided", NULL};
+    const char *paper_unguided[] = {"dcm-variant", "paper", "no-light-guide", "1", NULL};
+    pn_image a = render_with(ctx, scene, PN_DRIVER_DCM, paper, 6.0);
+    pn_image b = render_with(ctx, scene, PN_DRIVER_DCM, all_off, 6.0);
+    pn_image c = render_with(ctx, scene, PN_DRIVER_DCM, NULL, 6.0);
+    pn_image d = render_with(ctx, scene, PN_DRIVER_DCM, paper_unguided, 6.0);
+    CHECK(same_pixels(a, b));
+    CHECK(!same_pixels(a, c));
+    CHECK(same_pixels(a, d));
+    const char *singles[] = {"order", "noise", "lattice-mean", "demod", "guided"};
+    for (int i = 0; i < 5; i++) {
+        const char *one[] = {"dcm-off", singles[i], NULL};
+        pn_image e = render_with(ctx, scene, PN_DRIVER_DCM, one, 6.0);
+        CHECK_MSG(e && !same_pixels(e, c), "--dcm-off %s changes nothing", singles[i]);
+        pn_image_free(e);
+    }
+    pn_image full = render_with(ctx, scene, PN_DRIVER_FULL, NULL, 0.0);
+    pn_image end = render_with(ctx, scene, PN_DRIVER_DCM, paper, 0.0);
+    CHECK(same_pixels(full, end));
+    pn_image_free(a);
+    pn_image_free(b);
+    pn_image_free(c);
+    pn_image_free(d);
+    pn_image_free(full);
+    pn_image_free(end);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* Every integrator under dcm, run to the end. Those whose pixels do not depend on their batch
+ * (PN_CAP_PER_PIXEL: reference, vpl, lightcuts) give the full render bit for bit; contour's
+ * spans, contour-mc's blocks and illumcut's batches pool over the pixels of a batch, which a
+ * progressive driver fills differently, so they give another estimate of the same image: within
+ * a few percent of the full render in rel L1. Integrators without PN_CAP_PROGRESSIVE (ias) are
+ * refused by dcm with the reason of their method table entry, and taken by full. */
+static void test_every_integrator_under_dcm(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    for (int k = 0; k < pn_method_count(); k++) {
+        const pn_method_info *m = pn_method_get(k);
+        if (m->role != PN_METHOD_INTEGRATOR) continue;
+        bool refused = !(m->capabilities & PN_CAP_PROGRESSIVE);
+        pn_image img[2] = {NULL, NULL};
+        for (int d = 0; d < 2; d++) {
+            pn_render_settings s = {0};
+            pn_options o = pn_options_new();
+            s.options = o;
+            s.integrator = (pn_integrator_kind)m->kind;
+            s.driver = d ? PN_DRIVER_DCM : PN_DRIVER_FULL;
+            s.spp = (m->capabilities & PN_CAP_SPP) ? 2 : 0;
+            s.threshold = (m->capabilities & PN_CAP_SPP) ? 0.0 : 0.05;
+            s.seed = 3;
+            s.threads = 2;
+            s.width = 20;
+            s.height = 16;
+            if (strstr(m->stats, "vpl")) pn_options_set_int(ctx, o, "vpls", 200);
+            pn_status st = pn_render(ctx, scene, &s, &img[d], NULL);
+            if (refused && d == 1) {
+                CHECK_MSG(st == PN_ERROR_INVALID_ARGUMENT && img[d] == NULL, "%s", m->name);
+                CHECK_STR_CONTAINS(pn_context_error_message(ctx), "does not run under the dcm driver: ");
+                CHECK_STR_CONTAINS(pn_context_error_message(ctx), "scattered pixels per block");
+                pn_context_clear_error(ctx);
+            } else {
+                CHECK_MSG(st == PN_OK, "%s: %s", m->name, pn_context_error_message(ctx));
+            }
+            pn_options_free(o);
+        }
+        if (refused)
+            CHECK_MSG(img[0] != NULL, "%s under full", m->name);
+        else if (m->capabilities & PN_CAP_PER_PIXEL)
+            CHECK_MSG(same_pixels(img[0], img[1]), "%s", m->name);
+        else if (img[0] && img[1]) {
+            double e = rel_l1(ctx, img[0], img[1]);
+            CHECK_MSG(e < 0.05, "%s: rel L1 %g", m->name, e);
+        }
+        pn_image_free(img[0]);
+        pn_image_free(img[1]);
+    }
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* The progress note of the progressive drivers (the CLI's progress bar shows it): after every
+ * chunk, the evaluated share of the work pixels, never decreasing and 100 at the end, and the
+ * error estimate, unknown (-1) until two previews exist and then the rel L1 change between them. */
+typedef struct note_log {
+    int count, estimates;
+    double last_percent;
+    bool decreasing, bad_estimate;
+} note_log;
+
+static void on_note(void *user, double percent, double estimate) {
+    note_log *l = user;
+    if (percent < l->last_percent) l->decreasing = true;
+    l->last_percent = percent;
+    if (estimate >= 0.0) l->estimates++;
+    if (!(estimate == -1.0 || (estimate >= 0.0 && estimate < 10.0))) l->bad_estimate = true;
+    l->count++;
+}
+
+static void test_progress_note(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    char prev[600];
+    snprintf(prev, sizeof prev, "%s/note-preview.pfm", tmpdir);
+    pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
+    s.spp = 2;
+    s.threads = 2;
+    s.driver = PN_DRIVER_DCM;
+    note_log log = {0, 0, 0.0, false, false};
+    s.progress_user = &log;
+    s.progress_note = on_note;
+    CHECK(pn_options_set(ctx, o, "preview", prev) == PN_OK);
+    CHECK(pn_options_set(ctx, o, "preview-every", "0.000001") == PN_OK);
+    pn_image img = NULL;
+    CHECK(pn_render(ctx, scene, &s, &img, NULL) == PN_OK);
+    CHECK_MSG(log.count >= 3 && log.estimates >= 1, "%d notes, %d estimates", log.count, log.estimates);
+    CHECK(!log.decreasing && !log.bad_estimate);
+    CHECK_NEAR(log.last_percent, 100.0, 1e-9);
+    pn_image shown = NULL;
+    CHECK(pn_image_read(ctx, prev, &shown) == PN_OK);
+    CHECK(same_pixels(img, shown));
+    pn_image_free(shown);
+    pn_image_free(img);
+    pn_options_free(o);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 /* ---- CLI ---- */
 
 static int run(const char *const *args, const char *err_path) {
@@ -726,6 +902,67 @@ static void test_cli_snapshots(void) {
     CHECK(run(bad7, err) == 2);
 }
 
+/* --preview: the file is rewritten while the render runs and once at the end, each time
+ * atomically (no temporary left behind); the last preview is the output image; bad previews and
+ * variants are refused with exit status 2 and a message naming them. */
+static void test_cli_preview(void) {
+    char scene[512], out[600], prev[600], err[512], dir[512];
+    snprintf(scene, sizeof scene, "%s/shadow.pbrt", tmpdir);
+    pn_test_write_file(tmpdir, "shadow.pbrt", shadow_scene);
+    snprintf(dir, sizeof dir, "%s/preview", tmpdir);
+    mkdir(dir, 0755);
+    snprintf(out, sizeof out, "%s/out.exr", dir);
+    snprintf(prev, sizeof prev, "%s/watch.exr", dir);
+    snprintf(err, sizeof err, "%s/preview.err", tmpdir);
+    const char *args[] = {PN_CLI_PATH, "render", scene, "-o",        out,  "--driver",
+                          "dcm",       "--spp",  "2",   "--preview", prev, "--preview-every",
+                          "0.000001",  NULL};
+    CHECK(run(args, err) == 0);
+    FILE *e = fopen(err, "r");
+    int lines = 0;
+    char line[1024];
+    while (e && fgets(line, sizeof line, e))
+        if (strstr(line, "preview") && strstr(line, "estimated error")) lines++;
+    if (e) fclose(e);
+    CHECK_MSG(lines >= 3, "%d preview lines", lines);
+    pn_context ctx = pn_context_new();
+    pn_image a = NULL, b = NULL;
+    CHECK(pn_image_read(ctx, out, &a) == PN_OK);
+    CHECK(pn_image_read(ctx, prev, &b) == PN_OK);
+    CHECK(same_pixels(a, b));
+    pn_image_free(a);
+    pn_image_free(b);
+    pn_context_free(ctx);
+    DIR *d = opendir(dir);
+    int files = 0;
+    struct dirent *de;
+    while (d && (de = readdir(d)) != NULL) {
+        if (de->d_name[0] == '.') continue;
+        files++;
+        CHECK_MSG(strstr(de->d_name, ".tmp") == NULL, "leftover %s", de->d_name);
+    }
+    if (d) closedir(d);
+    CHECK(files == 2);
+    const char *bad1[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--preview", "x.jpg", NULL};
+    CHECK(run(bad1, err) == 2);
+    e = fopen(err, "r");
+    bool named = false;
+    while (e && fgets(line, sizeof line, e)) named = named || strstr(line, "x.jpg: the preview must be") != NULL;
+    if (e) fclose(e);
+    CHECK(named);
+    const char *bad2[] = {PN_CLI_PATH, "render",  scene,           "-o",    out,
+                          "--driver",  "painter", "--dcm-variant", "paper", NULL};
+    CHECK(run(bad2, err) == 2);
+    const char *bad3[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--dcm-variant", "guo", NULL};
+    CHECK(run(bad3, err) == 2);
+    const char *bad4[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--preview-every", "0", NULL};
+    CHECK(run(bad4, err) == 2);
+    const char *bad5[] = {PN_CLI_PATH, "render", scene, "-o", out, "--preview", prev, NULL};
+    CHECK(run(bad5, err) == 2);
+    const char *bad6[] = {PN_CLI_PATH, "render", scene, "-o", out, "--driver", "dcm", "--integrator", "ias", NULL};
+    CHECK(run(bad6, err) == 2);
+}
+
 static void test_setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_dcm_XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -761,4 +998,5 @@ PN_TESTS(TEST(test_setup), TEST(test_loop_geometry), TEST(test_least_discrepancy
          TEST(test_gaussian_downsample), TEST(test_full_refinement_equals_full_render),
          TEST(test_snapshots_and_error_at_6_percent), TEST(test_emitters_from_primary_rays),
          TEST(test_segments_across_visible_lines), TEST(test_smooth_blocks_filter_noise), TEST(test_light_guide_glow),
-         TEST(test_stop_and_aovs), TEST(test_cli_snapshots), TEST(test_cleanup))
+         TEST(test_stop_and_aovs), TEST(test_cli_snapshots), TEST(test_dcm_paper_variant),
+         TEST(test_every_integrator_under_dcm), TEST(test_progress_note), TEST(test_cli_preview), TEST(test_cleanup))

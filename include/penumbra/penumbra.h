@@ -327,6 +327,10 @@ typedef struct pn_render_settings {
      * "snapshot-every", or pn_render_request_snapshot); NULL: no snapshots. */
     pn_snapshot_fn snapshot;
     void *snapshot_user;
+    /* Progressive drivers (issue 18): called with progress_user, the percentage of evaluated work
+     * pixels and the error estimate (the relative L1 change between the last two --preview
+     * images; -1 before there are two) after every chunk of pixels; NULL: previews are logged. */
+    void (*progress_note)(void *user, double evaluated_percent, double error_estimate);
 } pn_render_settings;
 
 /* ---------------------------------------------------------------------------------------- */

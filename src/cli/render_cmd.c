@@ -4,6 +4,7 @@
 
 #include <math.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -15,6 +16,8 @@ typedef struct progress_state {
     double start;
     double last_draw;
     int drawn;
+    /* progressive drivers (issue 18): evaluated work pixels in percent and the error estimate */
+    _Atomic double work_percent, error_estimate; /* < 0: not known */
 } progress_state;
 
 static void format_duration(double seconds, char *out, size_t size) {
@@ -43,7 +46,13 @@ static void draw_progress(progress_state *state, double fraction, double now) {
         format_duration(elapsed * (1.0 - fraction) / fraction, eta_text, sizeof eta_text);
     else
         snprintf(eta_text, sizeof eta_text, "--:--");
-    fprintf(stderr, "\r[%s] %5.1f%%  elapsed %s  ETA %s ", bar, 100.0 * fraction, elapsed_text, eta_text);
+    char note[64] = "";
+    double wp = atomic_load(&state->work_percent), ee = atomic_load(&state->error_estimate);
+    if (wp >= 0.0 && ee >= 0.0)
+        snprintf(note, sizeof note, "  work pixels %.1f%%  est. error %.4f", wp, ee);
+    else if (wp >= 0.0)
+        snprintf(note, sizeof note, "  work pixels %.1f%%", wp);
+    fprintf(stderr, "\r[%s] %5.1f%%%s  elapsed %s  ETA %s ", bar, 100.0 * fraction, note, elapsed_text, eta_text);
     fflush(stderr);
     state->drawn = 1;
     state->last_draw = now;
@@ -55,6 +64,13 @@ static void on_progress(void *user, double fraction) {
     double now = monotonic_seconds();
     if (state->drawn && now - state->last_draw < 0.1 && fraction < 1.0) return;
     draw_progress(state, fraction, now);
+}
+
+/* Called by progressive drivers from the render's thread; drawn with the next bar. */
+static void on_progress_note(void *user, double evaluated_percent, double error_estimate) {
+    progress_state *state = user;
+    atomic_store(&state->work_percent, evaluated_percent);
+    atomic_store(&state->error_estimate, error_estimate);
 }
 
 static void finish_progress(progress_state *state, int complete) {
@@ -222,10 +238,11 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
         goto done;
     }
 
-    progress_state progress = {monotonic_seconds(), 0.0, 0};
+    progress_state progress = {monotonic_seconds(), 0.0, 0, -1.0, -1.0};
     if (!o.quiet && rank == 0 && isatty(STDERR_FILENO)) {
         st->progress = on_progress;
         st->progress_user = &progress;
+        st->progress_note = on_progress_note;
     }
 
     struct sigaction action, previous;

@@ -21,6 +21,28 @@
     2.0f /* departure: differences within 2 sigma of the pixels' noise
                                       are not edges (contrast) and not deviations (lazy test) */
 
+/* --dcm-variant and --dcm-off (issue 18): each bit switches one of our departures from the paper
+ * off (dcm.c's header names them); the paper variant switches all of them off. */
+enum {
+    PN_DCM_VARIANT_DEFAULT = 0,
+    PN_DCM_VARIANT_PAPER = 1,
+};
+enum {
+    PN_DCM_OFF_EDGE_FIRST = 1u << 0,   /* quads of edge blocks before those of smooth blocks */
+    PN_DCM_OFF_ORDER = 1u << 1,        /* boundary steps by expected error (else spacing, then block) */
+    PN_DCM_OFF_DISCREPANCY = 1u << 2,  /* d_i as a mean over crossing lines (else the paper's sum) */
+    PN_DCM_OFF_NOISE = 1u << 3,        /* Monte Carlo noise tests: contrast, lazy, flat boundaries */
+    PN_DCM_OFF_LATTICE_MEAN = 1u << 4, /* noise-filtered corners of smooth blocks */
+    PN_DCM_OFF_SEGMENTS = 1u << 5,     /* edge blocks drawn segment by segment */
+    PN_DCM_OFF_DEMOD = 1u << 6,        /* (radiance - emitted) / (albedo x light guide) interpolated */
+    PN_DCM_OFF_GUIDED = 1u << 7,       /* guided reconstruction of partly evaluated edge blocks */
+    PN_DCM_OFF_ALL = (1u << 8) - 1u
+};
+/* The departures switched off for a variant and a --dcm-off set. */
+static inline uint32_t pn_dcm_off_flags(int variant, uint32_t off) {
+    return variant == PN_DCM_VARIANT_PAPER ? (uint32_t)PN_DCM_OFF_ALL : off;
+}
+
 int pn_dcm_loop_length(int w, int h);
 void pn_dcm_loop_pixel(int w, int h, int i, int *x, int *y);
 
@@ -36,6 +58,9 @@ void pn_dcm_element_value(const float *loop, int channels, int w, int h, int dir
 /* The least-discrepancy direction (§3.2) of a block from its boundary luminances; d (optional)
  * receives the 8 directional discrepancies. */
 int pn_dcm_least_discrepancy(const float *lum, int w, int h, float *d);
+/* The same with the paper's d_i (paper true): the sum over every boundary pixel of the squared
+ * difference to the other end of its line, divided by 4(k - 1). */
+int pn_dcm_least_discrepancy_variant(const float *lum, int w, int h, float *d, bool paper);
 
 /* Block contrast (max - min) / (max + min) of corner luminances (§4.2). */
 float pn_dcm_contrast(const float g[4]);
@@ -48,6 +73,8 @@ typedef struct pn_dcm_zero_order {
     float tb;          /* the luminance threshold (b1 + d1) / 2 */
 } pn_dcm_zero_order;
 bool pn_dcm_zero_order_test(const float *lum, int w, int h, pn_dcm_zero_order *z);
+/* The same; flat_guard false is the paper's test (no contrast floor before thresholding). */
+bool pn_dcm_zero_order_test_variant(const float *lum, int w, int h, pn_dcm_zero_order *z, bool flat_guard);
 
 /* First-order test (§4.3, Fig. 8): inner(user, x, y) returns the luminance of an interior pixel
  * (the driver evaluates it on demand). Blocks with no transition pass. */

@@ -12,6 +12,7 @@
 #include "core/clock.h"
 #include "core/context.h"
 #include "core/rng.h"
+#include "driver/dcm.h"
 #include "film/aovs.h"
 #include "film/downsample.h"
 #include "integrators/registry.h"
@@ -21,6 +22,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #define PN_PROG_BLOCK 8
 /* The primary-ray buffer's share of the progress bar (fixed); evaluation has the rest. */
@@ -241,6 +243,52 @@ static void fire_snapshot(pn_prog *p, double requested) {
     pn_image_free(img);
 }
 
+/* --preview: the approximate image rewritten atomically (pn_image_write_file goes through
+ * pn_write_atomic), so that a viewer reloading the file never reads half of it. Between two
+ * previews the relative L1 change of the image is the estimate of the error that remains (the
+ * image converges to the full render; what changed in the last interval bounds from below what
+ * is still to change) and goes to the log with the percentage of evaluated work pixels. */
+static void write_preview(pn_prog *p) {
+    pn_image img = NULL;
+    if (make_image(p, &img) != PN_OK) {
+        p->snapshot_status = PN_ERROR_OUT_OF_MEMORY;
+        return;
+    }
+    const float *v = pn_image_layer_data(img, 0);
+    size_t n = 3 * (size_t)p->out_w * (size_t)p->out_h;
+    if (!p->preview_prev)
+        p->preview_prev = malloc(n * sizeof *p->preview_prev);
+    else {
+        double diff = 0.0, sum = 0.0;
+        for (size_t i = 0; i < n; i++) {
+            diff += fabs((double)v[i] - (double)p->preview_prev[i]);
+            sum += fabs((double)v[i]);
+        }
+        p->preview_change = sum > 0.0 ? diff / sum : 0.0;
+    }
+    if (p->preview_prev) memcpy(p->preview_prev, v, n * sizeof *v);
+    pn_err err = {0};
+    pn_status st = pn_image_write_file(img, p->job.preview, 0.0f, &err);
+    pn_image_free(img);
+    if (st != PN_OK) {
+        if (p->snapshot_status == PN_OK) {
+            p->snapshot_status = st;
+            snprintf(p->preview_error, sizeof p->preview_error, "cannot write the preview: %s", err.message);
+        }
+        return;
+    }
+    p->preview_count++;
+    if (p->settings->progress_note) return; /* the progress bar shows it */
+    pn_context_log(p->ctx, PN_LOG_INFO, "preview %s: %.2f%% of the work pixels, estimated error (change) %.4f",
+                   p->job.preview, (double)pn_prog_evaluated_percent(p), p->preview_change);
+}
+
+static bool preview_path_ok(const char *path) {
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash)) return false;
+    return strcasecmp(dot, ".exr") == 0 || strcasecmp(dot, ".png") == 0 || strcasecmp(dot, ".pfm") == 0;
+}
+
 static size_t percent_pixels(const pn_prog *p, double percent) {
     double n = ceil(percent / 100.0 * (double)p->W * (double)p->H);
     return n < 0.0 ? 0 : (size_t)n;
@@ -256,6 +304,10 @@ static void check_snapshots(pn_prog *p) {
         p->next_time = pn_clock_seconds() + p->job.snapshot_every_seconds;
     }
     if (atomic_exchange(&p->ctx->snapshot_request, 0)) fire_snapshot(p, -1.0);
+    if (p->job.preview && pn_clock_seconds() >= p->next_preview) {
+        write_preview(p);
+        p->next_preview = pn_clock_seconds() + p->job.preview_every_seconds;
+    }
 }
 
 pn_status pn_prog_flush(pn_prog *p) {
@@ -279,6 +331,9 @@ pn_status pn_prog_flush(pn_prog *p) {
          * work image, or the stop percentage's); the driver reports 1 when it ends earlier. */
         size_t target = p->stop_pixels > 0 ? p->stop_pixels : total;
         pn_progress_report(p->job.progress, (double)p->evaluated / (double)target);
+        if (p->settings->progress_note)
+            p->settings->progress_note(p->settings->progress_user, (double)pn_prog_evaluated_percent(p),
+                                       p->preview_count > 1 ? p->preview_change : -1.0);
         if (atomic_load(p->job.cancel)) {
             st = PN_ERROR_CANCELLED;
             break;
@@ -765,8 +820,8 @@ pn_status pn_prog_build_primary(pn_prog *p) {
             p->sat_right[s] = fr + p->sat_right[s - 1] + p->sat_right[s - stride] - p->sat_right[s - stride - 1];
             p->sat_down[s] = fd + p->sat_down[s - 1] + p->sat_down[s - stride] - p->sat_down[s - stride - 1];
         }
-    free(r.depth);
-    free(r.normal);
+    p->depth = r.depth; /* kept for the guided reconstruction (dcm.c) */
+    p->normal = r.normal;
     p->primary_seconds = pn_clock_seconds() - t0;
     return PN_OK;
 }
@@ -813,6 +868,11 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
                                 const pn_render_job *job, pn_image *out_image, pn_render_stats *stats) {
     if (s->driver < PN_DRIVER_FULL || s->driver > PN_DRIVER_UNIFORM)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "unknown driver %d", (int)s->driver);
+    const char *refusal = s->driver != PN_DRIVER_FULL ? pn_integrator_progressive_refusal(integ) : NULL;
+    if (refusal)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "%s does not run under the %s driver: %s",
+                               pn_registry_integrator_entry(integ)->info.name,
+                               pn_registry_method_kind(PN_METHOD_DRIVER, (int)s->driver)->info.name, refusal);
     int scale = job->work_scale > 0 ? job->work_scale : 3;
     if (job->work_scale < 0 || scale > 16)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work scale %d is out of range (1..16)",
@@ -830,6 +890,11 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     for (int i = 0; i < job->snapshots.count; i++)
         if (!(job->snapshots.values[i] > 0.0 && job->snapshots.values[i] <= 100.0))
             return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "snapshot percentages must lie in (0, 100]");
+    if (job->preview && job->preview[0] && !preview_path_ok(job->preview))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "%s: the preview must be an .exr, .png or .pfm file",
+                               job->preview);
+    if (job->preview && job->preview[0] && !(job->preview_every_seconds > 0.0))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "the preview interval must be > 0 seconds");
     const pn_camera *oc = &job->camera;
     if ((long)oc->full_width * scale > 65536 || (long)oc->full_height * scale > 65536)
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "work image %dx%d too large", oc->full_width * scale,
@@ -843,6 +908,9 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     p->job = *job;
     p->scale = scale;
     p->primary_grid = job->primary_grid > 0 ? job->primary_grid : 3;
+    /* --dcm-variant paper / --dcm-off demod: the paper interpolates radiance itself */
+    if (s->driver == PN_DRIVER_DCM && (pn_dcm_off_flags(job->dcm_variant, job->dcm_off) & PN_DCM_OFF_DEMOD))
+        p->job.raw_radiance = true;
     p->integ_emitted = pn_integrator_reports_emitted(integ);
     p->pixel_samples = pn_integrator_pixel_eye_samples(integ, &p->job);
     float crop[4] = {0, 1, 0, 1};
@@ -890,6 +958,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         if (p->filter_tmp) memset(p->filter_tmp, 0, nt * sizeof *p->filter_tmp);
         p->t0 = pn_clock_seconds();
         p->next_time = p->t0 + job->snapshot_every_seconds;
+        if (p->job.preview && !p->job.preview[0]) p->job.preview = NULL;
+        p->next_preview = p->t0 + job->preview_every_seconds;
         /* A cancel issued before or during preparation is honoured here. */
         if (atomic_load(p->job.cancel)) st = PN_ERROR_CANCELLED;
         if (st == PN_OK && s->driver != PN_DRIVER_FULL) {
@@ -914,6 +984,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
         if (st == PN_OK || st == PN_ERROR_CANCELLED) {
             img_st = make_image(p, out_image);
             if (img_st == PN_OK) check_snapshots(p);
+            if (img_st == PN_OK && p->job.preview && p->snapshot_status == PN_OK) write_preview(p); /* the last */
         }
         if (st == PN_OK && p->snapshot_status != PN_OK) st = p->snapshot_status;
         if (stats) {
@@ -958,6 +1029,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             st = pn_context_fail(ctx, img_st, "out of memory for the output image");
         else if (st == PN_ERROR_CANCELLED)
             pn_context_fail(ctx, st, "render cancelled; the image is approximate");
+        else if (st != PN_OK && p->preview_error[0])
+            pn_context_fail(ctx, st, "%s", p->preview_error);
         else if (st != PN_OK)
             pn_context_fail(ctx, st, "render failed: %s", pn_status_string(st));
     }
@@ -970,6 +1043,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->percents);
     free(p->work);
     free(p->filter_tmp);
+    free(p->preview_prev);
     free(p->rad);
     free(p->orig);
     free(p->relvar);
@@ -978,6 +1052,8 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->state);
     free(p->queue);
     free(p->tag);
+    free(p->depth);
+    free(p->normal);
     free(p->sat_right);
     free(p->sat_down);
     free(p);

@@ -71,12 +71,20 @@ struct pn_prog {
     double t0, next_time;
     double *percents;
     int percent_count, next_percent;
+    /* --preview (issue 18) */
+    double next_preview;
+    float *preview_prev;   /* out_w*out_h*3: the previous preview (NULL before the first) */
+    double preview_change; /* rel L1 between the last two previews: the error estimate */
+    int preview_count;
+    char preview_error[1100]; /* the first failure to write it */
     pn_prog_draw_fn draw;
     void *driver;
     void (*free_driver)(void *driver);
     pn_status snapshot_status;
     /* primary-ray buffer (object tags, visible lines), built on demand */
     int32_t *tag;
+    float *depth;                   /* W*H: distance to the first hit of each centre ray (guided reconstruction) */
+    vec3 *normal;                   /* W*H: its geometric normal (0 where nothing was hit) */
     uint32_t *sat_right, *sat_down; /* summed-area tables of discontinuities to the right/below */
     double primary_seconds;
     double reconstruct_seconds_max;

@@ -15,6 +15,9 @@
  * weighted by its filter weight (PN_CAP_EYE_SAMPLES: job->spp; else 0). */
 bool pn_integrator_reports_emitted(const pn_integrator *integrator);
 uint32_t pn_integrator_pixel_eye_samples(const pn_integrator *integrator, const pn_render_job *job);
+/* NULL when the integrator works under the subsampling drivers (dcm, painter, uniform:
+ * PN_CAP_PROGRESSIVE), else why it does not, as its method table entry says (issue 18). */
+const char *pn_integrator_progressive_refusal(const pn_integrator *integrator);
 /* The integrator of the table entry of that kind; NULL if unknown. */
 const pn_integrator *pn_integrator_find(pn_integrator_kind kind);
 

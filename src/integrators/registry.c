@@ -57,10 +57,12 @@ static const pn_method_entry methods[M_COUNT] = {
               PN_CAP_EYE_SAMPLES,
           PN_AOV_ILLUMINANCE, "", 64},
          &pn_integrator_reference},
+    /* Not PN_CAP_PROGRESSIVE (issue 18): refused by dcm, painter and uniform for the reason
+     * IAS_NOT_PROGRESSIVE gives; the full driver, whose batches are whole blocks, takes it. */
     [M_IAS] = {{"ias", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_IAS,
                 "Iterative Adaptive Sampling: per-block PDFs over light clusters, refined pass by pass",
                 "Donikian et al. 2006, Accurate Direct Illumination Using Iterative Adaptive Sampling", DIRECT,
-                PN_CAP_PER_BLOCK | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_THRESHOLD | PN_CAP_EMITTED,
+                PN_CAP_PER_BLOCK | PN_CAP_CROP | PN_CAP_THRESHOLD | PN_CAP_EMITTED,
                 PN_AOV_PASSES | PN_AOV_AA_REGIONS | PN_AOV_CLUSTERS | PN_AOV_VISIBLE_FRACTION, "ias_tables", 0},
                &pn_integrator_ias},
     [M_CONTOUR] = {{"contour", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_CONTOUR,
@@ -382,6 +384,36 @@ static const pn_option_decl options[] = {
      F(opaque_glass),
      PN_FIELD_BOOL,
      0},
+    /* dcm (issue 18): the paper's DCM or ours, and our departures one by one */
+    {{"dcm-variant", PN_OPTION_CHOICE, "default", 0, 0, 0, 0, "", "default,paper",
+      "'paper': Guo 1998 as published (8x8 blocks, its thresholds, radiance interpolated, every departure of "
+      "--dcm-off switched off); 'default': with our departures (docs/methods/progressive.md)"},
+     BIT(M_DCM),
+     F(dcm_variant),
+     PN_FIELD_INT,
+     0},
+    {{"dcm-off", PN_OPTION_SET, "", 0, 0, 0, 0, "",
+      "edge-first,order,discrepancy,noise,lattice-mean,segments,demod,guided",
+      "departures from Guo 1998 switched off for comparisons: edge quads before smooth ones, boundary steps by "
+      "expected error, the discrepancy as a mean, the Monte Carlo noise tests, noise-filtered smooth corners, "
+      "segment-wise edge blocks, demodulation (as --raw-radiance), the guided reconstruction of edge blocks"},
+     BIT(M_DCM),
+     F(dcm_off),
+     PN_FIELD_U32,
+     0},
+    /* every progressive driver (issue 18): a preview file a viewer can watch */
+    {{"preview", PN_OPTION_STRING, "", 0, 0, 0, 0, "", "",
+      "rewrite this image (.exr, .png or .pfm) atomically every --preview-every seconds with the approximate "
+      "image so far, for viewers that reload changed files (tev)"},
+     PROGRESSIVE_DRIVERS,
+     F(preview),
+     PN_FIELD_STRING,
+     0},
+    {{"preview-every", PN_OPTION_DOUBLE, "2", 0, INFINITY, 1, 0, "s", "", "the interval of --preview"},
+     PROGRESSIVE_DRIVERS,
+     F(preview_every_seconds),
+     PN_FIELD_F64,
+     0},
 };
 #define OPTION_COUNT ((int)(sizeof options / sizeof options[0]))
 
@@ -421,6 +453,20 @@ const pn_method_entry *pn_registry_integrator_entry(const pn_integrator *integra
     for (int i = 0; i < M_COUNT; i++)
         if (integrator && methods[i].integrator == integrator) return &methods[i];
     return NULL;
+}
+
+/* Why an integrator without PN_CAP_PROGRESSIVE cannot run under the subsampling drivers (issue 18;
+ * measured with bench/progressive/ias_curve.sh). */
+#define IAS_NOT_PROGRESSIVE                                                                                            \
+    "ias pools its adaptive PDFs, eye-ray sequence and stopping test over the pixels of its block, and dcm, painter "  \
+    "and uniform hand it a few scattered pixels per block: the image they converge to is 5.5x the noise floor away "   \
+    "from ias's own (rel L1 0.089 against 0.016 between two seeds, hall-many crop, threshold 0.01); use --driver "     \
+    "full or the default tiles"
+
+const char *pn_integrator_progressive_refusal(const pn_integrator *integrator) {
+    const pn_method_entry *e = pn_registry_integrator_entry(integrator);
+    if (!e || (e->info.capabilities & PN_CAP_PROGRESSIVE)) return NULL;
+    return e == &methods[M_IAS] ? IAS_NOT_PROGRESSIVE : "it does not work under the subsampling drivers";
 }
 
 /* Capabilities the drivers ask about (integrator.h). */

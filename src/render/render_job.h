@@ -94,10 +94,14 @@ typedef struct pn_render_job {
     /* the tiled driver's distribution (docs/distributed.md): tile side (0: 64, or the whole
      * window for integrators without PN_CAP_CROP), the piece "K/M" (option piece) and the checkpoint file */
     uint32_t tile_size;
-    const char *tiles_piece;     /* NULL: the whole window */
-    const char *checkpoint_path; /* NULL: none */
-    const char *tile_times_path; /* NULL: none (bench instrumentation) */
-    void *integrator_data;       /* what the integrator's prepare() built for this render */
+    const char *tiles_piece;      /* NULL: the whole window */
+    const char *checkpoint_path;  /* NULL: none */
+    const char *tile_times_path;  /* NULL: none (bench instrumentation) */
+    int dcm_variant;              /* 0 default, 1 paper (driver/dcm.h) */
+    uint32_t dcm_off;             /* PN_DCM_OFF_* bits: departures switched off */
+    const char *preview;          /* NULL: none; else rewritten every preview_every_seconds */
+    double preview_every_seconds; /* > 0 */
+    void *integrator_data;        /* what the integrator's prepare() built for this render */
     atomic_int *cancel;
     struct pn_progress *progress; /* render/progress.h: the render's progress path (may be NULL) */
 } pn_render_job;
