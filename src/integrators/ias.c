@@ -56,9 +56,9 @@
  *  - ias-points members: shadow rays leave from the region's eye-ray points, not from its
  *    representative (push_point, group_points);
  *  - ias-pass-rays N: pass j takes (j + 1) N shadow rays per pixel instead of 1.5 N_C >= 50;
- *  - always in the default variant: the cluster choice takes dimension 5's Sobol number itself
- *    (no stratum jitter), and the BVH descent continues with it rescaled within the node; with
- *    members, dimension 9 picks the member point (sample_pixel). */
+ *  - ias-cluster-numbers sobol: the cluster choice takes dimension 5's Sobol number itself (no
+ *    stratum jitter; sample_pixel). Always with the BVH cut: its descent continues with the
+ *    cluster's number rescaled within the node; with members, dimension 9 picks the point. */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
@@ -205,7 +205,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->importance_prior = sh->bvh_cut && job->ias_prior == PN_IAS_PRIOR_IMPORTANCE;
     sh->pass_rays = paper ? 0u : job->ias_pass_rays;
     sh->member_points = !paper && job->ias_points == PN_IAS_POINTS_MEMBERS;
-    sh->sobol_direct = !paper;
+    sh->sobol_direct = !paper && job->ias_cluster_numbers == PN_IAS_NUMBERS_SOBOL;
     sh->cut_size = job->ias_cut_size > 0 ? (int)job->ias_cut_size : 1;
     pn_status st;
     int next;

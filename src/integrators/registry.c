@@ -224,6 +224,13 @@ static const pn_option_decl options[] = {
      F(ias_points),
      PN_FIELD_INT,
      PN_IAS_POINTS_REPRESENTATIVE},
+    {{"ias-cluster-numbers", PN_OPTION_CHOICE, "sobol", 0, 0, 0, 0, "", "jittered,sobol",
+      "default variant: the number that chooses a shadow ray's cluster, 'jittered' (stratum i of the region's n "
+      "samples jittered by the Sobol number, the paper's) or 'sobol' (the Sobol number itself)"},
+     BIT(M_IAS),
+     F(ias_cluster_numbers),
+     PN_FIELD_INT,
+     PN_IAS_NUMBERS_JITTERED},
     {{"ias-pass-rays", PN_OPTION_INT, "32", 0, 65536, 0, 0, "rays", "",
       "default variant: shadow rays per pixel in pass j, (j + 1) times this (0: the paper's 1.5 N_C, at least 50)"},
      BIT(M_IAS),
