@@ -77,7 +77,7 @@ static void test_cut_cost_and_probabilities(void) {
             /* A descent from the root lands in exactly one cut node; the probability it reports is
              * that node's times the descent's from the node down to the same light. */
             double u = (double)pn_rng_float(&r), pm_root;
-            int light = pn_light_bvh_descend(&t, 0, p, nrm, true, u, 1.0, &pm_root);
+            int light = pn_light_bvh_descend(&t, 0, p, nrm, u, 1.0, &pm_root);
             CHECK(light >= 0);
             if (light < 0) continue;
             int in = -1;
@@ -91,8 +91,8 @@ static void test_cut_cost_and_probabilities(void) {
             double below = 1.0;
             for (int m = t.node_of_light[light]; m != nodes[in]; m = t.nodes[m].parent) {
                 int par = t.nodes[m].parent;
-                double i0 = (double)pn_light_bounds_importance_above(&t.nodes[par + 1].b, p, nrm);
-                double i1 = (double)pn_light_bounds_importance_above(&t.nodes[t.nodes[par].second].b, p, nrm);
+                double i0 = (double)pn_light_bounds_importance(&t.nodes[par + 1].b, p, nrm);
+                double i1 = (double)pn_light_bounds_importance(&t.nodes[t.nodes[par].second].b, p, nrm);
                 below *= (m == par + 1 ? i0 : i1) / (i0 + i1);
             }
             CHECK_NEAR((double)prob[in] * below / pm_root, 1.0, 1e-3);

@@ -13,8 +13,11 @@ from that line. The table gives those times, the best baseline and the ratio.
 
     bench/ias/beyond.py BUILD_DIR OUT_DIR
 
-Environment: SCENES (space-separated NAME:FILE:CROP), CONV_SPP (1024), RUNS (3), METHODS (names
-from METHOD_ARGS below, space-separated), THREADS for the converged renders (1).
+Environment: SCENES (space-separated NAME:FILE:CROP[:SAMPLER], SAMPLER the converged render's
+--light-sampler), CONV_SPP (1024), RUNS (3), METHODS (names
+from METHOD_ARGS below, space-separated), THREADS for the converged renders (1), SKIP (space-separated
+SCENE:METHOD pairs not to run, e.g. the paper variant at 10^6 emitters, whose per-block arrays
+over all clusters do not fit in memory).
 """
 import math
 import os
@@ -28,7 +31,7 @@ METHOD_ARGS = {
     "ref": [["--integrator", "reference", "--spp", s] for s in ("4", "16")],
     "bvh": [["--integrator", "reference", "--light-sampler", "bvh", "--spp", s] for s in ("4", "16")],
     "ias-paper": [["--integrator", "ias", "--ias-variant", "paper", "--threshold", t] for t in ("0.04", "0.01")],
-    "ias": [["--integrator", "ias", "--threshold", t] for t in ("0.04", "0.01")],
+    "ias": [["--integrator", "ias", "--threshold", t] for t in ("0.01", "0.0025")],
 }
 BASELINES = ("ref", "bvh")
 
@@ -74,21 +77,27 @@ def main():
     os.makedirs(out, exist_ok=True)
     conv_spp = os.environ.get("CONV_SPP", "1024")
     runs = int(os.environ.get("RUNS", "3"))
-    methods = os.environ.get("METHODS", "ref bvh ias-paper ias").split()
+    all_methods = os.environ.get("METHODS", "ref bvh ias-paper ias").split()
     threads = os.environ.get("THREADS", "1")
     scenes = os.environ["SCENES"].split()
     rows = []
     for spec in scenes:
-        name, path, crop = spec.split(":")
+        fields = spec.split(":")
+        name, path, crop = fields[:3]
+        # An optional fourth field: the converged render's light sampler (bvh for scenes whose
+        # O(N)-per-point irradiance PDF would take hours at 512 spp; the result is the same image).
+        conv_extra = ["--light-sampler", fields[3]] if len(fields) > 3 else []
         common = ["--crop", crop, "--quiet"]
         conv = [os.path.join(out, f"converged-{name}-{conv_spp}-seed{s}.exr") for s in (7, 8)]
         for seed, img in zip((7, 8), conv):
             if not os.path.exists(img):
                 print(f"beyond: {name}: converged reference, {conv_spp} spp, seed {seed}", file=sys.stderr)
                 subprocess.run([penumbra, "render", path, "--integrator", "reference", "--spp", conv_spp, "--seed",
-                                str(seed), "--threads", threads, "-o", img] + common, check=True)
+                                str(seed), "--threads", threads, "-o", img] + common + conv_extra, check=True)
         floor = 0.5 * relmse(penumbra, conv[0], conv[1])
         print(f"beyond: {name}: converged render's own relMSE {floor:.3g}", file=sys.stderr)
+        skip = os.environ.get("SKIP", "").split()
+        methods = [m for m in all_methods if f"{name}:{m}" not in skip]
         times = {(m, k): [] for m in methods for k in range(2)}
         err, mem = {}, {}
         for r in range(runs):
@@ -108,17 +117,17 @@ def main():
             for k in range(2):
                 t, e = pts[m][k]
                 print(f"{name:16s} {m:10s} level {k}: {t:8.3f} s CPU  relMSE {e:.4g}  peak {mem[(m, k)] / 1e6:.0f} MB")
-        rows.append((name, target, at))
+        rows.append((name, target, {m: at.get(m, float("nan")) for m in all_methods}))
         sys.stdout.flush()
     print()
-    head = f"| scene | target relMSE | " + " | ".join(f"{m} s" for m in methods) + " | best baseline | ias / best |"
+    head = f"| scene | target relMSE | " + " | ".join(f"{m} s" for m in all_methods) + " | best baseline | ias / best |"
     print(head)
     print("|" + "---|" * (head.count("|") - 1))
     for name, target, at in rows:
         base = [at[m] for m in BASELINES if m in at and not math.isnan(at[m])]
         best = min(base) if base else float("nan")
         ratio = best / at["ias"] if "ias" in at and at["ias"] > 0 else float("nan")
-        cells = " | ".join(f"{at[m]:.3g}" for m in methods)
+        cells = " | ".join(f"{at[m]:.3g}" for m in all_methods)
         print(f"| {name} | {target:.3g} | {cells} | {best:.3g} | {ratio:.2f}x |")
 
 

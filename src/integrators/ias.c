@@ -564,7 +564,7 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
             }
         /* The tree's share against distant lights and environment regions: its root's importance
          * (a bound on its irradiance times pi, the unit of their priors below). */
-        const double root = k > 0 ? (double)pn_light_bounds_importance_above(&sh->bvh.nodes[0].b, r->origin, n) : 0.0;
+        const double root = k > 0 ? (double)pn_light_bounds_importance(&sh->bvh.nodes[0].b, r->origin, n) : 0.0;
         for (int i = k - 1; i >= 0; i--) prior[i] = root * (double)imp[i];
         for (int d = 0; d < sh->distant_count; d++) {
             const pn_light *l = &job->lights->lights[sh->distant[d]];
@@ -1054,7 +1054,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 double width = s->cdf[c + 1] - s->cdf[c];
                 double u_node = width > 0.0 ? (u - s->cdf[c]) / width : 0.0;
                 u_node = fmin(fmax(u_node, 0.0), nextafter(1.0, 0.0));
-                light = pn_light_bvh_descend(&sh->bvh, id, origin, bsdf->ng, true, u_node, 1.0, &pm);
+                light = pn_light_bvh_descend(&sh->bvh, id, origin, bsdf->ng, u_node, 1.0, &pm);
                 pl = (float)pm;
             } else if (id < sh->light_ids) {
                 light = sh->distant[id - sh->bvh.node_count];

@@ -140,13 +140,6 @@ float pn_light_bounds_importance(const pn_light_bvh_bounds *b, vec3 p, vec3 n) {
     return fmaxf(importance, 0.0f);
 }
 
-float pn_light_bounds_importance_above(const pn_light_bvh_bounds *b, vec3 p, vec3 n) {
-    /* The box's support in direction n, relative to p: the largest n . (x - p) over its corners. */
-    vec3 c = v3_scale(v3_add(b->bmin, b->bmax), 0.5f), h = v3_scale(v3_sub(b->bmax, b->bmin), 0.5f);
-    float support = v3_dot(n, v3_sub(c, p)) + fabsf(n.x) * h.x + fabsf(n.y) * h.y + fabsf(n.z) * h.z;
-    return support > 0.0f ? pn_light_bounds_importance(b, p, n) : 0.0f;
-}
-
 /* ---- build -------------------------------------------------------------------------------- */
 
 typedef struct bvh_item {
@@ -334,26 +327,23 @@ int pn_light_bvh_sample(const pn_light_bvh *t, vec3 p, vec3 n, float u_in, float
     if (t->node_count == 0) return -1;
     u = p_inf > 0.0 ? (u - p_inf) / (1.0 - p_inf) : u;
     double prob;
-    int light = pn_light_bvh_descend(t, 0, p, n, false, u, 1.0 - p_inf, &prob);
+    int light = pn_light_bvh_descend(t, 0, p, n, u, 1.0 - p_inf, &prob);
     if (light >= 0) *pmf = (float)prob;
     return light;
 }
 
-int pn_light_bvh_descend(const pn_light_bvh *t, int node, vec3 p, vec3 n, bool above, double u, double prob,
-                         double *pmf) {
-    float (*importance)(const pn_light_bvh_bounds *, vec3, vec3) =
-        above ? pn_light_bounds_importance_above : pn_light_bounds_importance;
+int pn_light_bvh_descend(const pn_light_bvh *t, int node, vec3 p, vec3 n, double u, double prob, double *pmf) {
     *pmf = 0.0;
     if (u >= 1.0) u = nextafter(1.0, 0.0);
     for (;;) {
         const pn_light_bvh_node *nd = &t->nodes[node];
         if (nd->leaf) {
-            if (!(importance(&nd->b, p, n) > 0.0f)) return -1;
+            if (!(pn_light_bounds_importance(&nd->b, p, n) > 0.0f)) return -1;
             *pmf = prob;
             return nd->second;
         }
-        double i0 = (double)importance(&t->nodes[node + 1].b, p, n);
-        double i1 = (double)importance(&t->nodes[nd->second].b, p, n);
+        double i0 = (double)pn_light_bounds_importance(&t->nodes[node + 1].b, p, n);
+        double i1 = (double)pn_light_bounds_importance(&t->nodes[nd->second].b, p, n);
         double sum = i0 + i1;
         if (!(sum > 0.0)) return -1;
         double p0 = i0 / sum;
@@ -377,7 +367,7 @@ int pn_light_bvh_cut(const pn_light_bvh *t, vec3 p, vec3 n, int max_nodes, int *
     int k = 0, seen = 0;
     if (t->node_count > 0 && max_nodes > 0) {
         seen = 1;
-        if (pn_light_bounds_importance_above(&t->nodes[0].b, p, n) > 0.0f) {
+        if (pn_light_bounds_importance(&t->nodes[0].b, p, n) > 0.0f) {
             nodes[0] = 0;
             prob[0] = 1.0f;
             k = 1;
@@ -393,7 +383,7 @@ int pn_light_bvh_cut(const pn_light_bvh *t, vec3 p, vec3 n, int max_nodes, int *
         const int m = nodes[best];
         const int child[2] = {m + 1, t->nodes[m].second};
         float ic[2];
-        for (int c = 0; c < 2; c++) ic[c] = pn_light_bounds_importance_above(&t->nodes[child[c]].b, p, n);
+        for (int c = 0; c < 2; c++) ic[c] = pn_light_bounds_importance(&t->nodes[child[c]].b, p, n);
         seen += 2;
         const float parent = prob[best], sum = ic[0] + ic[1];
         /* The first child with importance takes the parent's place, the second is appended;

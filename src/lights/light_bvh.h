@@ -58,19 +58,11 @@ int pn_light_bvh_sample(const pn_light_bvh *bvh, vec3 p, vec3 n, float u, float 
 
 /* The stochastic descent of pn_light_bvh_sample from `node` down: u in [0,1) picks a child by
  * importance at every level and is rescaled within it; *pmf = prob times the product of the
- * choices' probabilities (0 and -1 when no leaf below can be chosen). `above`: importances by
- * pn_light_bounds_importance_above (for a receiver that reflects only above its plane). */
-int pn_light_bvh_descend(const pn_light_bvh *bvh, int node, vec3 p, vec3 n, bool above, double u, double prob,
-                         double *pmf);
+ * choices' probabilities (0 and -1 when no leaf below can be chosen). */
+int pn_light_bvh_descend(const pn_light_bvh *bvh, int node, vec3 p, vec3 n, double u, double prob, double *pmf);
 
-/* pn_light_bounds_importance, but 0 when the box lies wholly on or below the plane through p with
- * normal n: nothing in it can light a surface that reflects only above that plane (pbrt's
- * importance takes |cos| for transmitting surfaces). */
-float pn_light_bounds_importance_above(const pn_light_bvh_bounds *b, vec3 p, vec3 n);
-
-/* A cut of the tree for the point (p, n) of at most max_nodes nodes, importances by
- * pn_light_bounds_importance_above. Every node carries the probability that the stochastic
- * descent from the root (pn_light_bvh_descend with `above`) passes through it: the root 1, a
+/* A cut of the tree for the point (p, n) of at most max_nodes nodes. Every node carries the
+ * probability that the stochastic descent from the root (pn_light_bvh_descend) passes through it: the root 1, a
  * child its parent's times its share of the two children's importance. Starting at the root, the
  * interior node of largest probability is replaced by its children with non-zero importance
  * until the next split would exceed max_nodes or only leaves are left (an importance-driven cut
