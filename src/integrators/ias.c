@@ -55,7 +55,8 @@
  *    each cut node instead of uniform (compute_cut, build_pdf_table);
  *  - ias-points members: shadow rays leave from the region's eye-ray points, not from its
  *    representative (push_point, group_points);
- *  - ias-pass-rays N: pass j takes (j + 1) N shadow rays per pixel instead of 1.5 N_C >= 50;
+ *  - ias-pass-rays N: pass j takes max((j + 1) N, 1.5 N_C) shadow rays per pixel instead of
+ *    max(1.5 N_C, 50): fewer where the cut is small, and N_C no longer grows with the emitters;
  *  - ias-cluster-numbers sobol: the cluster choice takes dimension 5's Sobol number itself (no
  *    stratum jitter; sample_pixel). Always with the BVH cut: its descent continues with the
  *    cluster's number rescaled within the node; with members, dimension 9 picks the point. */
@@ -1405,7 +1406,16 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             /* 1.5 N_C samples, at least 50 (§5.8); the default variant: (j + 1) pass_rays. */
             unsigned count = (unsigned)ceil(1.5 * px->clusters);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
-            if (sh->pass_rays) count = (unsigned)(pass + 1) * sh->pass_rays;
+            /* The default variant: (j + 1) pass_rays, but never fewer than 1.5 N_C. With the BVH
+             * cut N_C is at most the cut size plus the distant lights and environment regions,
+             * so it does not grow with the number of emitters; without the floor, 32 rays over
+             * living-env-138-matte's ~316 clusters left the feedback too few samples per cluster
+             * (relMSE 0.020 and 2.8% dark at threshold 0.01; 0.0044 and 0.8% with it). */
+            if (sh->pass_rays) {
+                unsigned grown = (unsigned)(pass + 1) * sh->pass_rays;
+                count = (unsigned)ceil(1.5 * px->clusters);
+                if (grown > count) count = grown;
+            }
             sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
             if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {

@@ -232,7 +232,8 @@ static const pn_option_decl options[] = {
      PN_FIELD_INT,
      PN_IAS_NUMBERS_JITTERED},
     {{"ias-pass-rays", PN_OPTION_INT, "32", 0, 65536, 0, 0, "rays", "",
-      "default variant: shadow rays per pixel in pass j, (j + 1) times this (0: the paper's 1.5 N_C, at least 50)"},
+      "default variant: shadow rays per pixel in pass j, (j + 1) times this but at least 1.5 N_C (0: the paper's "
+      "1.5 N_C, at least 50)"},
      BIT(M_IAS),
      F(ias_pass_rays),
      PN_FIELD_U32,
