@@ -6,16 +6,15 @@ fixed-spp `reference` render (CONV_SPP eye rays, seed 7) and a second one with s
 relMSE against the first, halved, is the converged render's own noise (printed; it is subtracted
 from every method's relMSE, the two errors being independent). Then every method renders the crop
 at two levels (spp or threshold), RUNS times, methods and levels alternated, one thread each; CPU
-seconds (user + system of the child, from getrusage) are the median over the runs. Each method's
-(time, relMSE) pairs are joined by a line in log-log space, and the time each method needs to reach
-a common target relMSE (the geometric mean of all methods' measured relMSEs on that scene) is read
-from that line. The table gives those times, the best baseline and the ratio.
+seconds (user + system of the child, from getrusage) are the median over the runs. The table at the
+end (bench/ias/beyond_table.py, which also makes it from logs) gives each method's CPU time at the
+default ias's relMSE, the best baseline and the ratio.
 
     bench/ias/beyond.py BUILD_DIR OUT_DIR
 
 Environment: SCENES (space-separated NAME:FILE:CROP[:SAMPLER], SAMPLER the converged render's
 --light-sampler), CONV_SPP (1024), RUNS (3), METHODS (names
-from METHOD_ARGS below, space-separated), THREADS for the converged renders (1), SKIP (space-separated
+from METHOD_ARGS below, space-separated), BASE_SPP (the baselines' two spp levels, "16 64"), THREADS for the converged renders (1), SKIP (space-separated
 SCENE:METHOD pairs not to run, e.g. the paper variant at 10^6 emitters, whose per-block arrays
 over all clusters do not fit in memory).
 """
@@ -26,14 +25,17 @@ import resource
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from beyond_table import table  # noqa: E402
+
 # method name -> (list of level argument lists, label). Levels are ordered from cheap to costly.
+BASE_SPP = os.environ.get("BASE_SPP", "16 64").split()
 METHOD_ARGS = {
-    "ref": [["--integrator", "reference", "--spp", s] for s in ("4", "16")],
-    "bvh": [["--integrator", "reference", "--light-sampler", "bvh", "--spp", s] for s in ("4", "16")],
+    "ref": [["--integrator", "reference", "--spp", s] for s in BASE_SPP],
+    "bvh": [["--integrator", "reference", "--light-sampler", "bvh", "--spp", s] for s in BASE_SPP],
     "ias-paper": [["--integrator", "ias", "--ias-variant", "paper", "--threshold", t] for t in ("0.04", "0.01")],
     "ias": [["--integrator", "ias", "--threshold", t] for t in ("0.01", "0.0025")],
 }
-BASELINES = ("ref", "bvh")
 
 
 def cpu_run(cmd):
@@ -62,15 +64,6 @@ def median(xs):
     return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
 
 
-def time_at(points, target):
-    """Log-log line through two (time, relMSE) points, read at relMSE = target."""
-    (t0, e0), (t1, e1) = points
-    if not (e0 > 0 and e1 > 0) or e0 == e1:
-        return t1 if e1 <= target else float("nan")
-    slope = (math.log(t1) - math.log(t0)) / (math.log(e1) - math.log(e0))
-    return math.exp(math.log(t0) + slope * (math.log(target) - math.log(e0)))
-
-
 def main():
     build, out = sys.argv[1], sys.argv[2]
     penumbra = os.path.join(build, "penumbra")
@@ -80,7 +73,7 @@ def main():
     all_methods = os.environ.get("METHODS", "ref bvh ias-paper ias").split()
     threads = os.environ.get("THREADS", "1")
     scenes = os.environ["SCENES"].split()
-    rows = []
+    scenes, order = {}, []
     for spec in scenes:
         fields = spec.split(":")
         name, path, crop = fields[:3]
@@ -111,24 +104,15 @@ def main():
                         err[(m, k)] = max(relmse(penumbra, conv[0], img) - floor, 1e-12)
                         mem[(m, k)] = peak_memory(stats)
         pts = {m: [(median(times[(m, k)]), err[(m, k)]) for k in range(2)] for m in methods}
-        target = math.exp(sum(math.log(e) for m in methods for _, e in pts[m]) / (2 * len(methods)))
-        at = {m: time_at(pts[m], target) for m in methods}
         for m in methods:
             for k in range(2):
                 t, e = pts[m][k]
                 print(f"{name:16s} {m:10s} level {k}: {t:8.3f} s CPU  relMSE {e:.4g}  peak {mem[(m, k)] / 1e6:.0f} MB")
-        rows.append((name, target, {m: at.get(m, float("nan")) for m in all_methods}))
+        scenes[name] = {m: {"pts": pts[m], "mem": max(round(mem[(m, k)] / 1e6) for k in range(2))} for m in methods}
+        order.append(name)
         sys.stdout.flush()
     print()
-    head = f"| scene | target relMSE | " + " | ".join(f"{m} s" for m in all_methods) + " | best baseline | ias / best |"
-    print(head)
-    print("|" + "---|" * (head.count("|") - 1))
-    for name, target, at in rows:
-        base = [at[m] for m in BASELINES if m in at and not math.isnan(at[m])]
-        best = min(base) if base else float("nan")
-        ratio = best / at["ias"] if "ias" in at and at["ias"] > 0 else float("nan")
-        cells = " | ".join(f"{at[m]:.3g}" for m in all_methods)
-        print(f"| {name} | {target:.3g} | {cells} | {best:.3g} | {ratio:.2f}x |")
+    print(table(scenes, order))
 
 
 if __name__ == "__main__":
