@@ -728,9 +728,10 @@ static void build_pdf_table(const ias_shared *sh, ias_scratch *s, const ias_regi
 static void flush_pending(ias_scratch *s) {
     for (int i = 0; i < s->pending_count; i++) {
         const ias_pending *e = &s->pending[i];
+        /* One entry at a time: creating the second may grow the table and move the first. */
         pn_ias_stats *b = table_get(&s->table, table_key(-1, (unsigned)e->cls, e->id), true);
-        pn_ias_stats *q = table_get(&s->table, table_key(s->pending_pixel, (unsigned)e->cls, e->id), true);
         if (b) pn_ias_stats_add(b, e->value, e->visible);
+        pn_ias_stats *q = table_get(&s->table, table_key(s->pending_pixel, (unsigned)e->cls, e->id), true);
         if (q) pn_ias_stats_add(q, e->value, e->visible);
     }
     s->pending_count = 0;
