@@ -73,7 +73,7 @@ def main():
     all_methods = os.environ.get("METHODS", "ref bvh ias-paper ias").split()
     threads = os.environ.get("THREADS", "1")
     scenes = os.environ["SCENES"].split()
-    scenes, order = {}, []
+    measured, order = {}, []
     for spec in scenes:
         fields = spec.split(":")
         name, path, crop = fields[:3]
@@ -108,11 +108,11 @@ def main():
             for k in range(2):
                 t, e = pts[m][k]
                 print(f"{name:16s} {m:10s} level {k}: {t:8.3f} s CPU  relMSE {e:.4g}  peak {mem[(m, k)] / 1e6:.0f} MB")
-        scenes[name] = {m: {"pts": pts[m], "mem": max(round(mem[(m, k)] / 1e6) for k in range(2))} for m in methods}
+        measured[name] = {m: {"pts": pts[m], "mem": max(round(mem[(m, k)] / 1e6) for k in range(2))} for m in methods}
         order.append(name)
         sys.stdout.flush()
     print()
-    print(table(scenes, order))
+    print(table(measured, order))
 
 
 if __name__ == "__main__":
