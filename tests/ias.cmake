@@ -1,1 +1,2 @@
 pn_add_test(test_ias)
+pn_add_test(test_ias_default)

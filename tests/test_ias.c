@@ -239,6 +239,63 @@ static void test_ias_matches_reference(void) {
     pn_context_free(ctx);
 }
 
+/* An ias render at threshold 0.002 with options given as name, value pairs (NULL-terminated). */
+static pn_image render_ias_with(pn_context ctx, pn_scene scene, const char *const *opts, pn_render_stats *stats) {
+    pn_render_settings s = {0};
+    pn_options o = pn_options_new();
+    s.options = o;
+    for (int i = 0; opts[i]; i += 2) CHECK(pn_options_set(ctx, o, opts[i], opts[i + 1]) == PN_OK);
+    s.integrator = PN_INTEGRATOR_IAS;
+    s.threshold = 0.002;
+    s.seed = 3;
+    pn_image img = NULL;
+    pn_status st = pn_render(ctx, scene, &s, &img, stats);
+    pn_options_free(o);
+    CHECK(st == PN_OK);
+    return st == PN_OK ? img : NULL;
+}
+
+/* Issue 15: --ias-variant paper is the default variant with every departure switched off (the
+ * paper's code path, the same bits), and both variants meet test_ias_matches_reference's bound
+ * against the reference; the paper variant's images are pinned to penumbra's before the variant
+ * existed by bench/bitident.sh. */
+static void test_ias_variants(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_scene(ctx, "many.pbrt", many_light_scene());
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    static const char *const paper[] = {"ias-variant", "paper", NULL};
+    static const char *const off[] = {
+        "ias-variant", "default",        "ias-cut",       "trees", "ias-prior",           "uniform",
+        "ias-points",  "representative", "ias-pass-rays", "0",     "ias-cluster-numbers", "jittered",
+        NULL};
+    static const char *const def[] = {NULL};
+    pn_render_stats rs, st[3];
+    pn_image ref = render(ctx, scene, PN_INTEGRATOR_REFERENCE, 256, 0.0, &rs);
+    pn_image img[3] = {render_ias_with(ctx, scene, paper, &st[0]), render_ias_with(ctx, scene, off, &st[1]),
+                       render_ias_with(ctx, scene, def, &st[2])};
+    CHECK(ref && img[0] && img[1] && img[2]);
+    if (ref && img[0] && img[1] && img[2]) {
+        size_t n = (size_t)pn_image_width(img[0]) * (size_t)pn_image_height(img[0]) * 3u;
+        CHECK(memcmp(pn_image_layer_data(img[0], 0), pn_image_layer_data(img[1], 0), n * sizeof(float)) == 0);
+        CHECK(memcmp(pn_image_layer_data(img[0], 0), pn_image_layer_data(img[2], 0), n * sizeof(float)) != 0);
+        for (int v = 0; v < 3; v += 2) {
+            double relmse, ratio;
+            compare(ref, img[v], 1.0, &relmse, &ratio);
+            fprintf(stderr, "  %s variant: %.0f shadow rays/px, box relMSE %.3g, mean luminance ratio %.4f\n",
+                    v ? "default" : "paper", st[v].shadow_rays_per_pixel_mean, relmse, ratio);
+            CHECK_MSG(relmse < 2e-4, "box relMSE %.4g", relmse);
+            CHECK_MSG(fabs(ratio - 1.0) < 0.025, "mean luminance ratio %.4f", ratio);
+        }
+    }
+    pn_image_free(ref);
+    for (int v = 0; v < 3; v++) pn_image_free(img[v]);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 /* Blocks of 16x16 and 32x32 pixels (the block side is a setting): the same image within the same
  * bound, and every pixel rendered (a block larger than the image included). Blocks smaller than
  * 8x8 are refused: at 4x4 the passes' weights and the convergence test, which use statistics
@@ -436,5 +493,5 @@ static void test_teardown(void) {
 
 PN_TESTS(TEST(test_feedback_minimises_variance), TEST(test_blend_weights), TEST(test_inverse_variance),
          TEST(test_setup), TEST(test_ias_matches_reference), TEST(test_ias_block_sizes),
-         TEST(test_black_detection_keeps_lit_pixels), TEST(test_ias_thread_determinism), TEST(test_false_color_aov),
-         TEST(test_teardown))
+         TEST(test_black_detection_keeps_lit_pixels), TEST(test_ias_thread_determinism), TEST(test_ias_variants),
+         TEST(test_false_color_aov), TEST(test_teardown))

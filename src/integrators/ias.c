@@ -42,7 +42,24 @@
  * instead of testing after each step. Emitters seen directly are averaged over the eye rays and added to the
  * pixel (they count in L_p for the threshold test). Quasi-random numbers: one scrambled Sobol
  * sequence per block (as the reference integrator), eye ray dimensions 0-4, shadow ray dimensions
- * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light). */
+ * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light).
+ *
+ * Two variants (issue 15; --ias-variant). `paper` is everything above, unchanged. `default`
+ * departs where the bench (bench/ias/beyond.sh) showed the paper losing, each departure its own
+ * option (registry.c) with its reason and measured effect where it is implemented:
+ *  - ias-cut bvh: the clusters are a cut of the light BVH of at most ias-cut-size nodes
+ *    (pn_light_bvh_cut), a node's light chosen by the BVH's importance descent, and the statistics
+ *    kept in a hash table per worker (ias_table): cost per point O(cut size + tree depth) and
+ *    memory following the shadow rays, not lights x pixels (compute_cut, ias_table);
+ *  - ias-prior importance: c_U's PDF (all of pass 0's) is the BVH descent's own probability of
+ *    each cut node instead of uniform (compute_cut, build_pdf_table);
+ *  - ias-points members: shadow rays leave from the region's eye-ray points, not from its
+ *    representative (push_point, group_points);
+ *  - ias-pass-rays N: pass j takes max((j + 1) N, 1.5 N_C) shadow rays per pixel instead of
+ *    max(1.5 N_C, 50): fewer where the cut is small, and N_C no longer grows with the emitters;
+ *  - ias-cluster-numbers sobol: the cluster choice takes dimension 5's Sobol number itself (no
+ *    stratum jitter; sample_pixel). Always with the BVH cut: its descent continues with the
+ *    cluster's number rescaled within the node; with members, dimension 9 picks the point. */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
@@ -51,6 +68,7 @@
 #include "integrators/ias_math.h"
 #include "lights/cluster_tree.h"
 #include "lights/env_regions.h"
+#include "lights/light_bvh.h"
 #include "shade/bsdf.h"
 
 #include <stdatomic.h>
@@ -90,6 +108,18 @@ typedef struct ias_shared {
     double clock_cost; /* what one timed interval adds by itself (two clock reads), subtracted */
     int *post_order;   /* the trees' interior nodes, every node after its children */
     int post_count;
+    int light_ids; /* ids below this are clusters of lights (forest nodes; or BVH nodes, then
+                      distant lights), above are environment regions */
+    /* The default variant (issue 15; see the header): which departures are on. */
+    bool bvh_cut;          /* cut of the light BVH by importance instead of the cluster trees */
+    bool importance_prior; /* c_U's PDF by the cut's importance instead of uniform */
+    bool member_points;    /* shadow rays from the region's eye-ray points, not its representative */
+    bool sobol_direct;     /* the cluster choice takes its Sobol number as it is (no stratum jitter) */
+    unsigned pass_rays;    /* pass j takes (j + 1) pass_rays shadow rays; 0: the paper's §5.8 */
+    int cut_size;
+    pn_light_bvh bvh;
+    int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
+    int distant_count;
 } ias_shared;
 
 /* The smallest of many empty intervals: the cost a timed interval carries for its own clock
@@ -119,6 +149,8 @@ static void ias_release(pn_render_job *job) {
     free(sh->env_base);
     free(sh->seen);
     free(sh->post_order);
+    pn_light_bvh_free(&sh->bvh);
+    free(sh->distant);
     free(sh);
     job->integrator_data = NULL;
 }
@@ -169,12 +201,33 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     job->integrator_data = sh;
     sh->clock_cost = measure_clock_cost();
     const pn_lights *L = job->lights;
-    pn_status st = pn_cluster_forest_build(L, &sh->forest, err);
+    const bool paper = job->ias_variant == PN_IAS_VARIANT_PAPER;
+    sh->bvh_cut = !paper && job->ias_cut == PN_IAS_CUT_BVH;
+    sh->importance_prior = sh->bvh_cut && job->ias_prior == PN_IAS_PRIOR_IMPORTANCE;
+    sh->pass_rays = paper ? 0u : job->ias_pass_rays;
+    sh->member_points = !paper && job->ias_points == PN_IAS_POINTS_MEMBERS;
+    sh->sobol_direct = !paper && job->ias_cluster_numbers == PN_IAS_NUMBERS_SOBOL;
+    sh->cut_size = job->ias_cut_size > 0 ? (int)job->ias_cut_size : 1;
+    pn_status st;
+    int next;
+    if (sh->bvh_cut) {
+        for (int t = 0; t < PN_TREE_COUNT; t++) sh->forest.roots[t] = -1;
+        st = pn_light_bvh_build(L, &sh->bvh, err);
+        sh->distant = malloc((size_t)(L->count > 0 ? L->count : 1) * sizeof *sh->distant);
+        if (st == PN_OK && !sh->distant) st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        for (int i = 0; st == PN_OK && i < L->count; i++)
+            if (L->lights[i].kind == PN_LIGHT_DISTANT && v3_luminance(L->lights[i].emit) > 0.0f)
+                sh->distant[sh->distant_count++] = i;
+        next = sh->bvh.node_count + sh->distant_count;
+    } else {
+        st = pn_cluster_forest_build(L, &sh->forest, err);
+        next = sh->forest.node_count;
+    }
     if (st != PN_OK) {
         ias_release(job);
         return st;
     }
-    int next = sh->forest.node_count;
+    sh->light_ids = next;
     for (int i = 0; i < L->count; i++)
         if (L->lights[i].kind == PN_LIGHT_ENVIRONMENT) sh->env_count++;
     if (sh->env_count) {
@@ -201,10 +254,11 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     }
     sh->id_count = next;
     sh->max_cut = next > 0 ? next : 1;
+    if (sh->bvh_cut) sh->max_cut = sh->cut_size + (next - sh->bvh.node_count);
     sh->light_count = L->count;
-    sh->visible_slots = L->count + (next - sh->forest.node_count);
+    sh->visible_slots = L->count + (next - sh->light_ids);
     sh->seen = calloc((size_t)sh->visible_slots + 1, sizeof *sh->seen);
-    if (!sh->seen || !build_post_order(sh)) {
+    if (!sh->seen || (!sh->bvh_cut && !build_post_order(sh))) {
         ias_release(job);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
     }
@@ -228,7 +282,19 @@ typedef struct ias_region {
     double sum, sum2;
     vec3 rgb;
     unsigned n;
+    /* The default variant's member points (scratch->points[point_first ..], point_count of
+     * them; 0: shadow rays leave from the representative point), visited in turn. */
+    int point_first, point_count;
 } ias_region;
+
+/* An eye ray's own shading point in its antialiasing region (members_points). */
+typedef struct ias_point {
+    vec3 origin, wo, throughput;
+    float eps;
+    float share; /* its filter weight over the region's mean filter weight */
+    int region;  /* index in scratch->regions while the pixel's rays are gathered */
+    pn_bsdf bsdf;
+} ias_point;
 
 typedef struct ias_pass {
     double lum, s2; /* luminance estimate and the variance of that estimate */
@@ -254,6 +320,79 @@ typedef struct ias_pixel {
     uint32_t visible_lights;          /* distinct lights / environment regions seen unoccluded */
     pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
 } ias_pixel;
+
+/* ---- the default variant's statistics: one hash table per worker --------------------------
+ *
+ * The paper's statistics are arrays over all cluster ids per block and per pixel and class, which
+ * grow as lights x pixels (487 MB at 10^5 emitters, issue 15). The default variant keeps only the
+ * entries its samples touched, in an open-addressing table keyed by (pixel or block, normal class,
+ * cluster id), cleared when the block ends: its size follows the block's shadow rays, not the
+ * number of lights. The class IAS_SEEN_CLASS marks the lights a pixel saw unoccluded (Table 5). */
+#define IAS_SEEN_CLASS 7u
+
+typedef struct ias_entry {
+    uint64_t key; /* 0: empty */
+    pn_ias_stats st;
+} ias_entry;
+
+typedef struct ias_table {
+    ias_entry *e;
+    uint32_t cap, used; /* cap a power of two */
+} ias_table;
+
+/* pixel -1: the block's entry. */
+static uint64_t table_key(int pixel, unsigned cls, int id) {
+    return ((uint64_t)(uint32_t)(pixel + 2) << 40) | ((uint64_t)cls << 36) | (uint64_t)(uint32_t)id;
+}
+
+static uint32_t table_slot(uint64_t key, uint32_t cap) {
+    return (uint32_t)(pn_hash3(key, 0x1a5ull, 0) & (uint64_t)(cap - 1u));
+}
+
+static bool table_grow(ias_table *t) {
+    uint32_t cap = t->cap ? t->cap * 2u : 1024u;
+    ias_entry *e = calloc(cap, sizeof *e);
+    if (!e) return false;
+    for (uint32_t i = 0; i < t->cap; i++) {
+        if (!t->e[i].key) continue;
+        uint32_t k = table_slot(t->e[i].key, cap);
+        while (e[k].key) k = (k + 1u) & (cap - 1u);
+        e[k] = t->e[i];
+    }
+    free(t->e);
+    t->e = e;
+    t->cap = cap;
+    return true;
+}
+
+/* The entry of `key`; created (zero) when `create`, else NULL when absent (or out of memory). */
+static pn_ias_stats *table_get(ias_table *t, uint64_t key, bool create) {
+    if (create && 2u * (t->used + 1u) > t->cap && !table_grow(t)) return NULL;
+    if (!t->cap) return NULL;
+    uint32_t k = table_slot(key, t->cap);
+    while (t->e[k].key) {
+        if (t->e[k].key == key) return &t->e[k].st;
+        k = (k + 1u) & (t->cap - 1u);
+    }
+    if (!create) return NULL;
+    t->e[k].key = key;
+    t->used++;
+    return &t->e[k].st;
+}
+
+static void table_clear(ias_table *t) {
+    if (t->used) memset(t->e, 0, (size_t)t->cap * sizeof *t->e);
+    t->used = 0;
+}
+
+/* A light evaluation of the current pixel pass, added to the table when the pass ends so that the
+ * pixel's PDFs stay fixed during its pass (as the paper's are). */
+typedef struct ias_pending {
+    int id;
+    int cls;
+    double value;
+    bool visible;
+} ias_pending;
 
 typedef struct ias_scratch {
     int id_count;
@@ -282,6 +421,14 @@ typedef struct ias_scratch {
     double *fp_cache; /* IAS_CLASSES x id_count, valid where fp_stamp == fp_now */
     uint32_t *fp_stamp;
     uint32_t fp_now;
+    /* The default variant with the BVH cut (see ias_table). */
+    double *cut_prior; /* per cut entry: its importance (or 1), for c_U's PDF */
+    ias_table table;
+    ias_pending *pending;
+    int pending_count, pending_cap, pending_pixel;
+    ias_point *points, *points_tmp; /* member points, by region; the pixel's, in ray order */
+    int point_count, point_cap, tmp_cap, tmp_used;
+    double *fprior; /* per cut entry of the PDF being built */
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -300,6 +447,12 @@ static void ias_scratch_free(void *p) {
     free(s->n_of);
     free(s->pixel_seen);
     free(s->pixels);
+    free(s->cut_prior);
+    free(s->table.e);
+    free(s->pending);
+    free(s->fprior);
+    free(s->points);
+    free(s->points_tmp);
     free(s);
 }
 
@@ -308,25 +461,35 @@ static void *ias_scratch_create(const pn_render_job *job) {
     ias_scratch *s = calloc(1, sizeof *s);
     if (!s) return NULL;
     size_t ids = (size_t)(sh->id_count > 0 ? sh->id_count : 1);
+    /* With the BVH cut the statistics live in the table: the per-id arrays are not used, and
+     * the per-cut ones are sized by the largest cut. */
+    if (sh->bvh_cut) ids = 1;
+    const size_t per_cut = sh->bvh_cut ? (size_t)sh->max_cut : ids;
     s->id_count = (int)ids;
     s->max_pixels = (int)(job->block_size * job->block_size);
     if (s->max_pixels < IAS_MAX_PIXELS) s->max_pixels = IAS_MAX_PIXELS;
     s->pixels = calloc((size_t)s->max_pixels, sizeof *s->pixels);
     s->region_cap = s->max_pixels * 8;
     s->regions = malloc((size_t)s->region_cap * sizeof *s->regions);
-    s->cut_cap = (int)ids * 8;
+    s->cut_cap = (int)per_cut * 8;
     s->cut = malloc((size_t)s->cut_cap * sizeof *s->cut);
+    s->cut_prior = malloc((size_t)s->cut_cap * sizeof *s->cut_prior);
+    s->fprior = malloc((per_cut + 1) * sizeof *s->fprior);
     s->block_stats = calloc(IAS_CLASSES * ids, sizeof *s->block_stats);
     s->pixel_pool = calloc((size_t)s->max_pixels * IAS_CLASSES * ids, sizeof *s->pixel_pool);
-    s->pdf = malloc((ids + 1) * sizeof *s->pdf);
-    s->cdf = malloc((ids + 1) * sizeof *s->cdf);
-    s->fpix = malloc((ids + 1) * sizeof *s->fpix);
+    s->pdf = malloc((per_cut + 1) * sizeof *s->pdf);
+    s->cdf = malloc((per_cut + 1) * sizeof *s->cdf);
+    s->fpix = malloc((per_cut + 1) * sizeof *s->fpix);
     s->fb_cache = calloc(IAS_CLASSES * ids, sizeof *s->fb_cache);
     s->fp_cache = calloc(IAS_CLASSES * ids, sizeof *s->fp_cache);
     s->fp_stamp = calloc(IAS_CLASSES * ids, sizeof *s->fp_stamp);
     s->n_of = malloc(((size_t)job->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
-    s->pixel_seen = calloc((size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
+    s->pixel_seen = calloc(sh->bvh_cut ? 1 : (size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
+    if (!s->cut_prior || !s->fprior || (sh->bvh_cut && !table_grow(&s->table))) {
+        ias_scratch_free(s);
+        return NULL;
+    }
     if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix || !s->fb_cache ||
         !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen || !s->pixels) {
         ias_scratch_free(s);
@@ -367,6 +530,9 @@ static bool reserve_cut(ias_scratch *s, int more) {
     int *c = realloc(s->cut, (size_t)cap * sizeof *c);
     if (!c) return false;
     s->cut = c;
+    double *q = realloc(s->cut_prior, (size_t)cap * sizeof *q);
+    if (!q) return false;
+    s->cut_prior = q;
     s->cut_cap = cap;
     return true;
 }
@@ -377,12 +543,50 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
     vec3 n = r->bsdf.ng;
     if (!reserve_cut(s, sh->max_cut)) return false;
     int *out = s->cut + s->cut_used;
-    int k = pn_cluster_cut(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, out, sh->max_cut);
-    if (k > sh->max_cut) k = sh->max_cut;
+    double *prior = s->cut_prior + s->cut_used;
+    int k;
+    if (sh->bvh_cut) {
+        /* The light BVH cut, each node with the probability the BVH's own descent gives it (so
+         * that the prior PDF followed by the descent in the node is exactly pbrt's light BVH
+         * sampler), then the distant lights above the horizon and the environment regions. */
+        float *imp = (float *)s->fprior; /* scratch of max_cut + 1 doubles */
+        k = pn_light_bvh_cut(&sh->bvh, r->origin, n, sh->cut_size, out, imp, NULL);
+        /* In the tree's depth-first order, which is the order of its leaves: one uniform number
+         * then picks the node and, rescaled within it, the descent, so that stratified numbers
+         * stay stratified over the lights (see sample_pixel). */
+        for (int i = 1; i < k; i++)
+            for (int j = i; j > 0 && out[j - 1] > out[j]; j--) {
+                int t = out[j];
+                out[j] = out[j - 1];
+                out[j - 1] = t;
+                float f = imp[j];
+                imp[j] = imp[j - 1];
+                imp[j - 1] = f;
+            }
+        /* The tree's share against distant lights and environment regions: its root's importance
+         * (a bound on its irradiance times pi, the unit of their priors below). */
+        const double root = k > 0 ? (double)pn_light_bounds_importance(&sh->bvh.nodes[0].b, r->origin, n) : 0.0;
+        for (int i = k - 1; i >= 0; i--) prior[i] = root * (double)imp[i];
+        for (int d = 0; d < sh->distant_count; d++) {
+            const pn_light *l = &job->lights->lights[sh->distant[d]];
+            float c = v3_dot(n, l->n);
+            if (!(c > 0.0f)) continue;
+            prior[k] = (double)PN_PI * (double)v3_luminance(l->emit) * (double)c;
+            out[k++] = sh->bvh.node_count + d;
+        }
+    } else {
+        k = pn_cluster_cut(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, out, sh->max_cut);
+        if (k > sh->max_cut) k = sh->max_cut;
+        for (int i = 0; i < k; i++) prior[i] = 1.0;
+    }
     for (int e = 0; e < sh->env_count; e++) {
         const pn_env_regions *reg = &sh->env[e];
         for (int q = 0; q < reg->count && k < sh->max_cut; q++) {
             if (!(reg->regions[q].power > 0.0f) || pn_env_region_below(&reg->regions[q], n)) continue;
+            /* Its power times the cosine of its mean direction (at least 0.05: a region across
+             * the horizon), times pi as the BVH importance carries it. */
+            prior[k] = (double)PN_PI * (double)reg->regions[q].power *
+                       fmax(0.05, (double)v3_dot(n, reg->regions[q].direction));
             out[k++] = sh->env_base[e] + q;
         }
     }
@@ -477,6 +681,72 @@ static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *p
     const double inv = 1.0 / acc;
     for (int i = 0; i <= nc; i++) s->cdf[i] *= inv;
     for (int i = 0; i < nc; i++) s->pdf[i] *= inv;
+}
+
+/* Eq. 6 for the default variant with the BVH cut: as build_pdf, the feedback weights read from the
+ * table (the pixel's entries as they were when its pass began: this pass's samples are pending),
+ * and c_U's PDF by the cut's prior (importance) when importance_prior, else uniform. */
+static void build_pdf_table(const ias_shared *sh, ias_scratch *s, const ias_region *r, int pass) {
+    double cu, cb, cp;
+    pn_ias_blend_weights(pass, &cu, &cb, &cp);
+    const int nc = r->cut_count;
+    const int *cut = s->cut + r->cut_first;
+    const double *prior = s->cut_prior + r->cut_first;
+    double *fblock = s->pdf, *fpixel = s->fpix, *fprior = s->fprior;
+    double fb = 0.0, fp = 0.0, fq = 0.0;
+    for (int i = 0; i < nc; i++) {
+        const pn_ias_stats *b = cb > 0.0 ? table_get(&s->table, table_key(-1, (unsigned)r->cls, cut[i]), false) : NULL;
+        const pn_ias_stats *q =
+            cp > 0.0 ? table_get(&s->table, table_key(r->pixel, (unsigned)r->cls, cut[i]), false) : NULL;
+        fb += (fblock[i] = b ? pn_ias_feedback(b) : 0.0);
+        fp += (fpixel[i] = q ? pn_ias_feedback(q) : 0.0);
+        fq += (fprior[i] = sh->importance_prior ? prior[i] : 1.0);
+    }
+    if (!(fb > 0.0)) {
+        cu += cb;
+        cb = 0.0;
+    }
+    if (!(fp > 0.0)) {
+        cu += cp;
+        cp = 0.0;
+    }
+    const double ku = fq > 0.0 ? cu / fq : 0.0, kb = cb > 0.0 ? cb / fb : 0.0, kp = cp > 0.0 ? cp / fp : 0.0;
+    double acc = 0.0;
+    s->cdf[0] = 0.0;
+    for (int i = 0; i < nc; i++) {
+        double p = ku * fprior[i] + kb * fblock[i] + kp * fpixel[i];
+        s->pdf[i] = p;
+        acc += p;
+        s->cdf[i + 1] = acc;
+    }
+    const double inv = acc > 0.0 ? 1.0 / acc : 0.0;
+    for (int i = 0; i <= nc; i++) s->cdf[i] *= inv;
+    for (int i = 0; i < nc; i++) s->pdf[i] *= inv;
+}
+
+/* Adds the pending light evaluations of the last pixel pass to the table (block and pixel). */
+static void flush_pending(ias_scratch *s) {
+    for (int i = 0; i < s->pending_count; i++) {
+        const ias_pending *e = &s->pending[i];
+        /* One entry at a time: creating the second may grow the table and move the first. */
+        pn_ias_stats *b = table_get(&s->table, table_key(-1, (unsigned)e->cls, e->id), true);
+        if (b) pn_ias_stats_add(b, e->value, e->visible);
+        pn_ias_stats *q = table_get(&s->table, table_key(s->pending_pixel, (unsigned)e->cls, e->id), true);
+        if (q) pn_ias_stats_add(q, e->value, e->visible);
+    }
+    s->pending_count = 0;
+}
+
+static void push_pending(ias_scratch *s, int pixel, int cls, int id, double value, bool visible) {
+    if (s->pending_count == s->pending_cap) {
+        int cap = s->pending_cap ? 2 * s->pending_cap : 256;
+        ias_pending *e = realloc(s->pending, (size_t)cap * sizeof *e);
+        if (!e) return; /* out of memory: the evaluation is left out of the feedback only */
+        s->pending = e;
+        s->pending_cap = cap;
+    }
+    s->pending_pixel = pixel;
+    s->pending[s->pending_count++] = (ias_pending){id, cls, value, visible};
 }
 
 /* Whether region b's PDF would be region a's: same normal class and the same clusters. */
@@ -724,12 +994,15 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         ias_region *r = &s->regions[px->first_region + k];
         pn_ias_stats *block = s->block_stats + (size_t)r->cls * (size_t)s->id_count;
         s->block_class_used[r->cls] = true;
-        pn_ias_stats *pix = pixel_stats(s, px, r->cls);
+        pn_ias_stats *pix = sh->bvh_cut ? NULL : pixel_stats(s, px, r->cls);
         double t_pdf = pn_clock_seconds();
         /* Regions of one pixel on one surface usually have the same cut; their PDFs are then
          * the same numbers (the feedback weights are fixed for the pixel's pass), built once. */
         if (!same_cut(s, built, r)) {
-            build_pdf(s, r, pix, pass);
+            if (sh->bvh_cut)
+                build_pdf_table(sh, s, r, pass);
+            else
+                build_pdf(s, r, pix, pass);
             built = r;
         }
         px->pdf_seconds += elapsed_since(sh, t_pdf);
@@ -740,10 +1013,27 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             /* Every IAS_TIMING_STRIDE-th sample times its PDF upkeep: choosing the cluster and
              * the light in it, and recording the result. */
             const bool timed_upkeep = q % IAS_TIMING_STRIDE == 1u;
-            double u = ((double)i + (double)pn_sobol_sample(q, 5, scramble)) / (double)n_of[k];
+            /* The paper variant jitters stratum i of n; the default takes the Sobol number itself,
+             * whose consecutive points are already stratified: (i + xi_q) / n breaks that structure
+             * (relMSE 2.6e-4 instead of 6.8e-5 on many-1000 at 64 shadow rays, one pass). */
+            double u = sh->sobol_direct ? (double)pn_sobol_sample(q, 5, scramble)
+                                        : ((double)i + (double)pn_sobol_sample(q, 5, scramble)) / (double)n_of[k];
             float u_pick = pn_sobol_sample(q, 6, scramble);
             float u1 = pn_sobol_sample(q, 7, scramble), u2 = pn_sobol_sample(q, 8, scramble);
             double t_upkeep = timed_upkeep ? pn_clock_seconds() : 0.0;
+            /* The point the shadow ray leaves from: the representative, or the next member. */
+            const ias_point *pt = NULL;
+            if (r->point_count > 0) {
+                /* Its own quasi-random dimension: tied to the stratum index i instead, each member
+                 * saw the same part of the lights' CDF in every pass (relMSE 3.6e-4 instead of
+                 * 6.8e-5 on many-1000 at 64 shadow rays). */
+                int m = (int)(pn_sobol_sample(q, 9, scramble) * (float)r->point_count);
+                pt = &s->points[r->point_first + (m < r->point_count ? m : r->point_count - 1)];
+            }
+            const vec3 origin = pt ? pt->origin : r->origin, wo = pt ? pt->wo : r->wo;
+            const vec3 throughput = pt ? pt->throughput : r->throughput;
+            const pn_bsdf *bsdf = pt ? &pt->bsdf : &r->bsdf;
+            const float eps = pt ? pt->eps : r->eps;
             int c = choose(s->cdf, r->cut_count, u);
             int id = cut[c];
             double p_cluster = s->pdf[c];
@@ -753,14 +1043,31 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             float pdf, dist;
             bool ok;
             float pl = 1.0f;
-            if (id < sh->forest.node_count) light = pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
+            if (!sh->bvh_cut) {
+                if (id < sh->forest.node_count) light = pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
+            } else if (id < sh->bvh.node_count) {
+                /* A light of the BVH node by importance descent (O(depth)). */
+                double pm;
+                /* The stratified number that chose the node, rescaled within the node's share of
+                 * the CDF, drives the descent: with the cut in leaf order the map from u to the
+                 * light is monotone, and the quasi-random points stay well spread over the lights
+                 * (with the independent dimension 6 instead, relMSE 7.4e-5 instead of 6.8e-5 on
+                 * many-1000 at 64 shadow rays, one pass). */
+                double width = s->cdf[c + 1] - s->cdf[c];
+                double u_node = width > 0.0 ? (u - s->cdf[c]) / width : 0.0;
+                u_node = fmin(fmax(u_node, 0.0), nextafter(1.0, 0.0));
+                light = pn_light_bvh_descend(&sh->bvh, id, origin, bsdf->ng, u_node, 1.0, &pm);
+                pl = (float)pm;
+            } else if (id < sh->light_ids) {
+                light = sh->distant[id - sh->bvh.node_count];
+            }
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
-            if (id < sh->forest.node_count) {
+            if (id < sh->light_ids) {
                 p_light = (double)pl;
                 pn_light_sample ls;
-                ok = light >= 0 && pl > 0.0f &&
-                     pn_light_sample_point_cached(job->lights, &job->lights->lights[light], r->origin, u1, u2, &cache,
-                                                  &ls);
+                ok =
+                    light >= 0 && pl > 0.0f &&
+                    pn_light_sample_point_cached(job->lights, &job->lights->lights[light], origin, u1, u2, &cache, &ls);
                 wi = ls.wi;
                 radiance = ls.radiance;
                 pdf = ls.pdf;
@@ -775,21 +1082,29 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             vec3 v = v3(0, 0, 0);
             bool visible = false;
             if (ok && pdf > 0.0f) {
-                vec3 f = pn_bsdf_eval(&r->bsdf, r->wo, wi);
-                float cos_i = v3_dot(r->bsdf.ns, wi);
+                vec3 f = pn_bsdf_eval(bsdf, wo, wi);
+                float cos_i = v3_dot(bsdf->ns, wi);
                 if (!v3_is_zero(f) && cos_i > 0.0f) {
                     px->shadow_rays++;
-                    float tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-4f) - r->eps;
+                    float tmax = isinf(dist) ? INFINITY : dist * (1.0f - 1e-4f) - eps;
                     bool timed = q % IAS_TIMING_STRIDE == 0u;
                     double t0 = timed ? pn_clock_seconds() : 0.0;
-                    float transmittance = pn_shadow_transmittance(job, r->origin, wi, 0.0f, tmax);
+                    float transmittance = pn_shadow_transmittance(job, origin, wi, 0.0f, tmax);
                     visible = transmittance > 0.0f;
                     if (timed) px->embree_seconds += (pn_clock_seconds() - t0) * IAS_TIMING_STRIDE;
                     if (visible) {
                         px->visible++;
                         /* Table 5: this light (or environment region) is visible here. */
-                        int slot = id < sh->forest.node_count ? light : sh->light_count + (id - sh->forest.node_count);
-                        if (slot >= 0 && slot < s->visible_slots) {
+                        int slot = id < sh->light_ids ? light : sh->light_count + (id - sh->light_ids);
+                        if (sh->bvh_cut && slot >= 0 && slot < s->visible_slots) {
+                            pn_ias_stats *e =
+                                table_get(&s->table, table_key((int)(px - s->pixels), IAS_SEEN_CLASS, slot), true);
+                            if (e && !e->count) {
+                                e->count = 1;
+                                px->visible_lights++;
+                                atomic_store_explicit(&sh->seen[slot], 1, memory_order_relaxed);
+                            }
+                        } else if (slot >= 0 && slot < s->visible_slots) {
                             unsigned char *mine = s->pixel_seen + (size_t)(px - s->pixels) * (size_t)s->visible_slots;
                             if (!mine[slot]) {
                                 mine[slot] = 1;
@@ -797,15 +1112,19 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                                 atomic_store_explicit(&sh->seen[slot], 1, memory_order_relaxed);
                             }
                         }
-                        v = v3_scale(v3_mul(v3_mul(f, radiance), r->throughput), cos_i / pdf);
+                        v = v3_scale(v3_mul(v3_mul(f, radiance), throughput), cos_i / pdf);
                         if (transmittance != 1.0f) v = v3_scale(v, transmittance);
+                        if (pt) v = v3_scale(v, pt->share);
                     }
                 }
             }
             /* Statistics: the cluster's contribution estimate (eq. 3), visibility. */
             double lum_v = (double)v3_luminance(v);
             if (timed_upkeep) t_upkeep = pn_clock_seconds();
-            record(sh, block, pix, id, light, lum_v, visible);
+            if (sh->bvh_cut) /* the node's own contribution estimate: the sample over P(light | node) */
+                push_pending(s, (int)(px - s->pixels), r->cls, id, p_light > 0.0 ? lum_v / p_light : 0.0, visible);
+            else
+                record(sh, block, pix, id, light, lum_v, visible);
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
             /* The sample's estimate of the region's direct light (eq. 2 with this pass's PDF). */
             double w = 1.0 / (p_cluster * p_light);
@@ -848,6 +1167,67 @@ static void reset_regions(ias_scratch *s, ias_pixel *px) {
         r->n = 0;
         r->rgb = v3(0, 0, 0);
     }
+}
+
+/* ---- member points (default variant) ---------------------------------------------------------
+ *
+ * The paper evaluates all of a region's shadow rays at its representative point, so a region's
+ * light is its representative's: an error that no number of shadow rays removes (relMSE 1.0e-4 on
+ * the generated 10^3-emitter scene at every threshold and every aa-rays count, where reference
+ * reaches 4e-5). Here the region keeps the points of all its eye rays and its shadow rays leave
+ * from them in turn, each sample weighted by its ray's share of the region's filter weight: the
+ * region's estimate is then unbiased for the mean over its eye rays. The cut and the PDFs stay
+ * the representative's (any PDF that covers the lights is unbiased). */
+static bool push_point(ias_scratch *s, ptrdiff_t region, const pn_eye_path *path, const pn_bsdf *b,
+                       const pn_render_job *job, float fw) {
+    if (s->tmp_used == s->tmp_cap) {
+        int cap = s->tmp_cap ? 2 * s->tmp_cap : (int)job->aa_rays;
+        ias_point *t = realloc(s->points_tmp, (size_t)cap * sizeof *t);
+        if (!t) return false;
+        s->points_tmp = t;
+        s->tmp_cap = cap;
+    }
+    ias_point *pt = &s->points_tmp[s->tmp_used++];
+    pt->eps = pn_accel_ray_epsilon(job->accel, path->hit.p);
+    pt->origin = v3_madd(path->hit.p, b->ng, pt->eps);
+    pt->wo = path->wo;
+    pt->throughput = path->throughput;
+    pt->bsdf = *b;
+    pt->share = fw;
+    pt->region = (int)region;
+    return true;
+}
+
+/* Moves the pixel's points into s->points grouped by region, and sets each point's share. */
+static bool group_points(ias_scratch *s, ias_pixel *px) {
+    const int n = s->tmp_used;
+    if (s->point_count + n > s->point_cap) {
+        int cap = s->point_cap ? s->point_cap : 1024;
+        while (cap < s->point_count + n) cap *= 2;
+        ias_point *p = realloc(s->points, (size_t)cap * sizeof *p);
+        if (!p) return false;
+        s->points = p;
+        s->point_cap = cap;
+    }
+    for (int k = 0; k < px->region_count; k++) {
+        ias_region *g = &s->regions[px->first_region + k];
+        g->point_first = s->point_count;
+        g->point_count = 0;
+        double wsum = 0.0;
+        for (int i = 0; i < n; i++) {
+            const ias_point *t = &s->points_tmp[i];
+            if (t->region != px->first_region + k) continue;
+            s->points[s->point_count + g->point_count++] = *t;
+            wsum += (double)t->share;
+        }
+        for (int i = 0; i < g->point_count; i++) {
+            ias_point *t = &s->points[g->point_first + i];
+            t->share = wsum != 0.0 ? (float)((double)t->share * (double)g->point_count / wsum) : 1.0f;
+        }
+        s->point_count += g->point_count;
+    }
+    s->tmp_used = 0;
+    return true;
 }
 
 /* ---- a block --------------------------------------------------------------------------------- */
@@ -899,6 +1279,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     const uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ 0x1a5ull, (uint64_t)(uint32_t)batch->block_x,
                                                  (uint64_t)(uint32_t)batch->block_y);
     s->region_count = 0;
+    s->point_count = 0;
     s->cut_used = 0;
     s->pool_used = 0;
     memset(s->block_class_used, 0, sizeof s->block_class_used);
@@ -959,10 +1340,14 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             }
             if (join) {
                 join->weight += (double)fw;
+                if (sh->member_points && !push_point(s, join - s->regions, &path, &b, job, fw))
+                    return PN_ERROR_OUT_OF_MEMORY;
                 continue;
             }
             ias_region *g;
             if (!push_region(s, &g)) return PN_ERROR_OUT_OF_MEMORY;
+            if (sh->member_points && !push_point(s, s->region_count - 1, &path, &b, job, fw))
+                return PN_ERROR_OUT_OF_MEMORY;
             memset(g, 0, sizeof *g);
             g->pixel = pi;
             g->hit = path.hit;
@@ -980,6 +1365,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             px->region_count++;
         }
         px->emitted = px->weight_sum != 0.0 ? v3_scale(emitted, (float)(1.0 / px->weight_sum)) : v3(0, 0, 0);
+        if (sh->member_points && !group_points(s, px)) return PN_ERROR_OUT_OF_MEMORY;
         /* Region weights as shares of the pixel. */
         double ncl = 0.0;
         for (int k = 0; k < px->region_count; k++) {
@@ -1006,7 +1392,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     uint32_t counter = 0;
     for (int pass = 0; pass < (int)job->max_passes; pass++) {
         bool any = false;
-        if (pass > 0) {
+        if (pass > 0 && !sh->bvh_cut) {
             double t_pdf = pn_clock_seconds();
             refresh_block_feedback(sh, s);
             s->pixels[0].pdf_seconds += elapsed_since(sh, t_pdf); /* the block's share, on its first pixel */
@@ -1017,11 +1403,22 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             any = true;
             reset_regions(s, px);
             double t_pdf = pn_clock_seconds();
-            begin_pixel_feedback(sh, s, px);
+            flush_pending(s); /* the previous pixel pass's evaluations (default variant) */
+            if (!sh->bvh_cut) begin_pixel_feedback(sh, s, px);
             px->pdf_seconds += elapsed_since(sh, t_pdf);
-            /* 1.5 N_C samples, at least 50. */
+            /* 1.5 N_C samples, at least 50 (§5.8); the default variant: (j + 1) pass_rays. */
             unsigned count = (unsigned)ceil(1.5 * px->clusters);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
+            /* The default variant: (j + 1) pass_rays, but never fewer than 1.5 N_C. With the BVH
+             * cut N_C is at most the cut size plus the distant lights and environment regions,
+             * so it does not grow with the number of emitters; without the floor, 32 rays over
+             * living-env-138-matte's ~316 clusters left the feedback too few samples per cluster
+             * (relMSE 0.020 and 2.8% dark at threshold 0.01; 0.0044 and 0.8% with it). */
+            if (sh->pass_rays) {
+                unsigned grown = (unsigned)(pass + 1) * sh->pass_rays;
+                count = (unsigned)ceil(1.5 * px->clusters);
+                if (grown > count) count = grown;
+            }
             sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
             if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {
@@ -1055,6 +1452,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             px->result = v3_add(px->emitted, rgb);
             px->done = converged || black || pass + 1 >= (int)job->max_passes || atomic_load(job->cancel);
         }
+        flush_pending(s);
         if (!any) break;
     }
 
@@ -1087,7 +1485,10 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         if (s->block_class_used[c])
             memset(s->block_stats + (size_t)c * (size_t)s->id_count, 0, (size_t)s->id_count * sizeof *s->block_stats);
     memset(s->pixel_pool, 0, (size_t)s->pool_used * (size_t)s->id_count * sizeof *s->pixel_pool);
-    memset(s->pixel_seen, 0, (size_t)np * (size_t)s->visible_slots);
+    if (sh->bvh_cut)
+        table_clear(&s->table);
+    else
+        memset(s->pixel_seen, 0, (size_t)np * (size_t)s->visible_slots);
     return PN_OK;
 }
 

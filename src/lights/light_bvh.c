@@ -336,14 +336,20 @@ int pn_light_bvh_sample(const pn_light_bvh *t, vec3 p, vec3 n, float u_in, float
     }
     if (t->node_count == 0) return -1;
     u = p_inf > 0.0 ? (u - p_inf) / (1.0 - p_inf) : u;
+    double prob;
+    int light = pn_light_bvh_descend(t, 0, p, n, u, 1.0 - p_inf, &prob);
+    if (light >= 0) *pmf = (float)prob;
+    return light;
+}
+
+int pn_light_bvh_descend(const pn_light_bvh *t, int node, vec3 p, vec3 n, double u, double prob, double *pmf) {
+    *pmf = 0.0;
     if (u >= 1.0) u = nextafter(1.0, 0.0);
-    double prob = 1.0 - p_inf;
-    int node = 0;
     for (;;) {
         const pn_light_bvh_node *nd = &t->nodes[node];
         if (nd->leaf) {
             if (!(pn_light_bounds_importance(&nd->b, p, n) > 0.0f)) return -1;
-            *pmf = (float)prob;
+            *pmf = prob;
             return nd->second;
         }
         double i0 = (double)pn_light_bounds_importance(&t->nodes[node + 1].b, p, n);
@@ -363,6 +369,51 @@ int pn_light_bvh_sample(const pn_light_bvh *t, vec3 p, vec3 n, float u_in, float
         }
         if (u >= 1.0) u = nextafter(1.0, 0.0);
     }
+}
+
+/* ---- cuts ---------------------------------------------------------------------------------- */
+
+int pn_light_bvh_cut(const pn_light_bvh *t, vec3 p, vec3 n, int max_nodes, int *nodes, float *prob, int *visited) {
+    int k = 0, seen = 0;
+    if (t->node_count > 0 && max_nodes > 0) {
+        seen = 1;
+        if (pn_light_bounds_importance(&t->nodes[0].b, p, n) > 0.0f) {
+            nodes[0] = 0;
+            prob[0] = 1.0f;
+            k = 1;
+        }
+    }
+    for (;;) {
+        /* The interior node the descent reaches most often; splitting it replaces one entry by at
+         * most two. */
+        int best = -1;
+        for (int j = 0; j < k; j++)
+            if (!t->nodes[nodes[j]].leaf && (best < 0 || prob[j] > prob[best])) best = j;
+        if (best < 0 || k + 1 > max_nodes) break;
+        const int m = nodes[best];
+        const int child[2] = {m + 1, t->nodes[m].second};
+        float ic[2];
+        for (int c = 0; c < 2; c++) ic[c] = pn_light_bounds_importance(&t->nodes[child[c]].b, p, n);
+        seen += 2;
+        const float parent = prob[best], sum = ic[0] + ic[1];
+        /* The first child with importance takes the parent's place, the second is appended;
+         * children without importance (behind the point, or facing away) are left out. */
+        int at = best;
+        for (int c = 0; c < 2; c++) {
+            if (!(ic[c] > 0.0f)) continue;
+            if (at < 0) at = k++;
+            nodes[at] = child[c];
+            prob[at] = parent * (ic[c] / sum);
+            at = -1;
+        }
+        if (at >= 0) { /* neither child has importance: drop the entry */
+            nodes[at] = nodes[k - 1];
+            prob[at] = prob[k - 1];
+            k--;
+        }
+    }
+    if (visited) *visited = seen;
+    return k;
 }
 
 float pn_light_bvh_pmf(const pn_light_bvh *t, vec3 p, vec3 n, int light) {

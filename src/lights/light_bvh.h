@@ -56,6 +56,23 @@ void pn_light_bvh_free(pn_light_bvh *bvh);
  * chosen (every importance is zero); *pmf is the probability of the choice. */
 int pn_light_bvh_sample(const pn_light_bvh *bvh, vec3 p, vec3 n, float u, float *pmf);
 
+/* The stochastic descent of pn_light_bvh_sample from `node` down: u in [0,1) picks a child by
+ * importance at every level and is rescaled within it; *pmf = prob times the product of the
+ * choices' probabilities (0 and -1 when no leaf below can be chosen). */
+int pn_light_bvh_descend(const pn_light_bvh *bvh, int node, vec3 p, vec3 n, double u, double prob, double *pmf);
+
+/* A cut of the tree for the point (p, n) of at most max_nodes nodes. Every node carries the
+ * probability that the stochastic descent from the root (pn_light_bvh_descend) passes through it: the root 1, a
+ * child its parent's times its share of the two children's importance. Starting at the root, the
+ * interior node of largest probability is replaced by its children with non-zero importance
+ * until the next split would exceed max_nodes or only leaves are left (an importance-driven cut
+ * in the spirit of Conty Estevez and Kulla 2018, without their variance bound). Writes the nodes
+ * and their probabilities (which sum to 1 unless the cut is empty); returns their number.
+ * *visited (if not NULL) counts the importance evaluations: at most 2 max_nodes - 1, whatever the
+ * number of lights. With pn_light_bvh_descend from a cut node (two evaluations per level) the
+ * cost per point is O(max_nodes + depth). */
+int pn_light_bvh_cut(const pn_light_bvh *bvh, vec3 p, vec3 n, int max_nodes, int *nodes, float *prob, int *visited);
+
 /* The probability that pn_light_bvh_sample chooses `light` at (p, n). */
 float pn_light_bvh_pmf(const pn_light_bvh *bvh, vec3 p, vec3 n, int light);
 

@@ -46,6 +46,14 @@ enum {
                               other's pilot: unbiased */
 };
 
+/* ias (issue 15): the codes of the choices of ias-variant, ias-cut and ias-prior, in their
+ * declared order. */
+enum { PN_IAS_VARIANT_DEFAULT = 0, PN_IAS_VARIANT_PAPER = 1 };
+enum { PN_IAS_CUT_TREES = 0, PN_IAS_CUT_BVH = 1 };
+enum { PN_IAS_PRIOR_UNIFORM = 0, PN_IAS_PRIOR_IMPORTANCE = 1 };
+enum { PN_IAS_POINTS_REPRESENTATIVE = 0, PN_IAS_POINTS_MEMBERS = 1 };
+enum { PN_IAS_NUMBERS_JITTERED = 0, PN_IAS_NUMBERS_SOBOL = 1 };
+
 typedef struct pn_render_job {
     const struct pn_scene_s *scene;
     const pn_accel *accel;
@@ -67,6 +75,14 @@ typedef struct pn_render_job {
     float cluster_solid_angle;
     uint32_t aa_rays, env_regions, max_passes;
     uint32_t block_size; /* pixels per side of the tiled driver's blocks (ias: its blocks) */
+    /* ias, issue 15 (integrators/ias.c): the variant and the default variant's departures */
+    int ias_variant;         /* PN_IAS_VARIANT_* */
+    int ias_cut;             /* PN_IAS_CUT_* */
+    int ias_prior;           /* PN_IAS_PRIOR_* */
+    int ias_points;          /* PN_IAS_POINTS_* */
+    int ias_cluster_numbers; /* PN_IAS_NUMBERS_* */
+    uint32_t ias_cut_size;   /* nodes of a light-BVH cut */
+    uint32_t ias_pass_rays;  /* pass j takes (j + 1) times this; 0: the paper's 1.5 N_C >= 50 */
     /* reference */
     int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
     /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is

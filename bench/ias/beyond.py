@@ -1,0 +1,119 @@
+#!/usr/bin/env python3
+"""beyond.py — CPU time to equal relMSE against a converged render, per scene and method (issue 15).
+
+For each scene (NAME:FILE:CROP) it renders, once and cached under OUT, a converged crop: a
+fixed-spp `reference` render (CONV_SPP eye rays, seed 7) and a second one with seed 8, whose
+relMSE against the first, halved, is the converged render's own noise (printed; it is subtracted
+from every method's relMSE, the two errors being independent). Then every method renders the crop
+at two levels (spp or threshold), RUNS times, methods and levels alternated, one thread each; CPU
+seconds (user + system of the child, from getrusage) are the median over the runs. The table at the
+end (bench/ias/beyond_table.py, which also makes it from logs) gives each method's CPU time at the
+default ias's relMSE, the best baseline and the ratio.
+
+    bench/ias/beyond.py BUILD_DIR OUT_DIR
+
+Environment: SCENES (space-separated NAME:FILE:CROP[:SAMPLER], SAMPLER the converged render's
+--light-sampler), CONV_SPP (1024), RUNS (3), METHODS (names
+from METHOD_ARGS below, space-separated), BASE_SPP (the baselines' two spp levels, "16 64"), THREADS for the converged renders (1), SKIP (space-separated
+SCENE:METHOD pairs not to run, e.g. the paper variant at 10^6 emitters, whose per-block arrays
+over all clusters do not fit in memory).
+"""
+import math
+import os
+import re
+import resource
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from beyond_table import table  # noqa: E402
+
+# method name -> (list of level argument lists, label). Levels are ordered from cheap to costly.
+BASE_SPP = os.environ.get("BASE_SPP", "16 64").split()
+METHOD_ARGS = {
+    "ref": [["--integrator", "reference", "--spp", s] for s in BASE_SPP],
+    "bvh": [["--integrator", "reference", "--light-sampler", "bvh", "--spp", s] for s in BASE_SPP],
+    "ias-paper": [["--integrator", "ias", "--ias-variant", "paper", "--threshold", t] for t in ("0.04", "0.01")],
+    "ias": [["--integrator", "ias", "--threshold", t] for t in ("0.01", "0.0025")],
+}
+
+
+def cpu_run(cmd):
+    """Runs cmd; returns the child's user + system CPU seconds."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def relmse(penumbra, ref, img):
+    out = subprocess.run([penumbra, "diff", ref, img], check=True, capture_output=True, text=True).stdout
+    m = re.search(r"^relMSE\s+([0-9.eE+-]+)", out, re.M)
+    return float(m.group(1))
+
+
+def peak_memory(stats_path):
+    with open(stats_path) as f:
+        m = re.search(r'"peak_memory_bytes":\s*([0-9]+)', f.read())
+    return int(m.group(1)) if m else 0
+
+
+def median(xs):
+    s = sorted(xs)
+    n = len(s)
+    return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
+
+
+def main():
+    build, out = sys.argv[1], sys.argv[2]
+    penumbra = os.path.join(build, "penumbra")
+    os.makedirs(out, exist_ok=True)
+    conv_spp = os.environ.get("CONV_SPP", "1024")
+    runs = int(os.environ.get("RUNS", "3"))
+    all_methods = os.environ.get("METHODS", "ref bvh ias-paper ias").split()
+    threads = os.environ.get("THREADS", "1")
+    scenes = os.environ["SCENES"].split()
+    measured, order = {}, []
+    for spec in scenes:
+        fields = spec.split(":")
+        name, path, crop = fields[:3]
+        # An optional fourth field: the converged render's light sampler (bvh for scenes whose
+        # O(N)-per-point irradiance PDF would take hours at 512 spp; the result is the same image).
+        conv_extra = ["--light-sampler", fields[3]] if len(fields) > 3 else []
+        common = ["--crop", crop, "--quiet"]
+        conv = [os.path.join(out, f"converged-{name}-{conv_spp}-seed{s}.exr") for s in (7, 8)]
+        for seed, img in zip((7, 8), conv):
+            if not os.path.exists(img):
+                print(f"beyond: {name}: converged reference, {conv_spp} spp, seed {seed}", file=sys.stderr)
+                subprocess.run([penumbra, "render", path, "--integrator", "reference", "--spp", conv_spp, "--seed",
+                                str(seed), "--threads", threads, "-o", img] + common + conv_extra, check=True)
+        floor = 0.5 * relmse(penumbra, conv[0], conv[1])
+        print(f"beyond: {name}: converged render's own relMSE {floor:.3g}", file=sys.stderr)
+        skip = os.environ.get("SKIP", "").split()
+        methods = [m for m in all_methods if f"{name}:{m}" not in skip]
+        times = {(m, k): [] for m in methods for k in range(2)}
+        err, mem = {}, {}
+        for r in range(runs):
+            for k in range(2):
+                for m in methods:
+                    img = os.path.join(out, f"{name}-{m}-{k}.exr")
+                    stats = os.path.join(out, f"{name}-{m}-{k}.json")
+                    cmd = [penumbra, "render", path, "--threads", "1", "--seed", "0", "-o", img, "--stats", stats]
+                    times[(m, k)].append(cpu_run(cmd + common + METHOD_ARGS[m][k]))
+                    if r == 0:
+                        err[(m, k)] = max(relmse(penumbra, conv[0], img) - floor, 1e-12)
+                        mem[(m, k)] = peak_memory(stats)
+        pts = {m: [(median(times[(m, k)]), err[(m, k)]) for k in range(2)] for m in methods}
+        for m in methods:
+            for k in range(2):
+                t, e = pts[m][k]
+                print(f"{name:16s} {m:10s} level {k}: {t:8.3f} s CPU  relMSE {e:.4g}  peak {mem[(m, k)] / 1e6:.0f} MB")
+        measured[name] = {m: {"pts": pts[m], "mem": max(round(mem[(m, k)] / 1e6) for k in range(2))} for m in methods}
+        order.append(name)
+        sys.stdout.flush()
+    print()
+    print(table(measured, order))
+
+
+if __name__ == "__main__":
+    main()
