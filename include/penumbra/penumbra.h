@@ -278,6 +278,9 @@ struct pn_image_s;
 typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requested_percent, double evaluated_percent,
                                double seconds);
 
+/* The most worker threads a render uses (pn_render_settings.threads). */
+#define PN_MAX_THREADS 1024
+
 typedef struct pn_render_settings {
     pn_integrator_kind integrator;
     pn_driver_kind driver;
@@ -287,7 +290,7 @@ typedef struct pn_render_settings {
     int width, height; /* 0 = the scene's film resolution */
     int has_crop;      /* when non-zero, crop[] is used instead of the scene's */
     float crop[4];     /* x0, x1, y0, y1 in fractions of the image, as pbrt's cropwindow */
-    int threads;       /* 0 = all cores */
+    int threads;       /* 0 = all cores (at most PN_MAX_THREADS); more is PN_ERROR_INVALID_ARGUMENT */
     uint64_t seed;
     uint32_t max_specular_depth; /* perfect specular bounces of eye rays; default 8 */
     uint32_t aovs;               /* PN_AOV_* bits */
@@ -404,6 +407,25 @@ PN_API pn_status pn_image_write(pn_context ctx, pn_image image, const char *path
 /* Writes size bytes to path by the same atomic route as pn_image_write (a temporary beside it,
  * synced and renamed), so that a failed write leaves no broken file. For the CLI's JSON. */
 PN_API pn_status pn_file_write(pn_context ctx, const char *path, const void *data, size_t size);
+
+/* A set of output files written together (a render's image, PNG, statistics, AOV pictures):
+ * each add writes a complete, synced temporary beside its target and fails without touching
+ * the target; pn_output_set_commit renames all temporaries into place, in the order they were
+ * added, stopping at the first failure; pn_output_set_free removes every temporary not renamed.
+ * So a failure of any output leaves none of them (commit only when every add succeeded). Only
+ * a regular file (or nothing) at a target is replaced; a device, FIFO, folder or symbolic link
+ * is refused with PN_ERROR_IO. At most 64 files per set. */
+typedef struct pn_output_set_s *pn_output_set;
+PN_API pn_output_set pn_output_set_new(void); /* NULL when out of memory */
+PN_API pn_status pn_output_set_add_image(pn_context ctx, pn_output_set set, pn_image image, const char *path,
+                                         float exposure);
+PN_API pn_status pn_output_set_add_file(pn_context ctx, pn_output_set set, const char *path, const void *data,
+                                        size_t size);
+PN_API pn_status pn_output_set_commit(pn_context ctx, pn_output_set set);
+/* Removes the set's temporaries from disk (not its memory); async-signal-safe, for a handler
+ * of SIGINT or SIGTERM that then ends the process. Accepts NULL. */
+PN_API void pn_output_set_discard_temporaries(pn_output_set set);
+PN_API void pn_output_set_free(pn_output_set set); /* accepts NULL */
 
 /* A new image holding the pixel rectangle [x0, x0 + width) x [y0, y0 + height) of every layer
  * (for comparing a crop-window render with the matching part of a full reference). */

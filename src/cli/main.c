@@ -10,8 +10,8 @@
  *
  *   0 success, 2 usage, 3 bad input, 4 system error, 70 internal error, 130 interrupted.
  *
- * No file is ever left half-written: the library writes images and the statistics JSON to a
- * temporary name and renames them (pn_image_write, pn_file_write).
+ * No file is ever left half-written: the library writes images and the statistics JSON to
+ * temporaries and renames them together once all are complete (pn_output_set_*).
  */
 #include "cli/cli.h"
 

@@ -252,7 +252,11 @@ int parse_render_args(int argc, char **argv, render_options *o) {
         } else if (strcmp(name, "--threads") == 0) {
             long n;
             NEED_VALUE();
-            if (!parse_long(value, 0, 65536, &n)) FAIL(bad_value(cmd, name, value, "an integer >= 0 (0 = all cores)"));
+            if (!parse_long(value, 0, PN_MAX_THREADS, &n)) {
+                char expected[64];
+                snprintf(expected, sizeof expected, "an integer from 0 to %d (0 = all cores)", PN_MAX_THREADS);
+                FAIL(bad_value(cmd, name, value, expected));
+            }
             o->settings.threads = (int)n;
         } else if (strcmp(name, "--seed") == 0) {
             NEED_VALUE();

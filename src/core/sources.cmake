@@ -7,4 +7,5 @@ list(APPEND PN_SOURCES
   src/core/sobol.c
   src/core/sampling.c
   src/core/threadpool.c
+  src/core/file.c
 )

@@ -1,0 +1,5 @@
+# robust.cmake — hostile files and outputs never lost or misplaced (issue 19).
+pn_add_test(test_robust)
+target_compile_definitions(test_robust PRIVATE PN_CLI_PATH="$<TARGET_FILE:penumbra_cli>")
+add_dependencies(test_robust penumbra_cli)
+set_tests_properties(test_robust PROPERTIES TIMEOUT 120)
