@@ -15,6 +15,8 @@
 #include "harness.h"
 #include "scene_files.h"
 
+#include "io/image.h"
+
 #include <penumbra/penumbra.h>
 
 #include <dirent.h>
@@ -328,6 +330,85 @@ static void test_thread_creation_failure_message(void) {
     pn_scene_free(scene);
 }
 
+/* ---------------------------------------------------------------------------------------- */
+/* Finding 2: one pixel limit for every format, checked against the header and the file size */
+
+static void write_bytes(const char *rel, const void *data, size_t size) {
+    FILE *f = fopen(tpath(rel), "wb");
+    CHECK(f != NULL);
+    if (!f) return;
+    CHECK(fwrite(data, 1, size, f) == size);
+    fclose(f);
+}
+
+static void test_decompression_bomb_tga(void) {
+    /* An 18-byte uncompressed 24-bit TGA header claiming 57112 x 1293 pixels and no data. */
+    unsigned char tga[18] = {0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0x18, 0xdf, 0x0d, 0x05, 24, 0};
+    write_bytes("bomb.tga", tga, sizeof tga);
+    cli_run r;
+    double t0 = now_seconds();
+    CLI_EXPECT(r, 3, "diff", "bomb.tga", "bomb.tga");
+    CHECK_STR_CONTAINS(r.err, "57112x1293 pixels cannot be stored in 18 bytes");
+    CHECK_MSG(now_seconds() - t0 < 2.0, "took %.2f s", now_seconds() - t0);
+}
+
+/* An EXR whose data window is patched to 16384 x 16384 while the file stays small. */
+static void test_exr_data_window_against_file_size(void) {
+    pn_image img = pn_image_create(8, 8);
+    CHECK(pn_image_write(test_context(), img, tpath("small.exr"), 0.0f) == PN_OK);
+    pn_image_free(img);
+    FILE *f = fopen(tpath("small.exr"), "r+b");
+    CHECK(f != NULL);
+    if (!f) return;
+    unsigned char header[4096];
+    size_t n = fread(header, 1, sizeof header, f);
+    static const char key[] = "dataWindow\0box2i";
+    unsigned char *at = NULL;
+    for (size_t i = 0; i + sizeof key + 20 < n && !at; i++)
+        if (memcmp(header + i, key, sizeof key) == 0) at = header + i + sizeof key + 4;
+    CHECK(at != NULL);
+    if (at) {
+        int32_t box[4] = {0, 0, 16383, 16383}; /* little-endian on every platform we build on */
+        memcpy(at, box, sizeof box);
+        fseek(f, 0, SEEK_SET);
+        CHECK(fwrite(header, 1, n, f) == n);
+    }
+    fclose(f);
+    pn_image out = NULL;
+    CHECK(pn_image_read(test_context(), tpath("small.exr"), &out) == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(pn_context_error_message(test_context()), "cannot be stored in");
+    pn_context_clear_error(test_context());
+    pn_image_free(out);
+}
+
+static void test_pixel_limit_option_and_texture_cost(void) {
+    pn_image img = pn_image_create(512, 512);
+    CHECK(pn_image_write(test_context(), img, tpath("tex.pfm"), 0.0f) == PN_OK);
+    CHECK(pn_image_write(test_context(), img, tpath("tex.exr"), 0.0f) == PN_OK);
+    pn_image_free(img);
+    write_file("tex.pbrt", "WorldBegin\nTexture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"tex.pfm\"\n"
+                           "Texture \"u\" \"spectrum\" \"imagemap\" \"string filename\" \"tex.exr\"\n"
+                           "Material \"diffuse\" \"texture reflectance\" \"t\"\n"
+                           "Shape \"sphere\"\n");
+    cli_run r;
+    /* Two 512 x 512 RGB float images: 2 x 3 MiB. */
+    CLI_EXPECT(r, 0, "info", "tex.pbrt");
+    pn_scene scene = NULL;
+    CHECK(pn_scene_load(test_context(), tpath("tex.pbrt"), &scene) == PN_OK);
+    pn_scene_info info;
+    CHECK(pn_scene_get_info(scene, &info) == PN_OK);
+    CHECK(info.texture_images == 2);
+    CHECK(info.texture_bytes == 2u * 512u * 512u * 3u * sizeof(float));
+    pn_scene_free(scene);
+
+    CLI_EXPECT(r, 3, "info", "tex.pbrt", "--max-image-pixels", "1000");
+    CHECK_STR_CONTAINS(r.err, "tex.pfm: PFM image of 512x512 pixels is larger than the image pixel limit of 1000");
+    CLI_EXPECT(r, 0, "info", "tex.pbrt", "--max-image-pixels", "262144");
+    CLI_EXPECT(r, 2, "info", "tex.pbrt", "--max-image-pixels", "0");
+    CLI_EXPECT(r, 3, "diff", "tex.exr", "tex.exr", "--max-image-pixels", "1000");
+    CHECK_STR_CONTAINS(r.err, "tex.exr: EXR image of 512x512 pixels is larger than the image pixel limit of 1000");
+}
+
 /* Removes the files of the temporary folder (no sub-folders are made) and the folder. */
 static void remove_temp_dir(void) {
     DIR *dir = opendir(temp_dir());
@@ -349,4 +430,6 @@ static void test_cleanup(void) {
 PN_TESTS(TEST(test_device_as_scene_or_include), TEST(test_fifo_inputs_do_not_block), TEST(test_input_larger_than_limit),
          TEST(test_outputs_refuse_non_regular_targets), TEST(test_failed_png_leaves_no_image),
          TEST(test_signal_while_writing_leaves_no_temporary), TEST(test_thread_limit_stated),
-         TEST(test_thread_creation_failure_message), TEST(test_cleanup))
+         TEST(test_thread_creation_failure_message), TEST(test_decompression_bomb_tga),
+         TEST(test_exr_data_window_against_file_size), TEST(test_pixel_limit_option_and_texture_cost),
+         TEST(test_cleanup))

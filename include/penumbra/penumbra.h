@@ -100,6 +100,8 @@ typedef struct pn_scene_info {
     double parse_seconds;       /* time spent parsing (PLY included) */
     double bvh_seconds;         /* time spent building the Embree BVH */
     uint32_t lights_projection; /* pbrt-v4 "projection" lights */
+    uint64_t texture_bytes;     /* memory of the decoded texture and environment images */
+    uint32_t texture_images;    /* distinct image files decoded (one per file and encoding) */
 } pn_scene_info;
 
 PN_API pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info);
@@ -398,6 +400,11 @@ PN_API const float *pn_image_layer_data(pn_image image, int layer);
 /* Reads an image (EXR, PFM, PNG, TGA, JPG, HDR) as linear RGB into a one-layer image. 8-bit
  * formats are decoded from sRGB. Errors read "file: message". */
 PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image);
+
+/* The most pixels an image file (texture, environment map, or an image pn_image_read reads) may
+ * have on this context; a larger one is PN_ERROR_BAD_INPUT before anything is allocated. 0 =
+ * the default, 16384 x 16384 (2^28 pixels, 3 GiB as RGB floats). Applies to later loads. */
+PN_API void pn_context_set_image_pixel_limit(pn_context ctx, uint64_t max_pixels);
 
 /* Writes the image; the format follows the extension: .exr (all layers, 32-bit float), .pfm
  * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a

@@ -56,6 +56,12 @@ const char *scanner_value(arg_scanner *s);
 /* Rejects "--flag=value" for options that take no value. */
 int scanner_no_value(arg_scanner *s);
 int bad_value(const char *command, const char *option, const char *value, const char *expected);
+/* --max-image-pixels N (shared by render, diff and info): 1, or 0 after printing the usage error. */
+int parse_pixel_limit(const char *command, const char *option, const char *value, uint64_t *out);
+/* Help line of --max-image-pixels. */
+#define MAX_IMAGE_PIXELS_HELP                                                                                          \
+    "  --max-image-pixels N   refuse images (textures, environment maps, inputs) of more than N\n"                     \
+    "                         pixels before decoding them (default 268435456 = 16384 x 16384)\n"
 
 typedef struct log_options {
     int quiet;
@@ -70,7 +76,8 @@ typedef struct render_options {
     const char *output_path;
     const char *png_path;
     const char *stats_path;
-    int aov_png; /* --aov-png: false-colour PNGs of the single-channel AOV layers */
+    int aov_png;               /* --aov-png: false-colour PNGs of the single-channel AOV layers */
+    uint64_t max_image_pixels; /* --max-image-pixels; 0 = the library's default */
     double exposure;
     int quiet;
     int has_spp, has_threshold;

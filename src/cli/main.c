@@ -41,14 +41,16 @@ const char diff_help[] =
     "\n"
     "options:\n"
     "  --error-image FILE     write |IMAGE - REFERENCE| x 16 as an image (.exr, .pfm or .png)\n"
-    "  --json                 print the metrics as JSON instead of text\n";
+    "  --json                 print the metrics as JSON instead of text\n" MAX_IMAGE_PIXELS_HELP;
 
 const char info_help[] =
     "usage: penumbra info SCENE.pbrt\n"
     "\n"
     "Loads SCENE.pbrt and prints what penumbra made of it: triangles, meshes, instances, spheres,\n"
     "lights by kind, materials and how each pbrt material was mapped, textures, bounds, film\n"
-    "resolution, load times and the warnings raised while loading.\n";
+    "resolution, load times and the warnings raised while loading.\n"
+    "\n"
+    "options:\n" MAX_IMAGE_PIXELS_HELP;
 
 static void print_version(void) {
     printf("penumbra %s\n", pn_version_string());

@@ -244,6 +244,7 @@ int command_render(int argc, char **argv) {
     }
     log_options log = {o.quiet, 1};
     pn_context_set_log(ctx, on_log, &log);
+    pn_context_set_image_pixel_limit(ctx, o.max_image_pixels);
 
     pn_scene scene = NULL;
     pn_image image = NULL;

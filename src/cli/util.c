@@ -249,6 +249,16 @@ int scanner_no_value(arg_scanner *s) {
     return 1;
 }
 
+/* --max-image-pixels N: a whole number of pixels >= 1, set on ctx later. Returns 1, or 0 after
+ * printing the usage error. */
+int parse_pixel_limit(const char *command, const char *option, const char *value, uint64_t *out) {
+    if (!parse_u64(value, out) || *out == 0) {
+        bad_value(command, option, value, "a number of pixels >= 1 (default 268435456 = 16384 x 16384)");
+        return 0;
+    }
+    return 1;
+}
+
 int bad_value(const char *command, const char *option, const char *value, const char *expected) {
     return usage_error(command, "invalid value '%s' for %s: expected %s", value, option, expected);
 }

@@ -17,6 +17,32 @@ static size_t pn_image_pixel_count(int width, int height) {
     return w * h;
 }
 
+pn_status pn_image_check_size(const char *name, const char *format, int64_t width, int64_t height,
+                              const pn_image_limits *limits, uint64_t pixels_per_byte, pn_err *err) {
+    if (width <= 0 || height <= 0)
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid %s file: size %lldx%lld", name, format,
+                          (long long)width, (long long)height);
+    /* Both sides are below 2^32 in every format, so the product cannot overflow. */
+    uint64_t pixels = (uint64_t)width * (uint64_t)height;
+    if ((uint64_t)width > UINT32_MAX || (uint64_t)height > UINT32_MAX || pixels > limits->max_pixels)
+        return pn_err_set(err, PN_ERROR_BAD_INPUT,
+                          "%s: %s image of %lldx%lld pixels is larger than the image pixel limit of %llu pixels", name,
+                          format, (long long)width, (long long)height, (unsigned long long)limits->max_pixels);
+    if (pixels_per_byte > 0 && pixels / pixels_per_byte > limits->file_size)
+        return pn_err_set(err, PN_ERROR_BAD_INPUT,
+                          "%s: not a valid %s file: %lldx%lld pixels cannot be stored in %llu bytes", name, format,
+                          (long long)width, (long long)height, (unsigned long long)limits->file_size);
+    return PN_OK;
+}
+
+uint64_t pn_context_image_pixel_limit(pn_context ctx) {
+    return ctx && ctx->image_pixel_limit ? ctx->image_pixel_limit : PN_IMAGE_MAX_PIXELS_DEFAULT;
+}
+
+void pn_context_set_image_pixel_limit(pn_context ctx, uint64_t max_pixels) {
+    if (ctx) ctx->image_pixel_limit = max_pixels;
+}
+
 pn_image pn_image_create(int width, int height) {
     size_t pixels = pn_image_pixel_count(width, height);
     if (pixels == 0) return NULL;
@@ -106,7 +132,7 @@ pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image) {
         pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read: %s is NULL", path ? "out_image" : "path");
         return pn_context_fail_from(ctx, &err);
     }
-    pn_status status = pn_image_read_file(path, 0.0f, out_image, &err);
+    pn_status status = pn_image_read_file_limit(path, 0.0f, pn_context_image_pixel_limit(ctx), out_image, &err);
     if (status != PN_OK) {
         /* The file layer always records a message; make sure a bare status is never lost. */
         if (err.status == PN_OK) pn_err_set(&err, status, "%s: cannot read image", path);

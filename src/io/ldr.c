@@ -90,11 +90,18 @@ static void pn_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, i
     }
 }
 
-pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, pn_err *err) {
+pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_limits *limits, pn_image *out,
+                      pn_err *err) {
     *out = NULL;
     const char *kind_name = pn_ldr_kind(file);
     int width = 0, height = 0, comp = 0, kind;
     void *data;
+    /* The header's size against the limit and the file's size before stb allocates. */
+    if (stbi_info_from_file(file, &width, &height, &comp)) {
+        pn_status status = pn_image_check_size(name, kind_name ? kind_name : "image", width, height, limits,
+                                               PN_IMAGE_MAX_PIXELS_PER_BYTE, err);
+        if (status != PN_OK) return status;
+    }
     if (stbi_is_hdr_from_file(file)) {
         kind = 32;
         data = stbi_loadf_from_file(file, &width, &height, &comp, 0);

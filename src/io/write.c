@@ -51,6 +51,10 @@ static pn_image_format pn_format_from_extension(const char *ext) {
 /* Reading */
 
 pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_err *err) {
+    return pn_image_read_file_limit(path, gamma, 0, out, err);
+}
+
+pn_status pn_image_read_file_limit(const char *path, float gamma, uint64_t max_pixels, pn_image *out, pn_err *err) {
     if (out) *out = NULL;
     if (!path || !out) {
         return pn_err_set(err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read_file: %s is NULL", path ? "out" : "path");
@@ -63,7 +67,8 @@ pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_er
      * re-read (EXR needs random access), and must not block or grow without bound. */
     pn_err why;
     pn_err_init(&why);
-    FILE *file = pn_file_open_regular(path, PN_INPUT_FILE_MAX_BYTES, NULL, &why);
+    pn_image_limits limits = {0, max_pixels ? max_pixels : PN_IMAGE_MAX_PIXELS_DEFAULT};
+    FILE *file = pn_file_open_regular(path, PN_INPUT_FILE_MAX_BYTES, &limits.file_size, &why);
     if (!file) return pn_err_set(err, why.status, "%s: %s", path, why.message);
 
     unsigned char magic[4] = {0, 0, 0, 0};
@@ -90,16 +95,16 @@ pn_status pn_image_read_file(const char *path, float gamma, pn_image *out, pn_er
     if (got == 0) {
         status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid image file: file is empty", path);
     } else if (is_exr) {
-        status = pn_exr_read(file, path, out, err);
+        status = pn_exr_read(file, path, &limits, out, err);
     } else if (is_pfm) {
-        status = pn_pfm_read(file, path, out, err);
+        status = pn_pfm_read(file, path, &limits, out, err);
     } else if (by_name == PN_FORMAT_EXR) {
         status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid EXR file: wrong magic number", path);
     } else if (by_name == PN_FORMAT_PFM) {
         status =
             pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: header does not start with PF or Pf", path);
     } else {
-        status = pn_ldr_read(file, path, gamma, out, err);
+        status = pn_ldr_read(file, path, gamma, &limits, out, err);
     }
     fclose(file);
 
