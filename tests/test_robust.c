@@ -352,6 +352,18 @@ static void test_decompression_bomb_tga(void) {
     CHECK_MSG(now_seconds() - t0 < 2.0, "took %.2f s", now_seconds() - t0);
 }
 
+/* Finding 1: the 9-byte JPEG whose Huffman counts sum past 256 (stb wrote past its table) is
+ * refused by libjpeg-turbo; under UBSan, test_fuzz_image replays it from the corpus. */
+static void test_forged_huffman_table_jpeg(void) {
+    static const unsigned char jpeg[9] = {0xff, 0xd8, 0xff, 0xc4, 0x00, 0x13, 0x00, 0xff, 0xff};
+    write_bytes("huffman.jpg", jpeg, sizeof jpeg);
+    pn_image out = NULL;
+    CHECK(pn_image_read(test_context(), tpath("huffman.jpg"), &out) == PN_ERROR_BAD_INPUT);
+    CHECK_STR_CONTAINS(pn_context_error_message(test_context()), "not a valid JPEG file: Bogus Huffman table");
+    pn_context_clear_error(test_context());
+    pn_image_free(out);
+}
+
 /* An EXR whose data window is patched to 16384 x 16384 while the file stays small. */
 static void test_exr_data_window_against_file_size(void) {
     pn_image img = pn_image_create(8, 8);
@@ -431,5 +443,5 @@ PN_TESTS(TEST(test_device_as_scene_or_include), TEST(test_fifo_inputs_do_not_blo
          TEST(test_outputs_refuse_non_regular_targets), TEST(test_failed_png_leaves_no_image),
          TEST(test_signal_while_writing_leaves_no_temporary), TEST(test_thread_limit_stated),
          TEST(test_thread_creation_failure_message), TEST(test_decompression_bomb_tga),
-         TEST(test_exr_data_window_against_file_size), TEST(test_pixel_limit_option_and_texture_cost),
-         TEST(test_cleanup))
+         TEST(test_forged_huffman_table_jpeg), TEST(test_exr_data_window_against_file_size),
+         TEST(test_pixel_limit_option_and_texture_cost), TEST(test_cleanup))

@@ -82,6 +82,14 @@ pn_status pn_exr_read(FILE *file, const char *name, const pn_image_limits *limit
 pn_status pn_pfm_read(FILE *file, const char *name, const pn_image_limits *limits, pn_image *out, pn_err *err);
 pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_limits *limits, pn_image *out,
                       pn_err *err);
+/* io/png_jpeg.c: PNG through libpng, JPEG through libjpeg-turbo. */
+pn_status pn_png_read(FILE *file, const char *name, float gamma, const pn_image_limits *limits, pn_image *out,
+                      pn_err *err);
+pn_status pn_jpeg_read(FILE *file, const char *name, float gamma, const pn_image_limits *limits, pn_image *out,
+                       pn_err *err);
+/* Moves interleaved samples with `comp` channels (1-2 grey(+alpha), 3-4 RGB(+alpha)) of type
+ * `kind` (8, 16: integers decoded with the gamma rule; 32: linear floats) into RGB (io/ldr.c). */
+void pn_image_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind, float gamma);
 pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err);
 pn_status pn_pfm_write(pn_image image, FILE *file, const char *name, pn_err *err);
 pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *name, pn_err *err);

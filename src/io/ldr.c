@@ -1,4 +1,5 @@
-/* ldr.c — everything stb_image can read (PNG, JPEG, TGA, BMP, HDR, ...) and PNG writing.
+/* ldr.c — the 8-bit and Radiance formats: PNG and JPEG handed to png_jpeg.c (libpng,
+ * libjpeg-turbo), the rest (TGA, BMP, HDR, PSD) read by stb_image, and PNG writing.
  *
  * This is the one file that compiles the stb_image and stb_image_write implementations. Radiance
  * HDR files come back linear as they are stored; 8- and 16-bit files are converted to linear
@@ -31,6 +32,8 @@
 #define STBI_NO_GIF
 #define STBI_NO_PIC
 #define STBI_NO_PNM
+#define STBI_NO_PNG  /* libpng (png_jpeg.c) */
+#define STBI_NO_JPEG /* libjpeg-turbo (png_jpeg.c) */
 #include "stb_image.h"
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #include "stb_image_write.h"
@@ -68,7 +71,7 @@ static const char *pn_ldr_kind(FILE *file) {
 /* Moves interleaved samples with `comp` channels into the RGB beauty layer: 1 or 2 channels
  * are grey (plus alpha), 3 or 4 are RGB (plus alpha). `kind` is the sample type: 8 or 16-bit
  * integers (converted with `gamma`) or 32 for linear floats. */
-static void pn_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind, float gamma) {
+void pn_image_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind, float gamma) {
     /* 8-bit files use a table of all 256 values. */
     float table[256];
     if (kind == 8) {
@@ -94,6 +97,10 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_
                       pn_err *err) {
     *out = NULL;
     const char *kind_name = pn_ldr_kind(file);
+    /* PNG and JPEG go to their own libraries (png_jpeg.c); stb_image keeps the formats that have
+     * no packaged decoder: TGA, BMP, Radiance HDR, PSD. */
+    if (kind_name && strcmp(kind_name, "PNG") == 0) return pn_png_read(file, name, gamma, limits, out, err);
+    if (kind_name && strcmp(kind_name, "JPEG") == 0) return pn_jpeg_read(file, name, gamma, limits, out, err);
     int width = 0, height = 0, comp = 0, kind;
     void *data;
     /* The header's size against the limit and the file's size before stb allocates. */
@@ -132,7 +139,7 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_
         stbi_image_free(data);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name, width, height);
     }
-    pn_fill_rgb(image->layers[0].data, (size_t)width * (size_t)height, comp, data, kind, gamma);
+    pn_image_fill_rgb(image->layers[0].data, (size_t)width * (size_t)height, comp, data, kind, gamma);
     stbi_image_free(data);
     *out = image;
     return PN_OK;

@@ -5,5 +5,6 @@ list(APPEND PN_SOURCES
   src/io/exr.c
   src/io/pfm.c
   src/io/ldr.c
+  src/io/png_jpeg.c
   src/io/write.c
 )
