@@ -15,6 +15,7 @@
 #include "harness.h"
 #include "scene_files.h"
 
+#include "core/text.h"
 #include "io/image.h"
 
 #include <penumbra/penumbra.h>
@@ -421,6 +422,83 @@ static void test_pixel_limit_option_and_texture_cost(void) {
     CHECK_STR_CONTAINS(r.err, "tex.exr: EXR image of 512x512 pixels is larger than the image pixel limit of 1000");
 }
 
+/* ---------------------------------------------------------------------------------------- */
+/* Finding 4: every message built from file content is one line, control bytes escaped */
+
+/* Whether s is one line of printable text (UTF-8 above 0x7f allowed; no C0 control, no DEL). */
+static int printable_line(const char *s) {
+    for (const unsigned char *p = (const unsigned char *)s; *p; p++)
+        if (*p < 0x20 || *p == 0x7f) return 0;
+    return 1;
+}
+
+static void test_text_escape(void) {
+    char out[64];
+    CHECK(strcmp(pn_text_escape(out, sizeof out, "a\nb\x1b[31m\\n"), "a\\x0ab\\x1b[31m\\n") == 0);
+    /* Well-formed UTF-8 stays; a C1 control (U+009B, CSI), a lone continuation byte and an
+     * overlong form are escaped. */
+    CHECK(strcmp(pn_text_escape(out, sizeof out, "caf\xc3\xa9 \xc2\x9b \x80 \xc0\xaf"),
+                 "caf\xc3\xa9 \\xc2\\x9b \\x80 \\xc0\\xaf") == 0);
+    /* Escaping twice changes nothing; truncation never splits an escape. */
+    char again[64];
+    CHECK(strcmp(pn_text_escape(again, sizeof again, out), out) == 0);
+    CHECK(strcmp(pn_text_escape(out, 6, "ab\x01"), "ab") == 0);
+    CHECK(strcmp(pn_text_escape(out, 7, "ab\x01"), "ab\\x01") == 0);
+}
+
+static void test_messages_are_one_printable_line(void) {
+    /* A string with an escaped newline and a raw ESC sequence, echoed by the parser. */
+    write_file("esc.pbrt", "WorldBegin\nShape \"sph\\nere\x1b[31m\"\n");
+    pn_scene scene = NULL;
+    CHECK(pn_scene_load(test_context(), tpath("esc.pbrt"), &scene) == PN_OK);
+    CHECK(pn_scene_warning_count(scene) == 1);
+    const char *warning = pn_scene_warning(scene, 0);
+    CHECK_STR_CONTAINS(warning, "sph\\x0aere\\x1b[31m");
+    CHECK(printable_line(warning));
+    pn_scene_free(scene);
+
+    /* 4 KB of bytes of every value as a scene: the error is one printable line. */
+    char junk[4096];
+    uint32_t x = 12345;
+    for (size_t i = 0; i < sizeof junk; i++) {
+        x = x * 1664525u + 1013904223u;
+        junk[i] = (char)(x >> 24);
+    }
+    junk[0] = '"'; /* a string token that runs over control bytes */
+    write_bytes("junk.pbrt", junk, sizeof junk);
+    CHECK(pn_scene_load(test_context(), tpath("junk.pbrt"), &scene) != PN_OK);
+    CHECK_MSG(printable_line(pn_context_error_message(test_context())), "%s", pn_context_error_message(test_context()));
+    pn_context_clear_error(test_context());
+    pn_scene_free(scene);
+
+    /* An EXR attribute type name with an ESC in it, quoted by OpenEXR's message. */
+    pn_image img = pn_image_create(4, 4);
+    CHECK(pn_image_write(test_context(), img, tpath("attr.exr"), 0.0f) == PN_OK);
+    pn_image_free(img);
+    FILE *f = fopen(tpath("attr.exr"), "r+b");
+    CHECK(f != NULL);
+    if (!f) return;
+    unsigned char header[2048];
+    size_t n = fread(header, 1, sizeof header, f);
+    int patched = 0;
+    for (size_t i = 0; i + 24 < n && !patched; i++)
+        if (memcmp(header + i, "channels\0chlist", 15) == 0) {
+            header[i + 9 + 3] = 0x1b; /* type "chl\x1bst" */
+            patched = 1;
+        }
+    CHECK(patched);
+    fseek(f, 0, SEEK_SET);
+    CHECK(fwrite(header, 1, n, f) == n);
+    fclose(f);
+    pn_image out = NULL;
+    CHECK(pn_image_read(test_context(), tpath("attr.exr"), &out) != PN_OK);
+    const char *message = pn_context_error_message(test_context());
+    CHECK_MSG(printable_line(message), "%s", message);
+    CHECK_STR_CONTAINS(message, "\\x1b");
+    pn_context_clear_error(test_context());
+    pn_image_free(out);
+}
+
 /* Removes the files of the temporary folder (no sub-folders are made) and the folder. */
 static void remove_temp_dir(void) {
     DIR *dir = opendir(temp_dir());
@@ -444,4 +522,5 @@ PN_TESTS(TEST(test_device_as_scene_or_include), TEST(test_fifo_inputs_do_not_blo
          TEST(test_signal_while_writing_leaves_no_temporary), TEST(test_thread_limit_stated),
          TEST(test_thread_creation_failure_message), TEST(test_decompression_bomb_tga),
          TEST(test_forged_huffman_table_jpeg), TEST(test_exr_data_window_against_file_size),
-         TEST(test_pixel_limit_option_and_texture_cost), TEST(test_cleanup))
+         TEST(test_pixel_limit_option_and_texture_cost), TEST(test_text_escape),
+         TEST(test_messages_are_one_printable_line), TEST(test_cleanup))

@@ -8,4 +8,5 @@ list(APPEND PN_SOURCES
   src/core/sampling.c
   src/core/threadpool.c
   src/core/file.c
+  src/core/text.c
 )
