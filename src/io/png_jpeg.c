@@ -74,7 +74,7 @@ pn_status pn_png_read(FILE *file, const char *name, float gamma, const pn_image_
     /* Palette to RGB, sub-byte grey to 8 bits, alpha (and tRNS) dropped, 16-bit in host order. */
     if (color == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
     if (color == PNG_COLOR_TYPE_GRAY && depth < 8) png_set_expand_gray_1_2_4_to_8(png);
-    if (color & PNG_COLOR_MASK_ALPHA) png_set_strip_alpha(png);
+    if ((color & PNG_COLOR_MASK_ALPHA) || png_get_valid(png, info, PNG_INFO_tRNS)) png_set_strip_alpha(png);
     if (depth == 16) {
         const uint16_t probe = 1;
         if (*(const unsigned char *)&probe == 1) png_set_swap(png);
@@ -84,7 +84,7 @@ pn_status pn_png_read(FILE *file, const char *name, float gamma, const pn_image_
     int comp = png_get_channels(png, info);
     size_t row_bytes = png_get_rowbytes(png, info);
     int kind = png_get_bit_depth(png, info) == 16 ? 16 : 8;
-    if (comp < 1 || comp > 3 || row_bytes < (size_t)width * (size_t)comp * (size_t)(kind / 8)) {
+    if (comp < 1 || comp > 4 || row_bytes < (size_t)width * (size_t)comp * (size_t)(kind / 8)) {
         snprintf(state.message, sizeof state.message, "unsupported layout");
         longjmp(state.jump, 1);
     }
