@@ -7,3 +7,8 @@ set_tests_properties(test_robust PROPERTIES TIMEOUT 120)
 if(NOT PN_FUZZ)
   add_subdirectory(${CMAKE_CURRENT_SOURCE_DIR}/fuzz ${CMAKE_CURRENT_BINARY_DIR}/fuzz)
 endif()
+# Allocation-failure injection: only the sanitizer build has the hook (src/core/alloc_hook.h).
+if(PN_SANITIZE)
+  pn_add_test(test_alloc_failures)
+  set_tests_properties(test_alloc_failures PROPERTIES TIMEOUT 300)
+endif()

@@ -10,3 +10,7 @@ list(APPEND PN_SOURCES
   src/core/file.c
   src/core/text.c
 )
+# Allocation-failure injection (core/alloc_hook.h): only in the sanitizer test build.
+if(PN_SANITIZE)
+  list(APPEND PN_SOURCES src/core/alloc_hook.c)
+endif()

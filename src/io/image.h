@@ -87,6 +87,9 @@ pn_status pn_png_read(FILE *file, const char *name, float gamma, const pn_image_
                       pn_err *err);
 pn_status pn_jpeg_read(FILE *file, const char *name, float gamma, const pn_image_limits *limits, pn_image *out,
                        pn_err *err);
+/* Writes 8-bit RGB rows (width * 3 bytes each, top first) as a PNG file through libpng. */
+pn_status pn_png_encode_rgb8(FILE *file, const char *name, int width, int height, const unsigned char *pixels,
+                             pn_err *err);
 /* Moves interleaved samples with `comp` channels (1-2 grey(+alpha), 3-4 RGB(+alpha)) of type
  * `kind` (8, 16: integers decoded with the gamma rule; 32: linear floats) into RGB (io/ldr.c). */
 void pn_image_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind, float gamma);

@@ -1,7 +1,9 @@
 /* ldr.c — the 8-bit and Radiance formats: PNG and JPEG handed to png_jpeg.c (libpng,
- * libjpeg-turbo), the rest (TGA, BMP, HDR, PSD) read by stb_image, and PNG writing.
+ * libjpeg-turbo), the rest (TGA, BMP, HDR, PSD) read by stb_image, and PNG writing (the pixels
+ * are encoded here, the file by libpng in png_jpeg.c: stb_image_write's encoder did not survive
+ * an allocation failure, found by test_alloc_failures).
  *
- * This is the one file that compiles the stb_image and stb_image_write implementations. Radiance
+ * This is the one file that compiles the stb_image implementation. Radiance
  * HDR files come back linear as they are stored; 8- and 16-bit files are converted to linear
  * with the `gamma` rule of image.h (0 = sRGB curve, 1 = v / max, other = (v / max)^gamma).
  * Greyscale is replicated into RGB and alpha is dropped. PNG output is the beauty layer scaled by
@@ -35,8 +37,6 @@
 #define STBI_NO_PNG  /* libpng (png_jpeg.c) */
 #define STBI_NO_JPEG /* libjpeg-turbo (png_jpeg.c) */
 #include "stb_image.h"
-#define STB_IMAGE_WRITE_IMPLEMENTATION
-#include "stb_image_write.h"
 #pragma GCC diagnostic pop
 
 /* The sRGB transfer curve and its inverse, on values in [0, 1]. */
@@ -148,21 +148,6 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_
 /* ---------------------------------------------------------------------------------------- */
 /* PNG writing */
 
-typedef struct pn_png_sink {
-    FILE *file;
-    int failed;
-    int error;
-} pn_png_sink;
-
-static void pn_png_sink_write(void *context, void *data, int size) {
-    pn_png_sink *sink = context;
-    if (sink->failed || size <= 0) return;
-    if (fwrite(data, 1, (size_t)size, sink->file) != (size_t)size) {
-        sink->failed = 1;
-        sink->error = errno ? errno : EIO;
-    }
-}
-
 /* One linear value to an 8-bit sRGB code; NaN becomes 0. */
 static unsigned char pn_encode_8bit(float v) {
     if (!(v > 0.0f)) return 0;
@@ -182,10 +167,7 @@ pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *n
     const float *rgb = image->layers[0].data;
     for (size_t i = 0; i < count; i++) pixels[i] = pn_encode_8bit(rgb[i] * scale);
 
-    pn_png_sink sink = {file, 0, 0};
-    int ok = stbi_write_png_to_func(pn_png_sink_write, &sink, width, height, 3, pixels, width * 3);
+    pn_status status = pn_png_encode_rgb8(file, name, width, height, pixels, err);
     free(pixels);
-    if (sink.failed) return pn_err_set(err, PN_ERROR_IO, "%s: %s", name, strerror(sink.error));
-    if (!ok) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: PNG encoding failed", name);
-    return PN_OK;
+    return status;
 }

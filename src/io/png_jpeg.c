@@ -1,4 +1,4 @@
-/* png_jpeg.c — decoding PNG with libpng and JPEG with libjpeg-turbo (Debian libpng-dev,
+/* png_jpeg.c — decoding PNG with libpng and JPEG with libjpeg-turbo, and encoding PNG with libpng (Debian libpng-dev,
  * libjpeg-dev), the field's well-kept decoders, instead of stb_image (issue 19, finding 1: stb's
  * Huffman table builder writes out of bounds on a forged JPEG).
  *
@@ -14,6 +14,7 @@
 
 #include <jpeglib.h>
 #include <png.h>
+#include <errno.h>
 #include <setjmp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -104,6 +105,31 @@ pn_status pn_png_read(FILE *file, const char *name, float gamma, const pn_image_
     free(rows);
     png_destroy_read_struct(&png, &info, NULL);
     *out = image;
+    return PN_OK;
+}
+
+pn_status pn_png_encode_rgb8(FILE *file, const char *name, int width, int height, const unsigned char *pixels,
+                             pn_err *err) {
+    pn_png_state state;
+    state.message[0] = '\0';
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &state, pn_png_error, pn_png_warning);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    if (!png || !info) {
+        png_destroy_write_struct(png ? &png : NULL, NULL);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", name);
+    }
+    if (setjmp(state.jump)) {
+        png_destroy_write_struct(&png, &info);
+        if (ferror(file)) return pn_err_set(err, PN_ERROR_IO, "%s: %s", name, strerror(errno ? errno : EIO));
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: PNG encoding failed: %s", name, state.message);
+    }
+    png_init_io(png, file);
+    png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_write_info(png, info);
+    for (int y = 0; y < height; y++) png_write_row(png, pixels + (size_t)y * (size_t)width * 3);
+    png_write_end(png, NULL);
+    png_destroy_write_struct(&png, &info);
     return PN_OK;
 }
 
