@@ -354,7 +354,7 @@ static void test_decompression_bomb_tga(void) {
 }
 
 /* Finding 1: the 9-byte JPEG whose Huffman counts sum past 256 (stb wrote past its table) is
- * refused by libjpeg-turbo; under UBSan, test_fuzz_image replays it from the corpus. */
+ * refused by libjpeg-turbo; under UBSan, fuzz_replay_jpeg replays it from the corpus. */
 static void test_forged_huffman_table_jpeg(void) {
     static const unsigned char jpeg[9] = {0xff, 0xd8, 0xff, 0xc4, 0x00, 0x13, 0x00, 0xff, 0xff};
     write_bytes("huffman.jpg", jpeg, sizeof jpeg);
@@ -365,28 +365,34 @@ static void test_forged_huffman_table_jpeg(void) {
     pn_image_free(out);
 }
 
+/* Writes a size x size EXR to `rel` and overwrites n bytes at `offset` past the first `key`
+ * (key_size bytes, NULs included) in its first 4 KB. Returns 1 when the key was found. */
+static int write_patched_exr(const char *rel, int size, const char *key, size_t key_size, size_t offset,
+                             const void *bytes, size_t n) {
+    pn_image img = pn_image_create(size, size);
+    CHECK(pn_image_write(test_context(), img, tpath(rel), 0.0f) == PN_OK);
+    pn_image_free(img);
+    FILE *f = fopen(tpath(rel), "r+b");
+    if (!f) return 0;
+    unsigned char header[4096];
+    size_t got = fread(header, 1, sizeof header, f);
+    int found = 0;
+    for (size_t i = 0; i + key_size + offset + n <= got && !found; i++)
+        if (memcmp(header + i, key, key_size) == 0) {
+            memcpy(header + i + key_size + offset, bytes, n);
+            found = 1;
+        }
+    fseek(f, 0, SEEK_SET);
+    found = fwrite(header, 1, got, f) == got && found;
+    fclose(f);
+    return found;
+}
+
 /* An EXR whose data window is patched to 16384 x 16384 while the file stays small. */
 static void test_exr_data_window_against_file_size(void) {
-    pn_image img = pn_image_create(8, 8);
-    CHECK(pn_image_write(test_context(), img, tpath("small.exr"), 0.0f) == PN_OK);
-    pn_image_free(img);
-    FILE *f = fopen(tpath("small.exr"), "r+b");
-    CHECK(f != NULL);
-    if (!f) return;
-    unsigned char header[4096];
-    size_t n = fread(header, 1, sizeof header, f);
     static const char key[] = "dataWindow\0box2i";
-    unsigned char *at = NULL;
-    for (size_t i = 0; i + sizeof key + 20 < n && !at; i++)
-        if (memcmp(header + i, key, sizeof key) == 0) at = header + i + sizeof key + 4;
-    CHECK(at != NULL);
-    if (at) {
-        int32_t box[4] = {0, 0, 16383, 16383}; /* little-endian on every platform we build on */
-        memcpy(at, box, sizeof box);
-        fseek(f, 0, SEEK_SET);
-        CHECK(fwrite(header, 1, n, f) == n);
-    }
-    fclose(f);
+    int32_t box[4] = {0, 0, 16383, 16383}; /* after the 4-byte size; little-endian as EXR is */
+    CHECK(write_patched_exr("small.exr", 8, key, sizeof key, 4, box, sizeof box));
     pn_image out = NULL;
     CHECK(pn_image_read(test_context(), tpath("small.exr"), &out) == PN_ERROR_BAD_INPUT);
     CHECK_STR_CONTAINS(pn_context_error_message(test_context()), "cannot be stored in");
@@ -471,25 +477,9 @@ static void test_messages_are_one_printable_line(void) {
     pn_context_clear_error(test_context());
     pn_scene_free(scene);
 
-    /* An EXR attribute type name with an ESC in it, quoted by OpenEXR's message. */
-    pn_image img = pn_image_create(4, 4);
-    CHECK(pn_image_write(test_context(), img, tpath("attr.exr"), 0.0f) == PN_OK);
-    pn_image_free(img);
-    FILE *f = fopen(tpath("attr.exr"), "r+b");
-    CHECK(f != NULL);
-    if (!f) return;
-    unsigned char header[2048];
-    size_t n = fread(header, 1, sizeof header, f);
-    int patched = 0;
-    for (size_t i = 0; i + 24 < n && !patched; i++)
-        if (memcmp(header + i, "channels\0chlist", 15) == 0) {
-            header[i + 9 + 3] = 0x1b; /* type "chl\x1bst" */
-            patched = 1;
-        }
-    CHECK(patched);
-    fseek(f, 0, SEEK_SET);
-    CHECK(fwrite(header, 1, n, f) == n);
-    fclose(f);
+    /* An EXR attribute type name with an ESC in it ("chl\x1bst"), quoted by OpenEXR's message. */
+    static const char key[] = "channels\0chl";
+    CHECK(write_patched_exr("attr.exr", 4, key, sizeof key - 1, 0, "\x1b", 1));
     pn_image out = NULL;
     CHECK(pn_image_read(test_context(), tpath("attr.exr"), &out) != PN_OK);
     const char *message = pn_context_error_message(test_context());
