@@ -93,6 +93,43 @@ void pn_image_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, in
     }
 }
 
+/* Radiance HDR run-length scanlines, walked before stb decodes them: stb's decoder loops forever
+ * on a zero count, which it also reads at the end of a truncated file (found by fuzz_stb,
+ * corpus/stb/regress-19-hdr-zero-count.hdr). Mirrors stb's reading: header lines up to an empty
+ * one, the resolution line, then per scanline 2, 2, width (16 bits) and four channels of counts
+ * (above 128: a run of count - 128 of one byte; else count literal bytes). Returns 0 when a count
+ * is 0 or the file ends inside a scanline; 1 otherwise (stb reports the other errors itself). */
+static int pn_hdr_runs_terminate(FILE *file, int width, int height) {
+    if (width < 8 || width >= 32768) return 1; /* stb reads such files flat */
+    int c, previous = '\n', lines_done = 0;
+    /* The header ends at an empty line; the resolution line follows. */
+    while (lines_done < 2 && (c = getc(file)) != EOF) {
+        if (c == '\n' && (previous == '\n' || lines_done == 1)) lines_done++;
+        previous = c;
+    }
+    for (int y = 0; y < height; y++) {
+        int c1 = getc(file), c2 = getc(file), hi = getc(file), lo = getc(file);
+        if (c1 != 2 || c2 != 2 || hi == EOF || (hi & 0x80)) return 1; /* flat from here on */
+        if (lo == EOF) return 0;
+        if (((hi << 8) | lo) != width) return 1;
+        for (int k = 0; k < 4; k++) {
+            for (int x = 0; x < width;) {
+                int count = getc(file);
+                if (count == EOF || count == 0) return 0;
+                if (count > 128) {
+                    if (getc(file) == EOF) return 0;
+                    count -= 128;
+                } else {
+                    for (int i = 0; i < count; i++)
+                        if (getc(file) == EOF) return 0;
+                }
+                x += count;
+            }
+        }
+    }
+    return 1;
+}
+
 pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_limits *limits, pn_image *out,
                       pn_err *err) {
     *out = NULL;
@@ -110,6 +147,10 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_
         if (status != PN_OK) return status;
     }
     if (stbi_is_hdr_from_file(file)) {
+        int runs_ok = pn_hdr_runs_terminate(file, width, height);
+        if (fseek(file, 0, SEEK_SET) != 0 || !runs_ok)
+            return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid Radiance HDR file: %s", name,
+                              runs_ok ? "cannot seek" : "empty or truncated run-length scanline");
         kind = 32;
         data = stbi_loadf_from_file(file, &width, &height, &comp, 0);
     } else if (stbi_is_16_bit_from_file(file)) {
