@@ -3,7 +3,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps configure build demo demo-office test sanitize bench format format-check clean
+.PHONY: all deps configure build demo demo-office test sanitize fuzz bench format format-check clean
 
 all: build
 
@@ -38,6 +38,15 @@ sanitize: deps
 	cd build-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	    ctest --output-on-failure -j $(JOBS) -LE slow
 
+# The fuzz targets of tests/fuzz (clang's libFuzzer with ASan and UBSan; clang and its runtime
+# are installed only for this), each run for FUZZ_SECONDS on its corpus; fails on any finding.
+FUZZ_SECONDS ?= 60
+fuzz:
+	sh scripts/install-deps.sh clang libclang-rt-14-dev
+	CC=clang cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPN_FUZZ=ON -DPN_BUILD_TESTS=OFF $(CMAKE_FLAGS)
+	cmake --build build-fuzz -j $(JOBS) --target pn_fuzz_targets
+	sh tests/fuzz/run.sh build-fuzz $(FUZZ_SECONDS)
+
 bench: build
 	$(BUILD)/penumbra_bench --config bench/bench.conf --runs 3 --out bench/results
 
@@ -54,4 +63,4 @@ format-check:
 	clang-format --dry-run --Werror $(FORMAT_FILES)
 
 clean:
-	rm -rf $(BUILD) build-asan out
+	rm -rf $(BUILD) build-asan build-fuzz out

@@ -3,7 +3,7 @@
 # usage: sh scripts/install-deps.sh [EXTRA_PACKAGE...]
 set -eu
 # Extra package names may be given as arguments (e.g. clang-format, for `make format`).
-packages="build-essential cmake pkg-config libembree-dev libopenexr-dev libstb-dev libcjson-dev openmpi-bin libopenmpi-dev $*"
+packages="build-essential cmake pkg-config libembree-dev libopenexr-dev libstb-dev libcjson-dev openmpi-bin libopenmpi-dev libpng-dev libjpeg-dev $*"
 missing=""
 for p in $packages; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

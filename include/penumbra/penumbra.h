@@ -100,6 +100,8 @@ typedef struct pn_scene_info {
     double parse_seconds;       /* time spent parsing (PLY included) */
     double bvh_seconds;         /* time spent building the Embree BVH */
     uint32_t lights_projection; /* pbrt-v4 "projection" lights */
+    uint64_t texture_bytes;     /* memory of the decoded texture and environment images */
+    uint32_t texture_images;    /* distinct image files decoded (one per file and encoding) */
 } pn_scene_info;
 
 PN_API pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info);
@@ -303,6 +305,9 @@ struct pn_image_s;
 typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requested_percent, double evaluated_percent,
                                double seconds);
 
+/* The most worker threads a render uses (pn_render_settings.threads). */
+#define PN_MAX_THREADS 1024
+
 typedef struct pn_render_settings {
     pn_integrator_kind integrator;
     pn_driver_kind driver;
@@ -312,7 +317,7 @@ typedef struct pn_render_settings {
     int width, height; /* 0 = the scene's film resolution */
     int has_crop;      /* when non-zero, crop[] is used instead of the scene's */
     float crop[4];     /* x0, x1, y0, y1 in fractions of the image, as pbrt's cropwindow */
-    int threads;       /* 0 = all cores */
+    int threads;       /* 0 = all cores (at most PN_MAX_THREADS); more is PN_ERROR_INVALID_ARGUMENT */
     uint64_t seed;
     uint32_t max_specular_depth; /* perfect specular bounces of eye rays; default 8 */
     uint32_t aovs;               /* PN_AOV_* bits */
@@ -470,6 +475,11 @@ PN_API pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_i
  * image with that layer (and its values as a grey beauty). Errors read "file: message". */
 PN_API pn_status pn_image_read_layer(pn_context ctx, const char *path, const char *layer, pn_image *out_image);
 
+/* The most pixels an image file (texture, environment map, or an image pn_image_read reads) may
+ * have on this context; a larger one is PN_ERROR_BAD_INPUT before anything is allocated. 0 =
+ * the default, 16384 x 16384 (2^28 pixels, 3 GiB as RGB floats). Applies to later loads. */
+PN_API void pn_context_set_image_pixel_limit(pn_context ctx, uint64_t max_pixels);
+
 /* Writes the image; the format follows the extension: .exr (all layers, 32-bit float), .pfm
  * (beauty), .png (beauty, sRGB, multiplied by 2^exposure and clamped). The file is written to a
  * temporary name in the same folder and renamed, so a failed write leaves no broken file. */
@@ -487,6 +497,25 @@ PN_API pn_status pn_photometry_goniometric_image(pn_context ctx, const char *pat
 /* Writes size bytes to path by the same atomic route as pn_image_write (a temporary beside it,
  * synced and renamed), so that a failed write leaves no broken file. For the CLI's JSON. */
 PN_API pn_status pn_file_write(pn_context ctx, const char *path, const void *data, size_t size);
+
+/* A set of output files written together (a render's image, PNG, statistics, AOV pictures):
+ * each add writes a complete, synced temporary beside its target and fails without touching
+ * the target; pn_output_set_commit renames all temporaries into place, in the order they were
+ * added, stopping at the first failure; pn_output_set_free removes every temporary not renamed.
+ * So a failure of any output leaves none of them (commit only when every add succeeded). Only
+ * a regular file (or nothing) at a target is replaced; a device, FIFO, folder or symbolic link
+ * is refused with PN_ERROR_IO. At most 64 files per set. */
+typedef struct pn_output_set_s *pn_output_set;
+PN_API pn_output_set pn_output_set_new(void); /* NULL when out of memory */
+PN_API pn_status pn_output_set_add_image(pn_context ctx, pn_output_set set, pn_image image, const char *path,
+                                         float exposure);
+PN_API pn_status pn_output_set_add_file(pn_context ctx, pn_output_set set, const char *path, const void *data,
+                                        size_t size);
+PN_API pn_status pn_output_set_commit(pn_context ctx, pn_output_set set);
+/* Removes the set's temporaries from disk (not its memory); async-signal-safe, for a handler
+ * of SIGINT or SIGTERM that then ends the process. Accepts NULL. */
+PN_API void pn_output_set_discard_temporaries(pn_output_set set);
+PN_API void pn_output_set_free(pn_output_set set); /* accepts NULL */
 
 /* A new image holding the pixel rectangle [x0, x0 + width) x [y0, y0 + height) of every layer
  * (for comparing a crop-window render with the matching part of a full reference). */

@@ -56,6 +56,12 @@ const char *scanner_value(arg_scanner *s);
 /* Rejects "--flag=value" for options that take no value. */
 int scanner_no_value(arg_scanner *s);
 int bad_value(const char *command, const char *option, const char *value, const char *expected);
+/* --max-image-pixels N (shared by render, diff and info): 1, or 0 after printing the usage error. */
+int parse_pixel_limit(const char *command, const char *option, const char *value, uint64_t *out);
+/* Help line of --max-image-pixels. */
+#define MAX_IMAGE_PIXELS_HELP                                                                                          \
+    "  --max-image-pixels N   refuse images (textures, environment maps, inputs) of more than N\n"                     \
+    "                         pixels before decoding them (default 268435456 = 16384 x 16384)\n"
 
 typedef struct log_options {
     int quiet;
@@ -70,7 +76,8 @@ typedef struct render_options {
     const char *output_path;
     const char *png_path;
     const char *stats_path;
-    int aov_png; /* --aov-png: false-colour PNGs of the single-channel AOV layers */
+    int aov_png;               /* --aov-png: false-colour PNGs of the single-channel AOV layers */
+    uint64_t max_image_pixels; /* --max-image-pixels; 0 = the library's default */
     double exposure;
     int quiet;
     int has_spp, has_threshold;
@@ -90,8 +97,9 @@ void format_aov_names(uint32_t bits, char *buf, size_t size);
 /* report.c: the summary and the statistics JSON. */
 void print_render_summary(const render_options *o, const pn_scene_info *info, const pn_render_stats *stats,
                           const char *image_path);
-int write_stats_json(const render_options *o, const char *image_path, pn_scene scene, const pn_scene_info *info,
-                     const pn_render_stats *stats, int interrupted_render);
+/* Adds the statistics JSON to `set` (renamed into place by the caller's commit). */
+int write_stats_json(const render_options *o, pn_output_set outputs, const char *image_path, pn_scene scene,
+                     const pn_scene_info *info, const pn_render_stats *stats, int interrupted_render);
 /* Prints a cJSON tree (a `struct cJSON *`) with two-space indentation; caller frees the text. */
 char *json_print(const void *tree);
 
@@ -104,6 +112,10 @@ int command_ies2goniometric(int argc, char **argv);
 int command_illuminance(int argc, char **argv);
 int command_falsecolor(int argc, char **argv);
 int command_merge(int argc, char **argv);
+
+/* util.c: opens an input for reading only when it is a regular file (a FIFO or device is refused
+ * without blocking); NULL with *why set otherwise. */
+FILE *cli_open_regular(const char *path, const char *mode, const char **why);
 
 extern const char diff_help[], info_help[], ies2goniometric_help[];
 

@@ -104,10 +104,12 @@ static pn_illuminance_point *grid_points(grid_spec *g, int *count) {
  * *code = EXIT_BAD_INPUT (EXIT_SYSTEM when unreadable). */
 static pn_illuminance_point *read_points(const char *path, int *count, int *code) {
     *count = 0;
-    FILE *f = fopen(path, "r");
+    const char *why = NULL;
+    errno = 0;
+    FILE *f = cli_open_regular(path, "r", &why);
     if (!f) {
-        fprintf(stderr, "penumbra illuminance: %s: %s\n", path, strerror(errno));
-        *code = errno == ENOENT ? EXIT_BAD_INPUT : EXIT_SYSTEM;
+        fprintf(stderr, "penumbra illuminance: %s: %s\n", path, why);
+        *code = errno == ENOENT || errno == EINVAL ? EXIT_BAD_INPUT : EXIT_SYSTEM;
         return NULL;
     }
     pn_illuminance_point *pts = NULL;

@@ -13,6 +13,7 @@ int command_diff(int argc, char **argv) {
     const char *paths[2] = {NULL, NULL};
     const char *error_path = NULL, *positional = NULL, *value;
     int json = 0, count = 0, kind;
+    uint64_t max_pixels = 0; /* --max-image-pixels; 0 = the default */
     arg_scanner s = {cmd, argc, argv, 0, {0}, NULL, 0};
     while ((kind = scanner_next(&s, &positional)) != 0) {
         if (kind == 2) {
@@ -21,6 +22,9 @@ int command_diff(int argc, char **argv) {
         } else if (strcmp(s.name, "-h") == 0 || strcmp(s.name, "--help") == 0) {
             fputs(diff_help, stdout);
             return EXIT_OK;
+        } else if (strcmp(s.name, "--max-image-pixels") == 0) {
+            if ((value = scanner_value(&s)) == NULL || !parse_pixel_limit(cmd, s.name, value, &max_pixels))
+                return EXIT_USAGE;
         } else if (strcmp(s.name, "--json") == 0) {
             if (!scanner_no_value(&s)) return EXIT_USAGE;
             json = 1;
@@ -45,6 +49,7 @@ int command_diff(int argc, char **argv) {
     }
     log_options log = {0, 1};
     pn_context_set_log(ctx, on_log, &log);
+    pn_context_set_image_pixel_limit(ctx, max_pixels);
     pn_image reference = NULL, image = NULL, error_image = NULL;
     pn_image_metrics m;
     memset(&m, 0, sizeof m);
@@ -142,6 +147,7 @@ static void print_luminaires(pn_scene scene) {
 int command_info(int argc, char **argv) {
     const char *cmd = "info";
     const char *scene_path = NULL, *positional = NULL;
+    uint64_t max_pixels = 0;
     int kind;
     arg_scanner s = {cmd, argc, argv, 0, {0}, NULL, 0};
     while ((kind = scanner_next(&s, &positional)) != 0) {
@@ -151,6 +157,9 @@ int command_info(int argc, char **argv) {
         } else if (strcmp(s.name, "-h") == 0 || strcmp(s.name, "--help") == 0) {
             fputs(info_help, stdout);
             return EXIT_OK;
+        } else if (strcmp(s.name, "--max-image-pixels") == 0) {
+            const char *value = scanner_value(&s);
+            if (value == NULL || !parse_pixel_limit(cmd, s.name, value, &max_pixels)) return EXIT_USAGE;
         } else {
             return usage_error(cmd, "unknown option '%s'", s.argv[s.index]);
         }
@@ -165,6 +174,7 @@ int command_info(int argc, char **argv) {
     /* Warnings are listed in the report, so the log need not print them too. */
     log_options log = {1, 0};
     pn_context_set_log(ctx, on_log, &log);
+    pn_context_set_image_pixel_limit(ctx, max_pixels);
     pn_scene scene = NULL;
     pn_scene_info info;
     memset(&info, 0, sizeof info);
@@ -203,7 +213,8 @@ int command_info(int argc, char **argv) {
         const char *line = pn_scene_material_description(scene, i);
         printf("  %s\n", line ? line : "");
     }
-    printf("textures       %u\n", info.textures);
+    printf("textures       %u (%u images decoded, %.1f MiB)\n", info.textures, info.texture_images,
+           (double)info.texture_bytes / (1024.0 * 1024.0));
     printf("bounds         (%g, %g, %g) to (%g, %g, %g)\n", (double)info.bounds_min[0], (double)info.bounds_min[1],
            (double)info.bounds_min[2], (double)info.bounds_max[0], (double)info.bounds_max[1],
            (double)info.bounds_max[2]);

@@ -10,8 +10,8 @@
  *
  *   0 success, 2 usage, 3 bad input, 4 system error, 70 internal error, 130 interrupted.
  *
- * No file is ever left half-written: the library writes images and the statistics JSON to a
- * temporary name and renames them (pn_image_write, pn_file_write).
+ * No file is ever left half-written: the library writes images and the statistics JSON to
+ * temporaries and renames them together once all are complete (pn_output_set_*).
  */
 #include "cli/cli.h"
 
@@ -45,7 +45,7 @@ const char diff_help[] =
     "\n"
     "options:\n"
     "  --error-image FILE     write |IMAGE - REFERENCE| x 16 as an image (.exr, .pfm or .png)\n"
-    "  --json                 print the metrics as JSON instead of text\n";
+    "  --json                 print the metrics as JSON instead of text\n" MAX_IMAGE_PIXELS_HELP;
 
 const char info_help[] =
     "usage: penumbra info SCENE.pbrt\n"
@@ -53,7 +53,9 @@ const char info_help[] =
     "Loads SCENE.pbrt and prints what penumbra made of it: triangles, meshes, instances, spheres,\n"
     "lights by kind, measured luminaires (IES, EULUMDAT: the lumens each emits, integrated from its\n"
     "distribution, next to the lumens its file states), materials and how each pbrt material was\n"
-    "mapped, textures, bounds, film resolution, load times and the warnings raised while loading.\n";
+    "mapped, textures, bounds, film resolution, load times and the warnings raised while loading.\n"
+    "\n"
+    "options:\n" MAX_IMAGE_PIXELS_HELP;
 
 static void print_version(void) {
     printf("penumbra %s\n", pn_version_string());

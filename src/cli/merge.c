@@ -27,7 +27,8 @@ static const char merge_help[] =
     "  --stats FILE           combined statistics of the PART.json files\n";
 
 static cJSON *read_json(const char *path) {
-    FILE *f = fopen(path, "rb");
+    const char *why = NULL;
+    FILE *f = cli_open_regular(path, "rb", &why);
     if (!f) return NULL;
     char *text = NULL;
     size_t size = 0, cap = 0, n;

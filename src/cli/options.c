@@ -193,6 +193,9 @@ int parse_render_args(int argc, char **argv, render_options *o) {
             print_render_help(stdout, scan_method(argc, argv, "--integrator", PN_METHOD_INTEGRATOR),
                               scan_method(argc, argv, "--driver", PN_METHOD_DRIVER));
             FAIL(EXIT_OK);
+        } else if (strcmp(name, "--max-image-pixels") == 0) {
+            NEED_VALUE();
+            if (!parse_pixel_limit(cmd, name, value, &o->max_image_pixels)) FAIL(EXIT_USAGE);
         } else if (strcmp(name, "--quiet") == 0 || strcmp(name, "-q") == 0) {
             if (!scanner_no_value(&s)) FAIL(EXIT_USAGE);
             o->quiet = 1;
@@ -252,7 +255,11 @@ int parse_render_args(int argc, char **argv, render_options *o) {
         } else if (strcmp(name, "--threads") == 0) {
             long n;
             NEED_VALUE();
-            if (!parse_long(value, 0, 65536, &n)) FAIL(bad_value(cmd, name, value, "an integer >= 0 (0 = all cores)"));
+            if (!parse_long(value, 0, PN_MAX_THREADS, &n)) {
+                char expected[64];
+                snprintf(expected, sizeof expected, "an integer from 0 to %d (0 = all cores)", PN_MAX_THREADS);
+                FAIL(bad_value(cmd, name, value, expected));
+            }
             o->settings.threads = (int)n;
         } else if (strcmp(name, "--seed") == 0) {
             NEED_VALUE();
@@ -356,7 +363,7 @@ static const char render_help_head[] =
     "  --resolution WxH       override the film resolution (each 1..65536)\n"
     "  --crop x0,x1,y0,y1     render only this window, in fractions of the image as pbrt's\n"
     "                         cropwindow: 0 <= x0 < x1 <= 1, 0 <= y0 < y1 <= 1\n"
-    "  --threads N            worker threads (default 0 = all cores)\n";
+    "  --threads N            worker threads (default 0 = all cores, at most 1024)\n" MAX_IMAGE_PIXELS_HELP;
 
 static const char render_help_tail[] =
     "\n"

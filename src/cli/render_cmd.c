@@ -79,17 +79,49 @@ static void finish_progress(progress_state *state, int complete) {
     fputc('\n', stderr);
 }
 
+/* Signals. SIGINT and SIGTERM are handled from the start of the render until every output is
+ * in place or removed: the first asks the render to stop (it finishes its current tiles), the
+ * next ends the program at once. A signal while outputs are being written ends the program at
+ * once. Before the program ends, the temporaries of the output set being written (if any) are
+ * removed, so no "NAME.tmp-PID-N" is ever left behind. */
 static pn_context volatile interrupt_context;
+static pn_output_set volatile writing_set; /* the set whose temporaries exist now, or NULL */
+static volatile sig_atomic_t writing_outputs;
 static volatile sig_atomic_t interrupted;
 
-static void on_sigint(int signo) {
+static void on_stop_signal(int signo) {
     static const char note[] = "\npenumbra: interrupted; finishing the current tiles "
                                "(press Ctrl-C again to quit at once)\n";
-    (void)signo;
+    if (interrupted || writing_outputs) {
+        pn_output_set_discard_temporaries(writing_set);
+        signal(signo, SIG_DFL);
+        raise(signo);
+        return;
+    }
     interrupted = 1;
     if (interrupt_context) pn_render_cancel(interrupt_context);
     ssize_t ignored = write(STDERR_FILENO, note, sizeof note - 1);
     (void)ignored;
+}
+
+static const int stop_signals[2] = {SIGINT, SIGTERM};
+
+static void install_stop_handlers(struct sigaction previous[2]) {
+    struct sigaction action;
+    memset(&action, 0, sizeof action);
+    action.sa_handler = on_stop_signal;
+    sigemptyset(&action.sa_mask);
+    for (int i = 0; i < 2; i++) sigaddset(&action.sa_mask, stop_signals[i]);
+    for (int i = 0; i < 2; i++) sigaction(stop_signals[i], &action, &previous[i]);
+}
+
+static void restore_stop_handlers(const struct sigaction previous[2]) {
+    for (int i = 0; i < 2; i++) sigaction(stop_signals[i], &previous[i], NULL);
+}
+
+/* Makes `set` the one whose temporaries a signal removes (NULL: none). */
+static void set_writing(pn_output_set set) {
+    writing_set = set;
 }
 
 /* ---------------------------------------------------------------------------------------- */
@@ -112,17 +144,32 @@ static void on_snapshot(void *user, pn_image image, double requested, double eva
     const snapshot_writer *sw = user;
     double percent = requested > 0.0 ? requested : floor(evaluated * 10.0 + 0.5) / 10.0;
     pn_context wctx = pn_context_new();
-    if (!wctx) return;
-    for (int i = 0; i < 2; i++) {
-        const char *base = i == 0 ? sw->image_path : sw->png_path;
-        if (!base) continue;
-        char path[4096];
-        snapshot_name(base, percent, path, sizeof path);
-        if (pn_image_write(wctx, image, path, (float)sw->exposure) != PN_OK)
-            fprintf(stderr, "penumbra: cannot write snapshot: %s\n", pn_context_error_message(wctx));
-        else if (!sw->quiet)
-            fprintf(stderr, "penumbra: snapshot %s (%.2f%% of the work pixels, %.2f s)\n", path, evaluated, seconds);
+    pn_output_set set = pn_output_set_new();
+    if (!wctx || !set) {
+        pn_output_set_free(set);
+        pn_context_free(wctx);
+        return;
     }
+    char paths[2][4096];
+    pn_status st = PN_OK;
+    set_writing(set);
+    for (int i = 0; i < 2 && st == PN_OK; i++) {
+        const char *base = i == 0 ? sw->image_path : sw->png_path;
+        paths[i][0] = '\0';
+        if (!base) continue;
+        snapshot_name(base, percent, paths[i], sizeof paths[i]);
+        st = pn_output_set_add_image(wctx, set, image, paths[i], (float)sw->exposure);
+    }
+    if (st == PN_OK) st = pn_output_set_commit(wctx, set);
+    set_writing(NULL);
+    pn_output_set_free(set);
+    if (st != PN_OK)
+        fprintf(stderr, "penumbra: cannot write snapshot: %s\n", pn_context_error_message(wctx));
+    else if (!sw->quiet)
+        for (int i = 0; i < 2; i++)
+            if (paths[i][0])
+                fprintf(stderr, "penumbra: snapshot %s (%.2f%% of the work pixels, %.2f s)\n", paths[i], evaluated,
+                        seconds);
     pn_context_free(wctx);
 }
 
@@ -132,8 +179,8 @@ static void on_sigusr1(int signo) {
 }
 
 /* --aov-png: every single-channel AOV layer as a false-colour PNG with a colour bar, named
- * after the output image: out.exr -> out.passes.png, out.shadow_rays.png, ... */
-static int write_aov_pngs(pn_context ctx, pn_image image, const char *image_path) {
+ * after the output image: out.exr -> out.passes.png, out.shadow_rays.png, ... added to `set`. */
+static pn_status add_aov_pngs(pn_context ctx, pn_output_set set, pn_image image, const char *image_path) {
     const char *dot = strrchr(image_path, '.');
     size_t stem = dot ? (size_t)(dot - image_path) : strlen(image_path);
     for (int l = 1; l < pn_image_layer_count(image); l++) {
@@ -143,11 +190,29 @@ static int write_aov_pngs(pn_context ctx, pn_image image, const char *image_path
         snprintf(path, sizeof path, "%.*s.%s.png", (int)stem, image_path, name);
         pn_image fc = NULL;
         pn_status st = pn_image_false_color(ctx, image, name, 0.0, 0.0, &fc);
-        if (st == PN_OK) st = pn_image_write(ctx, fc, path, 0.0f);
+        if (st == PN_OK) st = pn_output_set_add_image(ctx, set, fc, path, 0.0f);
         pn_image_free(fc);
-        if (st != PN_OK) return report_failure(ctx, st);
+        if (st != PN_OK) return st;
     }
-    return EXIT_OK;
+    return PN_OK;
+}
+
+/* Writes every output of a finished render as one set: the PNG, the AOV pictures, the
+ * statistics and, last, the image, renamed into place only when all were written. */
+static int write_outputs(pn_context ctx, pn_output_set set, const render_options *o, const char *image_path,
+                         pn_image image, pn_scene scene, const pn_scene_info *info, const pn_render_stats *stats) {
+    pn_status status = PN_OK;
+    /* The exposure only affects PNG files. */
+    if (o->png_path) status = pn_output_set_add_image(ctx, set, image, o->png_path, (float)o->exposure);
+    if (status == PN_OK && o->aov_png) status = add_aov_pngs(ctx, set, image, image_path);
+    if (status != PN_OK) return report_failure(ctx, status);
+    if (o->stats_path) {
+        int code = write_stats_json(o, set, image_path, scene, info, stats, 0);
+        if (code != EXIT_OK) return code;
+    }
+    status = pn_output_set_add_image(ctx, set, image, image_path, (float)o->exposure);
+    if (status == PN_OK) status = pn_output_set_commit(ctx, set);
+    return status == PN_OK ? EXIT_OK : report_failure(ctx, status);
 }
 
 static int render_main(int argc, char **argv, int rank, int ranks);
@@ -220,6 +285,7 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
     }
     log_options log = {o.quiet, 1};
     pn_context_set_log(ctx, on_log, &log);
+    pn_context_set_image_pixel_limit(ctx, o.max_image_pixels);
 
     pn_scene scene = NULL;
     pn_image image = NULL;
@@ -245,14 +311,11 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
         st->progress_note = on_progress_note;
     }
 
-    struct sigaction action, previous;
-    memset(&action, 0, sizeof action);
-    action.sa_handler = on_sigint;
-    sigemptyset(&action.sa_mask);
-    action.sa_flags = SA_RESETHAND; /* a second Ctrl-C ends the program at once */
+    struct sigaction previous[2];
     interrupt_context = ctx;
     interrupted = 0;
-    sigaction(SIGINT, &action, &previous);
+    writing_outputs = 0;
+    install_stop_handlers(previous);
     /* progressive drivers (issue 6): snapshots, and SIGUSR1 for one now */
     snapshot_writer snapshots = {image_path, o.png_path, o.exposure, o.quiet};
     struct sigaction usr1, previous_usr1;
@@ -267,11 +330,22 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
     }
     status = pn_render(ctx, scene, st, &image, &stats);
     if (progressive) sigaction(SIGUSR1, &previous_usr1, NULL);
-    sigaction(SIGINT, &previous, NULL);
     interrupt_context = NULL;
     finish_progress(&progress, status == PN_OK);
 
-    if (status == PN_ERROR_CANCELLED || (status == PN_OK && interrupted)) {
+    /* From here until the outputs are in place or removed, a signal ends the program at once
+     * after removing the temporaries (on_stop_signal). */
+    writing_outputs = 1;
+    pn_output_set outputs = pn_output_set_new();
+    set_writing(outputs);
+    if (!outputs) {
+        fprintf(stderr, "penumbra: out of memory\n");
+        code = EXIT_SYSTEM;
+    } else if (rank > 0) { /* rank 0 writes every output */
+        code = status == PN_OK                ? EXIT_OK
+               : status == PN_ERROR_CANCELLED ? EXIT_INTERRUPTED
+                                              : report_failure(ctx, status);
+    } else if (status == PN_ERROR_CANCELLED || (status == PN_OK && interrupted)) {
         /* The user asked to stop: keep what was rendered, but never under the requested name,
          * where it could be mistaken for a finished image. */
         fprintf(stderr, "penumbra: interrupted; the partial image was not written to '%s'\n", image_path);
@@ -279,36 +353,24 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
         int partial_written = 0;
         if (partial_path) {
             pn_context_clear_error(ctx);
-            partial_written = pn_image_write(ctx, image, partial_path, (float)o.exposure) == PN_OK;
-            if (partial_written) fprintf(stderr, "penumbra: what was rendered is in '%s'\n", partial_path);
+            partial_written = pn_output_set_add_image(ctx, outputs, image, partial_path, (float)o.exposure) == PN_OK;
         }
-        if (o.stats_path) write_stats_json(&o, partial_written ? partial_path : NULL, scene, &info, &stats, 1);
+        if (o.stats_path) write_stats_json(&o, outputs, partial_written ? partial_path : NULL, scene, &info, &stats, 1);
+        if (pn_output_set_commit(ctx, outputs) == PN_OK && partial_written)
+            fprintf(stderr, "penumbra: what was rendered is in '%s'\n", partial_path);
         free(partial_path);
         code = EXIT_INTERRUPTED;
-        goto done;
-    }
-    if (status != PN_OK) {
+    } else if (status != PN_OK) {
         code = report_failure(ctx, status);
-        goto done;
+    } else {
+        code = write_outputs(ctx, outputs, &o, image_path, image, scene, &info, &stats);
+        if (code == EXIT_OK && !o.quiet) print_render_summary(&o, &info, &stats, image_path);
     }
-    if (rank > 0) { /* rank 0 writes the image */
-        code = EXIT_OK;
-        goto done;
-    }
-
-    /* The exposure only affects PNG files. */
-    if ((status = pn_image_write(ctx, image, image_path, (float)o.exposure)) != PN_OK) {
-        code = report_failure(ctx, status);
-        goto done;
-    }
-    if (o.png_path && (status = pn_image_write(ctx, image, o.png_path, (float)o.exposure)) != PN_OK) {
-        code = report_failure(ctx, status);
-        goto done;
-    }
-    if (o.aov_png && (code = write_aov_pngs(ctx, image, image_path)) != EXIT_OK) goto done;
-    if (o.stats_path && (code = write_stats_json(&o, image_path, scene, &info, &stats, 0)) != EXIT_OK) goto done;
-    if (!o.quiet) print_render_summary(&o, &info, &stats, image_path);
-    code = EXIT_OK;
+    /* Whatever was not renamed into place is removed before the handlers go. */
+    set_writing(NULL);
+    pn_output_set_free(outputs);
+    writing_outputs = 0;
+    restore_stop_handlers(previous);
 
 done:
     pn_image_free(image);

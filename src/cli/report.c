@@ -1,6 +1,6 @@
 /* report.c — what `penumbra render` tells about a run: the summary on stdout and the statistics
- * JSON (docs/stats-json.md), written with cJSON and through the library's one atomic-write
- * routine (pn_file_write). Both name the integrator and driver and every resolved option of
+ * JSON (docs/stats-json.md), written with cJSON into the run's output set (pn_output_set_add_file,
+ * renamed into place with the image). Both name the integrator and driver and every resolved option of
  * theirs, from the method table, so that a run can be reproduced from its own JSON. */
 #include "cli/cli.h"
 
@@ -219,8 +219,8 @@ static void add_string_or_null(cJSON *obj, const char *key, const char *value) {
         cJSON_AddNullToObject(obj, key);
 }
 
-int write_stats_json(const render_options *o, const char *image_path, pn_scene scene, const pn_scene_info *info,
-                     const pn_render_stats *stats, int interrupted_render) {
+int write_stats_json(const render_options *o, pn_output_set outputs, const char *image_path, pn_scene scene,
+                     const pn_scene_info *info, const pn_render_stats *stats, int interrupted_render) {
     const pn_render_settings *st = &o->settings;
     const pn_method_info *mi = pn_method_get(o->integrator), *md = pn_method_get(o->driver);
     cJSON *root = cJSON_CreateObject();
@@ -304,7 +304,8 @@ int write_stats_json(const render_options *o, const char *image_path, pn_scene s
         return EXIT_SYSTEM;
     }
     pn_context ctx = pn_context_new();
-    pn_status status = ctx ? pn_file_write(ctx, o->stats_path, text, strlen(text)) : PN_ERROR_OUT_OF_MEMORY;
+    pn_status status =
+        ctx ? pn_output_set_add_file(ctx, outputs, o->stats_path, text, strlen(text)) : PN_ERROR_OUT_OF_MEMORY;
     int code = EXIT_OK;
     if (status != PN_OK) {
         fprintf(stderr, "penumbra: cannot write '%s': %s\n", o->stats_path,

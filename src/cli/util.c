@@ -2,6 +2,9 @@
  * the argument scanner and the log callback. */
 #include "cli/cli.h"
 
+#include <stdio.h>
+#include <sys/stat.h>
+#include <fcntl.h>
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -249,6 +252,16 @@ int scanner_no_value(arg_scanner *s) {
     return 1;
 }
 
+/* --max-image-pixels N: a whole number of pixels >= 1, set on ctx later. Returns 1, or 0 after
+ * printing the usage error. */
+int parse_pixel_limit(const char *command, const char *option, const char *value, uint64_t *out) {
+    if (!parse_u64(value, out) || *out == 0) {
+        bad_value(command, option, value, "a number of pixels >= 1 (default 268435456 = 16384 x 16384)");
+        return 0;
+    }
+    return 1;
+}
+
 int bad_value(const char *command, const char *option, const char *value, const char *expected) {
     return usage_error(command, "invalid value '%s' for %s: expected %s", value, option, expected);
 }
@@ -269,4 +282,29 @@ void on_log(void *user, pn_log_level level, const char *message) {
         return;
     }
     if (!options->quiet) fprintf(stderr, "penumbra: %s\n", message);
+}
+
+FILE *cli_open_regular(const char *path, const char *mode, const char **why) {
+    /* O_NONBLOCK: a FIFO cannot block the open; the descriptor is made blocking again after. */
+    *why = NULL;
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
+        *why = strerror(errno);
+        return NULL;
+    }
+    struct stat st;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        *why = S_ISDIR(st.st_mode) ? "is a folder, not a file" : "not a regular file";
+        close(fd);
+        errno = EINVAL;
+        return NULL;
+    }
+    int flags = fcntl(fd, F_GETFL);
+    if (flags >= 0) fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
+    FILE *f = fdopen(fd, mode);
+    if (!f) {
+        *why = strerror(errno);
+        close(fd);
+    }
+    return f;
 }

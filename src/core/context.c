@@ -1,5 +1,6 @@
 /* context.c — context creation, error keeping and logging. */
 #include "core/context.h"
+#include "core/text.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -55,12 +56,12 @@ pn_status pn_context_fail(pn_context ctx, pn_status status, const char *fmt, ...
 
 void pn_context_log(pn_context ctx, pn_log_level level, const char *fmt, ...) {
     if (!ctx || !ctx->log_fn) return;
-    char buf[2048];
+    char raw[2048], buf[2048];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
+    vsnprintf(raw, sizeof raw, fmt, ap);
     va_end(ap);
-    ctx->log_fn(ctx->log_user, level, buf);
+    ctx->log_fn(ctx->log_user, level, pn_text_escape(buf, sizeof buf, raw));
 }
 
 void pn_render_cancel(pn_context ctx) {

@@ -4,6 +4,7 @@
 
 #include "core/error.h"
 #include <stdatomic.h>
+#include <stdint.h>
 
 struct pn_context_s {
     pn_err err;
@@ -11,6 +12,7 @@ struct pn_context_s {
     void *log_user;
     atomic_int cancel;
     atomic_int snapshot_request; /* progressive drivers: pn_render_request_snapshot */
+    uint64_t image_pixel_limit;  /* pn_context_set_image_pixel_limit; 0 = the default */
 };
 
 /* Copies a failure recorded in `err` into the context (first error wins) and returns its status. */

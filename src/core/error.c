@@ -1,5 +1,6 @@
 /* error.c — first-error-wins status recording and the status string table. */
 #include "core/error.h"
+#include "core/text.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -13,7 +14,10 @@ pn_status pn_err_setv(pn_err *err, pn_status status, const char *fmt, va_list ap
     if (err == NULL || status == PN_OK) return status;
     if (err->status != PN_OK) return status;
     err->status = status;
-    vsnprintf(err->message, sizeof err->message, fmt, ap);
+    /* One line, control bytes escaped: messages quote text from files (core/text.h). */
+    char raw[sizeof err->message];
+    vsnprintf(raw, sizeof raw, fmt, ap);
+    pn_text_escape(err->message, sizeof err->message, raw);
     return status;
 }
 

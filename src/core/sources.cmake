@@ -7,4 +7,10 @@ list(APPEND PN_SOURCES
   src/core/sobol.c
   src/core/sampling.c
   src/core/threadpool.c
+  src/core/file.c
+  src/core/text.c
 )
+# Allocation-failure injection (core/alloc_hook.h): only in the sanitizer test build.
+if(PN_SANITIZE)
+  list(APPEND PN_SOURCES src/core/alloc_hook.c)
+endif()

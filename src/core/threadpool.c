@@ -9,6 +9,7 @@
  */
 #include "core/threadpool.h"
 
+#include <errno.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdbool.h>
@@ -16,7 +17,7 @@
 #include <stdlib.h>
 #include <unistd.h>
 
-#define PN_THREADPOOL_MAX_THREADS 1024
+#define PN_THREADPOOL_MAX_THREADS PN_MAX_THREADS
 
 typedef struct pn_worker_arg {
     pn_threadpool *pool;
@@ -120,8 +121,10 @@ pn_threadpool *pn_threadpool_create(int threads) {
             pool->args[i].index = i + 1;
             /* helpers is read by workers only under the lock after a generation starts, and
              * no generation starts before create() returns. */
-            if (pthread_create(&pool->threads[i], NULL, worker_main, &pool->args[i]) != 0) {
+            int rc = pthread_create(&pool->threads[i], NULL, worker_main, &pool->args[i]);
+            if (rc != 0) {
                 pn_threadpool_destroy(pool);
+                errno = rc; /* for the caller's message: EAGAIN when the thread limit is reached */
                 return NULL;
             }
             pool->helpers = i + 1;

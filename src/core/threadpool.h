@@ -12,12 +12,18 @@
 
 #include <stddef.h>
 
+#include "penumbra/penumbra.h"
+
+#include <stddef.h>
+
 typedef struct pn_threadpool pn_threadpool;
 
 typedef void (*pn_job_fn)(void *user, size_t job, int worker);
 
 /* threads <= 0 selects the number of online CPUs. threads == 1 creates no background thread
- * (jobs run on the caller). Returns NULL if memory or thread creation fails. */
+ * (jobs run on the caller); more than PN_MAX_THREADS (penumbra.h) are capped, as are the CPUs
+ * (pn_render refuses such settings before it gets here). Returns NULL with errno set (ENOMEM,
+ * or pthread_create's code such as EAGAIN) if memory or thread creation fails. */
 pn_threadpool *pn_threadpool_create(int threads);
 
 /* Number of distinct worker indices run() may pass (background threads + the caller);

@@ -1,18 +1,20 @@
 /* warn.c — the warning path of warn.h: keep a copy in the list, then log through the context. */
 #include "core/warn.h"
 #include "core/context.h"
+#include "core/text.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 void pn_warnv(pn_context ctx, pn_warning_list *list, const char *fmt, va_list ap) {
-    char buf[1024];
+    char raw[1024], buf[1024];
     if (list && list->count > PN_MAX_WARNINGS) return;
     if (list && list->count == PN_MAX_WARNINGS) {
         snprintf(buf, sizeof buf, "more than %d warnings; the rest are not reported", PN_MAX_WARNINGS);
     } else {
-        vsnprintf(buf, sizeof buf, fmt, ap);
+        vsnprintf(raw, sizeof raw, fmt, ap);
+        pn_text_escape(buf, sizeof buf, raw); /* warnings quote file content (core/text.h) */
     }
     if (list) {
         /* The list grows in powers of two; its capacity follows from its count. */

@@ -18,6 +18,7 @@
 #include "render/progress.h"
 #include "driver/points.h"
 
+#include <errno.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -243,6 +244,9 @@ pn_status pn_driver_resolve_settings(pn_context ctx, struct pn_scene_s *scene, c
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop window is empty (need x0 < x1 and y0 < y1)");
     if (!pn_camera_setup(&scene->camera, w, h, crop, &job->camera))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "crop window covers no pixel");
+    if (s->threads < 0 || s->threads > PN_MAX_THREADS)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "threads %d is out of range (0 = all cores, at most %d)",
+                               s->threads, PN_MAX_THREADS);
     if (s->threshold < 0.0 || !isfinite(s->threshold))
         return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "threshold must be a positive number");
     /* Every method option (the table in integrators/registry.c) into its job field. */
@@ -491,6 +495,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     rs.pixels = calloc(n, sizeof *rs.pixels);
     rs.block_finished = calloc((size_t)rs.block_count, 1);
     pn_threadpool *pool = pn_threadpool_create(settings->threads);
+    const int pool_errno = pool ? 0 : errno;
     int workers = pool ? pn_threadpool_size(pool) : 0;
     rs.scratch = pool ? calloc((size_t)workers + 1, sizeof *rs.scratch) : NULL;
     bool batches_ok = pool != NULL;
@@ -517,6 +522,8 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         free(rs.scratch);
         free_batches(&rs, workers);
         pn_threadpool_destroy(pool);
+        if (!pool && pool_errno != ENOMEM)
+            return pn_context_fail(ctx, PN_ERROR_IO, "cannot start the worker threads: %s", strerror(pool_errno));
         return pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for a %dx%d image", rs.width, rs.height);
     }
     for (size_t i = 0; i < n; i++) rs.pixels[i].depth = INFINITY;

@@ -293,17 +293,20 @@ static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_
     return PN_OK;
 }
 
-static pn_status exr_read(FILE *file, const char *name, const char *channel, pn_image *out, pn_err *err);
+static pn_status exr_read(FILE *file, const char *name, const char *channel, const pn_image_limits *limits,
+                          pn_image *out, pn_err *err);
 
-pn_status pn_exr_read(FILE *file, const char *name, pn_image *out, pn_err *err) {
-    return exr_read(file, name, NULL, out, err);
+pn_status pn_exr_read(FILE *file, const char *name, const pn_image_limits *limits, pn_image *out, pn_err *err) {
+    return exr_read(file, name, NULL, limits, out, err);
 }
 
-pn_status pn_exr_read_channel(FILE *file, const char *name, const char *channel, pn_image *out, pn_err *err) {
-    return exr_read(file, name, channel, out, err);
+pn_status pn_exr_read_channel(FILE *file, const char *name, const char *channel, const pn_image_limits *limits,
+                              pn_image *out, pn_err *err) {
+    return exr_read(file, name, channel, limits, out, err);
 }
 
-static pn_status exr_read(FILE *file, const char *name, const char *channel, pn_image *out, pn_err *err) {
+static pn_status exr_read(FILE *file, const char *name, const char *channel, const pn_image_limits *limits,
+                          pn_image *out, pn_err *err) {
     *out = NULL;
     pn_exr_stream stream;
     memset(&stream, 0, sizeof stream);
@@ -375,11 +378,24 @@ static pn_status exr_read(FILE *file, const char *name, const char *channel, pn_
         if (w <= 0 || h <= 0 || w > PN_EXR_MAX_DIMENSION || h > PN_EXR_MAX_DIMENSION || w * h > PN_EXR_MAX_PIXELS) {
             status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid EXR file: unsupported data window %lldx%lld",
                                 name, (long long)w, (long long)h);
-        } else {
+        } else if ((status = pn_image_check_size(name, "EXR", w, h, limits, 0, err)) == PN_OK) {
             r.width = (int)w;
             r.height = (int)h;
             r.min_x = dw.min.x;
             r.min_y = dw.min.y;
+        }
+    }
+    if (status == PN_OK) {
+        /* The data window against the file: every chunk has an 8-byte entry in the offset
+         * table, so a header cannot claim more chunks than the file has room for. */
+        int32_t chunks = 0;
+        rv = exr_get_chunk_count(r.ex, r.part, &chunks);
+        if (rv != EXR_ERR_SUCCESS) {
+            status = pn_exr_fail(&r, rv, "counting chunks");
+        } else if ((uint64_t)chunks * 8u > limits->file_size) {
+            status = pn_err_set(err, PN_ERROR_BAD_INPUT,
+                                "%s: not a valid EXR file: %dx%d pixels in %d chunks cannot be stored in %llu bytes",
+                                name, r.width, r.height, (int)chunks, (unsigned long long)limits->file_size);
         }
     }
     if (status == PN_OK) {

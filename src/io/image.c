@@ -2,6 +2,7 @@
  * accessors (all of which tolerate NULL) and the public read/write entry points, which wrap the
  * internal file functions and copy their errors into the context.
  */
+#include "core/file.h"
 #include "io/image.h"
 
 #include "core/context.h"
@@ -9,6 +10,7 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 /* Pixel count of an image, or 0 when width * height * 3 floats would not fit in size_t. */
 static size_t pn_image_pixel_count(int width, int height) {
@@ -16,6 +18,32 @@ static size_t pn_image_pixel_count(int width, int height) {
     size_t w = (size_t)width, h = (size_t)height;
     if (w > SIZE_MAX / 3 / sizeof(float) / h) return 0;
     return w * h;
+}
+
+pn_status pn_image_check_size(const char *name, const char *format, int64_t width, int64_t height,
+                              const pn_image_limits *limits, uint64_t pixels_per_byte, pn_err *err) {
+    if (width <= 0 || height <= 0)
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid %s file: size %lldx%lld", name, format,
+                          (long long)width, (long long)height);
+    /* Both sides are below 2^32 in every format, so the product cannot overflow. */
+    uint64_t pixels = (uint64_t)width * (uint64_t)height;
+    if ((uint64_t)width > UINT32_MAX || (uint64_t)height > UINT32_MAX || pixels > limits->max_pixels)
+        return pn_err_set(err, PN_ERROR_BAD_INPUT,
+                          "%s: %s image of %lldx%lld pixels is larger than the image pixel limit of %llu pixels", name,
+                          format, (long long)width, (long long)height, (unsigned long long)limits->max_pixels);
+    if (pixels_per_byte > 0 && pixels / pixels_per_byte > limits->file_size)
+        return pn_err_set(err, PN_ERROR_BAD_INPUT,
+                          "%s: not a valid %s file: %lldx%lld pixels cannot be stored in %llu bytes", name, format,
+                          (long long)width, (long long)height, (unsigned long long)limits->file_size);
+    return PN_OK;
+}
+
+uint64_t pn_context_image_pixel_limit(pn_context ctx) {
+    return ctx && ctx->image_pixel_limit ? ctx->image_pixel_limit : PN_IMAGE_MAX_PIXELS_DEFAULT;
+}
+
+void pn_context_set_image_pixel_limit(pn_context ctx, uint64_t max_pixels) {
+    if (ctx) ctx->image_pixel_limit = max_pixels;
 }
 
 pn_image pn_image_create(int width, int height) {
@@ -107,7 +135,7 @@ pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image) {
         pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read: %s is NULL", path ? "out_image" : "path");
         return pn_context_fail_from(ctx, &err);
     }
-    pn_status status = pn_image_read_file(path, 0.0f, out_image, &err);
+    pn_status status = pn_image_read_file_limit(path, 0.0f, pn_context_image_pixel_limit(ctx), out_image, &err);
     if (status != PN_OK) {
         /* The file layer always records a message; make sure a bare status is never lost. */
         if (err.status == PN_OK) pn_err_set(&err, status, "%s: cannot read image", path);
@@ -119,12 +147,14 @@ pn_status pn_image_read(pn_context ctx, const char *path, pn_image *out_image) {
 pn_status pn_image_read_layer(pn_context ctx, const char *path, const char *layer, pn_image *out_image) {
     if (out_image) *out_image = NULL;
     if (!ctx || !path || !layer || !out_image) return PN_ERROR_INVALID_ARGUMENT;
-    FILE *f = fopen(path, "rb");
-    if (!f) return pn_context_fail(ctx, PN_ERROR_IO, "%s: %s", path, strerror(errno));
     pn_err err;
     pn_err_init(&err);
+    uint64_t size = 0;
+    FILE *f = pn_file_open_regular(path, PN_INPUT_FILE_MAX_BYTES, &size, &err);
+    if (!f) return pn_context_fail(ctx, err.status, "%s: %s", path, err.message);
     pn_image grey = NULL;
-    pn_status st = pn_exr_read_channel(f, path, layer, &grey, &err);
+    pn_image_limits limits = {size, pn_context_image_pixel_limit(ctx)};
+    pn_status st = pn_exr_read_channel(f, path, layer, &limits, &grey, &err);
     fclose(f);
     if (st != PN_OK) return pn_context_fail_from(ctx, &err);
     const size_t n = (size_t)grey->width * (size_t)grey->height;

@@ -2,6 +2,7 @@
  * window (pn_image_read_layers), and `penumbra merge`'s step that puts crop renders of one image
  * back together (pn_image_merge). Pixels are copied, never resampled or averaged, so parts
  * rendered with the same settings assemble into the bit-identical full image. */
+#include "core/file.h"
 #include "core/context.h"
 #include "io/image.h"
 
@@ -19,9 +20,11 @@ pn_status pn_image_read_layers(pn_context ctx, const char *path, pn_image *out_i
         pn_err_set(&err, PN_ERROR_INVALID_ARGUMENT, "pn_image_read_layers: NULL argument");
         return pn_context_fail_from(ctx, &err);
     }
-    FILE *file = fopen(path, "rb");
+    uint64_t size = 0;
+    FILE *file = pn_file_open_regular(path, PN_INPUT_FILE_MAX_BYTES, &size, &err);
     if (!file) {
-        pn_err_set(&err, PN_ERROR_IO, "%s: %s", path, strerror(errno));
+        pn_err reason = err;
+        pn_err_set(&err, reason.status, "%s: %s", path, reason.message);
         return pn_context_fail_from(ctx, &err);
     }
     struct stat st;

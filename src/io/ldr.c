@@ -1,6 +1,9 @@
-/* ldr.c — everything stb_image can read (PNG, JPEG, TGA, BMP, HDR, ...) and PNG writing.
+/* ldr.c — the 8-bit and Radiance formats: PNG and JPEG handed to png_jpeg.c (libpng,
+ * libjpeg-turbo), the rest (TGA, BMP, HDR, PSD) read by stb_image, and PNG writing (the pixels
+ * are encoded here, the file by libpng in png_jpeg.c: stb_image_write's encoder did not survive
+ * an allocation failure, found by test_alloc_failures).
  *
- * This is the one file that compiles the stb_image and stb_image_write implementations. Radiance
+ * This is the one file that compiles the stb_image implementation. Radiance
  * HDR files come back linear as they are stored; 8- and 16-bit files are converted to linear
  * with the `gamma` rule of image.h (0 = sRGB curve, 1 = v / max, other = (v / max)^gamma).
  * Greyscale is replicated into RGB and alpha is dropped. PNG output is the beauty layer scaled by
@@ -31,9 +34,9 @@
 #define STBI_NO_GIF
 #define STBI_NO_PIC
 #define STBI_NO_PNM
+#define STBI_NO_PNG  /* libpng (png_jpeg.c) */
+#define STBI_NO_JPEG /* libjpeg-turbo (png_jpeg.c) */
 #include "stb_image.h"
-#define STB_IMAGE_WRITE_IMPLEMENTATION
-#include "stb_image_write.h"
 #pragma GCC diagnostic pop
 
 /* The sRGB transfer curve and its inverse, on values in [0, 1]. */
@@ -68,7 +71,7 @@ static const char *pn_ldr_kind(FILE *file) {
 /* Moves interleaved samples with `comp` channels into the RGB beauty layer: 1 or 2 channels
  * are grey (plus alpha), 3 or 4 are RGB (plus alpha). `kind` is the sample type: 8 or 16-bit
  * integers (converted with `gamma`) or 32 for linear floats. */
-static void pn_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind, float gamma) {
+void pn_image_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, int kind, float gamma) {
     /* 8-bit files use a table of all 256 values. */
     float table[256];
     if (kind == 8) {
@@ -90,12 +93,64 @@ static void pn_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, i
     }
 }
 
-pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, pn_err *err) {
+/* Radiance HDR run-length scanlines, walked before stb decodes them: stb's decoder loops forever
+ * on a zero count, which it also reads at the end of a truncated file (found by fuzz_stb,
+ * corpus/stb/regress-19-hdr-zero-count.hdr). Mirrors stb's reading: header lines up to an empty
+ * one, the resolution line, then per scanline 2, 2, width (16 bits) and four channels of counts
+ * (above 128: a run of count - 128 of one byte; else count literal bytes). Returns 0 when a count
+ * is 0 or the file ends inside a scanline; 1 otherwise (stb reports the other errors itself). */
+static int pn_hdr_runs_terminate(FILE *file, int width, int height) {
+    if (width < 8 || width >= 32768) return 1; /* stb reads such files flat */
+    int c, previous = '\n', lines_done = 0;
+    /* The header ends at an empty line; the resolution line follows. */
+    while (lines_done < 2 && (c = getc(file)) != EOF) {
+        if (c == '\n' && (previous == '\n' || lines_done == 1)) lines_done++;
+        previous = c;
+    }
+    for (int y = 0; y < height; y++) {
+        int c1 = getc(file), c2 = getc(file), hi = getc(file), lo = getc(file);
+        if (c1 != 2 || c2 != 2 || hi == EOF || (hi & 0x80)) return 1; /* flat from here on */
+        if (lo == EOF) return 0;
+        if (((hi << 8) | lo) != width) return 1;
+        for (int k = 0; k < 4; k++) {
+            for (int x = 0; x < width;) {
+                int count = getc(file);
+                if (count == EOF || count == 0) return 0;
+                if (count > 128) {
+                    if (getc(file) == EOF) return 0;
+                    count -= 128;
+                } else {
+                    for (int i = 0; i < count; i++)
+                        if (getc(file) == EOF) return 0;
+                }
+                x += count;
+            }
+        }
+    }
+    return 1;
+}
+
+pn_status pn_ldr_read(FILE *file, const char *name, float gamma, const pn_image_limits *limits, pn_image *out,
+                      pn_err *err) {
     *out = NULL;
     const char *kind_name = pn_ldr_kind(file);
+    /* PNG and JPEG go to their own libraries (png_jpeg.c); stb_image keeps the formats that have
+     * no packaged decoder: TGA, BMP, Radiance HDR, PSD. */
+    if (kind_name && strcmp(kind_name, "PNG") == 0) return pn_png_read(file, name, gamma, limits, out, err);
+    if (kind_name && strcmp(kind_name, "JPEG") == 0) return pn_jpeg_read(file, name, gamma, limits, out, err);
     int width = 0, height = 0, comp = 0, kind;
     void *data;
+    /* The header's size against the limit and the file's size before stb allocates. */
+    if (stbi_info_from_file(file, &width, &height, &comp)) {
+        pn_status status = pn_image_check_size(name, kind_name ? kind_name : "image", width, height, limits,
+                                               PN_IMAGE_MAX_PIXELS_PER_BYTE, err);
+        if (status != PN_OK) return status;
+    }
     if (stbi_is_hdr_from_file(file)) {
+        int runs_ok = pn_hdr_runs_terminate(file, width, height);
+        if (fseek(file, 0, SEEK_SET) != 0 || !runs_ok)
+            return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid Radiance HDR file: %s", name,
+                              runs_ok ? "cannot seek" : "empty or truncated run-length scanline");
         kind = 32;
         data = stbi_loadf_from_file(file, &width, &height, &comp, 0);
     } else if (stbi_is_16_bit_from_file(file)) {
@@ -125,7 +180,7 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, 
         stbi_image_free(data);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for %dx%d image", name, width, height);
     }
-    pn_fill_rgb(image->layers[0].data, (size_t)width * (size_t)height, comp, data, kind, gamma);
+    pn_image_fill_rgb(image->layers[0].data, (size_t)width * (size_t)height, comp, data, kind, gamma);
     stbi_image_free(data);
     *out = image;
     return PN_OK;
@@ -133,21 +188,6 @@ pn_status pn_ldr_read(FILE *file, const char *name, float gamma, pn_image *out, 
 
 /* ---------------------------------------------------------------------------------------- */
 /* PNG writing */
-
-typedef struct pn_png_sink {
-    FILE *file;
-    int failed;
-    int error;
-} pn_png_sink;
-
-static void pn_png_sink_write(void *context, void *data, int size) {
-    pn_png_sink *sink = context;
-    if (sink->failed || size <= 0) return;
-    if (fwrite(data, 1, (size_t)size, sink->file) != (size_t)size) {
-        sink->failed = 1;
-        sink->error = errno ? errno : EIO;
-    }
-}
 
 /* One linear value to an 8-bit sRGB code; NaN becomes 0. */
 static unsigned char pn_encode_8bit(float v) {
@@ -168,10 +208,7 @@ pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *n
     const float *rgb = image->layers[0].data;
     for (size_t i = 0; i < count; i++) pixels[i] = pn_encode_8bit(rgb[i] * scale);
 
-    pn_png_sink sink = {file, 0, 0};
-    int ok = stbi_write_png_to_func(pn_png_sink_write, &sink, width, height, 3, pixels, width * 3);
+    pn_status status = pn_png_encode_rgb8(file, name, width, height, pixels, err);
     free(pixels);
-    if (sink.failed) return pn_err_set(err, PN_ERROR_IO, "%s: %s", name, strerror(sink.error));
-    if (!ok) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: PNG encoding failed", name);
-    return PN_OK;
+    return status;
 }

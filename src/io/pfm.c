@@ -67,7 +67,7 @@ static int pn_parse_dimension(const char *text, int *out) {
     return 1;
 }
 
-pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err) {
+pn_status pn_pfm_read(FILE *file, const char *name, const pn_image_limits *limits, pn_image *out, pn_err *err) {
     *out = NULL;
     char magic[8], wtext[32], htext[32], stext[64];
     if (!pn_pfm_token(file, magic, sizeof magic) || !pn_pfm_token(file, wtext, sizeof wtext) ||
@@ -93,6 +93,8 @@ pn_status pn_pfm_read(FILE *file, const char *name, pn_image *out, pn_err *err) 
         return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid PFM file: bad scale '%s'", name, stext);
     }
 
+    pn_status limit_status = pn_image_check_size(name, "PFM", width, height, limits, 0, err);
+    if (limit_status != PN_OK) return limit_status;
     size_t row_values = (size_t)width * (size_t)channels;
     size_t total_bytes = row_values * (size_t)height * sizeof(float);
 

@@ -5,6 +5,7 @@ list(APPEND PN_SOURCES
   src/io/exr.c
   src/io/pfm.c
   src/io/ldr.c
+  src/io/png_jpeg.c
   src/io/write.c
   src/io/image_merge.c
 )

@@ -7,6 +7,8 @@
  * for it, so a forged header cannot make the reader allocate or loop beyond the file's size. */
 #include "scene/ply.h"
 
+#include "core/file.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -14,7 +16,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #define PLY_BUFFER_SIZE (512u << 10)
 #define PLY_MAX_LINE 4096
@@ -1016,28 +1017,21 @@ pn_status pn_ply_read(const char *path, pn_ply_mesh *mesh, pn_err *err) {
     r.path = path;
     r.err = &local;
 
-    r.fp = fopen(path, "rb");
-    if (r.fp == NULL) return pn_err_set(err, PN_ERROR_IO, "%s: %s", path, strerror(errno));
-    struct stat sb;
-    pn_status st = PN_OK;
-    if (fstat(fileno(r.fp), &sb) != 0) {
-        st = ply_fail_io(&r, errno);
-    } else if (S_ISDIR(sb.st_mode)) {
-        st = ply_fail_io(&r, EISDIR);
-    } else if (!S_ISREG(sb.st_mode)) {
-        st = ply_fail(&r, "not a regular file");
-    } else {
-        r.file_size = (uint64_t)sb.st_size;
-        /* Small files get a buffer their size: fresh pages cost more than the copying. */
-        r.cap = PLY_BUFFER_SIZE;
-        if (r.file_size + 1 < r.cap) r.cap = (size_t)r.file_size + 1;
-        if (r.cap < 2 * PLY_MAX_LINE) r.cap = 2 * PLY_MAX_LINE;
-        r.buf = malloc(r.cap);
-        if (r.buf == NULL)
-            st = pn_err_set(&local, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
-        else
-            st = ply_read_all(&r);
-    }
+    /* Only a regular file within the input limit (no device, FIFO or folder). */
+    pn_err why;
+    pn_err_init(&why);
+    r.fp = pn_file_open_regular(path, PN_INPUT_FILE_MAX_BYTES, &r.file_size, &why);
+    if (r.fp == NULL) return pn_err_set(err, why.status, "%s: %s", path, why.message);
+    pn_status st;
+    /* Small files get a buffer their size: fresh pages cost more than the copying. */
+    r.cap = PLY_BUFFER_SIZE;
+    if (r.file_size + 1 < r.cap) r.cap = (size_t)r.file_size + 1;
+    if (r.cap < 2 * PLY_MAX_LINE) r.cap = 2 * PLY_MAX_LINE;
+    r.buf = malloc(r.cap);
+    if (r.buf == NULL)
+        st = pn_err_set(&local, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", path);
+    else
+        st = ply_read_all(&r);
     fclose(r.fp);
     free(r.buf);
     free(r.face);

@@ -65,7 +65,7 @@ pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma
         }
     }
     pn_image img = NULL;
-    pn_status st = pn_image_read_file(path, gamma, &img, err);
+    pn_status st = pn_image_read_file_limit(path, gamma, pn_context_image_pixel_limit(scene->ctx), &img, err);
     if (st != PN_OK) {
         free(key);
         pn_image_free(img);

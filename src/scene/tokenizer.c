@@ -1,6 +1,8 @@
 /* tokenizer.c — the pbrt-v4 scene file tokenizer: strings, words, brackets, comments, locations. */
 #include "scene/tokenizer.h"
 
+#include "core/file.h"
+
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -8,7 +10,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 pn_status pn_loc_error(const pn_srcloc *loc, pn_status status, pn_err *err, const char *fmt, ...) {
     char msg[900];
@@ -46,38 +47,27 @@ pn_status pn_tokenizer_open(pn_tokenizer *tz, const char *path, const pn_srcloc 
     memset(tz, 0, sizeof *tz);
     char where[600] = "";
     if (at && at->file) snprintf(where, sizeof where, "%s:%d:%d: ", at->file, at->line, at->column);
-    FILE *f = fopen(path, "rb");
+    /* Only a regular file within the input limit: a device (/dev/zero) or a FIFO named in an
+     * Include must not grow memory without bound or block. */
+    pn_err why;
+    pn_err_init(&why);
+    uint64_t file_size = 0;
+    FILE *f = pn_file_open_regular(path, PN_INPUT_FILE_MAX_BYTES, &file_size, &why);
     if (!f)
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%scannot open scene file \"%s\": %s", where, path, strerror(errno));
-    struct stat st;
-    if (fstat(fileno(f), &st) != 0 || S_ISDIR(st.st_mode)) {
-        int e = S_ISDIR(st.st_mode) ? EISDIR : errno;
-        fclose(f);
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%scannot read scene file \"%s\": %s", where, path, strerror(e));
-    }
-    size_t cap = st.st_size > 0 ? (size_t)st.st_size + 1 : 4096;
-    size_t n = 0;
-    char *data = malloc(cap);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%scannot %s scene file \"%s\": %s", where,
+                          why.status == PN_ERROR_IO ? "open" : "read", path, why.message);
+    /* The size is known and bounded; a file that grows while it is read is read up to the size
+     * it had when opened. */
+    size_t n = 0, cap = (size_t)file_size;
+    char *data = malloc(cap + 1);
     if (!data) {
         fclose(f);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%sout of memory reading \"%s\"", where, path);
     }
-    /* Read until EOF rather than trusting st_size (pipes and growing files). */
-    for (;;) {
-        if (n + 1 >= cap) {
-            size_t ncap = cap * 2;
-            char *nd = realloc(data, ncap);
-            if (!nd) {
-                free(data);
-                fclose(f);
-                return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%sout of memory reading \"%s\"", where, path);
-            }
-            data = nd;
-            cap = ncap;
-        }
-        size_t got = fread(data + n, 1, cap - 1 - n, f);
-        n += got;
+    while (n < cap) {
+        size_t got = fread(data + n, 1, cap - n, f);
         if (got == 0) break;
+        n += got;
     }
     if (ferror(f)) {
         int e = errno;
