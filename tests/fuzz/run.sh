@@ -10,7 +10,7 @@ here=$(cd "$(dirname "$0")" && pwd)
 build=$1
 seconds=$2
 status=0
-for name in scene ply exr png jpeg stb pfm; do
+for name in scene ply exr png jpeg stb pfm photometry; do
   bin="$build/tests/fuzz/fuzz_$name"
   [ -x "$bin" ] || { echo "fuzz: $bin is missing (configure with -DPN_FUZZ=ON)"; exit 2; }
   work="$build/fuzz-corpus/$name"
