@@ -293,6 +293,26 @@ static pn_status pn_exr_choose_channels(pn_exr_reader *r, const exr_attr_chlist_
     return PN_OK;
 }
 
+/* Starts reading `file` through the OpenEXR C core: the stream over its descriptor (and size, for
+ * regular files), the reader state, and the header. stream and r must outlive the read. */
+static exr_result_t exr_begin_read(FILE *file, const char *name, pn_exr_stream *stream, pn_exr_reader *r, pn_err *err) {
+    memset(stream, 0, sizeof *stream);
+    stream->fd = fileno(file);
+    struct stat st;
+    stream->size = (fstat(stream->fd, &st) == 0 && S_ISREG(st.st_mode)) ? (int64_t)st.st_size : -1;
+    memset(r, 0, sizeof *r);
+    r->stream = stream;
+    r->name = name;
+    r->err = err;
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = pn_exr_read_error;
+    init.user_data = stream;
+    init.read_fn = pn_exr_read_fn;
+    init.size_fn = pn_exr_size_fn;
+    init.flags |= EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+    return exr_start_read(&r->ex, name, &init);
+}
+
 static pn_status exr_read(FILE *file, const char *name, const char *channel, const pn_image_limits *limits,
                           pn_image *out, pn_err *err);
 
@@ -309,26 +329,9 @@ static pn_status exr_read(FILE *file, const char *name, const char *channel, con
                           pn_image *out, pn_err *err) {
     *out = NULL;
     pn_exr_stream stream;
-    memset(&stream, 0, sizeof stream);
-    stream.fd = fileno(file);
-    struct stat st;
-    stream.size = (fstat(stream.fd, &st) == 0 && S_ISREG(st.st_mode)) ? (int64_t)st.st_size : -1;
-
     pn_exr_reader r;
-    memset(&r, 0, sizeof r);
-    r.stream = &stream;
-    r.name = name;
-    r.err = err;
+    exr_result_t rv = exr_begin_read(file, name, &stream, &r, err);
     r.channel = channel;
-
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = pn_exr_read_error;
-    init.user_data = &stream;
-    init.read_fn = pn_exr_read_fn;
-    init.size_fn = pn_exr_size_fn;
-    init.flags |= EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
-
-    exr_result_t rv = exr_start_read(&r.ex, name, &init);
     if (rv != EXR_ERR_SUCCESS) {
         pn_status status = pn_exr_fail(&r, rv, "reading the header");
         if (r.ex) exr_finish(&r.ex);
@@ -732,22 +735,8 @@ static pn_status pn_exr_planes_to_layers(pn_exr_reader *r, pn_image image) {
 pn_status pn_exr_read_layers(FILE *file, const char *name, pn_image *out, pn_err *err) {
     *out = NULL;
     pn_exr_stream stream;
-    memset(&stream, 0, sizeof stream);
-    stream.fd = fileno(file);
-    struct stat fst;
-    stream.size = (fstat(stream.fd, &fst) == 0 && S_ISREG(fst.st_mode)) ? (int64_t)fst.st_size : -1;
     pn_exr_reader r;
-    memset(&r, 0, sizeof r);
-    r.stream = &stream;
-    r.name = name;
-    r.err = err;
-    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-    init.error_handler_fn = pn_exr_read_error;
-    init.user_data = &stream;
-    init.read_fn = pn_exr_read_fn;
-    init.size_fn = pn_exr_size_fn;
-    init.flags |= EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
-    exr_result_t rv = exr_start_read(&r.ex, name, &init);
+    exr_result_t rv = exr_begin_read(file, name, &stream, &r, err);
     pn_status status = rv == EXR_ERR_SUCCESS ? PN_OK : pn_exr_fail(&r, rv, "reading the header");
     exr_storage_t storage = EXR_STORAGE_LAST_TYPE;
     exr_attr_box2i_t dw, disp;
