@@ -500,7 +500,6 @@ static pn_status parse_ldt(reader *r, pn_photometry *p) {
     int sets = 0;
     st = ldt_int(r, 26, "the number of lamp sets (line 26)", 1, 20, &sets);
     double flux = 0.0;
-    int lamps = 0;
     for (int s = 0; st == PN_OK && s < sets; s++) {
         int line = 27 + 6 * s;
         double n, f, w;
@@ -513,13 +512,12 @@ static pn_status parse_ldt(reader *r, pn_photometry *p) {
         if (st == PN_OK) st = ldt_line(r, line + 3, buf, sizeof buf);
         if (st == PN_OK) st = ldt_line(r, line + 4, buf, sizeof buf);
         if (st == PN_OK) st = ldt_number(r, line + 5, "the wattage (line 26f)", &w);
-        if (s == 0) {
-            flux = f;
-            lamps = (int)n;
-        }
+        /* The lamp count n (26a) is read but not used: 26c is the set's total flux already
+         * (and a count far outside int, as a fuzzed file had, must not be converted). */
+        (void)n;
+        if (s == 0) flux = f;
     }
     if (st != PN_OK) return st;
-    (void)lamps;
     /* The rest is numbers, one per line in the format; read them as tokens so that files
      * with several per line are read too. */
     for (int i = 0; st == PN_OK && i < 10; i++) {
