@@ -230,8 +230,8 @@ static char *replace_extension(const char *path, const char *ext) {
     return out;
 }
 
-static int write_csv(pn_context ctx, const char *path, const pn_illuminance_point *pts, const double *lux, int n,
-                     double df_reference) {
+static int write_csv(pn_context ctx, pn_output_set set, const char *path, const pn_illuminance_point *pts,
+                     const double *lux, int n, double df_reference) {
     size_t cap = (size_t)n * 160 + 128, len = 0;
     char *buf = malloc(cap);
     if (!buf) return EXIT_SYSTEM;
@@ -245,7 +245,7 @@ static int write_csv(pn_context ctx, const char *path, const pn_illuminance_poin
         if (df_reference > 0.0) len += (size_t)snprintf(buf + len, cap - len, ",%.9g", 100.0 * lux[i] / df_reference);
         len += (size_t)snprintf(buf + len, cap - len, "\n");
     }
-    pn_status st = pn_file_write(ctx, path, buf, len);
+    pn_status st = pn_output_set_add_file(ctx, set, path, buf, len);
     free(buf);
     return st == PN_OK ? EXIT_OK : report_failure(ctx, st);
 }
@@ -271,8 +271,8 @@ static void add_stats(cJSON *root, const char *prefix, grid_stats s) {
     cJSON_AddNumberToObject(root, name, s.max);
 }
 
-static int write_json(pn_context ctx, const char *path, const char *scene, const char *integrator, pn_options options,
-                      const grid_spec *g, const pn_illuminance_point *pts, const double *lux, int n,
+static int write_json(pn_context ctx, pn_output_set set, const char *path, const char *scene, const char *integrator,
+                      pn_options options, const grid_spec *g, const pn_illuminance_point *pts, const double *lux, int n,
                       double df_reference, double seconds) {
     cJSON *root = cJSON_CreateObject();
     if (!root) return EXIT_SYSTEM;
@@ -316,15 +316,15 @@ static int write_json(pn_context ctx, const char *path, const char *scene, const
     char *text = json_print(root);
     cJSON_Delete(root);
     if (!text) return EXIT_SYSTEM;
-    pn_status st = pn_file_write(ctx, path, text, strlen(text));
+    pn_status st = pn_output_set_add_file(ctx, set, path, text, strlen(text));
     free(text);
     return st == PN_OK ? EXIT_OK : report_failure(ctx, st);
 }
 
 /* The isolux picture: the grid's values bilinearly interpolated between the cell centres onto a
  * picture of at least 256 pixels along its longer side, top row at the largest v. */
-static int write_isolux(pn_context ctx, const char *path, const grid_spec *g, const double *lux, double factor,
-                        pn_false_color_style style, const char *label) {
+static int write_isolux(pn_context ctx, pn_output_set set, const char *path, const grid_spec *g, const double *lux,
+                        double factor, pn_false_color_style style, const char *label) {
     int px_per_cell = (int)ceil(256.0 / (double)(g->nu > g->nv ? g->nu : g->nv));
     if (px_per_cell < 1) px_per_cell = 1;
     int w = g->nu * px_per_cell, h = g->nv * px_per_cell;
@@ -349,7 +349,7 @@ static int write_isolux(pn_context ctx, const char *path, const grid_spec *g, co
     free(img);
     pn_false_color_options fo = {0.0, 1.0, 0, 8, style, label};
     if (st == PN_OK) st = pn_image_false_color_legend(ctx, values, "illuminance", &fo, &picture);
-    if (st == PN_OK) st = pn_image_write(ctx, picture, path, 0.0f);
+    if (st == PN_OK) st = pn_output_set_add_image(ctx, set, picture, path, 0.0f);
     pn_image_free(values);
     pn_image_free(picture);
     return st == PN_OK ? EXIT_OK : report_failure(ctx, st);
@@ -507,13 +507,22 @@ int command_illuminance(int argc, char **argv) {
         goto done;
     }
     const char *integrator = pn_method_get(o.integrator)->name;
-    if ((code = write_csv(ctx, csv_path, pts, lux, n, df_reference)) != EXIT_OK) goto done;
-    if ((code = write_json(ctx, json_path, o.scene_path, integrator, o.options, &g, pts, lux, n, df_reference,
-                           seconds)) != EXIT_OK)
+    /* The CSV, JSON and isolux picture are written as one set: all of them or none. */
+    pn_output_set set = pn_output_set_new();
+    if (!set) {
+        code = EXIT_SYSTEM;
         goto done;
-    if (g.has && (code = write_isolux(ctx, png_path, &g, lux, df_reference > 0.0 ? 100.0 / df_reference : 1.0, style,
-                                      df_reference > 0.0 ? "DF %" : "lux")) != EXIT_OK)
-        goto done;
+    }
+    code = write_csv(ctx, set, csv_path, pts, lux, n, df_reference);
+    if (code == EXIT_OK)
+        code = write_json(ctx, set, json_path, o.scene_path, integrator, o.options, &g, pts, lux, n, df_reference,
+                          seconds);
+    if (code == EXIT_OK && g.has)
+        code = write_isolux(ctx, set, png_path, &g, lux, df_reference > 0.0 ? 100.0 / df_reference : 1.0, style,
+                            df_reference > 0.0 ? "DF %" : "lux");
+    if (code == EXIT_OK && (st = pn_output_set_commit(ctx, set)) != PN_OK) code = report_failure(ctx, st);
+    pn_output_set_free(set);
+    if (code != EXIT_OK) goto done;
     if (!o.quiet) {
         grid_stats s = stats_of(lux, n, 1.0);
         printf("%d points (%s, %s light) in %.3f s: E_min %.6g lx, E_mean %.6g lx, E_max %.6g lx, U0 %.4f\n", n,
