@@ -101,11 +101,16 @@ void pn_image_fill_rgb(float *rgb, size_t pixels, int comp, const void *data, in
  * is 0 or the file ends inside a scanline; 1 otherwise (stb reports the other errors itself). */
 static int pn_hdr_runs_terminate(FILE *file, int width, int height) {
     if (width < 8 || width >= 32768) return 1; /* stb reads such files flat */
-    int c, previous = '\n', lines_done = 0;
-    /* The header ends at an empty line; the resolution line follows. */
+    int c, first = -1, lines_done = 0;         /* first: the current line's first byte (-1: none yet) */
+    /* The header ends at an empty line — for stb, whose line buffer is a C string, also a line
+     * that starts with a NUL byte (found by fuzz_stb: regress-19-hdr-nul-line.hdr) — and the
+     * resolution line follows. */
     while (lines_done < 2 && (c = getc(file)) != EOF) {
-        if (c == '\n' && (previous == '\n' || lines_done == 1)) lines_done++;
-        previous = c;
+        if (first < 0) first = c;
+        if (c == '\n') {
+            if (lines_done == 1 || first == '\n' || first == '\0') lines_done++;
+            first = -1;
+        }
     }
     for (int y = 0; y < height; y++) {
         int c1 = getc(file), c2 = getc(file), hi = getc(file), lo = getc(file);
