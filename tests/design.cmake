@@ -8,3 +8,7 @@ target_compile_options(test_design PRIVATE -Wno-double-promotion)
 # The office demo's work-plane grid against the closed form summed over its 24 spots.
 pn_add_test(test_design_office)
 target_compile_options(test_design_office PRIVATE -Wno-double-promotion)
+# Issue 17's gaps: glazing in contour / contour-mc, the illuminance AOV of ias, contour,
+# contour-mc and illumcut, thin-glass spheres.
+pn_add_test(test_design_aov)
+target_compile_options(test_design_aov PRIVATE -Wno-double-promotion)

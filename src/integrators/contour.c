@@ -165,6 +165,33 @@ static inline pn_dvec3 lattice_point(const pn_contour_eval *c, double u, double 
     return pn_contour_source_point(c->src, lattice_warp(u), lattice_warp(v));
 }
 
+/* Glazing (our departure): sample k is seen through thin glass; its form-factor weight is the
+ * integrand cos_M cos_S / r^2 times the area element of the warped lattice at (u, v). */
+static void glazed_sample(pn_contour_eval *c, size_t k, pn_dvec3 rel, double u, double v, float transmittance) {
+    c->glazed[k] = 1;
+    c->glazed_any = true;
+    const pn_contour_source *s = c->src;
+    double r2 = pn_dv3_dot(rel, rel);
+    pn_dvec3 du = pn_dv3_add(s->e1, pn_dv3_scale(s->k, lattice_warp(v)));
+    pn_dvec3 dv = pn_dv3_add(s->e2, pn_dv3_scale(s->k, lattice_warp(u)));
+    double jac = pn_dv3_length(pn_dv3_cross(du, dv)) * (1.0 + PN_CONTOUR_LATTICE_WARP * (1.0 - 2.0 * u)) *
+                 (1.0 + PN_CONTOUR_LATTICE_WARP * (1.0 - 2.0 * v));
+    double w = pn_dv3_dot(rel, c->ns) * fabs(pn_dv3_dot(rel, s->normal)) / (r2 * r2) * jac;
+    if (!(w > 0.0)) return;
+    c->glass_w += w;
+    c->glass_wt += w * (double)transmittance;
+}
+
+void pn_contour_eval_set_glazing(pn_contour_eval *c, uint8_t *glazed, uint8_t *vis_clear) {
+    c->glazed = c->glass ? glazed : NULL;
+    c->vis_clear = vis_clear;
+}
+
+uint8_t pn_contour_sample_class(pn_contour_eval *c, int i, int j) {
+    uint8_t visible = (uint8_t)pn_contour_sample_visible(c, i, j);
+    return c->glazed && c->glazed[sample_index(c, i, j)] ? (uint8_t)(visible | 2u) : visible;
+}
+
 /* vis_M(S_ij): traced once per pixel, then read from the array. */
 bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
     size_t k = sample_index(c, i, j);
@@ -173,7 +200,8 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
      * emitter is set in (a housing, the ceiling around it) and would hide a strip of the
      * border that the reference, sampling interior points, sees. */
     double inv = 1.0 / (double)c->N, lo = PN_CONTOUR_BORDER_INSET, hi = 1.0 - PN_CONTOUR_BORDER_INSET;
-    pn_dvec3 p = lattice_point(c, fmin(hi, fmax(lo, (double)i * inv)), fmin(hi, fmax(lo, (double)j * inv)));
+    double su = fmin(hi, fmax(lo, (double)i * inv)), sv = fmin(hi, fmax(lo, (double)j * inv));
+    pn_dvec3 p = lattice_point(c, su, sv);
     pn_dvec3 rel = pn_dv3_sub(p, c->m);
     if (pn_dv3_dot(rel, c->ng) <= 0.0 || pn_dv3_dot(rel, c->ns) <= 0.0) {
         c->vis[k] = VIS_VISIBLE; /* below the horizon: clipped away, no ray needed */
@@ -189,17 +217,28 @@ bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j) {
     float tmax = dist * (1.0f - 1e-4f) - c->eps;
     c->rays++;
     c->rays_by[c->restarted ? PN_CPH_RESTART : c->phase]++;
-    bool hidden;
-    if (c->gradient) {
+    bool hidden, glazed = false;
+    if (c->glazed) {
+        /* Glazing: only opaque surfaces hide the sample; one seen through a pane is glazed. */
+        float transmittance = pn_accel_transmittance(c->accel, c->origin, d, 0.0f, tmax);
+        hidden = !(transmittance > 0.0f);
+        glazed = !hidden && transmittance < 1.0f;
+        if (c->gradient) {
+            pn_hit h; /* the obstacle point of Fig. 5 (the nearest hit: a pane in front counts) */
+            c->thit[k] = hidden && pn_accel_intersect(c->accel, c->origin, d, 0.0f, tmax, &h) ? h.t / dist : 1.0f;
+        }
+        if (glazed) glazed_sample(c, k, rel, su, sv, transmittance);
+    } else if (c->gradient) {
         pn_hit h;
         hidden = pn_accel_intersect(c->accel, c->origin, d, 0.0f, tmax, &h);
         c->thit[k] = hidden ? h.t / dist : 1.0f;
     } else {
         hidden = pn_accel_occluded(c->accel, c->origin, d, 0.0f, tmax);
     }
-    c->vis[k] = hidden ? VIS_HIDDEN : VIS_VISIBLE;
+    c->vis[k] = hidden || (glazed && c->clear_pass) ? VIS_HIDDEN : VIS_VISIBLE;
+    if (c->clear_pass) c->vis_all[k] = hidden ? VIS_HIDDEN : VIS_VISIBLE;
     c->visible_rays += !hidden;
-    return !hidden;
+    return c->vis[k] == VIS_VISIBLE;
 }
 
 /* A contour vertex: parameters on the source, and for dichotomy vertices the hidden sample of
@@ -677,8 +716,9 @@ void pn_contour_probe_islands(pn_contour_eval *c, const uint8_t *hint, int p) {
     }
 }
 
-void pn_contour_integrate(pn_contour_eval *c, int p) {
-    c->restarted = false;
+/* One pass of the approximate contour integration over the current sample array; returns the
+ * first-level squares per side used (after restarts). */
+static int integrate_pass(pn_contour_eval *c, int p) {
     for (;;) {
         int d = 0;
         while ((p << d) < c->N) d++;
@@ -699,7 +739,37 @@ void pn_contour_integrate(pn_contour_eval *c, int p) {
         }
         break;
     }
-    c->p_used = p;
+    return p;
+}
+
+void pn_contour_integrate(pn_contour_eval *c, int p) {
+    c->restarted = false;
+    c->p_used = integrate_pass(c, p);
+    if (!c->glazed || !c->vis_clear || !c->glazed_any) return;
+    /* Glazing (our departure): the part of the source seen through panes is the visible part
+     * less the part seen clear, integrated again with glazed samples hidden (the panes' edges
+     * become contours); it is weighted by the panes' mean transmittance over it. */
+    const pn_contour_g all = c->acc;
+    const int depth = c->max_depth;
+    const bool restarted = c->restarted;
+    const uint8_t *hint = c->hint;
+    const size_t n = (size_t)(c->N + 1) * (size_t)(c->N + 1);
+    for (size_t k = 0; k < n; k++) c->vis_clear[k] = c->glazed[k] ? VIS_HIDDEN : c->vis[k];
+    c->vis_all = c->vis;
+    c->vis = c->vis_clear;
+    c->clear_pass = true;
+    c->hint = NULL; /* a neighbour's crossings are those of the visible part */
+    integrate_pass(c, p);
+    c->vis = c->vis_all;
+    c->clear_pass = false;
+    c->hint = hint;
+    const double t = c->glass_w > 0.0 ? c->glass_wt / c->glass_w : 1.0;
+    const pn_contour_g clear = c->acc;
+    c->acc.g = pn_dv3_add(clear.g, pn_dv3_scale(pn_dv3_sub(all.g, clear.g), t));
+    for (int k = 0; k < 3; k++)
+        c->acc.dg[k] = pn_dv3_add(clear.dg[k], pn_dv3_scale(pn_dv3_sub(all.dg[k], clear.dg[k]), t));
+    c->max_depth = depth;
+    c->restarted = restarted;
 }
 
 bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const pn_contour_source *src, vec3 p, vec3 ns,
@@ -724,5 +794,6 @@ bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const p
     c->flags = job->contour_flags;
     c->eps_length = src->eps_scale / (double)N;
     c->max_restarts = (job->contour_flags & PN_CONTOUR_NO_RESTARTS) ? 0 : PN_CONTOUR_MAX_RESTARTS;
+    c->glass = !job->opaque_glass && pn_accel_has_thin_glass(job->accel);
     return c->sign != 0.0;
 }

@@ -68,6 +68,13 @@ typedef struct pn_contour_eval {
     bool partial;    /* render: only half of its first-level samples were checked (uniform run) */
     int island_nest; /* > 0 inside a subdivision forced by a probe (not counted in max_depth) */
     uint32_t islands_probed, islands_found; /* probes traced; probes that contradicted their square */
+    /* Glazing (our departure, contour.c): with `glass`, thin panes pass the rays; glazed[k] = 1
+     * for samples seen through a pane (caller-owned per pixel, zeroed, (N+1)^2), vis_clear a
+     * scratch array of the same size for the pass in which glazed samples count as hidden; the
+     * glazed samples' form-factor weights, and the same times their transmittances. */
+    bool glass, glazed_any, clear_pass;
+    uint8_t *glazed, *vis_clear, *vis_all;
+    double glass_w, glass_wt;
 } pn_contour_eval;
 
 /* Prepares an evaluation; the caller owns vis (zeroed, (N+1)^2) and thit (same size, only read
@@ -77,6 +84,14 @@ bool pn_contour_eval_setup(pn_contour_eval *c, const pn_render_job *job, const p
 
 /* vis_M of sample (i, j) of the array (0 <= i, j <= N), tracing its ray the first time. */
 bool pn_contour_sample_visible(pn_contour_eval *c, int i, int j);
+
+/* Glazing: gives c the arrays of its glazed samples (zeroed) and the clear pass's scratch; without
+ * them (or with opaque glass) panes are opaque, the paper's binary visibility. */
+void pn_contour_eval_set_glazing(pn_contour_eval *c, uint8_t *glazed, uint8_t *vis_clear);
+
+/* The class of sample (i, j) for §5's patterns: 1 visible, 0 hidden, plus 2 when seen through
+ * thin glass (so that a run ends where a pane's edge moves across the source). */
+uint8_t pn_contour_sample_class(pn_contour_eval *c, int i, int j);
 
 /* §3.2 inconsistencies, exposed for tests. A square integrated without subdivision in the current
  * pass is remembered (pn_contour_add_leaf); pn_contour_treated_square_has_on_side() says whether

@@ -23,7 +23,8 @@
 typedef struct mc_sample {
     double u, v;
     bool visible;
-    bool above; /* above the receiver's horizon (else it carries no light and is not counted) */
+    bool above;          /* above the receiver's horizon (else it carries no light and is not counted) */
+    float transmittance; /* glazing: of the thin glass panes crossed (1 without; 0 when hidden) */
 } mc_sample;
 
 typedef struct mc_cell {
@@ -33,17 +34,26 @@ typedef struct mc_cell {
     mc_sample s[4]; /* one per quarter: 0 (low u, low v), 1 (high u), 2 (high v), 3 (both) */
 } mc_cell;
 
-static bool trace_visible(pn_contour_eval *c, double u, double v, bool *above) {
+static bool trace_visible(pn_contour_eval *c, double u, double v, bool *above, float *transmittance) {
+    *transmittance = 0.0f;
     pn_dvec3 p = pn_contour_source_point(c->src, u, v);
     pn_dvec3 rel = pn_dv3_sub(p, c->m);
     *above = !(pn_dv3_dot(rel, c->ng) <= 0.0 || pn_dv3_dot(rel, c->ns) <= 0.0);
     if (!*above) return false;
     vec3 d = v3_sub(pn_dv3_to(p), c->origin);
     float dist = v3_length(d);
+    *transmittance = 1.0f;
     if (!(dist > 0.0f)) return true;
     d = v3_scale(d, 1.0f / dist);
     c->rays++;
-    return !pn_accel_occluded(c->accel, c->origin, d, 0.0f, dist * (1.0f - 1e-4f) - c->eps);
+    float tmax = dist * (1.0f - 1e-4f) - c->eps;
+    if (c->glass) {
+        /* Glazing: thin panes pass the ray with their transmittance; only opaque surfaces hide. */
+        *transmittance = pn_accel_transmittance(c->accel, c->origin, d, 0.0f, tmax);
+        return *transmittance > 0.0f;
+    }
+    if (pn_accel_occluded(c->accel, c->origin, d, 0.0f, tmax)) *transmittance = 0.0f;
+    return *transmittance > 0.0f;
 }
 
 static double cell_form_factor(const pn_contour_eval *c, const mc_cell *cell) {
@@ -65,7 +75,7 @@ static mc_sample new_sample(pn_contour_eval *c, const mc_cell *cell, int k) {
     mc_sample s;
     s.u = cell->u0 + ((k & 1) + (double)pn_hash_unit(h)) * h2;
     s.v = cell->v0 + (((k >> 1) & 1) + (double)pn_hash_unit(pn_hash64(h))) * h2;
-    s.visible = trace_visible(c, s.u, s.v, &s.above);
+    s.visible = trace_visible(c, s.u, s.v, &s.above, &s.transmittance);
     return s;
 }
 
@@ -83,7 +93,8 @@ double pn_contour_mc_form_factor(pn_contour_eval *c, int cells, double threshold
     if (cells * cells > STACK / 2) cells = 8;
     for (int k = 0; k < cells * cells; k++) {
         double size = 1.0 / cells;
-        mc_cell cell = {size * (k % cells), size * (k / cells), size, 1, 4096 + (uint64_t)k, {{0, 0, false, false}}};
+        mc_cell cell = {size * (k % cells), size * (k / cells),          size, 1,
+                        4096 + (uint64_t)k, {{0, 0, false, false, 0.0f}}};
         for (int j = 0; j < 4; j++) cell.s[j] = new_sample(c, &cell, j);
         stack[top++] = cell;
     }
@@ -92,9 +103,11 @@ double pn_contour_mc_form_factor(pn_contour_eval *c, int cells, double threshold
         mc_cell cell = stack[--top];
         /* The visible fraction of the cell's part above the horizon (the part F_cell covers). */
         int visible = 0, above = 0;
+        double passed = 0.0; /* the visible samples' transmittances (their count without glass) */
         for (int k = 0; k < 4; k++) {
             visible += cell.s[k].visible;
             above += cell.s[k].above;
+            if (cell.s[k].visible && cell.s[k].above) passed += (double)cell.s[k].transmittance;
         }
         double f_cell = cell_form_factor(c, &cell);
         double q = above > 0 ? (double)visible / above : 0.0;
@@ -102,13 +115,13 @@ double pn_contour_mc_form_factor(pn_contour_eval *c, int cells, double threshold
         bool refine = visible > 0 && visible < above && std_error > threshold * f_source && c->rays + 12 <= max_rays &&
                       cell.depth < 12 && top + 4 <= STACK;
         if (!refine) {
-            estimate += f_cell * q;
+            estimate += f_cell * (above > 0 ? passed / above : 0.0);
             continue;
         }
         double h = cell.size * 0.5;
         for (int k = 0; k < 4; k++) {
             mc_cell child = {cell.u0 + (k & 1) * h, cell.v0 + ((k >> 1) & 1) * h, h,
-                             cell.depth + 1,        cell.id * 4 + (uint64_t)k,    {{0, 0, false, false}}};
+                             cell.depth + 1,        cell.id * 4 + (uint64_t)k,    {{0, 0, false, false, 0.0f}}};
             /* The parent's sample in this quarter stays, in the child's quarter it falls in. */
             mc_sample kept = cell.s[k];
             int kk = (kept.u >= child.u0 + h * 0.5 ? 1 : 0) + (kept.v >= child.v0 + h * 0.5 ? 2 : 0);

@@ -14,6 +14,7 @@
 #include "integrators/contour_internal.h"
 #include "integrators/reference_direct.h"
 
+#include "core/photometry.h"
 #include "core/rng.h"
 #include "core/threadpool.h"
 #include "render/progress.h"
@@ -383,6 +384,7 @@ typedef struct shade_point {
     pn_bsdf b;
     vec3 value;    /* this eye ray's radiance so far */
     vec3 gradient; /* this eye ray's irradiance-luminance gradient from contour lights */
+    double lux;    /* PN_AOV_ILLUMINANCE: this eye ray's direct illuminance (lx, white receiver) */
     uint32_t contour_rays;
     uint32_t rays_by[PN_CPH_COUNT], visible_rays; /* trace: rays by phase, visible ones */
     unsigned why;                                 /* trace: bit r set when integrated for reason r (WHY_*) */
@@ -394,6 +396,7 @@ typedef struct shade_point {
 typedef struct pixel_acc {
     vec3 weighted_sum, gradient_sum;
     double weight_sum, lum_mean, lum_m2;
+    double weighted_lux; /* PN_AOV_ILLUMINANCE: filter-weighted illuminance of the eye rays */
     uint32_t n, shadow_rays, specular_rays;
 } pixel_acc;
 
@@ -403,9 +406,11 @@ typedef struct contour_scratch {
     shade_point *sp;
     pixel_acc *acc;
     uint32_t *scramble;
-    size_t array_size; /* (N+1)^2 */
-    int span_capacity; /* pixels of the longest span the arrays below hold */
-    uint8_t *vis;      /* one sample array per pixel of the span */
+    size_t array_size;  /* (N+1)^2 */
+    int span_capacity;  /* pixels of the longest span the arrays below hold */
+    uint8_t *vis;       /* one sample array per pixel of the span */
+    uint8_t *glazed;    /* glazing (contour.c): per pixel, its samples seen through thin glass */
+    uint8_t *vis_clear; /* glazing: the clear pass's sample array (one integration at a time) */
     float *thit;
     pn_contour_eval *ev;
     pn_contour_g *g;
@@ -425,6 +430,8 @@ static void contour_scratch_free(void *p) {
     free(s->acc);
     free(s->scramble);
     free(s->vis);
+    free(s->glazed);
+    free(s->vis_clear);
     free(s->thit);
     free(s->ev);
     free(s->g);
@@ -456,16 +463,24 @@ static bool ensure_span_capacity(contour_scratch *s, const pn_render_job *job, i
     if (n <= s->span_capacity) return true;
     const bool gradient = (job->aovs & PN_AOV_GRADIENT) != 0;
     free(s->vis);
+    free(s->glazed);
+    free(s->vis_clear);
     free(s->thit);
     free(s->ev);
     free(s->g);
     free(s->span);
+    /* Glazing's arrays only when thin glass passes the rays. */
+    const bool glazing = !job->opaque_glass && pn_accel_has_thin_glass(job->accel);
+    s->glazed = glazing ? malloc(s->array_size * (size_t)n) : NULL;
+    s->vis_clear = glazing ? malloc(s->array_size) : NULL;
     s->vis = malloc(s->array_size * (size_t)n);
     s->thit = gradient ? malloc(s->array_size * (size_t)n * sizeof *s->thit) : NULL;
     s->ev = malloc((size_t)n * sizeof *s->ev);
     s->g = malloc((size_t)n * sizeof *s->g);
     s->span = malloc((size_t)n * sizeof *s->span);
-    s->span_capacity = (s->vis && s->ev && s->g && s->span && (!gradient || s->thit)) ? n : 0;
+    s->span_capacity =
+        (s->vis && s->ev && s->g && s->span && (!gradient || s->thit) && (!glazing || (s->glazed && s->vis_clear))) ? n
+                                                                                                                    : 0;
     return s->span_capacity > 0;
 }
 
@@ -561,7 +576,7 @@ static void first_level_pattern(span_ctx *sc, int q, int p, uint8_t *pattern) {
     int step = ev->N / p;
     ev->phase = PN_CPH_PATTERN;
     for (int b = 0, k = 0; b <= p; b++)
-        for (int a = 0; a <= p; a++, k++) pattern[k] = (uint8_t)pn_contour_sample_visible(ev, a * step, b * step);
+        for (int a = 0; a <= p; a++, k++) pattern[k] = pn_contour_sample_class(ev, a * step, b * step);
 }
 
 /* G at span pixel q from the quadratic through the full integrations at a < m < b. */
@@ -617,7 +632,7 @@ static bool check_pattern(contour_scratch *s, int j, int p, const uint8_t *patte
     for (int k = 0; k < np; k++) {
         int a = k % (p + 1), b = k / (p + 1);
         if (!mask[k] || (part > 1 && ((a + (part / 2) * b - x) % part + part) % part != 0)) continue;
-        if ((uint8_t)pn_contour_sample_visible(ej, a * step, b * step) != pattern[k]) return false;
+        if (pn_contour_sample_class(ej, a * step, b * step) != pattern[k]) return false;
     }
     return true;
 }
@@ -707,7 +722,8 @@ static void shade_span(span_ctx *sc) {
              * closed form of the whole source (visible) or nothing (hidden), which is what that
              * integration would give. */
             for (int q = key + 1; q < j; q++) {
-                if (!s->ev[q].partial) {
+                /* Glazing: a pattern seen through a pane is integrated (its edge may be near). */
+                if (!s->ev[q].partial || (key_pattern[0] & 2u)) {
                     full_integration(sc, q, p, WHY_UNIFORM);
                 } else if (key_pattern[0]) {
                     const pn_contour_eval *eq = &s->ev[q];
@@ -777,6 +793,7 @@ static int64_t object_key(const pn_hit *h) {
 static void shade_contour_lights(const pn_render_job *job, const contour_data *cd, const pn_batch *batch,
                                  contour_scratch *s, uint32_t eye_index, span_tally *tally) {
     const bool gradient = (job->aovs & PN_AOV_GRADIENT) != 0;
+    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
     const int span_max = (int)job->contour_span;
     for (int li = 0; li < cd->count; li++) {
         const contour_light *cl = &cd->lights[li];
@@ -822,6 +839,11 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                     continue;
                 }
                 ev->flags |= cd->off;
+                if (s->glazed) {
+                    uint8_t *glazed = s->glazed + (size_t)n * s->array_size;
+                    memset(glazed, 0, s->array_size);
+                    pn_contour_eval_set_glazing(ev, glazed, s->vis_clear);
+                }
                 s->span[n++] = q;
                 box_add(&smin, &smax, v3_sub(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
                 box_add(&smin, &smax, v3_add(sp->hit.p, v3(ev->eps, ev->eps, ev->eps)));
@@ -853,6 +875,9 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 if (!(f > 0.0)) f = 0.0;
                 vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, cl->emit));
                 sp->value = v3_add(sp->value, v3_scale(c, (float)f));
+                /* Illuminance on a white receiver: E = pi L F (contour.c, eq. 4-5), in lux for L in
+                 * cd/m^2 (docs/units.md). */
+                if (lux) sp->lux += (double)PN_PI * (double)pn_photometric(cl->emit) * f;
                 sp->contour_rays += s->ev[k].rays;
                 if (cd->trace) {
                     for (int r = 0; r < PN_CPH_COUNT; r++) sp->rays_by[r] += s->ev[k].rays_by[r];
@@ -880,6 +905,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         return PN_ERROR_OUT_OF_MEMORY;
     const uint32_t spp = job->spp > 0 ? job->spp : 1;
     const uint32_t S = job->shadow_rays;
+    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
     span_tally tally = {0, 0, 0, 0, 0};
     uint64_t viewing = 0, contour_rays = 0;
     for (int q = 0; q < batch->count; q++) {
@@ -919,12 +945,16 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
                 sp->diffuse = sp->b.kind == PN_MATERIAL_LAMBERT_BLINN && v3_is_zero(sp->b.ks);
                 sp->object = object_key(&path.hit);
                 /* Everything the contour integration does not treat: the reference's code. */
-                vec3 direct = v3(0, 0, 0);
+                vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0);
                 double unused_seconds = 0.0;
-                if (pn_reference_direct(job, &s->ref, NULL, &sp->b, path.hit.p, path.wo, i, scramble,
-                                        sp->diffuse ? cd->skip : NULL, false, &direct, &s->acc[q].shadow_rays,
-                                        &unused_seconds))
+                if (pn_reference_direct_irradiance(job, &s->ref, NULL, &sp->b, path.hit.p, path.wo, i, scramble,
+                                                   sp->diffuse ? cd->skip : NULL, false, &direct,
+                                                   lux ? &incident : NULL, &s->acc[q].shadow_rays, &unused_seconds)) {
                     sp->value = v3_add(sp->value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
+                    /* PN_AOV_ILLUMINANCE: the other lights' part, from the same light samples. */
+                    float e = pn_photometric(incident) / (float)S;
+                    if (lux && isfinite(e)) sp->lux = (double)e;
+                }
             }
         }
         shade_contour_lights(job, cd, batch, s, i, &tally);
@@ -956,6 +986,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             a->n++;
             a->weighted_sum = v3_madd(a->weighted_sum, value, sp->fw);
             a->gradient_sum = v3_madd(a->gradient_sum, sp->gradient, sp->fw);
+            if (isfinite(sp->lux)) a->weighted_lux += sp->lux * (double)sp->fw;
             a->weight_sum += (double)sp->fw;
             double y = (double)v3_luminance(value);
             double delta = y - a->lum_mean;
@@ -972,6 +1003,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         if (a->weight_sum != 0.0) {
             o->radiance = v3_scale(a->weighted_sum, (float)(1.0 / a->weight_sum));
             o->gradient = v3_scale(a->gradient_sum, (float)(1.0 / a->weight_sum));
+            o->illuminance = (float)(a->weighted_lux / a->weight_sum);
         }
         double var_of_mean = a->n > 1 ? a->lum_m2 / ((double)(a->n - 1) * (double)a->n) : 0.0;
         o->relative_variance = a->lum_mean > 0.0 ? (float)(var_of_mean / (a->lum_mean * a->lum_mean)) : 0.0f;
