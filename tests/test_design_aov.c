@@ -67,19 +67,26 @@ static pn_image render_with(pn_scene scene, const char *method, uint32_t spp, co
 /* ---- glazing in contour and contour-mc -------------------------------------------------------- */
 
 /* Mean ratio and worst pixel ratio of img's beauty (green) and illuminance against ref's. */
+static double mean_lux_ratio; /* compare(): the images' mean illuminance ratio - 1 */
+
 static void compare(pn_image ref, pn_image img, double *mean, double *worst, double *worst_lux) {
     const float *r = pn_image_layer_data(ref, 0), *c = pn_image_layer_data(img, 0);
     const float *re = layer_named(ref, "illuminance"), *ce = layer_named(img, "illuminance");
     CHECK(re && ce);
-    double sr = 0.0, sc = 0.0;
+    double sr = 0.0, sc = 0.0, lr = 0.0, lc = 0.0;
     *worst = *worst_lux = 0.0;
     for (int i = 0; i < 16 * 16; i++) {
         sr += r[3 * i + 1];
         sc += c[3 * i + 1];
         *worst = fmax(*worst, fabs(c[3 * i + 1] / r[3 * i + 1] - 1.0));
-        if (re && ce) *worst_lux = fmax(*worst_lux, fabs(ce[i] / re[i] - 1.0));
+        if (re && ce) {
+            *worst_lux = fmax(*worst_lux, fabs(ce[i] / re[i] - 1.0));
+            lr += re[i];
+            lc += ce[i];
+        }
     }
     *mean = sc / sr - 1.0;
+    mean_lux_ratio = lr > 0.0 ? lc / lr - 1.0 : INFINITY;
 }
 
 static void test_contour_glazing_matches_reference(void) {
@@ -102,6 +109,7 @@ static void test_contour_glazing_matches_reference(void) {
         CHECK_MSG(fabs(mean) < 0.003, "%s: mean ratio - 1 = %g", methods[m], mean);
         CHECK_MSG(worst < (m == 0 ? 0.05 : 0.02), "%s: worst pixel %g", methods[m], worst);
         CHECK_MSG(worst_lux < (m == 0 ? 0.05 : 0.02), "%s: worst illuminance pixel %g", methods[m], worst_lux);
+        CHECK_MSG(fabs(mean_lux_ratio) < 0.003, "%s: mean illuminance ratio - 1 = %g", methods[m], mean_lux_ratio);
         /* Floor points wholly under the pane (x < -0.1; the image's x is the world's -x): black
          * with opaque glass, lit through it without. */
         const float *c = pn_image_layer_data(img, 0), *o = pn_image_layer_data(opaque, 0);
@@ -124,4 +132,90 @@ static void test_contour_glazing_matches_reference(void) {
     pn_scene_free(scene);
 }
 
-PN_TESTS(TEST(test_contour_glazing_matches_reference))
+/* ---- the illuminance AOV of ias, contour, contour-mc and illumcut ----------------------------- */
+
+/* A point light of 2000 cd at (0.3, -0.2, 3) above the floor, seen from above (no pane): E =
+ * I cos / d^2, smooth over a pixel. Every method's AOV against the reference's, pixel by pixel
+ * and on the whole; the reference's against the closed form at the pixel centres. */
+static void test_illuminance_aov_every_method(void) {
+    pn_scene scene = load_body("lux.pbrt", "LightSource \"point\" \"point3 from\" [0.3 -0.2 3] \"rgb I\" "
+                                           "[2000 2000 2000]\n");
+    if (!scene) return;
+    pn_image ref = render_with(scene, "reference", 64, NULL, NULL);
+    if (!ref) return;
+    const float *re = layer_named(ref, "illuminance");
+    CHECK(re != NULL);
+    for (int i = 0; re && i < 16 * 16; i++) {
+        /* The image's x is the world's -x, its y the world's -y (orthographic, 4 m wide). */
+        double x = -(-2.0 + 0.25 * (i % 16 + 0.5)), y = -(-2.0 + 0.25 * (i / 16 + 0.5));
+        double dx = 0.3 - x, dy = -0.2 - y, d2 = dx * dx + dy * dy + 9.0;
+        double e = 2000.0 * (3.0 / sqrt(d2)) / d2;
+        CHECK_MSG(fabs(re[i] / e - 1.0) < 0.01, "reference pixel %d: %g lx, closed form %g", i, re[i], e);
+    }
+    const char *methods[4] = {"ias", "contour", "contour-mc", "illumcut"};
+    for (int m = 0; m < 4; m++) {
+        /* ias: its adaptive default; the VPL method: its direct-light set (the light itself). */
+        pn_image img =
+            render_with(scene, methods[m], m == 0 ? 0 : 16, m == 3 ? "vpl-direct-only" : NULL, m == 3 ? "1" : NULL);
+        if (!img) continue;
+        double mean, worst, worst_lux;
+        compare(ref, img, &mean, &worst, &worst_lux);
+        CHECK_MSG(fabs(mean_lux_ratio) < 0.005, "%s: mean illuminance ratio - 1 = %g", methods[m], mean_lux_ratio);
+        CHECK_MSG(worst_lux < 0.02, "%s: worst illuminance pixel %g", methods[m], worst_lux);
+        pn_image_free(img);
+    }
+    pn_image_free(ref);
+    pn_scene_free(scene);
+}
+
+/* ---- C angles: the bright side lands where docs/luminaires.md says ---------------------------- */
+
+/* 1000 cd in the C = 90 plane, 100 cd in the others (C0, C180, C270), for gamma < 90. Seen from
+ * above, C angles turn counter-clockwise from +x: C90 is +y. RADIANCE's ies2rad takes C = -phi
+ * (its C90 is -y): `Scale 1 -1 1` before the light reproduces that placement. */
+static const char *c90_ies = "IESNA:LM-63-2002\n[TEST] brighter in the C90 plane\nTILT=NONE\n"
+                             "1 -1 1 3 5 1 2 0 0 0\n1 1 0\n0 45 90\n0 90 180 270 360\n"
+                             "100 100 0\n1000 1000 0\n100 100 0\n100 100 0\n100 100 0\n";
+
+static void c_angle_points(const char *transform, double *lux) {
+    write_file("c90.ies", c90_ies);
+    char body[2048];
+    snprintf(body, sizeof body,
+             "AttributeBegin\nTranslate 0 0 2\n%s\nLightSource \"goniometric\" \"string filename\" \"%s\"\n"
+             "AttributeEnd\n",
+             transform, tpath("c90.ies"));
+    pn_scene scene = load_body("c90.pbrt", body);
+    lux[0] = lux[1] = lux[2] = lux[3] = -1.0;
+    if (!scene) return;
+    /* +x, +y, -x, -y at 1 m from below the luminaire: gamma = atan(1 / 2) = 26.6 degrees. */
+    pn_illuminance_point p[4] = {
+        {{1, 0, 0}, {0, 0, 1}}, {{0, 1, 0}, {0, 0, 1}}, {{-1, 0, 0}, {0, 0, 1}}, {{0, -1, 0}, {0, 0, 1}}};
+    pn_render_settings s;
+    memset(&s, 0, sizeof s);
+    s.spp = 1;
+    s.threads = 1;
+    CHECK(pn_illuminance(test_context(), scene, &s, p, 4, lux) == PN_OK);
+    pn_scene_free(scene);
+}
+
+static void test_c_angle_orientation(void) {
+    /* I(26.57 deg) in the plane, bilinear between gamma 0 and 45: the table is flat there. */
+    const double geo = (2.0 / sqrt(5.0)) / 5.0; /* cos / d^2 */
+    double lux[4];
+    c_angle_points("", lux);
+    CHECK_NEAR(lux[1] / (1000.0 * geo), 1.0, 0.005); /* C90: +y */
+    CHECK_NEAR(lux[0] / (100.0 * geo), 1.0, 0.005);  /* C0: +x */
+    CHECK_NEAR(lux[2] / (100.0 * geo), 1.0, 0.005);  /* C180: -x */
+    CHECK_NEAR(lux[3] / (100.0 * geo), 1.0, 0.005);  /* C270: -y */
+    /* RADIANCE's placement: mirrored about the xz plane, the bright side at -y. */
+    c_angle_points("Scale 1 -1 1", lux);
+    CHECK_NEAR(lux[3] / (1000.0 * geo), 1.0, 0.005);
+    CHECK_NEAR(lux[1] / (100.0 * geo), 1.0, 0.005);
+    /* LM-72's Orient 90 (Rotate 90 about z): the C0 plane due north, C90 due west (-x). */
+    c_angle_points("Rotate 90 0 0 1", lux);
+    CHECK_NEAR(lux[2] / (1000.0 * geo), 1.0, 0.005);
+    CHECK_NEAR(lux[1] / (100.0 * geo), 1.0, 0.005);
+}
+
+PN_TESTS(TEST(test_contour_glazing_matches_reference), TEST(test_illuminance_aov_every_method),
+         TEST(test_c_angle_orientation))

@@ -63,6 +63,7 @@
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
+#include "core/photometry.h"
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "integrators/ias_math.h"
@@ -285,6 +286,11 @@ typedef struct ias_region {
     /* The default variant's member points (scratch->points[point_first ..], point_count of
      * them; 0: shadow rays leave from the representative point), visited in turn. */
     int point_first, point_count;
+    /* PN_AOV_ILLUMINANCE: the sum over every pass's samples of Y(L) cos / pdf / (P(cluster)
+     * P(light)) (a white receiver; lux) and their number; each is unbiased whatever its pass's
+     * PDF, so they are pooled with equal weights. */
+    double lux_sum;
+    unsigned lux_n;
 } ias_region;
 
 /* An eye ray's own shading point in its antialiasing region (members_points). */
@@ -959,6 +965,7 @@ static void pixel_estimate_cross(const ias_scratch *sc, const ias_pixel *px, dou
  * has clusters gets at least two per pass (for a variance) when count > 0. */
 static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px, int pass,
                          unsigned count, uint32_t scramble, uint32_t *counter) {
+    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
     const double wsum = px->region_weight;
     if (!(wsum > 0.0) || count == 0) return;
     /* Samples to regions by area: floor shares, the rest to the largest remainders. */
@@ -1080,6 +1087,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 dist = INFINITY;
             }
             vec3 v = v3(0, 0, 0);
+            double lux_v = 0.0; /* PN_AOV_ILLUMINANCE: the sample's illuminance on a white receiver */
             bool visible = false;
             if (ok && pdf > 0.0f) {
                 vec3 f = pn_bsdf_eval(bsdf, wo, wi);
@@ -1115,6 +1123,9 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                         v = v3_scale(v3_mul(v3_mul(f, radiance), throughput), cos_i / pdf);
                         if (transmittance != 1.0f) v = v3_scale(v, transmittance);
                         if (pt) v = v3_scale(v, pt->share);
+                        if (lux)
+                            lux_v = (double)pn_photometric(radiance) * (double)(cos_i / pdf * transmittance) *
+                                    (pt ? (double)pt->share : 1.0);
                     }
                 }
             }
@@ -1133,6 +1144,10 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             r->sum2 += ly * ly;
             r->rgb = v3_add(r->rgb, v3_scale(v, (float)w));
             r->n++;
+            if (lux) {
+                r->lux_sum += lux_v * w;
+                r->lux_n++;
+            }
         }
     }
 }
@@ -1459,6 +1474,13 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     for (int pi = 0; pi < np; pi++) {
         ias_pixel *px = &s->pixels[pi];
         out[pi].radiance = v3_is_finite(px->result) ? px->result : v3(0, 0, 0);
+        /* PN_AOV_ILLUMINANCE: the regions' pooled estimates, weighted by area as the radiance. */
+        double lux = 0.0;
+        for (int k = 0; k < px->region_count; k++) {
+            const ias_region *g = &s->regions[px->first_region + k];
+            if (g->lux_n > 0) lux += g->weight * g->lux_sum / (double)g->lux_n;
+        }
+        if (isfinite(lux)) out[pi].illuminance = (float)lux;
         out[pi].emitted = v3_is_finite(px->result) && v3_is_finite(px->emitted) ? px->emitted : v3(0, 0, 0);
         out[pi].shadow_rays = px->shadow_rays;
         out[pi].passes = (uint32_t)px->pass_count;

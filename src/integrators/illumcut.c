@@ -82,6 +82,7 @@
 #include "integrators/illumcut.h"
 
 #include "core/clock.h"
+#include "core/photometry.h"
 #include "core/rng.h"
 #include "core/threadpool.h"
 #include "render/progress.h"
@@ -104,6 +105,7 @@ typedef struct ic_point {
     float pairs;  /* shaded pairs covering the point */
     uint32_t shadow_rays;
     int32_t sample;
+    double lux; /* PN_AOV_ILLUMINANCE: Phase II illuminance of the point's white Lambertian twin */
 } ic_point;
 
 typedef struct ic_node {
@@ -548,6 +550,7 @@ typedef struct ic_rays {
     int n, nr; /* entries, rays among them */
     int32_t point[IC_QUEUE];
     vec3 c[IC_QUEUE];
+    float e[IC_QUEUE];         /* PN_AOV_ILLUMINANCE: the same addition's illuminance (pair_lux) */
     signed char ray[IC_QUEUE]; /* index into the rays, or -1 */
     vec3 o[IC_PACKET], d[IC_PACKET];
     float tmin[IC_PACKET], tmax[IC_PACKET];
@@ -574,15 +577,31 @@ static void rays_flush(const ic_render *ir, ic_rays *rb) {
     for (int i = 0; i < rb->n; i++) {
         float t = rb->ray[i] < 0 ? 1.0f : visibility[rb->ray[i]];
         if (t > 0.0f) pts[rb->point[i]].L = v3_add(pts[rb->point[i]].L, t == 1.0f ? rb->c[i] : v3_scale(rb->c[i], t));
+        if (t > 0.0f && rb->e[i] != 0.0f) pts[rb->point[i]].lux += (double)(t * rb->e[i]);
     }
     rb->n = rb->nr = 0;
 }
 
-/* Queues c for point i (no ray). Adding zero changes no sum, so it is not queued. */
-static void add_queued(const ic_render *ir, ic_rays *rb, int32_t i, vec3 c) {
+/* PN_AOV_ILLUMINANCE: Y of what cluster q gives the white Lambertian twin of point p
+ * (pn_vpl_irradiance_receiver: its illuminance, lux), unshadowed; 0 without the AOV. Added
+ * wherever the pair's contribution is, with the same visibility; a pair whose contribution is 0
+ * (a black receiver) adds none, so black surfaces read 0 lx. */
+static float pair_lux(const ic_render *ir, const ic_point *p, const pn_light_node *q) {
+    if (!(ir->job->aovs & PN_AOV_ILLUMINANCE)) return 0.0f;
+    const pn_vpl_receiver white = pn_vpl_irradiance_receiver(&p->r);
+    vec3 wi;
+    float dist;
+    return pn_photometric(pn_vpl_contribution_inline(ir->job->lights, &ir->d->set.vpls[q->rep], q->intensity, &white,
+                                                     ir->d->set.min_dist2, &wi, &dist));
+}
+
+/* Queues c (and its illuminance e) for point i (no ray). Adding zero changes no sum, so it is
+ * not queued. */
+static void add_queued(const ic_render *ir, ic_rays *rb, int32_t i, vec3 c, float e) {
     if (v3_is_zero(c)) return;
     rb->point[rb->n] = i;
     rb->c[rb->n] = c;
+    rb->e[rb->n] = e;
     rb->ray[rb->n] = -1;
     if (++rb->n == IC_QUEUE) rays_flush(ir, rb);
 }
@@ -596,15 +615,17 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
                                         ir->d->set.min_dist2, &wi, &dist);
     if (v3_is_zero(c)) return;
     p->shadow_rays++;
+    const float e = pair_lux(ir, p, Q);
     int k = rb->nr;
     if (!pn_vpl_shadow_ray(ir->job->accel, &p->r, dist, &rb->o[k], &rb->tmax[k])) {
-        add_queued(ir, rb, i, c);
+        add_queued(ir, rb, i, c, e);
         return;
     }
     rb->d[k] = wi;
     rb->tmin[k] = 0.0f;
     rb->point[rb->n] = i;
     rb->c[rb->n] = c;
+    rb->e[rb->n] = e;
     rb->ray[rb->n] = (signed char)k;
     rb->nr++;
     if (++rb->n == IC_QUEUE || rb->nr == IC_PACKET) rays_flush(ir, rb);
@@ -627,7 +648,7 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
     if (!ir->job->visibility_sampling || (Q->left < 0 && !leaf_ok) || n < 8) {
         for (int32_t i = a; i < b; i++) {
             if (i == known && known_vis >= 0) {
-                if (known_vis == 1) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1));
+                if (known_vis == 1) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1), pair_lux(ir, &pts[i], Q));
                 continue; /* occluded: adds nothing */
             }
             shade_point_queued(ir, rb, i, Q);
@@ -679,7 +700,7 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
         if (vis[k] == 0 || vis[k] == 2) occluded++;
     }
     if (visible > 0 && occluded == 0) {
-        for (int32_t i = a; i < b; i++) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1));
+        for (int32_t i = a; i < b; i++) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1), pair_lux(ir, &pts[i], Q));
     } else if (occluded > 0 && visible == 0) {
         return;
     } else {
@@ -1056,7 +1077,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
         size_t pix = (size_t)ip;
         pn_pixel_estimate *o = &pixels[pix];
         vec3 sum = v3(0, 0, 0), approx = v3(0, 0, 0);
-        double wsum = 0.0;
+        double wsum = 0.0, lux = 0.0;
         float bounds = 0.0f, pr = 0.0f;
         int pts = 0;
         for (uint32_t s = 0; s < ir.spp; s++) {
@@ -1067,6 +1088,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
                 value = v3_add(value, v3_mul(smp->throughput, p->L));
                 a = v3_add(a, v3_mul(smp->throughput, p->approx));
                 o->shadow_rays += p->shadow_rays;
+                if (isfinite(p->lux)) lux += p->lux * (double)smp->weight;
                 bounds += p->bounds;
                 pr += p->pairs;
                 pts++;
@@ -1080,6 +1102,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
         if (wsum != 0.0) {
             o->radiance = v3_scale(sum, (float)(1.0 / wsum));
             o->phase1 = v3_scale(approx, (float)(1.0 / wsum));
+            o->illuminance = (float)(lux / wsum);
         }
         o->bound_evaluations = bounds;
         o->cut_size = pts ? pr / (float)pts : 0.0f;

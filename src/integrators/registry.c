@@ -63,7 +63,8 @@ static const pn_method_entry methods[M_COUNT] = {
                 "Iterative Adaptive Sampling: per-block PDFs over light clusters, refined pass by pass",
                 "Donikian et al. 2006, Accurate Direct Illumination Using Iterative Adaptive Sampling", DIRECT,
                 PN_CAP_PER_BLOCK | PN_CAP_CROP | PN_CAP_THRESHOLD | PN_CAP_EMITTED,
-                PN_AOV_PASSES | PN_AOV_AA_REGIONS | PN_AOV_CLUSTERS | PN_AOV_VISIBLE_FRACTION, "ias_tables", 0},
+                PN_AOV_PASSES | PN_AOV_AA_REGIONS | PN_AOV_CLUSTERS | PN_AOV_VISIBLE_FRACTION | PN_AOV_ILLUMINANCE,
+                "ias_tables", 0},
                &pn_integrator_ias},
     [M_CONTOUR] = {{"contour", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_CONTOUR,
                     "Approximate Contour Integration of planar convex area lights along scanline spans; other "
@@ -92,7 +93,7 @@ static const pn_method_entry methods[M_COUNT] = {
     [M_ILLUMCUT] = {{"illumcut", PN_METHOD_INTEGRATOR, PN_INTEGRATOR_ILLUMCUT,
                      "IlluminationCut: cuts of the product of a point tree and the VPL tree, over the whole image",
                      "Bus et al. 2015, IlluminationCut", GLOBAL, PN_CAP_WHOLE_IMAGE | PN_CAP_PROGRESSIVE | PN_CAP_SPP,
-                     PN_AOV_BOUND_EVALUATIONS | PN_AOV_CUT_SIZE | PN_AOV_PHASE1, "vpl_cuts", 1},
+                     PN_AOV_BOUND_EVALUATIONS | PN_AOV_CUT_SIZE | PN_AOV_PHASE1 | PN_AOV_ILLUMINANCE, "vpl_cuts", 1},
                     &pn_integrator_illumcut},
     [M_TILES] = {{"tiles", PN_METHOD_DRIVER, PN_DRIVER_DEFAULT,
                   "the default: every pixel of the window, in square blocks handed to the worker threads", "",
@@ -427,8 +428,8 @@ static const pn_option_decl options[] = {
      0},
     {{"opaque-glass", PN_OPTION_FLAG, "0", 0, 0, 0, 0, "", "",
       "thin glass panes (thindielectric, or dielectric with \"bool thin\" true) block shadow rays, as in pbrt-v4, "
-      "instead of passing them attenuated by their Fresnel transmittance (contour and contour-mc: always, for the "
-      "area lights they integrate themselves)"},
+      "instead of passing them attenuated by their Fresnel transmittance (contour and contour-mc: for their own "
+      "area lights too, the paper's binary visibility)"},
      BIT(M_REFERENCE) | BIT(M_IAS) | CONTOUR_FAMILY | VPL_FAMILY,
      F(opaque_glass),
      PN_FIELD_BOOL,
