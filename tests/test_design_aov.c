@@ -217,5 +217,52 @@ static void test_c_angle_orientation(void) {
     CHECK_NEAR(lux[1] / (100.0 * geo), 1.0, 0.005);
 }
 
+/* ---- thin-glass spheres ------------------------------------------------------------------------ */
+
+/* Our own double-precision Fresnel slab transmittance (s and p apart). */
+static double slab_t(double ci, double eta) {
+    double st2 = (1.0 - ci * ci) / (eta * eta);
+    double ct = sqrt(1.0 - st2);
+    double rp = pow((eta * ci - ct) / (eta * ci + ct), 2.0), rs = pow((ci - eta * ct) / (ci + eta * ct), 2.0);
+    return 0.5 * ((1.0 - rp) / (1.0 + rp) + (1.0 - rs) / (1.0 + rs));
+}
+
+static void sphere_points(pn_scene scene, const char *method, const char *opt, const char *val, double *lux) {
+    /* Under the centre (the ray crosses the shell twice at normal incidence) and beside it. */
+    pn_illuminance_point p[2] = {{{0, 0, 0}, {0, 0, 1}}, {{1.5f, 0, 0}, {0, 0, 1}}};
+    pn_render_settings s;
+    memset(&s, 0, sizeof s);
+    s.integrator = (pn_integrator_kind)pn_method_get(pn_method_find(PN_METHOD_INTEGRATOR, method))->kind;
+    s.spp = 1;
+    s.threads = 2;
+    pn_options o = pn_options_new();
+    if (opt) pn_options_set(test_context(), o, opt, val);
+    if (strcmp(method, "reference") != 0) pn_options_set(test_context(), o, "vpl-direct-only", "1");
+    s.options = o;
+    CHECK(pn_illuminance(test_context(), scene, &s, p, 2, lux) == PN_OK);
+    pn_options_free(o);
+}
+
+static void test_thin_glass_sphere(void) {
+    pn_scene scene = load_body("sphere.pbrt", "LightSource \"point\" \"point3 from\" [0 0 3] \"rgb I\" [900 900 900]\n"
+                                              "AttributeBegin\nMaterial \"thindielectric\" \"float eta\" 1.5\n"
+                                              "Translate 0 0 1.5\nShape \"sphere\" \"float radius\" 0.5\n"
+                                              "AttributeEnd\n");
+    if (!scene) return;
+    const double e0 = 900.0 / 9.0, beside = 900.0 * (3.0 / sqrt(11.25)) / 11.25;
+    const char *methods[3] = {"reference", "vpl", "lightcuts"};
+    for (int m = 0; m < 3; m++) {
+        double lux[2];
+        sphere_points(scene, methods[m], NULL, NULL, lux);
+        /* Two thin-slab crossings at normal incidence: T^2 = 0.8521 for eta 1.5. */
+        CHECK_MSG(fabs(lux[0] / (e0 * pow(slab_t(1.0, 1.5), 2.0)) - 1.0) < 0.002, "%s: %g lx under the sphere",
+                  methods[m], lux[0]);
+        CHECK_NEAR(lux[1] / beside, 1.0, 0.002);
+        sphere_points(scene, methods[m], "opaque-glass", "1", lux);
+        CHECK(lux[0] == 0.0);
+    }
+    pn_scene_free(scene);
+}
+
 PN_TESTS(TEST(test_contour_glazing_matches_reference), TEST(test_illuminance_aov_every_method),
-         TEST(test_c_angle_orientation))
+         TEST(test_c_angle_orientation), TEST(test_thin_glass_sphere))

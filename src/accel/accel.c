@@ -2,7 +2,7 @@
  * instances) and single-ray queries, with alpha cut-outs done in Embree filter callbacks.
  *
  * Ray masks: bit 0 (0x1) eye and light-path rays, bit 1 (0x2) opaque shadow blockers, bit 2 (0x4)
- * thin glass panes (meshes whose material is a thin dielectric). Plain occlusion queries use 0x6,
+ * thin glass panes (meshes and spheres whose material is a thin dielectric). Plain occlusion queries use 0x6,
  * so that panes block them as before; pn_accel_transmittance asks 0x2 and then walks the panes
  * (0x4) along the ray, multiplying their slab transmittance (glass.c describes the optics). */
 #include "accel/accel.h"
@@ -37,7 +37,7 @@ struct pn_accel {
     scene_table *objects; /* one per scene object */
     int object_count;
     float epsilon_base;
-    bool thin_glass; /* some mesh is a thin glass pane (mask 0x4) */
+    bool thin_glass; /* some mesh or sphere is a thin glass pane (mask 0x4) */
 };
 
 /* Alpha filter: per-geometry user data. */
@@ -144,7 +144,30 @@ static pn_status add_mesh(pn_accel *acc, scene_table *tab, int mesh_index, pn_er
     return add_ref(tab, id, (geom_ref){0, mesh_index, -1}, err);
 }
 
+/* Whether sphere i's material is a thin glass pane (thindielectric, or dielectric marked thin). */
+static bool sphere_is_thin_glass(const struct pn_scene_s *scene, int i) {
+    int m = scene->spheres[i].material;
+    return m >= 0 && m < scene->material_count && scene->materials[m].kind == PN_MATERIAL_DIELECTRIC &&
+           scene->materials[m].thin;
+}
+
+static pn_status add_sphere_run(pn_accel *acc, scene_table *tab, int first, int count, bool thin, pn_err *err);
+
+/* Spheres first .. first + count - 1, as one Embree geometry per run of equal glazing (a run of
+ * thin-glass spheres carries the panes' mask, so that shadow rays pass it attenuated). */
 static pn_status add_spheres(pn_accel *acc, scene_table *tab, int first, int count, pn_err *err) {
+    for (int i = first; i < first + count;) {
+        bool thin = sphere_is_thin_glass(acc->scene, i);
+        int j = i + 1;
+        while (j < first + count && sphere_is_thin_glass(acc->scene, j) == thin) j++;
+        pn_status st = add_sphere_run(acc, tab, i, j - i, thin, err);
+        if (st != PN_OK) return st;
+        i = j;
+    }
+    return PN_OK;
+}
+
+static pn_status add_sphere_run(pn_accel *acc, scene_table *tab, int first, int count, bool thin, pn_err *err) {
     if (count <= 0) return PN_OK;
     const struct pn_scene_s *scene = acc->scene;
     RTCGeometry g = rtcNewGeometry(acc->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
@@ -162,7 +185,8 @@ static pn_status add_spheres(pn_accel *acc, scene_table *tab, int first, int cou
         vb[4 * i + 2] = s->center.z;
         vb[4 * i + 3] = s->radius;
     }
-    rtcSetGeometryMask(g, 0x3);
+    rtcSetGeometryMask(g, thin ? 0x5 : 0x3);
+    if (thin) acc->thin_glass = true;
     rtcCommitGeometry(g);
     unsigned id = rtcAttachGeometry(tab->rtc, g);
     rtcReleaseGeometry(g);
