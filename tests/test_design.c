@@ -109,7 +109,7 @@ static void test_overcast_sky_luminance_profile(void) {
 
 static void test_sky_bad_input(void) {
     write_file("badsky.pbrt",
-               "WorldBegin\nLightSource \"infinite\" \"string sky\" \"cie-clear\" \"float illuminance\" 1\n");
+               "WorldBegin\nLightSource \"infinite\" \"string sky\" \"perez\" \"float illuminance\" 1\n");
     pn_scene scene = NULL;
     CHECK(pn_scene_load(test_context(), tpath("badsky.pbrt"), &scene) == PN_ERROR_BAD_INPUT);
     CHECK_STR_CONTAINS(pn_context_error_message(test_context()), "badsky.pbrt:2:");
@@ -121,6 +121,119 @@ static void test_sky_bad_input(void) {
     CHECK_STR_CONTAINS(pn_context_error_message(fresh), "badsky2.pbrt:2:");
     CHECK_STR_CONTAINS(pn_context_error_message(fresh), "positive \"float illuminance\"");
     pn_context_free(fresh);
+}
+
+/* ---- the CIE clear sky with sun ------------------------------------------------------------- */
+
+/* The sun's position against published values: NREL's SPA report (Reda & Andreas 2004, its
+ * example: 17 October 2003, 12:30:30 local standard time, UTC-7, 39.742476 N, 105.1786 W:
+ * topocentric zenith angle 50.11162, azimuth 194.34024 degrees) and Meeus's example 25.a (13
+ * October 1992, 0h: apparent declination -7.78507 degrees). */
+static void test_sun_position_published(void) {
+    pn_sun_position s = pn_sun_position_at(2003, 10, 17, 12.5 + 30.0 / 3600.0, -7.0, 39.742476, -105.1786);
+    CHECK_MSG(fabs(s.zenith_deg - 50.11162) < 0.1, "zenith %.5f", s.zenith_deg);
+    CHECK_MSG(fabs(s.azimuth_deg - 194.34024) < 0.1, "azimuth %.5f", s.azimuth_deg);
+    pn_sun_position m = pn_sun_position_at(1992, 10, 13, 0.0, 0.0, 0.0, 0.0);
+    CHECK_MSG(fabs(m.declination_deg + 7.78507) < 0.01, "declination %.5f", m.declination_deg);
+    /* Southern hemisphere, winter morning: the sun is in the north-east (azimuth between 0 and 90). */
+    pn_sun_position b = pn_sun_position_at(2024, 6, 21, 10.0, 10.0, -33.87, 151.21);
+    CHECK(b.azimuth_deg > 0.0 && b.azimuth_deg < 90.0 && b.zenith_deg > 50.0 && b.zenith_deg < 80.0);
+}
+
+/* The CIE standard general sky of type 12, written out here from CIE S 011/E:2003 (gradation
+ * group V, indicatrix group 4: a = -1, b = -0.32, c = 10, d = -3, e = 0.45), relative to the
+ * zenith. */
+static double cie12(double z, double chi, double zs) {
+    double phi = z < 3.14159265358979 / 2.0 ? 1.0 - exp(-0.32 / cos(z)) : 1.0;
+    double f = 1.0 + 10.0 * (exp(-3.0 * chi) - exp(-3.0 * 3.14159265358979 / 2.0)) + 0.45 * cos(chi) * cos(chi);
+    double f_zs = 1.0 + 10.0 * (exp(-3.0 * zs) - exp(-3.0 * 3.14159265358979 / 2.0)) + 0.45 * cos(zs) * cos(zs);
+    return f * phi / (f_zs * (1.0 - exp(-0.32)));
+}
+
+static const char *clear_sky = "LightSource \"infinite\" \"string sky\" \"cie-clear\" \"float illuminance\" 15000 "
+                               "\"float sunilluminance\" 60000 \"string date\" \"2024-06-21\" \"float time\" 10 "
+                               "\"float timezone\" 2 \"float latitude\" 48.14 \"float longitude\" 11.58\n";
+
+static void test_clear_sky_luminance_and_sun(void) {
+    pn_scene scene = load_text("clear.pbrt", clear_sky);
+    if (!scene) return;
+    const pn_lights *L = scene->lights;
+    CHECK(L->env_count == 1);
+    pn_sun_position sun = pn_sun_position_at(2024, 6, 21, 10.0, 2.0, 48.14, 11.58);
+    const double deg = 3.14159265358979 / 180.0, zs = sun.zenith_deg * deg, as = sun.azimuth_deg * deg;
+    /* Light frame = world: +z the zenith, +y north, +x east. */
+    vec3 sd = v3((float)(sin(zs) * sin(as)), (float)(sin(zs) * cos(as)), (float)cos(zs));
+    int distant = -1;
+    for (int i = 0; i < L->count; i++)
+        if (L->lights[i].kind == PN_LIGHT_DISTANT) distant = i;
+    CHECK(distant >= 0);
+    if (distant >= 0) {
+        CHECK(v3_dot(L->lights[distant].n, sd) > 0.99999f);
+        CHECK_NEAR(pn_photometric(L->lights[distant].emit), 60000.0 / cos(zs), 1e-3 * 60000.0 / cos(zs));
+    }
+    /* The distribution's shape: luminance over the formula, the same ratio everywhere (its
+     * absolute value is the horizontal illuminance's, checked below). */
+    double ratio[17 * 12], mean = 0.0, worst = 0.0;
+    int n = 0;
+    for (int k = 1; k <= 17; k++) {
+        double z = (double)k * 5.0 * deg;
+        for (int a = 0; a < 12; a++) {
+            double az = a * 30.0 * deg;
+            vec3 d = v3((float)(sin(z) * sin(az)), (float)(sin(z) * cos(az)), (float)cos(z));
+            double chi = acos(fmin(1.0, (double)v3_dot(d, sd)));
+            if (chi < 10.0 * deg) continue; /* the circumsolar peak varies within a texel */
+            ratio[n] = (double)pn_photometric(pn_lights_environment_radiance(L, d)) / cie12(z, chi, zs);
+            mean += ratio[n++];
+        }
+    }
+    CHECK(n > 150);
+    mean /= n;
+    for (int i = 0; i < n; i++) worst = fmax(worst, fabs(ratio[i] / mean - 1.0));
+    /* The map is read by nearest texel (512 x 512 equal-area texels, 0.4 degree across, each the
+     * mean of 4 x 4 points): 1.04% at worst here, where the indicatrix is steep. */
+    CHECK_MSG(worst < 0.015, "worst relative luminance error %g", worst);
+    /* Horizontal illuminance: sky (diffuse) and sun (direct) as set. */
+    pn_illuminance_point p[2] = {up_point(0.3f, -0.2f, 0.0f), up_point(-1.0f, 1.0f, 0.0f)};
+    double lux[2];
+    CHECK(points_lux(scene, "reference", 1024, 2, p, 2, lux, NULL, NULL) == PN_OK);
+    for (int i = 0; i < 2; i++) CHECK_MSG(fabs(lux[i] / 75000.0 - 1.0) < 0.005, "point %d: %g lx", i, lux[i]);
+    pn_scene_free(scene);
+    /* Without "sunilluminance": the sky alone, no distant light. */
+    scene = load_text("clear2.pbrt", "LightSource \"infinite\" \"string sky\" \"cie-clear\" \"float illuminance\" "
+                                     "15000 \"string date\" \"2024-06-21\" \"float time\" 10 \"float timezone\" 2 "
+                                     "\"float latitude\" 48.14 \"float longitude\" 11.58\n");
+    if (!scene) return;
+    CHECK(scene->lights->count == 1);
+    CHECK(points_lux(scene, "reference", 1024, 2, p, 2, lux, NULL, NULL) == PN_OK);
+    for (int i = 0; i < 2; i++)
+        CHECK_MSG(fabs(lux[i] / 15000.0 - 1.0) < 0.005, "sky alone, point %d: %g lx", i, lux[i]);
+    pn_scene_free(scene);
+}
+
+static void test_clear_sky_bad_input(void) {
+    const char *cases[3][2] = {
+        {"LightSource \"infinite\" \"string sky\" \"cie-clear\" \"float illuminance\" 1000 \"float time\" 10 "
+         "\"float latitude\" 48 \"float longitude\" 11\n",
+         "\"string date\" as YYYY-MM-DD"},
+        {"LightSource \"infinite\" \"string sky\" \"cie-clear\" \"float illuminance\" 1000 \"string date\" "
+         "\"2024-06-21\" \"float time\" 10 \"float longitude\" 11\n",
+         "\"float latitude\" in [-90, 90]"},
+        {"LightSource \"infinite\" \"string sky\" \"cie-clear\" \"float illuminance\" 1000 \"string date\" "
+         "\"2024-12-21\" \"float time\" 23 \"float timezone\" 1 \"float latitude\" 48 \"float longitude\" 11\n",
+         "the sun is below the horizon"}};
+    for (int k = 0; k < 3; k++) {
+        char name[32], text[1024];
+        snprintf(name, sizeof name, "badclear%d.pbrt", k);
+        snprintf(text, sizeof text, "WorldBegin\n%s", cases[k][0]);
+        write_file(name, text);
+        pn_context fresh = pn_context_new();
+        pn_context_set_log(fresh, silent_log, NULL);
+        pn_scene scene = NULL;
+        CHECK(pn_scene_load(fresh, tpath(name), &scene) == PN_ERROR_BAD_INPUT);
+        CHECK_STR_CONTAINS(pn_context_error_message(fresh), ":2:");
+        CHECK_STR_CONTAINS(pn_context_error_message(fresh), cases[k][1]);
+        pn_context_free(fresh);
+    }
 }
 
 /* ---- points against closed forms ------------------------------------------------------------- */
@@ -559,6 +672,7 @@ static void test_false_color_bands_and_log(void) {
 }
 
 PN_TESTS(TEST(test_overcast_sky_illuminance), TEST(test_overcast_sky_luminance_profile), TEST(test_sky_bad_input),
+         TEST(test_sun_position_published), TEST(test_clear_sky_luminance_and_sun), TEST(test_clear_sky_bad_input),
          TEST(test_grid_point_light_closed_form), TEST(test_grid_matches_illuminance_aov),
          TEST(test_vpl_illuminance_aov_matches_reference), TEST(test_thin_glass_transmittance),
          TEST(test_thin_glass_every_integrator), TEST(test_cli_csv_json), TEST(test_cli_daylight_factor),

@@ -250,6 +250,22 @@ static pn_status goniometric_from_photometry(struct pn_scene_s *scene, const pn_
     return PN_OK;
 }
 
+/* Appends *d to the scene's light definitions, its source named by ps's location. */
+static pn_status append_light_def(struct pn_scene_s *scene, pn_light_def *d, const pn_params *ps, pn_err *err) {
+    char source[512];
+    snprintf(source, sizeof source, "%s:%d:%d", ps->loc.file ? ps->loc.file : "?", ps->loc.line, ps->loc.column);
+    size_t n = strlen(source) + 1;
+    d->source = malloc(n);
+    if (!d->source ||
+        !pn_grow_for_append((void **)&scene->light_defs, scene->light_def_count, sizeof *scene->light_defs)) {
+        free(d->source);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a light");
+    }
+    memcpy(d->source, source, n);
+    scene->light_defs[scene->light_def_count++] = *d;
+    return PN_OK;
+}
+
 pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
                              const mat4 *world_from_light, pn_err *err) {
     pn_light_def d;
@@ -368,6 +384,21 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             if (st != PN_OK) return st;
             d.equal_area = true;
             d.intensity = v3((float)scale, (float)scale, (float)scale);
+            /* The clear sky's sun: a distant light of its own, from the sun's direction, with the
+             * illuminance normal to it that gives the direct horizontal illuminance asked for. */
+            vec3 sun_dir;
+            double sun_lux = 0.0;
+            if (strcmp(sky, "cie-clear") == 0 && (st = pn_sky_sun(ps, &sun_dir, &sun_lux, err)) != PN_OK) return st;
+            if (sun_lux > 0.0) {
+                pn_light_def sun = d;
+                sun.kind = PN_LIGHTDEF_DISTANT;
+                sun.image = -1;
+                sun.equal_area = false;
+                sun.direction = v3_normalize(mat4_apply_vector(world_from_light, sun_dir));
+                sun.intensity = v3_scale(v3((float)sun_lux, (float)sun_lux, (float)sun_lux), (float)scale);
+                st = append_light_def(scene, &sun, ps, err);
+                if (st != PN_OK) return st;
+            }
         } else if (file[0]) {
             if (has_L)
                 return error_at(ps->loc, PN_ERROR_BAD_INPUT, err,
@@ -399,19 +430,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
     }
     if (!v3_is_finite(d.intensity) || !v3_is_finite(d.position))
         return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "LightSource \"%s\" has non-finite values", type);
-
-    char source[512];
-    snprintf(source, sizeof source, "%s:%d:%d", ps->loc.file ? ps->loc.file : "?", ps->loc.line, ps->loc.column);
-    size_t n = strlen(source) + 1;
-    d.source = malloc(n);
-    if (!d.source ||
-        !pn_grow_for_append((void **)&scene->light_defs, scene->light_def_count, sizeof *scene->light_defs)) {
-        free(d.source);
-        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for a light");
-    }
-    memcpy(d.source, source, n);
-    scene->light_defs[scene->light_def_count++] = d;
-    return PN_OK;
+    return append_light_def(scene, &d, ps, err);
 }
 
 pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, const pn_params *ps,
