@@ -124,7 +124,23 @@
  *  - Gradients: besides the obstacle points of Fig. 5, a crossing on the source's border slides
  *    along the border as M moves (contour_math.c); its velocity uses the silhouette direction
  *    from its neighbour's obstacle point. Polygons that the horizon clips are differentiated
- *    with fixed points. Interpolated pixels get interpolated gradients. */
+ *    with fixed points. Interpolated pixels get interpolated gradients.
+ *  - Glazing (the paper has no glass): thin glass panes (thindielectric, or dielectric marked
+ *    thin; lighting-design.md "Glazing") are no occluders of the contour: a sample is hidden only
+ *    by an opaque surface, and one seen through panes is marked glazed (with its transmittance,
+ *    pn_accel_transmittance). When an integration saw a glazed sample, it integrates again with
+ *    the glazed samples counted hidden (the clear pass, on the same sample array: the panes'
+ *    edges become contours, their rays shared), and G = G_clear + T (G_visible - G_clear), T the
+ *    mean transmittance of the glazed samples weighted by their form-factor integrand
+ *    (glazed_sample()). Exact where T is constant over the glazed part; the Fresnel slab varies
+ *    by 0.3% between 0 and 30 degrees of incidence. §5's patterns tell glazed from clear samples
+ *    (pn_contour_sample_class), so a run ends where a pane's edge moves; a uniform run seen
+ *    through glass is integrated at every pixel. With --opaque-glass, the paper's binary
+ *    visibility (panes occlude). Measured on a 1 x 1 source behind a half pane (tests/
+ *    test_design_aov.c's scene at 32 x 32, 4 spp, against the reference at 256 spp): rel. L1 of
+ *    the image 0.18% (0.13% for the same source without the pane), mean within 0.1%, 1% more
+ *    rays than with opaque glass; weighting the visible part by T alone, without the clear pass,
+ *    gave 0.70% and 4% column errors where the pane's edge crosses the source. */
 #include "integrators/contour_internal.h"
 
 #include "core/rng.h"

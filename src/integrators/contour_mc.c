@@ -13,7 +13,11 @@
  * (--mc-threshold) trades rays for quality: the paper tunes it once to match contour's rays and
  * once to match its quality. Our reading of Kok & Jansen: their test compares the variance of a
  * region's samples with a threshold and subdivides the region; the details of their statistics
- * differ. */
+ * differ.
+ *
+ * Glazing (neither paper has glass): a sample seen through thin glass panes counts with their
+ * transmittance (the cell's estimate is F_cell times the mean transmittance of its samples, 0 for
+ * the hidden ones); refinement still looks at visible against hidden. --opaque-glass: binary. */
 #include "integrators/contour_internal.h"
 
 #include "core/rng.h"
