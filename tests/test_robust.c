@@ -473,6 +473,21 @@ static void test_exr_layers_pixel_limit(void) {
     pn_context_free(ctx);
 }
 
+/* A NUL byte in a points file of `penumbra illuminance` is refused where it is (before, the line
+ * ended there and what followed it on the line was silently dropped). */
+static void test_points_file_nul_byte(void) {
+    static const char points[] = "0 0 0 0 0 1\n0 0 0.5 0 0 1\0 garbage\n";
+    write_bytes("nul.pts", points, sizeof points - 1);
+    write_file("empty.pbrt", "WorldBegin\n");
+    cli_run r;
+    CLI_EXPECT(r, 3, "illuminance", "empty.pbrt", "--points", "nul.pts", "-o", "nul.csv", "--quiet");
+    CHECK_STR_CONTAINS(r.err, "nul.pts:2:14: a NUL byte: not a text file");
+    CHECK(!exists("nul.csv"));
+    write_bytes("ok.pts", points, 25); /* the same two points without the NUL byte and after */
+    CLI_EXPECT(r, 0, "illuminance", "empty.pbrt", "--points", "ok.pts", "-o", "ok.csv", "--quiet");
+    CHECK(exists("ok.csv"));
+}
+
 /* Counts in a photometric header are checked against the bytes left in the file before the
  * table is allocated: a 200-byte IES file claiming 3000 x 3333 angles (80 MB of doubles) and a
  * TILT=INCLUDE block claiming 100000 tilt angles are refused with file:line. */
@@ -611,5 +626,6 @@ PN_TESTS(TEST(test_device_as_scene_or_include), TEST(test_fifo_inputs_do_not_blo
          TEST(test_thread_creation_failure_message), TEST(test_decompression_bomb_tga),
          TEST(test_forged_huffman_table_jpeg), TEST(test_exr_data_window_against_file_size),
          TEST(test_exr_layers_pixel_limit), TEST(test_photometry_counts_against_file_size),
-         TEST(test_fifo_photometry_spectrum_checkpoint), TEST(test_pixel_limit_option_and_texture_cost),
-         TEST(test_text_escape), TEST(test_messages_are_one_printable_line), TEST(test_cleanup))
+         TEST(test_fifo_photometry_spectrum_checkpoint), TEST(test_points_file_nul_byte),
+         TEST(test_pixel_limit_option_and_texture_cost), TEST(test_text_escape),
+         TEST(test_messages_are_one_printable_line), TEST(test_cleanup))
