@@ -183,7 +183,9 @@ static pn_status pn_exr_decode_chunk(pn_exr_reader *r, const exr_chunk_info_t *c
     if (rv != EXR_ERR_SUCCESS) return pn_exr_fail(r, rv, "preparing to decode");
     r->decode_ready = 1;
 
-    float *base = r->rgb + ((size_t)oy * (size_t)r->width + (size_t)ox) * 3;
+    /* The RGB path only: the layer path has no interleaved buffer (r->rgb is NULL, and an offset
+     * applied to NULL is undefined, which clang's UBSan reports for every file). */
+    float *base = r->planes ? NULL : r->rgb + ((size_t)oy * (size_t)r->width + (size_t)ox) * 3;
     for (int i = 0; i < r->decode.channel_count; i++) {
         exr_coding_channel_info_t *ch = &r->decode.channels[i];
         ch->decode_to_ptr = NULL;
