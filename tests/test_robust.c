@@ -17,6 +17,7 @@
 
 #include "core/text.h"
 #include "io/image.h"
+#include "scene/photometry.h"
 
 #include <penumbra/penumbra.h>
 
@@ -170,6 +171,34 @@ static void test_fifo_inputs_do_not_block(void) {
     CLI_EXPECT(r, 3, "info", "tex_fifo.pbrt");
     CHECK_STR_CONTAINS(r.err, "fifo.png");
     CHECK_STR_CONTAINS(r.err, "a FIFO");
+}
+
+/* The readers added since: photometric files (goniometric lights), spectrum files and the
+ * checkpoint of the tiles driver take only regular files too (before, a FIFO blocked the first
+ * two; the checkpoint was refused only as "not a penumbra checkpoint"). */
+static void test_fifo_photometry_spectrum_checkpoint(void) {
+    cli_run r;
+    make_fifo("fifo.ies");
+    write_file("ies_fifo.pbrt", "WorldBegin\nLightSource \"goniometric\" \"string filename\" \"fifo.ies\"\n");
+    CLI_EXPECT(r, 3, "info", "ies_fifo.pbrt");
+    CHECK_STR_CONTAINS(r.err, "fifo.ies: cannot open the photometric file: is a FIFO");
+    CHECK_STR_CONTAINS(r.err, "ies_fifo.pbrt:2:");
+
+    make_fifo("fifo.spd");
+    write_file("spd_fifo.pbrt", "WorldBegin\nMaterial \"diffuse\" \"spectrum reflectance\" \"fifo.spd\"\n"
+                                "Shape \"sphere\"\n");
+    CLI_EXPECT(r, 3, "info", "spd_fifo.pbrt");
+    CHECK_STR_CONTAINS(r.err, "spd_fifo.pbrt:2:");
+    CHECK_STR_CONTAINS(r.err, "fifo.spd\": is a FIFO");
+
+    write_file("tiny.pbrt", tiny_scene);
+    make_fifo("fifo.ckpt");
+    CLI_EXPECT(r, 3, "render", "tiny.pbrt", "--driver", "tiles", "--checkpoint", "fifo.ckpt", "-o", "ck.exr",
+               "--quiet");
+    CHECK_STR_CONTAINS(r.err, "fifo.ckpt: the checkpoint is a FIFO; it must be a regular file");
+    struct stat st;
+    CHECK(lstat(tpath("fifo.ckpt"), &st) == 0 && S_ISFIFO(st.st_mode));
+    CHECK(!exists("ck.exr"));
 }
 
 static void test_input_larger_than_limit(void) {
@@ -365,13 +394,9 @@ static void test_forged_huffman_table_jpeg(void) {
     pn_image_free(out);
 }
 
-/* Writes a size x size EXR to `rel` and overwrites n bytes at `offset` past the first `key`
- * (key_size bytes, NULs included) in its first 4 KB. Returns 1 when the key was found. */
-static int write_patched_exr(const char *rel, int size, const char *key, size_t key_size, size_t offset,
-                             const void *bytes, size_t n) {
-    pn_image img = pn_image_create(size, size);
-    CHECK(pn_image_write(test_context(), img, tpath(rel), 0.0f) == PN_OK);
-    pn_image_free(img);
+/* Overwrites n bytes at `offset` past the first `key` (key_size bytes, NULs included) in the
+ * first 4 KB of file `rel`. Returns 1 when the key was found. */
+static int patch_file(const char *rel, const char *key, size_t key_size, size_t offset, const void *bytes, size_t n) {
     FILE *f = fopen(tpath(rel), "r+b");
     if (!f) return 0;
     unsigned char header[4096];
@@ -388,6 +413,15 @@ static int write_patched_exr(const char *rel, int size, const char *key, size_t 
     return found;
 }
 
+/* Writes a size x size EXR to `rel` and patches it as patch_file does. */
+static int write_patched_exr(const char *rel, int size, const char *key, size_t key_size, size_t offset,
+                             const void *bytes, size_t n) {
+    pn_image img = pn_image_create(size, size);
+    CHECK(pn_image_write(test_context(), img, tpath(rel), 0.0f) == PN_OK);
+    pn_image_free(img);
+    return patch_file(rel, key, key_size, offset, bytes, n);
+}
+
 /* An EXR whose data window is patched to 16384 x 16384 while the file stays small. */
 static void test_exr_data_window_against_file_size(void) {
     static const char key[] = "dataWindow\0box2i";
@@ -398,6 +432,85 @@ static void test_exr_data_window_against_file_size(void) {
     CHECK_STR_CONTAINS(pn_context_error_message(test_context()), "cannot be stored in");
     pn_context_clear_error(test_context());
     pn_image_free(out);
+}
+
+/* The layer reader of `penumbra merge` takes the pixel limit: a hostile header whose data and
+ * display windows claim 16384 x 16384 pixels in a few hundred bytes is refused before any pixel
+ * is allocated, and the context's limit is applied to pixels and to samples (pixels x channels). */
+static void test_exr_layers_pixel_limit(void) {
+    static const char data_key[] = "dataWindow\0box2i", display_key[] = "displayWindow\0box2i";
+    int32_t box[4] = {0, 0, 16383, 16383};
+    CHECK(write_patched_exr("part.exr", 8, data_key, sizeof data_key, 4, box, sizeof box));
+    CHECK(patch_file("part.exr", display_key, sizeof display_key, 4, box, sizeof box));
+    cli_run r;
+    double t0 = now_seconds();
+    CLI_EXPECT(r, 3, "merge", "part.exr", "-o", "full.exr");
+    CHECK_STR_CONTAINS(r.err, "part.exr: not a valid EXR file: 16384x16384 pixels in ");
+    CHECK_STR_CONTAINS(r.err, "chunks cannot be stored in");
+    CHECK_MSG(now_seconds() - t0 < 2.0, "took %.2f s", now_seconds() - t0);
+    CHECK(!exists("full.exr"));
+
+    /* 64 x 64 pixels, the beauty and a three-channel layer: 4096 pixels, 6 x 4096 samples. */
+    pn_image img = pn_image_create(64, 64);
+    CHECK(img && pn_image_add_layer(img, "normal", 3) != NULL);
+    CHECK(pn_image_write(test_context(), img, tpath("layers.exr"), 0.0f) == PN_OK);
+    pn_image_free(img);
+    pn_context ctx = pn_context_new();
+    pn_image out = NULL;
+    pn_context_set_image_pixel_limit(ctx, 4095);
+    CHECK(pn_image_read_layers(ctx, tpath("layers.exr"), &out) == PN_ERROR_BAD_INPUT && !out);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "EXR image of 64x64 pixels is larger than the image pixel limit "
+                                                      "of 4095 pixels");
+    pn_context_clear_error(ctx);
+    pn_context_set_image_pixel_limit(ctx, 8191);
+    CHECK(pn_image_read_layers(ctx, tpath("layers.exr"), &out) == PN_ERROR_BAD_INPUT && !out);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "EXR image of 64x64 pixels with 6 channels is larger than the "
+                                                      "image pixel limit of 8191 pixels with 3 channels");
+    pn_context_clear_error(ctx);
+    pn_context_set_image_pixel_limit(ctx, 8192);
+    CHECK(pn_image_read_layers(ctx, tpath("layers.exr"), &out) == PN_OK && out && out->layer_count == 2);
+    pn_image_free(out);
+    pn_context_free(ctx);
+}
+
+/* A NUL byte in a points file of `penumbra illuminance` is refused where it is (before, the line
+ * ended there and what followed it on the line was silently dropped). */
+static void test_points_file_nul_byte(void) {
+    static const char points[] = "0 0 0 0 0 1\n0 0 0.5 0 0 1\0 garbage\n";
+    write_bytes("nul.pts", points, sizeof points - 1);
+    write_file("empty.pbrt", "WorldBegin\n");
+    cli_run r;
+    CLI_EXPECT(r, 3, "illuminance", "empty.pbrt", "--points", "nul.pts", "-o", "nul.csv", "--quiet");
+    CHECK_STR_CONTAINS(r.err, "nul.pts:2:14: a NUL byte: not a text file");
+    CHECK(!exists("nul.csv"));
+    write_bytes("ok.pts", points, 25); /* the same two points without the NUL byte and after */
+    CLI_EXPECT(r, 0, "illuminance", "empty.pbrt", "--points", "ok.pts", "-o", "ok.csv", "--quiet");
+    CHECK(exists("ok.csv"));
+}
+
+/* Counts in a photometric header are checked against the bytes left in the file before the
+ * table is allocated: a 200-byte IES file claiming 3000 x 3333 angles (80 MB of doubles) and a
+ * TILT=INCLUDE block claiming 100000 tilt angles are refused with file:line. */
+static void test_photometry_counts_against_file_size(void) {
+    static const char table[] = "IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 3000 3333 1 2 0 0 0\n1 1 100\n0 1 2\n";
+    write_file("forged.ies", table);
+    pn_photometry *p = NULL;
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_photometry_read(tpath("forged.ies"), "forged.ies", &p, &err) == PN_ERROR_BAD_INPUT && !p);
+    CHECK_STR_CONTAINS(err.message, "forged.ies:4: 9999000 intensities cannot be stored in the ");
+    static const char tilt[] = "IESNA:LM-63-2002\nTILT=INCLUDE\n1\n100000\n0 90 180\n";
+    write_file("tilt.ies", tilt);
+    pn_err_init(&err);
+    CHECK(pn_photometry_read(tpath("tilt.ies"), "tilt.ies", &p, &err) == PN_ERROR_BAD_INPUT && !p);
+    CHECK_STR_CONTAINS(err.message, "tilt.ies:4: 200000 tilt angles and factors cannot be stored in the ");
+    /* The same header with its real counts is read. */
+    static const char real[] = "IESNA:LM-63-2002\nTILT=NONE\n1 1000 1 3 1 1 2 0 0 0\n1 1 100\n0 45 90\n0\n"
+                               "100 80 0\n";
+    write_file("real.ies", real);
+    pn_err_init(&err);
+    CHECK_MSG(pn_photometry_read(tpath("real.ies"), "real.ies", &p, &err) == PN_OK && p, "%s", err.message);
+    pn_photometry_free(p);
 }
 
 static void test_pixel_limit_option_and_texture_cost(void) {
@@ -512,5 +625,7 @@ PN_TESTS(TEST(test_device_as_scene_or_include), TEST(test_fifo_inputs_do_not_blo
          TEST(test_signal_while_writing_leaves_no_temporary), TEST(test_thread_limit_stated),
          TEST(test_thread_creation_failure_message), TEST(test_decompression_bomb_tga),
          TEST(test_forged_huffman_table_jpeg), TEST(test_exr_data_window_against_file_size),
+         TEST(test_exr_layers_pixel_limit), TEST(test_photometry_counts_against_file_size),
+         TEST(test_fifo_photometry_spectrum_checkpoint), TEST(test_points_file_nul_byte),
          TEST(test_pixel_limit_option_and_texture_cost), TEST(test_text_escape),
          TEST(test_messages_are_one_printable_line), TEST(test_cleanup))

@@ -10,6 +10,7 @@
 
 #include <cjson/cJSON.h>
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -100,6 +101,21 @@ static pn_illuminance_point *grid_points(grid_spec *g, int *count) {
     return pts;
 }
 
+/* Reads one line of at most size - 1 bytes (through its '\n' when it fits) into line, NUL bytes
+ * included, and its length into *len (fgets cannot say where a NUL byte ends what it read).
+ * Returns 0 at the end of the file with nothing read. */
+static int read_points_line(FILE *f, char *line, size_t size, size_t *len) {
+    size_t n = 0;
+    int c = 0;
+    while (n + 1 < size && (c = getc(f)) != EOF) {
+        line[n++] = (char)c;
+        if (c == '\n') break;
+    }
+    line[n] = '\0';
+    *len = n;
+    return n > 0;
+}
+
 /* Reads a point file; on a bad line prints "file:line:column: message" and returns NULL with
  * *code = EXIT_BAD_INPUT (EXIT_SYSTEM when unreadable). */
 static pn_illuminance_point *read_points(const char *path, int *count, int *code) {
@@ -116,11 +132,21 @@ static pn_illuminance_point *read_points(const char *path, int *count, int *code
     int n = 0, cap = 0, line_no = 0;
     char line[4096];
     *code = EXIT_BAD_INPUT;
-    while (fgets(line, sizeof line, f)) {
+    size_t len = 0;
+    while (read_points_line(f, line, sizeof line, &len)) {
+        if (line_no == INT_MAX) {
+            fprintf(stderr, "%s:%d:1: more than %d lines\n", path, line_no, INT_MAX);
+            goto fail;
+        }
         line_no++;
-        size_t len = strlen(line);
         if (len == sizeof line - 1 && line[len - 1] != '\n' && !feof(f)) {
             fprintf(stderr, "%s:%d:1: line longer than %d characters\n", path, line_no, (int)sizeof line - 2);
+            goto fail;
+        }
+        /* A NUL byte would end the line early and hide what follows: not a text file. */
+        const char *nul = memchr(line, '\0', len);
+        if (nul) {
+            fprintf(stderr, "%s:%d:%d: a NUL byte: not a text file\n", path, line_no, (int)(nul - line) + 1);
             goto fail;
         }
         const char *c = line;

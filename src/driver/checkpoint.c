@@ -16,6 +16,8 @@
  * is refused with an error naming the file: tiles are never silently mixed. */
 #include "driver/tiles.h"
 
+#include "core/file.h"
+
 #include "integrators/registry.h"
 #include "scene/scene.h"
 
@@ -274,6 +276,15 @@ pn_status pn_checkpoint_open(const char *path, uint64_t key, const pn_tile_grid 
     bool created = fd >= 0;
     if (!created && errno == EEXIST) fd = open(path, O_RDWR | O_CLOEXEC);
     if (fd < 0) return pn_err_set(err, PN_ERROR_IO, "%s: cannot open the checkpoint: %s", path, strerror(errno));
+    /* An existing FIFO or device is neither read (it could block or never end) nor written. */
+    struct stat info;
+    memset(&info, 0, sizeof info);
+    if (fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+        unsigned mode = (unsigned)info.st_mode;
+        close(fd);
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: the checkpoint is %s; it must be a regular file", path,
+                          pn_file_type_name(mode));
+    }
     pn_status st = PN_OK;
     if (created) {
         st = write_all(fd, &want, sizeof want, path, err);

@@ -183,7 +183,9 @@ static pn_status pn_exr_decode_chunk(pn_exr_reader *r, const exr_chunk_info_t *c
     if (rv != EXR_ERR_SUCCESS) return pn_exr_fail(r, rv, "preparing to decode");
     r->decode_ready = 1;
 
-    float *base = r->rgb + ((size_t)oy * (size_t)r->width + (size_t)ox) * 3;
+    /* The RGB path only: the layer path has no interleaved buffer (r->rgb is NULL, and an offset
+     * applied to NULL is undefined, which clang's UBSan reports for every file). */
+    float *base = r->planes ? NULL : r->rgb + ((size_t)oy * (size_t)r->width + (size_t)ox) * 3;
     for (int i = 0; i < r->decode.channel_count; i++) {
         exr_coding_channel_info_t *ch = &r->decode.channels[i];
         ch->decode_to_ptr = NULL;
@@ -316,6 +318,22 @@ static exr_result_t exr_begin_read(FILE *file, const char *name, pn_exr_stream *
 static pn_status exr_read(FILE *file, const char *name, const char *channel, const pn_image_limits *limits,
                           pn_image *out, pn_err *err);
 
+/* The data window (w x h pixels of part r->part) against the limits, before any pixel is
+ * allocated: the pixel limit, and the file's size (every chunk has an 8-byte entry in the offset
+ * table, so a header cannot claim more chunks than the file has room for). */
+static pn_status pn_exr_check_window(pn_exr_reader *r, int64_t w, int64_t h, const pn_image_limits *limits) {
+    pn_status status = pn_image_check_size(r->name, "EXR", w, h, limits, 0, r->err);
+    if (status != PN_OK) return status;
+    int32_t chunks = 0;
+    exr_result_t rv = exr_get_chunk_count(r->ex, r->part, &chunks);
+    if (rv != EXR_ERR_SUCCESS) return pn_exr_fail(r, rv, "counting chunks");
+    if ((uint64_t)chunks * 8u > limits->file_size)
+        return pn_err_set(r->err, PN_ERROR_BAD_INPUT,
+                          "%s: not a valid EXR file: %lldx%lld pixels in %d chunks cannot be stored in %llu bytes",
+                          r->name, (long long)w, (long long)h, (int)chunks, (unsigned long long)limits->file_size);
+    return PN_OK;
+}
+
 pn_status pn_exr_read(FILE *file, const char *name, const pn_image_limits *limits, pn_image *out, pn_err *err) {
     return exr_read(file, name, NULL, limits, out, err);
 }
@@ -381,24 +399,11 @@ static pn_status exr_read(FILE *file, const char *name, const char *channel, con
         if (w <= 0 || h <= 0 || w > PN_EXR_MAX_DIMENSION || h > PN_EXR_MAX_DIMENSION || w * h > PN_EXR_MAX_PIXELS) {
             status = pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: not a valid EXR file: unsupported data window %lldx%lld",
                                 name, (long long)w, (long long)h);
-        } else if ((status = pn_image_check_size(name, "EXR", w, h, limits, 0, err)) == PN_OK) {
+        } else if ((status = pn_exr_check_window(&r, w, h, limits)) == PN_OK) {
             r.width = (int)w;
             r.height = (int)h;
             r.min_x = dw.min.x;
             r.min_y = dw.min.y;
-        }
-    }
-    if (status == PN_OK) {
-        /* The data window against the file: every chunk has an 8-byte entry in the offset
-         * table, so a header cannot claim more chunks than the file has room for. */
-        int32_t chunks = 0;
-        rv = exr_get_chunk_count(r.ex, r.part, &chunks);
-        if (rv != EXR_ERR_SUCCESS) {
-            status = pn_exr_fail(&r, rv, "counting chunks");
-        } else if ((uint64_t)chunks * 8u > limits->file_size) {
-            status = pn_err_set(err, PN_ERROR_BAD_INPUT,
-                                "%s: not a valid EXR file: %dx%d pixels in %d chunks cannot be stored in %llu bytes",
-                                name, r.width, r.height, (int)chunks, (unsigned long long)limits->file_size);
         }
     }
     if (status == PN_OK) {
@@ -732,7 +737,7 @@ static pn_status pn_exr_planes_to_layers(pn_exr_reader *r, pn_image image) {
     return st;
 }
 
-pn_status pn_exr_read_layers(FILE *file, const char *name, pn_image *out, pn_err *err) {
+pn_status pn_exr_read_layers(FILE *file, const char *name, const pn_image_limits *limits, pn_image *out, pn_err *err) {
     *out = NULL;
     pn_exr_stream stream;
     pn_exr_reader r;
@@ -762,7 +767,7 @@ pn_status pn_exr_read_layers(FILE *file, const char *name, pn_image *out, pn_err
                                 "starting at (0, 0), here (%d, %d)-(%d, %d)",
                                 name, dw.min.x, dw.min.y, dw.max.x, dw.max.y, disp.min.x, disp.min.y, disp.max.x,
                                 disp.max.y);
-        } else {
+        } else if ((status = pn_exr_check_window(&r, w, h, limits)) == PN_OK) {
             r.width = (int)w;
             r.height = (int)h;
             r.min_x = dw.min.x;
@@ -772,6 +777,13 @@ pn_status pn_exr_read_layers(FILE *file, const char *name, pn_image *out, pn_err
     if (status == PN_OK && ((rv = exr_get_channels(r.ex, 0, &r.list)) != EXR_ERR_SUCCESS || !r.list))
         status = pn_exr_fail(&r, rv, "reading the channels");
     size_t pixels = (size_t)r.width * (size_t)r.height;
+    /* Every channel is a plane of floats (and again in the layers): the samples are bounded by
+     * those of an RGB image at the pixel limit, whatever the number of channels a header lists. */
+    if (status == PN_OK && (uint64_t)pixels * (uint64_t)r.list->num_channels > 3u * limits->max_pixels)
+        status = pn_err_set(err, PN_ERROR_BAD_INPUT,
+                            "%s: EXR image of %dx%d pixels with %d channels is larger than the image pixel limit "
+                            "of %llu pixels with 3 channels",
+                            name, r.width, r.height, r.list->num_channels, (unsigned long long)limits->max_pixels);
     if (status == PN_OK) {
         for (int i = 0; i < r.list->num_channels && status == PN_OK; i++)
             if (r.list->entries[i].x_sampling != 1 || r.list->entries[i].y_sampling != 1)

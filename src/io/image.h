@@ -104,8 +104,9 @@ pn_status pn_exr_write(pn_image image, FILE *file, const char *name, pn_err *err
 /* Reads every channel of the first flat part as float layers (the writer's naming reversed:
  * R, G, B the beauty; "x.R", "x.G", "x.B" a three-channel layer "x"; any other channel a
  * one-channel layer), with the data window inside the display window in origin_x/y and
- * display_width/height. For `penumbra merge`. */
-pn_status pn_exr_read_layers(FILE *file, const char *name, pn_image *out, pn_err *err);
+ * display_width/height. For `penumbra merge`. Refuses, before allocating, a data window over
+ * the limits, or more samples (pixels x channels) than an RGB image at the pixel limit. */
+pn_status pn_exr_read_layers(FILE *file, const char *name, const pn_image_limits *limits, pn_image *out, pn_err *err);
 pn_status pn_pfm_write(pn_image image, FILE *file, const char *name, pn_err *err);
 pn_status pn_png_write(pn_image image, float exposure, FILE *file, const char *name, pn_err *err);
 

@@ -31,8 +31,10 @@ pn_status pn_image_read_layers(pn_context ctx, const char *path, pn_image *out_i
     pn_status status;
     if (fstat(fileno(file), &st) != 0 || !S_ISREG(st.st_mode))
         status = pn_err_set(&err, PN_ERROR_IO, "%s: not a regular file", path);
-    else
-        status = pn_exr_read_layers(file, path, out_image, &err);
+    else {
+        pn_image_limits limits = {size, pn_context_image_pixel_limit(ctx)};
+        status = pn_exr_read_layers(file, path, &limits, out_image, &err);
+    }
     fclose(file);
     return status == PN_OK ? PN_OK : pn_context_fail_from(ctx, &err);
 }

@@ -37,6 +37,8 @@
  * C) or cos V dV dH (type B) each cell is a closed form (cell_integral). */
 #include "scene/photometry.h"
 
+#include "core/file.h"
+
 #include "scene/scene.h"
 
 #include <ctype.h>
@@ -286,10 +288,24 @@ static void finish(pn_photometry *p) {
 /* Largest table read: 10^7 values (a 0.1 degree grid over the whole sphere is 6.5 x 10^6). */
 #define MAX_TABLE_VALUES 10000000.0
 
+/* Refuses a count of numbers that the rest of the text cannot hold before anything is allocated
+ * for them: each number is at least one byte and is separated from the next by another, so n
+ * numbers need 2n - 1 bytes; a short file cannot make the reader allocate for a forged count. */
+static pn_status check_room(reader *r, double numbers, const char *what) {
+    double left = (double)(r->end - r->pos);
+    if (2.0 * numbers - 1.0 <= left) return PN_OK;
+    return fail(r, r->last_line ? r->last_line : r->line,
+                "%.0f %s cannot be stored in the %.0f bytes left in the file (truncated, or a count that is not "
+                "the file's)",
+                numbers, what, left);
+}
+
 static pn_status alloc_table(reader *r, pn_photometry *p) {
     if ((double)p->nv * (double)p->nh > MAX_TABLE_VALUES)
         return fail(r, r->last_line ? r->last_line : r->line,
                     "%d vertical x %d horizontal angles is more than the 10^7 values penumbra reads", p->nv, p->nh);
+    pn_status st = check_room(r, (double)p->nv * (double)p->nh, "intensities");
+    if (st != PN_OK) return st;
     p->v_deg = malloc((size_t)p->nv * sizeof *p->v_deg);
     p->h_deg = malloc((size_t)p->nh * sizeof *p->h_deg);
     p->cd = malloc((size_t)p->nv * (size_t)p->nh * sizeof *p->cd);
@@ -358,6 +374,7 @@ static pn_status parse_ies(reader *r, pn_photometry *p) {
         int geometry, n;
         pn_status st = read_count(r, "the lamp-to-luminaire geometry", 1, 3, &geometry);
         if (st == PN_OK) st = read_count(r, "the number of tilt angles", 1, 100000, &n);
+        if (st == PN_OK) st = check_room(r, 2.0 * n, "tilt angles and factors");
         if (st != PN_OK) return st;
         p->tilt_count = n;
         p->tilt_deg = malloc((size_t)n * sizeof *p->tilt_deg);
@@ -617,33 +634,22 @@ bool pn_photometry_is_file(const char *path) {
     return path && (has_ext(path, ".ies") || has_ext(path, ".ldt"));
 }
 
+/* The largest photometric file read (256 MiB; real files are kilobytes). */
+#define MAX_PHOTOMETRY_FILE_BYTES ((uint64_t)1 << 28)
+
 pn_status pn_photometry_read(const char *path, const char *shown, pn_photometry **out, pn_err *err) {
     *out = NULL;
     if (!shown) shown = path;
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: cannot open the photometric file: %s", shown, strerror(errno));
-    size_t cap = 1 << 16, len = 0;
-    char *buf = malloc(cap);
-    while (buf) {
-        size_t got = fread(buf + len, 1, cap - len, f);
-        len += got;
-        if (len < cap) break;
-        if (cap > ((size_t)1 << 28)) {
-            free(buf);
-            fclose(f);
-            return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: larger than 256 MiB: not a photometric file", shown);
-        }
-        char *nb = realloc(buf, cap * 2);
-        if (!nb) {
-            free(buf);
-            buf = NULL;
-            break;
-        }
-        buf = nb;
-        cap *= 2;
-    }
-    bool bad = ferror(f);
+    /* Only a regular file within the limit: a FIFO must not block, a device not stream. */
+    uint64_t size = 0;
+    pn_err why;
+    pn_err_init(&why);
+    FILE *f = pn_file_open_regular(path, MAX_PHOTOMETRY_FILE_BYTES, &size, &why);
+    if (!f) /* a missing or unreadable file is bad input here, as it always was */
+        return pn_err_set(err, PN_ERROR_BAD_INPUT, "%s: cannot open the photometric file: %s", shown, why.message);
+    char *buf = malloc(size ? (size_t)size : 1);
+    size_t len = buf ? fread(buf, 1, (size_t)size, f) : 0;
+    bool bad = ferror(f) || (buf && len != size);
     fclose(f);
     if (!buf) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory reading %s", shown);
     if (bad) {

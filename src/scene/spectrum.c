@@ -34,6 +34,8 @@
  */
 #include "scene/build.h"
 
+#include "core/file.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
@@ -227,9 +229,14 @@ bool pn_named_spectrum_rgb(const char *name, vec3 *out) {
 static bool read_number_file(const char *path, double **out, int *count, char *msg, size_t msg_size) {
     *out = NULL;
     *count = 0;
-    FILE *f = fopen(path, "r");
+    /* Only a regular file of at most 64 MiB (at most 2^25 numbers, so the count stays an int):
+     * a FIFO must not block and a device must not stream without end. */
+    uint64_t size = 0;
+    pn_err why;
+    pn_err_init(&why);
+    FILE *f = pn_file_open_regular(path, (uint64_t)1 << 26, &size, &why);
     if (!f) {
-        snprintf(msg, msg_size, "cannot open spectrum file \"%s\": %s", path, strerror(errno));
+        snprintf(msg, msg_size, "cannot open spectrum file \"%s\": %.200s", path, why.message);
         return false;
     }
     int cap = 0, n = 0;
