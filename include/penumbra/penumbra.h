@@ -2,9 +2,10 @@
  *
  * Life cycle, as in Embree's rtcore.h: create a context, load a scene into it, fill a plain
  * settings struct (zero means "default") and set the chosen methods' options by name on a
- * pn_options handle, render into an image, write the image, free everything
- * in reverse order. Every fallible call returns a pn_status; the context keeps the message of the
- * first error since pn_context_clear_error(), readable with pn_context_error_message().
+ * pn_options handle, render into an image (reading what the render measured by name from a
+ * pn_stats handle), write the image, free everything in reverse order. Every fallible call
+ * returns a pn_status; the context keeps the message of the first error since
+ * pn_context_clear_error(), readable with pn_context_error_message().
  * Destructors accept NULL. Nothing in the library exits, aborts or prints to stdout; warnings go
  * through the context's log callback (stderr by default).
  */
