@@ -52,6 +52,34 @@ typedef struct bench_case {
     int bvh; /* light-sampler=bvh */
 } bench_case;
 
+/* The statistics the bench reports, read by name from the render's pn_stats (plain values: a
+ * result travels from the forked child through a pipe). */
+typedef struct bench_stats {
+    int width, height;
+    double render_seconds, embree_seconds_estimate, cut_seconds_estimate, pdf_seconds_estimate;
+    double mrays_per_second, shadow_rays_per_pixel_mean, eye_rays_per_pixel_mean;
+    uint64_t peak_memory_bytes;
+} bench_stats;
+
+/* Statistic `name` of the render (0 when its methods do not produce it). */
+static double stat_value(pn_stats stats, const char *name) {
+    double v = 0.0;
+    return pn_stats_get(stats, name, &v) ? v : 0.0;
+}
+
+static void read_stats(pn_stats stats, bench_stats *out) {
+    out->width = (int)stat_value(stats, "width");
+    out->height = (int)stat_value(stats, "height");
+    out->render_seconds = stat_value(stats, "render_seconds");
+    out->embree_seconds_estimate = stat_value(stats, "embree_seconds_estimate");
+    out->cut_seconds_estimate = stat_value(stats, "cut_seconds_estimate");
+    out->pdf_seconds_estimate = stat_value(stats, "pdf_seconds_estimate");
+    out->mrays_per_second = stat_value(stats, "mrays_per_second");
+    out->shadow_rays_per_pixel_mean = stat_value(stats, "shadow_rays_per_pixel_mean");
+    out->eye_rays_per_pixel_mean = stat_value(stats, "eye_rays_per_pixel_mean");
+    out->peak_memory_bytes = (uint64_t)stat_value(stats, "peak_memory_bytes");
+}
+
 typedef struct bench_result {
     int ok;
     char error[512];
@@ -59,7 +87,7 @@ typedef struct bench_result {
     double times[MAX_RUNS];
     int runs;
     double median, min, max;
-    pn_render_stats stats;
+    bench_stats stats;
     pn_image_metrics metrics;
     int has_metrics;
     int bit_identical; /* all runs gave the same image */
@@ -231,8 +259,7 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
         fs.driver = PN_DRIVER_FULL;
         fs.options = full_opts; /* stop=P is for the progressive run only */
         double t0 = now();
-        pn_render_stats fstats;
-        if (pn_render(ctx, scene, &fs, &cs.full, &fstats) != PN_OK) {
+        if (pn_render(ctx, scene, &fs, &cs.full, NULL) != PN_OK) {
             snprintf(r->error, sizeof r->error, "full render: %s", pn_context_error_message(ctx));
             pn_image_free(cs.full);
             pn_scene_free(scene);
@@ -254,8 +281,11 @@ static void run_case(const bench_case *bc, int runs, int threads, bench_result *
         cs.t0 = t0;
         cs.spent = 0.0;
         if (i > 0) s.snapshot = NULL; /* the curve comes from the first run */
-        pn_status st = pn_render(ctx, scene, &s, &img, &r->stats);
+        pn_stats stats = pn_stats_new();
+        pn_status st = stats ? pn_render(ctx, scene, &s, &img, stats) : PN_ERROR_OUT_OF_MEMORY;
         r->times[i] = now() - t0;
+        read_stats(stats, &r->stats);
+        pn_stats_free(stats);
         if (st != PN_OK) {
             snprintf(r->error, sizeof r->error, "%s", pn_context_error_message(ctx));
             pn_image_free(img);

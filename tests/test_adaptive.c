@@ -5,6 +5,7 @@
  * out at the converged value; the rule is deterministic across thread counts; the paper's rule
  * stays selectable and keeps its measured bias; and the reference's default is a fixed spp. */
 #include "harness.h"
+#include "render_fields.h"
 
 #include "penumbra/penumbra.h"
 
@@ -286,12 +287,12 @@ static void test_default_is_fixed_spp(void) {
     pn_render_settings s = {0};
     pn_render_stats st;
     pn_image img = NULL;
-    CHECK(pn_render(ctx, scene, &s, &img, &st) == PN_OK);
+    CHECK(pn_test_render(ctx, scene, &s, &img, &st) == PN_OK);
     CHECK(st.eye_rays_per_pixel_max == 64 && fabs(st.eye_rays_per_pixel_mean - 64.0) < 1e-9);
     pn_image_free(img);
     img = NULL;
     s.threshold = 0.01;
-    CHECK(pn_render(ctx, scene, &s, &img, &st) == PN_OK);
+    CHECK(pn_test_render(ctx, scene, &s, &img, &st) == PN_OK);
     CHECK(st.eye_rays_per_pixel_max > (uint64_t)(st.eye_rays_per_pixel_mean + 0.5)); /* counts differ */
     pn_image_free(img);
     pn_scene_free(scene);

@@ -85,9 +85,8 @@ static void test_cancel_before_render(void) {
         log_init(&log);
         pn_render_settings rs = settings(kinds[k], MANY_VPLS, &log);
         pn_image img = NULL;
-        pn_render_stats stats;
         pn_render_cancel(ctx);
-        CHECK(pn_render(ctx, scene, &rs, &img, &stats) == PN_ERROR_CANCELLED);
+        CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_ERROR_CANCELLED);
         CHECK(img == NULL);
         CHECK_STR_CONTAINS(pn_context_error_message(ctx), "cancelled");
         /* Nothing was traced: no progress at all. */
@@ -196,12 +195,14 @@ static void test_progressive_drivers(void) {
         rs.driver = drivers[d];
         rs.spp = 2;
         pn_image img = NULL;
-        pn_render_stats stats;
-        CHECK_MSG(pn_render(ctx, scene, &rs, &img, &stats) == PN_OK, "%s: %s", names[d], pn_context_error_message(ctx));
+        pn_stats stats = pn_stats_new();
+        CHECK_MSG(pn_render(ctx, scene, &rs, &img, stats) == PN_OK, "%s: %s", names[d], pn_context_error_message(ctx));
         pn_image_free(img);
         check_progress(&log, names[d]);
-        CHECK_MSG(stats.peak_memory_bytes > 0, "%s: peak memory %llu", names[d],
-                  (unsigned long long)stats.peak_memory_bytes);
+        double peak = 0.0;
+        CHECK_MSG(pn_stats_get(stats, "peak_memory_bytes", &peak) && peak > 0.0, "%s: peak memory %.0f", names[d],
+                  peak);
+        pn_stats_free(stats);
     }
     /* With a VPL integrator: its preparation first, then the driver's pixels. */
     progress_log log;

@@ -7,6 +7,7 @@
  * curved occluder), zero shadow rays where shaft culling finds no obstacle, bit-identical images
  * for any thread count, and bad settings. */
 #include "harness.h"
+#include "render_fields.h"
 
 #include "integrators/contour_internal.h"
 #include "penumbra/penumbra.h"
@@ -361,7 +362,7 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
     s.threads = threads;
     s.aovs = PN_AOV_SHADOW_RAYS | PN_AOV_GRADIENT;
     pn_image img = NULL;
-    pn_status st = pn_render(ctx, scene, &s, &img, stats);
+    pn_status st = pn_test_render(ctx, scene, &s, &img, stats);
     CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
     pn_options_free(o);
     return img;
@@ -554,7 +555,7 @@ static pn_image render_spans(pn_context ctx, pn_scene scene, uint32_t span, int 
         memcpy(s.crop, crop, sizeof s.crop);
     }
     pn_image img = NULL;
-    pn_status st = pn_render(ctx, scene, &s, &img, stats);
+    pn_status st = pn_test_render(ctx, scene, &s, &img, stats);
     CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
     pn_options_free(o);
     return img;

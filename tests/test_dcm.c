@@ -10,6 +10,7 @@
  * of their corners, the light guide leaves only a shadow to interpolate in a lamp's glow, bad settings are refused, and the CLI writes its snapshots atomically beside
  * the output. */
 #include "harness.h"
+#include "render_fields.h"
 
 #include "driver/dcm.h"
 #include "film/downsample.h"
@@ -255,7 +256,7 @@ static pn_image render_driver(pn_context ctx, pn_scene scene, pn_driver_kind dri
     }
     pn_image img = NULL;
     pn_render_stats stats;
-    pn_status st = pn_render(ctx, scene, &s, &img, &stats);
+    pn_status st = pn_test_render(ctx, scene, &s, &img, &stats);
     pn_options_free(o);
     CHECK_MSG(st == PN_OK, "%s", pn_context_error_message(ctx));
     if (st == PN_OK) CHECK_NEAR(stats.evaluated_percent, 100.0, 1e-9);
@@ -377,7 +378,7 @@ static pn_image render_strips(pn_context ctx, pn_scene scene, pn_driver_kind dri
     if (driver != PN_DRIVER_FULL) pn_options_set_double(ctx, o, "stop-at", 2.0);
     pn_options_set_int(ctx, o, "raw-radiance", raw);
     pn_image img = NULL;
-    CHECK(pn_render(ctx, scene, &s, &img, stats) == PN_OK);
+    CHECK(pn_test_render(ctx, scene, &s, &img, stats) == PN_OK);
     pn_options_free(o);
     return img;
 }
@@ -460,7 +461,7 @@ static void test_segments_across_visible_lines(void) {
         s.driver = k == 0 ? PN_DRIVER_FULL : PN_DRIVER_DCM;
         if (k != 0) pn_options_set_double(ctx, o, "stop-at", 3.0);
         pn_render_stats stats;
-        CHECK(pn_render(ctx, scene, &s, &img[k], &stats) == PN_OK);
+        CHECK(pn_test_render(ctx, scene, &s, &img[k], &stats) == PN_OK);
         pn_options_free(o);
     }
     /* Measured 0.0139; drawing the edge blocks with elements across the crease gave 0.0193. What
@@ -506,7 +507,7 @@ static bool render_three(pn_context ctx, const char *name, const char *text, voi
         set(k, &s);
         pn_render_stats stats;
         img[k] = NULL;
-        CHECK(pn_render(ctx, scene, &s, &img[k], &stats) == PN_OK);
+        CHECK(pn_test_render(ctx, scene, &s, &img[k], &stats) == PN_OK);
         pn_options_free(s.options);
     }
     pn_scene_free(scene);
@@ -590,7 +591,7 @@ static void test_stop_and_aovs(void) {
     s.aovs = PN_AOV_SAMPLING_PATTERN | PN_AOV_BLOCK_MAP | PN_AOV_BLOCK_DIRECTION;
     pn_image img = NULL;
     pn_render_stats stats;
-    CHECK(pn_render(ctx, scene, &s, &img, &stats) == PN_OK);
+    CHECK(pn_test_render(ctx, scene, &s, &img, &stats) == PN_OK);
     CHECK(stats.evaluated_percent >= 8.0 && stats.evaluated_percent < 9.0);
     CHECK(stats.work_width == 120 && stats.work_height == 96);
     if (img) {

@@ -67,7 +67,7 @@ static void cancel_progress(void *user, double fraction) {
     if (fraction >= j->cancel_at) pn_render_cancel(j->ctx);
 }
 
-static pn_status render(pn_scene scene, job *j, pn_image *out, pn_render_stats *stats) {
+static pn_status render(pn_scene scene, job *j, pn_image *out, pn_stats stats) {
     pn_options opts = pn_options_new();
     pn_render_settings s;
     memset(&s, 0, sizeof s);
@@ -277,26 +277,28 @@ static void test_checkpoint_resume(void) {
     CHECK(render(scene, &uninterrupted, &full, NULL) == PN_OK);
     job j = {PN_INTEGRATOR_LIGHTCUTS, NULL, {"checkpoint", ck, "tile-size", "8", NULL}, 0, 0.6, ctx};
     pn_image img = NULL;
-    pn_render_stats stats;
-    CHECK(render(scene, &j, &img, &stats) == PN_ERROR_CANCELLED);
+    pn_stats stats = pn_stats_new();
+    double tiles = 0.0, resumed = 0.0;
+    CHECK(render(scene, &j, &img, stats) == PN_ERROR_CANCELLED);
     pn_image_free(img);
     pn_context_clear_error(ctx);
-    const uint32_t count = stats.tiles;
+    CHECK(pn_stats_get(stats, "tile_count", &tiles));
+    const uint32_t count = (uint32_t)tiles;
     CHECK(count == 24);
     /* Resume: only the missing tiles are rendered, and the image is the uninterrupted one. */
     j.cancel_at = 0;
     img = NULL;
-    CHECK(render(scene, &j, &img, &stats) == PN_OK);
-    CHECK_MSG(stats.tiles_resumed > 0 && stats.tiles_resumed < count, "resumed %u of %u tiles", stats.tiles_resumed,
-              count);
+    CHECK(render(scene, &j, &img, stats) == PN_OK);
+    CHECK(pn_stats_get(stats, "tiles_resumed", &resumed));
+    CHECK_MSG(resumed > 0 && resumed < count, "resumed %.0f of %u tiles", resumed, count);
     CHECK_MSG(same_image(full, img), "the resumed render differs from the uninterrupted one");
     pn_image_free(img);
     /* A torn last record (a write cut short by a kill): dropped, its tile rendered again. */
     long size = file_size(ck);
     CHECK(size > 0 && truncate(ck, size - 100) == 0);
     img = NULL;
-    CHECK(render(scene, &j, &img, &stats) == PN_OK);
-    CHECK(stats.tiles_resumed == count - 1);
+    CHECK(render(scene, &j, &img, stats) == PN_OK);
+    CHECK(pn_stats_get(stats, "tiles_resumed", &resumed) && resumed == count - 1);
     CHECK(same_image(full, img));
     CHECK(file_size(ck) == size);
     pn_image_free(img);
@@ -311,26 +313,27 @@ static void test_checkpoint_resume(void) {
         fclose(f);
     }
     img = NULL;
-    CHECK(render(scene, &j, &img, &stats) == PN_ERROR_BAD_INPUT && img == NULL);
+    CHECK(render(scene, &j, &img, stats) == PN_ERROR_BAD_INPUT && img == NULL);
     CHECK_STR_CONTAINS(pn_context_error_message(ctx), "corrupt checkpoint");
     pn_context_clear_error(ctx);
     /* Another render's checkpoint (another seed; other options): refused. */
     unlink(ck);
-    CHECK(render(scene, &j, &img, &stats) == PN_OK);
+    CHECK(render(scene, &j, &img, stats) == PN_OK);
     pn_image_free(img);
     img = NULL;
     j.seed = 7;
-    CHECK(render(scene, &j, &img, &stats) == PN_ERROR_BAD_INPUT && img == NULL);
+    CHECK(render(scene, &j, &img, stats) == PN_ERROR_BAD_INPUT && img == NULL);
     CHECK_STR_CONTAINS(pn_context_error_message(ctx), "another render");
     pn_context_clear_error(ctx);
     j.seed = 0;
     job other = {PN_INTEGRATOR_LIGHTCUTS, NULL, {"checkpoint", ck, "tile-size", "8", "vpls", "1000", NULL}, 0, 0, ctx};
-    CHECK(render(scene, &other, &img, &stats) == PN_ERROR_BAD_INPUT && img == NULL);
+    CHECK(render(scene, &other, &img, stats) == PN_ERROR_BAD_INPUT && img == NULL);
     pn_context_clear_error(ctx);
     job garbage = {PN_INTEGRATOR_LIGHTCUTS, NULL, {"checkpoint", DEMO, "tile-size", "8", NULL}, 0, 0, ctx};
-    CHECK(render(scene, &garbage, &img, &stats) == PN_ERROR_BAD_INPUT && img == NULL);
+    CHECK(render(scene, &garbage, &img, stats) == PN_ERROR_BAD_INPUT && img == NULL);
     CHECK_STR_CONTAINS(pn_context_error_message(ctx), "not a penumbra checkpoint");
     unlink(ck);
+    pn_stats_free(stats);
     pn_image_free(full);
     pn_scene_free(scene);
     pn_context_free(ctx);

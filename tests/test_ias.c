@@ -4,6 +4,7 @@
  * reference integrator's image on a small many-light scene with occlusion, and black-pixel
  * detection never blackens a pixel that a converged reference finds lit by a small light. */
 #include "harness.h"
+#include "render_fields.h"
 
 #include "core/rng.h"
 #include "integrators/ias_math.h"
@@ -171,7 +172,7 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
         pn_options_set_int(ctx, o, "shadow-rays", 8);
     s.seed = 3;
     pn_image img = NULL;
-    pn_status st = pn_render(ctx, scene, &s, &img, stats);
+    pn_status st = pn_test_render(ctx, scene, &s, &img, stats);
     pn_options_free(o);
     if (st != PN_OK) {
         fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
@@ -249,7 +250,7 @@ static pn_image render_ias_with(pn_context ctx, pn_scene scene, const char *cons
     s.threshold = 0.002;
     s.seed = 3;
     pn_image img = NULL;
-    pn_status st = pn_render(ctx, scene, &s, &img, stats);
+    pn_status st = pn_test_render(ctx, scene, &s, &img, stats);
     pn_options_free(o);
     CHECK(st == PN_OK);
     return st == PN_OK ? img : NULL;

@@ -7,6 +7,7 @@
  * Phase I image as an AOV; Phase I's choice of the cluster to refine; Embree packets of shadow
  * rays answering as single rays. */
 #include "harness.h"
+#include "render_fields.h"
 
 #include "accel/accel.h"
 #include "core/rng.h"
@@ -98,7 +99,7 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
     rs.spp = spp;
     rs.aovs = PN_AOV_BOUND_EVALUATIONS | PN_AOV_PHASE1;
     pn_image img = NULL;
-    CHECK(pn_render(ctx, scene, &rs, &img, stats) == PN_OK);
+    CHECK(pn_test_render(ctx, scene, &rs, &img, stats) == PN_OK);
     pn_options_free(o);
     return img;
 }
@@ -221,7 +222,7 @@ static void test_sampling_never_traces_more(void) {
         rs.threads = 2;
         rs.spp = 1;
         rs.aovs = PN_AOV_SHADOW_RAYS;
-        CHECK(pn_render(ctx, scene, &rs, &img[k], &st[k]) == PN_OK);
+        CHECK(pn_test_render(ctx, scene, &rs, &img[k], &st[k]) == PN_OK);
         pn_options_free(o);
     }
     if (img[0] && img[1]) {

@@ -54,6 +54,7 @@ static double render_relmse(const ref_case *rc, double scale, double *relmse_sca
     pn_context_set_log(ctx, NULL, NULL);
     pn_scene scene = NULL;
     pn_image ref = NULL, ref_crop = NULL, img = NULL;
+    pn_stats stats = pn_stats_new();
     double result = -1.0;
     if (pn_scene_load(ctx, scene_path, &scene) != PN_OK || pn_image_read(ctx, ref_path, &ref) != PN_OK) {
         fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
@@ -66,8 +67,9 @@ static double render_relmse(const ref_case *rc, double scale, double *relmse_sca
     for (int i = 0; i < 4; i++) s.crop[i] = rc->crop[i];
     s.width = pn_image_width(ref);
     s.height = pn_image_height(ref);
-    pn_render_stats stats;
-    if (pn_render(ctx, scene, &s, &img, &stats) != PN_OK) {
+    double shadow_per_pixel = 0.0, seconds = 0.0;
+    if (!stats || pn_render(ctx, scene, &s, &img, stats) != PN_OK || !pn_stats_get(stats, "render_seconds", &seconds) ||
+        !pn_stats_get(stats, "shadow_rays_per_pixel_mean", &shadow_per_pixel)) {
         fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
         goto done;
     }
@@ -88,9 +90,10 @@ static double render_relmse(const ref_case *rc, double scale, double *relmse_sca
     fprintf(stderr,
             "  %s: %dx%d crop, %u spp, %.1f shadow rays/px, %.2f s: box relMSE %.3g (bound %.3g, "
             "x%.1f: %.3g), pixel relMSE %.3g, mean luminance %.4g vs reference %.4g\n",
-            rc->scene, x1 - x0, y1 - y0, rc->spp, stats.shadow_rays_per_pixel_mean, stats.render_seconds, result,
-            rc->max_relmse, scale, *relmse_scaled, m.relmse, m.mean_luminance_image, m.mean_luminance_reference);
+            rc->scene, x1 - x0, y1 - y0, rc->spp, shadow_per_pixel, seconds, result, rc->max_relmse, scale,
+            *relmse_scaled, m.relmse, m.mean_luminance_image, m.mean_luminance_reference);
 done:
+    pn_stats_free(stats);
     pn_image_free(img);
     pn_image_free(ref_crop);
     pn_image_free(ref);

@@ -7,7 +7,8 @@
  * CLI level (the built binary): `penumbra methods` lists every method and option; for every
  * method, every option of every other method is refused with exit 2 and a message naming the
  * method; bad values exit 2; `render --integrator X --help` shows X's options only; and the
- * statistics JSON reproduces its run: the options read back from it render the identical image.
+ * statistics JSON reproduces its run: the options read back from it render the identical image;
+ * its `stats` are exactly the declared statistics of its methods, in the table's order.
  */
 #ifndef _POSIX_C_SOURCE
 #define _POSIX_C_SOURCE 200809L
@@ -542,6 +543,31 @@ static int same_file(const char *a, const char *b) {
 }
 
 /* Render, read the options back from the JSON, render again with them: the identical image. */
+/* The JSON's `stats` are the declared statistics (render/stats.c) that its integrator and driver
+ * produce, in the table's order, and nothing else (the per-rank arrays need several ranks). */
+static void check_json_stats(const char *json, size_t c) {
+    cJSON *root = cJSON_Parse(json);
+    const cJSON *set = cJSON_GetObjectItemCaseSensitive(root, "settings");
+    int mi =
+        pn_method_find(PN_METHOD_INTEGRATOR, cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(set, "integrator")));
+    int md = pn_method_find(PN_METHOD_DRIVER, cJSON_GetStringValue(cJSON_GetObjectItemCaseSensitive(set, "driver")));
+    const cJSON *stats = cJSON_GetObjectItemCaseSensitive(root, "stats");
+    CHECK(mi >= 0 && md >= 0 && cJSON_IsObject(stats));
+    const cJSON *item = stats ? stats->child : NULL;
+    for (int i = 0; i < pn_stat_count(); i++) {
+        const pn_stat_info *si = pn_stat_get(i);
+        if (si->per_rank || (!pn_stat_applies(i, mi) && !pn_stat_applies(i, md))) continue;
+        CHECK_MSG(item && strcmp(item->string, si->name) == 0, "case %zu: '%s' expected, the JSON has '%s'", c,
+                  si->name, item ? item->string : "nothing");
+        CHECK_MSG(item && (si->type == PN_STAT_FLAG ? cJSON_IsBool(item) : cJSON_IsNumber(item)), "case %zu: '%s'", c,
+                  si->name);
+        if (item) item = item->next;
+    }
+    CHECK_MSG(item == NULL, "case %zu: '%s' in the JSON's stats is not declared for its methods", c,
+              item ? item->string : "");
+    cJSON_Delete(root);
+}
+
 static void test_json_round_trip(void) {
     pn_test_write_file(tmpdir, "rt.pbrt", scene_text);
     const char *cases[][12] = {
@@ -568,6 +594,7 @@ static void test_json_round_trip(void) {
         char *json = slurp(path);
         CHECK(json != NULL);
         if (!json) continue;
+        check_json_stats(json, c);
         char store[64][128];
         const char *again[66];
         int options = args_from_json(json, "rt.pbrt", "b.exr", store, again);

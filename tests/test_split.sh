@@ -14,7 +14,7 @@ fail=0
 check() { if eval "$2"; then echo "ok: $1"; else echo "FAILED: $1"; fail=1; fi; }
 A="--resolution 96x64 --spp 2 --threads 1 --aov shadow_rays,normal,depth --quiet"
 
-"$P" render "$S" $A -o "$t/full.exr" || exit 1
+"$P" render "$S" $A -o "$t/full.exr" --stats "$t/full.json" || exit 1
 i=0
 for c in 0,0.4,0,0.5 0.4,1,0,0.5 0,0.6,0.5,1 0.6,1,0.5,1; do
     i=$((i + 1))
@@ -25,6 +25,15 @@ check "merge of 4 crops exits 0" "[ $? -eq 0 ]"
 check "merge of 4 crops is the full render byte for byte" "cmp -s '$t/full.exr' '$t/merged.exr'"
 check "merged statistics sum the parts' eye rays" \
     "grep -q '\"eye_rays\": *12288' '$t/merged.json'"
+# The merged statistics combine by the table's rules (pn_stat_info.merge) into the whole render's:
+# sums, maxima, the whole size and pixel-weighted means agree with one render of the window.
+json_num() { sed -n "s/^ *\"$1\": *\([-0-9.e+]*\),*\$/\1/p" "$2" | head -n 1; }
+for k in shadow_rays eye_rays_per_pixel_max shadow_rays_per_pixel_max width height; do
+    check "merged $k is the whole render's" "[ -n \"\$(json_num $k '$t/full.json')\" ] && [ \"\$(json_num $k '$t/merged.json')\" = \"\$(json_num $k '$t/full.json')\" ]"
+done
+check "merged shadow_rays_per_pixel_mean is the whole render's (pixel-weighted)" \
+    "awk -v a=\"\$(json_num shadow_rays_per_pixel_mean '$t/merged.json')\" -v b=\"\$(json_num shadow_rays_per_pixel_mean '$t/full.json')\" \
+        'BEGIN { d = a - b; exit !(b > 0 && d * d < 1e-18 * b * b) }'"
 "$P" merge "$t/p1.exr" "$t/p1.exr" "$t/p2.exr" "$t/p3.exr" "$t/p4.exr" -o "$t/bad.exr" 2> "$t/err"
 check "overlapping parts: exit 3" "[ $? -eq 3 ] && grep -q overlaps '$t/err' && [ ! -e '$t/bad.exr' ]"
 "$P" merge "$t/p1.exr" "$t/p2.exr" "$t/p3.exr" -o "$t/bad.exr" 2> "$t/err"

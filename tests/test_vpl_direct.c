@@ -6,6 +6,7 @@
  * `vpl` (per point: the guarantee |estimate - exact| <= the cut's bounds; per image: the mean
  * relative error below the bound); the setting's bad combinations are refused. */
 #include "harness.h"
+#include "render_fields.h"
 
 #include "core/rng.h"
 #include "integrators/illumcut.h"
@@ -69,7 +70,7 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
         if (error > 0.0f) CHECK(pn_options_set_double(ctx, rs.options, "error", (double)error) == PN_OK);
     }
     pn_image img = NULL;
-    pn_status st = pn_render(ctx, scene, &rs, &img, stats);
+    pn_status st = pn_test_render(ctx, scene, &rs, &img, stats);
     pn_options_free(rs.options);
     CHECK_MSG(st == PN_OK, "render: %s", pn_context_error_message(ctx));
     return img;

@@ -2,9 +2,10 @@
  *
  * Life cycle, as in Embree's rtcore.h: create a context, load a scene into it, fill a plain
  * settings struct (zero means "default") and set the chosen methods' options by name on a
- * pn_options handle, render into an image, write the image, free everything
- * in reverse order. Every fallible call returns a pn_status; the context keeps the message of the
- * first error since pn_context_clear_error(), readable with pn_context_error_message().
+ * pn_options handle, render into an image (reading what the render measured by name from a
+ * pn_stats handle), write the image, free everything in reverse order. Every fallible call
+ * returns a pn_status; the context keeps the message of the first error since
+ * pn_context_clear_error(), readable with pn_context_error_message().
  * Destructors accept NULL. Nothing in the library exits, aborts or prints to stdout; warnings go
  * through the context's log callback (stderr by default).
  */
@@ -189,7 +190,7 @@ typedef struct pn_method_info {
     const char *computes;    /* "direct light", "global illumination (VPLs)", or for drivers which pixels */
     uint32_t capabilities;   /* PN_CAP_* bits */
     uint32_t aovs;           /* PN_AOV_* bits of the layers it can write besides the common ones */
-    const char *stats;       /* comma-separated groups of pn_render_stats fields it fills, e.g. "ias" */
+    const char *stats;       /* comma-separated groups of statistics it produces (pn_stat_info.group) */
     uint32_t default_spp;    /* integrators with PN_CAP_SPP: eye rays per pixel when spp is 0 (0: adaptive) */
 } pn_method_info;
 
@@ -261,7 +262,8 @@ PN_API pn_status pn_options_check(pn_context ctx, pn_options options, pn_integra
                                   pn_driver_kind driver);
 
 /* ---------------------------------------------------------------------------------------- */
-/* Render settings: zero-initialise, then set what you need. Zero means the default. */
+/* Render settings: PN_RENDER_SETTINGS_INIT (or zero-initialise), then set what you need. Zero
+ * means the default. */
 
 /* AOV layers written beside the beauty image. The first six every integrator writes under the
  * tiled driver; pn_method_info.aovs tells which of the others a method writes. */
@@ -309,6 +311,12 @@ typedef void (*pn_snapshot_fn)(void *user, struct pn_image_s *image, double requ
 #define PN_MAX_THREADS 1024
 
 typedef struct pn_render_settings {
+    /* Forward compatibility: sizeof the struct as the caller was compiled (PN_RENDER_SETTINGS_INIT
+     * and pn_render_settings_init set it). Later versions only append fields: a library reads
+     * the fields the caller's size covers and gives the others their defaults; a size larger
+     * than the library's is accepted when the fields it does not know are zero. 0 means this
+     * layout (penumbra 0.1, the first with the field), so zero-initialised settings stay valid. */
+    uint32_t struct_size;
     pn_integrator_kind integrator;
     pn_driver_kind driver;
     uint32_t spp;      /* fixed eye rays per pixel (integrators with PN_CAP_SPP); 0 = the
@@ -338,72 +346,83 @@ typedef struct pn_render_settings {
     void (*progress_note)(void *user, double evaluated_percent, double error_estimate);
 } pn_render_settings;
 
+/* Settings at their defaults with struct_size set: `pn_render_settings s = PN_RENDER_SETTINGS_INIT;`
+ * then set fields, or pn_render_settings_init(&s). */
+#define PN_RENDER_SETTINGS_INIT                                                                                        \
+    { .struct_size = (uint32_t)sizeof(pn_render_settings) }
+static inline void pn_render_settings_init(pn_render_settings *settings) {
+    pn_render_settings defaults = PN_RENDER_SETTINGS_INIT;
+    *settings = defaults;
+}
+
 /* ---------------------------------------------------------------------------------------- */
 /* Images */
 
 typedef struct pn_image_s *pn_image;
 
-#define PN_STATS_MAX_RANKS 256
-/* Statistics of one render. */
-typedef struct pn_render_stats {
-    double render_seconds;
-    double embree_seconds_estimate; /* time inside Embree calls (every 8th eye ray's calls timed,
-                                       scaled, summed over threads and divided by their number) */
-    uint64_t eye_rays, shadow_rays, specular_rays;
-    double shadow_rays_per_pixel_mean, eye_rays_per_pixel_mean;
-    uint64_t shadow_rays_per_pixel_max, eye_rays_per_pixel_max;
-    double mrays_per_second;
-    uint64_t peak_memory_bytes;
-    int partial; /* 1 when cancelled: only finished tiles hold values */
-    /* ias only (zero otherwise), means over the rendered pixels, as the paper's Tables 3-6:
-     * passes and antialiasing regions per pixel, clusters per shading point, and the fraction of
-     * shadow rays that were unoccluded. */
-    double passes_per_pixel_mean, aa_regions_per_pixel_mean, clusters_per_point_mean;
-    double visible_fraction_mean;
-    /* ias, the paper's Table 5: lights (and environment-map regions) with at least one unoccluded
-     * shadow ray anywhere in the image, and per pixel on average. */
-    uint32_t lights_visible_viewpoint, env_regions_visible_viewpoint;
-    double visible_lights_per_pixel_mean;
-    /* ias, where its own time goes (summed over threads, divided by their number, as the
-     * Embree estimate): computing cluster cuts, and keeping PDFs (feedback weights, eq. 6,
-     * choosing clusters and lights, recording samples). */
-    double cut_seconds_estimate, pdf_seconds_estimate;
-    int threads;
-    int width, height; /* of the rendered (cropped) image */
-    /* VPL integrators (issue 5): preprocessing (VPL tracing + light tree build) and its parts,
-     * the VPLs and light paths, L_UB evaluations per pixel (the paper's "upper bound" rows),
-     * cut size per shading point (lightcuts) or product-space pairs per pixel (illumcut), and
-     * illumcut's phases (point tree, Phase I, Phase II) in seconds. */
-    double preprocess_seconds, vpl_seconds, light_tree_seconds;
-    uint64_t vpl_count, vpl_paths;
-    double bound_evaluations_per_pixel_mean, cut_size_mean;
-    double point_tree_seconds, phase1_seconds, phase2_seconds;
-    uint64_t illumcut_pairs;
-    /* contour and contour-mc (zero otherwise): viewing rays that cast shadow rays towards
-     * contour sources and those shadow rays (the paper's Table 1 counts rays per such viewing
-     * ray); full contour integrations, pixels interpolated between them, restarts one level
-     * finer, subdivided squares, and spans shaded by the closed form after shaft culling. */
-    uint64_t contour_viewing_rays, contour_shadow_rays;
-    uint64_t contour_integrations, contour_interpolated, contour_restarts, contour_subdivisions;
-    uint64_t contour_culled_spans;
-    /* Progressive drivers (issue 6). */
-    uint64_t evaluated_pixels;                      /* work pixels evaluated by the integrator */
-    double evaluated_percent;                       /* of all work pixels of the window */
-    int work_width, work_height;                    /* of the work window */
-    uint32_t dcm_simple_blocks, dcm_complex_blocks; /* edge blocks that passed / failed the tests */
-    uint32_t dcm_lazy_blocks;                       /* quads that kept their parent's elements (lazy evaluation) */
-    double primary_buffer_seconds;                  /* the id/normal/depth buffer of primary rays */
-    uint64_t primary_grid_pixels;                   /* work pixels whose albedo and emitted radiance came from a
-                                         grid of primary rays (--primary-grid) */
-    double reconstruct_seconds_max;                 /* longest reconstruction of an approximate image */
-    /* The tiled driver's distribution (docs/distributed.md): tiles of the window and those a
-     * checkpoint already held; under MPI the ranks, and per rank (the first PN_STATS_MAX_RANKS)
-     * the seconds it spent rendering tiles and the tiles it rendered. */
-    uint32_t tiles, tiles_resumed;
-    int ranks;
-    double rank_busy_seconds[PN_STATS_MAX_RANKS];
-    uint32_t rank_tiles[PN_STATS_MAX_RANKS];
-} pn_render_stats;
+/* ---------------------------------------------------------------------------------------- */
+/* Statistics by name.
+ *
+ * What a render measured (rays, times, the methods' own counters) is declared once in the
+ * library's table of statistics (name as in the stats JSON, type, unit, help, which methods
+ * produce it, how the parts of a split render combine) and read by name from a pn_stats handle
+ * that pn_render fills, as options are set by name: a new statistic changes no public struct.
+ * Table entries point to static storage, valid for the life of the program. */
+
+typedef enum pn_stat_type {
+    PN_STAT_COUNT = 0,   /* a count of things (rays, pixels, bytes, VPLs, ...) */
+    PN_STAT_SECONDS = 1, /* a time in seconds */
+    PN_STAT_MEAN = 2,    /* a mean, fraction, percentage or rate */
+    PN_STAT_MAX = 3,     /* a largest count */
+    PN_STAT_INT = 4,     /* a size or number of the run (width, threads, ranks) */
+    PN_STAT_FLAG = 5     /* 0 or 1 (partial) */
+} pn_stat_type;
+
+/* How the statistics of crop renders of one image combine into the whole image's (penumbra merge). */
+typedef enum pn_stat_merge {
+    PN_STAT_MERGE_SUM = 0,    /* the parts' values added */
+    PN_STAT_MERGE_MAX = 1,    /* the largest part's value */
+    PN_STAT_MERGE_MEAN = 2,   /* the mean of the parts' values weighted by their pixels */
+    PN_STAT_MERGE_ANY = 3,    /* a flag: set when any part's is */
+    PN_STAT_MERGE_WIDTH = 4,  /* the whole image's width (a work width: scaled as in the parts) */
+    PN_STAT_MERGE_HEIGHT = 5, /* the whole image's height (likewise) */
+    PN_STAT_MERGE_FIRST = 6   /* the first part's (per-rank arrays) */
+} pn_stat_merge;
+
+typedef struct pn_stat_info {
+    const char *name; /* as in the stats JSON (docs/stats-json.md): "eye_rays", ... */
+    pn_stat_type type;
+    const char *unit;  /* "rays", "s", "pixels", "bytes", "%", "" ... */
+    const char *group; /* "": every render produces it; else the group that a method's
+                          pn_method_info.stats names ("ias_tables", "vpl_cuts", ...) */
+    pn_stat_merge merge;
+    int per_rank;     /* 1: one value per MPI rank (rank 0 first), read with pn_stats_get_array */
+    const char *help; /* one sentence */
+} pn_stat_info;
+
+/* Number of declared statistics, and statistic i (NULL when out of range). */
+PN_API int pn_stat_count(void);
+PN_API const pn_stat_info *pn_stat_get(int index);
+/* The index of the statistic of that name, or -1. */
+PN_API int pn_stat_find(const char *name);
+/* Whether method `method` (an index of the method table) produces statistic `stat`: its group
+ * is among the method's pn_method_info.stats groups, or "" (every render). */
+PN_API int pn_stat_applies(int stat, int method);
+
+/* The statistics of one render. Create, pass to pn_render, read, free. */
+typedef struct pn_stats_s *pn_stats;
+
+/* Returns NULL only when memory is exhausted. Free with pn_stats_free (NULL is accepted). */
+PN_API pn_stats pn_stats_new(void);
+PN_API void pn_stats_free(pn_stats stats);
+/* Whether the last render into `stats` produced the scalar statistic `name` (its integrator or
+ * driver produces it, pn_stat_applies); if so *value (may be NULL) receives it. An unknown name,
+ * a per-rank statistic, or stats that no render filled: 0, *value untouched. */
+PN_API int pn_stats_get(pn_stats stats, const char *name, double *value);
+/* Per-rank statistics (pn_stat_info.per_rank): the number of values the last render produced
+ * (its MPI ranks when there were several, else 0; 0 as well for an unknown or scalar name), of
+ * which the first min(count, capacity) are written to values (may be NULL when capacity is 0). */
+PN_API int pn_stats_get_array(pn_stats stats, const char *name, double *values, int capacity);
 
 /* ---- lighting design: illuminance at points, no camera (docs/lighting-design.md) ---------- */
 
@@ -425,10 +444,11 @@ PN_API pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_
                                 const pn_illuminance_point *points, int count, double *lux);
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the
- * beauty and the requested AOVs; stats (may be NULL) is filled. If cancelled, the partial image
- * is still returned together with PN_ERROR_CANCELLED. */
+ * beauty and the requested AOVs; stats (may be NULL) receives the render's statistics, replacing
+ * what it held (read them with pn_stats_get). If cancelled, the partial image and statistics are
+ * still returned together with PN_ERROR_CANCELLED. */
 PN_API pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
-                           pn_render_stats *stats);
+                           pn_stats stats);
 
 /* Rendering across MPI processes (docs/distributed.md). A program started by mpirun calls
  * pn_mpi_init once before anything else: it joins the job (MPI_Init; nothing when the process

@@ -95,11 +95,10 @@ int command_methods(int argc, char **argv);
 void format_aov_names(uint32_t bits, char *buf, size_t size);
 
 /* report.c: the summary and the statistics JSON. */
-void print_render_summary(const render_options *o, const pn_scene_info *info, const pn_render_stats *stats,
-                          const char *image_path);
+void print_render_summary(const render_options *o, const pn_scene_info *info, pn_stats stats, const char *image_path);
 /* Adds the statistics JSON to `set` (renamed into place by the caller's commit). */
 int write_stats_json(const render_options *o, pn_output_set outputs, const char *image_path, pn_scene scene,
-                     const pn_scene_info *info, const pn_render_stats *stats, int interrupted_render);
+                     const pn_scene_info *info, pn_stats stats, int interrupted_render);
 /* Prints a cJSON tree (a `struct cJSON *`) with two-space indentation; caller frees the text. */
 char *json_print(const void *tree);
 

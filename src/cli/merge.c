@@ -6,8 +6,10 @@
  * overlap, full coverage, else exit 3 naming the part). Statistics: every PART.json given among
  * the arguments is a part's `--stats` file; the parts must have been rendered with the same
  * settings (crop, threads and the per-piece options piece and checkpoint aside), and --stats
- * writes one JSON whose `stats` combine them: counts and seconds summed, `*_max` the maximum,
- * per-pixel means and fractions weighted by each part's pixels, `partial` if any part was. */
+ * writes one JSON whose `stats` combine them by the rule the library's statistics table declares
+ * for each (pn_stat_info.merge: counts and seconds summed, maxima and sizes of the run the
+ * maximum, per-pixel means and fractions weighted by each part's pixels, `partial` if any part
+ * was, width and height the whole image's). */
 #include "cli/cli.h"
 
 #include <cjson/cJSON.h>
@@ -63,11 +65,6 @@ static cJSON *comparable_settings(const cJSON *root) {
     return set;
 }
 
-static int ends_with_text(const char *s, const char *suffix) {
-    size_t a = strlen(s), b = strlen(suffix);
-    return a >= b && strcmp(s + a - b, suffix) == 0;
-}
-
 /* Combines the `stats` objects of the parts into `out` (rules in the file comment). */
 static void combine_stats(cJSON *const *parts, int count, int width, int height, cJSON *out) {
     double total_pixels = 0.0;
@@ -96,24 +93,31 @@ static void combine_stats(cJSON *const *parts, int count, int width, int height,
             cJSON_AddItemToObject(out, key, cJSON_Duplicate(item, 1));
             continue;
         }
-        int is_max = ends_with_text(key, "_max") || strcmp(key, "threads") == 0 || strcmp(key, "ranks") == 0;
-        int is_mean = ends_with_text(key, "_mean") || ends_with_text(key, "_percent") ||
-                      strcmp(key, "mrays_per_second") == 0 || strcmp(key, "contour_shadow_rays_per_viewing_ray") == 0;
-        int scene_load = strcmp(key, "parse_seconds") == 0 || strcmp(key, "bvh_seconds") == 0;
+        /* How the parts combine is declared in the library's statistics table; a statistic it
+         * does not know (from another version) is summed. */
+        const pn_stat_info *si = pn_stat_get(pn_stat_find(key));
+        pn_stat_merge rule = si ? si->merge : PN_STAT_MERGE_SUM;
         double v = 0.0;
         for (int i = 0; i < count; i++) {
             const cJSON *x = cJSON_GetObjectItemCaseSensitive(cJSON_GetObjectItemCaseSensitive(parts[i], "stats"), key);
             double d = cJSON_IsNumber(x) ? x->valuedouble : 0.0;
-            if (is_max)
+            if (rule == PN_STAT_MERGE_MAX)
                 v = i == 0 || d > v ? d : v;
-            else if (is_mean)
+            else if (rule == PN_STAT_MERGE_MEAN)
                 v += total_pixels > 0.0 ? d * pixels[i] / total_pixels : 0.0;
+            else if (rule == PN_STAT_MERGE_FIRST)
+                v = i == 0 ? d : v;
             else
                 v += d;
         }
-        (void)scene_load; /* summed: every part loaded the scene */
-        if (strcmp(key, "width") == 0) v = width;
-        if (strcmp(key, "height") == 0) v = height;
+        /* The whole image's size; a work window's scaled from the first part as its own. */
+        const cJSON *fw = cJSON_GetObjectItemCaseSensitive(first, "width"),
+                    *fh = cJSON_GetObjectItemCaseSensitive(first, "height");
+        const cJSON *x0 = cJSON_GetObjectItemCaseSensitive(first, key);
+        if (rule == PN_STAT_MERGE_WIDTH)
+            v = cJSON_IsNumber(fw) && fw->valuedouble > 0.0 ? x0->valuedouble * width / fw->valuedouble : width;
+        if (rule == PN_STAT_MERGE_HEIGHT)
+            v = cJSON_IsNumber(fh) && fh->valuedouble > 0.0 ? x0->valuedouble * height / fh->valuedouble : height;
         cJSON_AddNumberToObject(out, key, v);
     }
     free(pixels);

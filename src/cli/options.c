@@ -500,6 +500,23 @@ static void print_markdown(void) {
         printf("| `--%s` | %s | %s | %s | %s | %s | %s |\n", info->name, types[info->type], def[0] ? def : "none",
                expected, info->unit[0] ? info->unit : "-", where, info->help);
     }
+    printf("\n## Statistics\n\nWhat a render measures, from the statistics table (src/render/stats.c): the `stats` "
+           "of the\nstatistics JSON ([stats-json.md](stats-json.md)) and the names for `pn_stats_get()`. `merge` "
+           "says how\n`penumbra merge` combines the parts of one image.\n\n"
+           "| statistic | type | unit | produced by | merge | meaning |\n|---|---|---|---|---|---|\n");
+    static const char *const stat_types[] = {"count", "seconds", "mean", "max", "integer", "flag"};
+    static const char *const merges[] = {"sum",         "max",          "pixel-weighted mean", "any",
+                                         "whole width", "whole height", "first part's"};
+    for (int i = 0; i < pn_stat_count(); i++) {
+        const pn_stat_info *si = pn_stat_get(i);
+        char where[512] = "";
+        int n = 0;
+        for (int m = 0; si->group[0] && m < pn_method_count(); m++)
+            if (pn_stat_applies(i, m)) appendf(where, sizeof where, "%s`%s`", n++ ? ", " : "", pn_method_get(m)->name);
+        printf("| `%s`%s | %s | %s | %s | %s | %s |\n", si->name, si->per_rank ? " (per rank)" : "",
+               stat_types[si->type], si->unit[0] ? si->unit : "-", si->group[0] ? where : "every render",
+               merges[si->merge], si->help);
+    }
 }
 
 /* `penumbra methods [NAME]`: every method (or one) with what it computes and its options. */
@@ -551,7 +568,11 @@ int command_methods(int argc, char **argv) {
             if (mi->capabilities & cap_names[i].bit)
                 appendf(caps, sizeof caps, "%s%s", caps[0] ? ", " : "", cap_names[i].name);
         if (caps[0]) print_wrapped(stdout, "  works: ", 14, caps);
-        if (mi->stats[0]) print_wrapped(stdout, "  statistics: ", 14, mi->stats);
+        char names[2048] = "";
+        for (int i = 0; i < pn_stat_count(); i++)
+            if (pn_stat_get(i)->group[0] && pn_stat_applies(i, m))
+                appendf(names, sizeof names, "%s%s", names[0] ? ", " : "", pn_stat_get(i)->name);
+        if (names[0]) print_wrapped(stdout, "  statistics: ", 14, names);
         shown++;
     }
     if (!shown) return usage_error(cmd, "unknown method '%s'", only);

@@ -200,7 +200,7 @@ static pn_status add_aov_pngs(pn_context ctx, pn_output_set set, pn_image image,
 /* Writes every output of a finished render as one set: the PNG, the AOV pictures, the
  * statistics and, last, the image, renamed into place only when all were written. */
 static int write_outputs(pn_context ctx, pn_output_set set, const render_options *o, const char *image_path,
-                         pn_image image, pn_scene scene, const pn_scene_info *info, const pn_render_stats *stats) {
+                         pn_image image, pn_scene scene, const pn_scene_info *info, pn_stats stats) {
     pn_status status = PN_OK;
     /* The exposure only affects PNG files. */
     if (o->png_path) status = pn_output_set_add_image(ctx, set, image, o->png_path, (float)o->exposure);
@@ -290,10 +290,9 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
     pn_scene scene = NULL;
     pn_image image = NULL;
     pn_scene_info info;
-    pn_render_stats stats;
+    pn_stats stats = pn_stats_new();
     memset(&info, 0, sizeof info);
-    memset(&stats, 0, sizeof stats);
-    pn_status status = pn_scene_load(ctx, o.scene_path, &scene);
+    pn_status status = stats ? pn_scene_load(ctx, o.scene_path, &scene) : PN_ERROR_OUT_OF_MEMORY;
     if (ranks > 1) status = pn_mpi_agree(ctx, status); /* a rank that cannot load ends the job */
     if (status != PN_OK) {
         code = report_failure(ctx, status);
@@ -328,7 +327,7 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
         st->snapshot_user = &snapshots;
         sigaction(SIGUSR1, &usr1, &previous_usr1);
     }
-    status = pn_render(ctx, scene, st, &image, &stats);
+    status = pn_render(ctx, scene, st, &image, stats);
     if (progressive) sigaction(SIGUSR1, &previous_usr1, NULL);
     interrupt_context = NULL;
     finish_progress(&progress, status == PN_OK);
@@ -355,7 +354,7 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
             pn_context_clear_error(ctx);
             partial_written = pn_output_set_add_image(ctx, outputs, image, partial_path, (float)o.exposure) == PN_OK;
         }
-        if (o.stats_path) write_stats_json(&o, outputs, partial_written ? partial_path : NULL, scene, &info, &stats, 1);
+        if (o.stats_path) write_stats_json(&o, outputs, partial_written ? partial_path : NULL, scene, &info, stats, 1);
         if (pn_output_set_commit(ctx, outputs) == PN_OK && partial_written)
             fprintf(stderr, "penumbra: what was rendered is in '%s'\n", partial_path);
         free(partial_path);
@@ -363,8 +362,8 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
     } else if (status != PN_OK) {
         code = report_failure(ctx, status);
     } else {
-        code = write_outputs(ctx, outputs, &o, image_path, image, scene, &info, &stats);
-        if (code == EXIT_OK && !o.quiet) print_render_summary(&o, &info, &stats, image_path);
+        code = write_outputs(ctx, outputs, &o, image_path, image, scene, &info, stats);
+        if (code == EXIT_OK && !o.quiet) print_render_summary(&o, &info, stats, image_path);
     }
     /* Whatever was not renamed into place is removed before the handlers go. */
     set_writing(NULL);
@@ -373,6 +372,7 @@ static int render_main(int argc, char **argv, int rank, int ranks) {
     restore_stop_handlers(previous);
 
 done:
+    pn_stats_free(stats);
     pn_image_free(image);
     pn_scene_free(scene);
     pn_context_free(ctx);

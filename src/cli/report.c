@@ -13,102 +13,6 @@
 /* Version of the JSON layout; docs/stats-json.md says what changed. */
 #define STATS_SCHEMA_VERSION 2
 
-/* Statistics fields by the group a method names in pn_method_info.stats ("" for every run). */
-typedef enum { ST_DOUBLE, ST_U64, ST_U32, ST_INT } stat_type;
-typedef struct stat_field {
-    const char *group, *name;
-    stat_type type;
-    size_t offset;
-} stat_field;
-#define S(group, type, field)                                                                                          \
-    { group, #field, type, offsetof(pn_render_stats, field) }
-static const stat_field stat_fields[] = {
-    S("", ST_INT, width),
-    S("", ST_INT, height),
-    S("", ST_INT, threads),
-    S("", ST_DOUBLE, render_seconds),
-    S("", ST_DOUBLE, embree_seconds_estimate),
-    S("", ST_U64, eye_rays),
-    S("", ST_U64, shadow_rays),
-    S("", ST_U64, specular_rays),
-    S("", ST_DOUBLE, eye_rays_per_pixel_mean),
-    S("", ST_U64, eye_rays_per_pixel_max),
-    S("", ST_DOUBLE, shadow_rays_per_pixel_mean),
-    S("", ST_U64, shadow_rays_per_pixel_max),
-    S("", ST_DOUBLE, mrays_per_second),
-    S("", ST_U64, peak_memory_bytes),
-    /* progressive drivers */
-    S("progressive", ST_INT, work_width),
-    S("progressive", ST_INT, work_height),
-    S("progressive", ST_U64, evaluated_pixels),
-    S("progressive", ST_DOUBLE, evaluated_percent),
-    S("progressive", ST_U32, dcm_simple_blocks),
-    S("progressive", ST_U32, dcm_complex_blocks),
-    S("progressive", ST_U32, dcm_lazy_blocks),
-    S("progressive", ST_DOUBLE, primary_buffer_seconds),
-    S("progressive", ST_U64, primary_grid_pixels),
-    S("progressive", ST_DOUBLE, reconstruct_seconds_max),
-    /* ias: the paper's Tables 4-6 */
-    S("ias_tables", ST_DOUBLE, passes_per_pixel_mean),
-    S("ias_tables", ST_DOUBLE, aa_regions_per_pixel_mean),
-    S("ias_tables", ST_DOUBLE, clusters_per_point_mean),
-    S("ias_tables", ST_DOUBLE, visible_fraction_mean),
-    S("ias_tables", ST_U32, lights_visible_viewpoint),
-    S("ias_tables", ST_U32, env_regions_visible_viewpoint),
-    S("ias_tables", ST_DOUBLE, visible_lights_per_pixel_mean),
-    S("ias_tables", ST_DOUBLE, cut_seconds_estimate),
-    S("ias_tables", ST_DOUBLE, pdf_seconds_estimate),
-    /* VPL integrators: IlluminationCut Table 1's rows */
-    S("vpl_cuts", ST_DOUBLE, preprocess_seconds),
-    S("vpl_cuts", ST_DOUBLE, vpl_seconds),
-    S("vpl_cuts", ST_DOUBLE, light_tree_seconds),
-    S("vpl_cuts", ST_U64, vpl_count),
-    S("vpl_cuts", ST_U64, vpl_paths),
-    S("vpl_cuts", ST_DOUBLE, bound_evaluations_per_pixel_mean),
-    S("vpl_cuts", ST_DOUBLE, cut_size_mean),
-    S("vpl_cuts", ST_DOUBLE, point_tree_seconds),
-    S("vpl_cuts", ST_DOUBLE, phase1_seconds),
-    S("vpl_cuts", ST_DOUBLE, phase2_seconds),
-    S("vpl_cuts", ST_U64, illumcut_pairs),
-    /* contour, contour-mc: Vedel 1993, Table 1 */
-    S("contour_rays", ST_U64, contour_viewing_rays),
-    S("contour_rays", ST_U64, contour_shadow_rays),
-    S("contour_rays", ST_U64, contour_integrations),
-    S("contour_rays", ST_U64, contour_interpolated),
-    S("contour_rays", ST_U64, contour_restarts),
-    S("contour_rays", ST_U64, contour_subdivisions),
-    S("contour_rays", ST_U64, contour_culled_spans),
-};
-#undef S
-
-static double stat_value(const pn_render_stats *stats, const stat_field *f) {
-    const char *p = (const char *)stats + f->offset;
-    switch (f->type) {
-    case ST_DOUBLE: return *(const double *)(const void *)p;
-    case ST_U64: return (double)*(const uint64_t *)(const void *)p;
-    case ST_U32: return (double)*(const uint32_t *)(const void *)p;
-    case ST_INT: return (double)*(const int *)(const void *)p;
-    }
-    return 0.0;
-}
-
-/* Whether the comma-separated list has the item. */
-static int list_has(const char *list, const char *item) {
-    size_t n = strlen(item);
-    for (const char *p = list; *p;) {
-        size_t len = strcspn(p, ",");
-        if (len == n && strncmp(p, item, n) == 0) return 1;
-        p += len;
-        if (*p == ',') p++;
-    }
-    return 0;
-}
-
-static int stat_group_shown(const render_options *o, const char *group) {
-    return group[0] == '\0' || list_has(pn_method_get(o->integrator)->stats, group) ||
-           list_has(pn_method_get(o->driver)->stats, group);
-}
-
 /* The spp and threshold in force (0 when they do not apply). */
 static uint32_t resolved_spp(const render_options *o) {
     const pn_method_info *mi = pn_method_get(o->integrator);
@@ -220,7 +124,7 @@ static void add_string_or_null(cJSON *obj, const char *key, const char *value) {
 }
 
 int write_stats_json(const render_options *o, pn_output_set outputs, const char *image_path, pn_scene scene,
-                     const pn_scene_info *info, const pn_render_stats *stats, int interrupted_render) {
+                     const pn_scene_info *info, pn_stats stats, int interrupted_render) {
     const pn_render_settings *st = &o->settings;
     const pn_method_info *mi = pn_method_get(o->integrator), *md = pn_method_get(o->driver);
     cJSON *root = cJSON_CreateObject();
@@ -270,29 +174,23 @@ int write_stats_json(const render_options *o, pn_output_set outputs, const char 
     cJSON_AddNumberToObject(set, "exposure", o->exposure);
     cJSON_AddItemToObject(set, "options", options_json(o));
 
+    /* Every statistic of the table (render/stats.c) that the render produced, in table order. */
     cJSON *sj = cJSON_AddObjectToObject(root, "stats");
-    cJSON_AddNumberToObject(sj, "parse_seconds", info->parse_seconds);
-    cJSON_AddNumberToObject(sj, "bvh_seconds", info->bvh_seconds);
-    cJSON_AddBoolToObject(sj, "partial", stats->partial);
-    for (size_t i = 0; i < sizeof stat_fields / sizeof stat_fields[0]; i++)
-        if (stat_group_shown(o, stat_fields[i].group))
-            cJSON_AddNumberToObject(sj, stat_fields[i].name, stat_value(stats, &stat_fields[i]));
-    if (stat_group_shown(o, "contour_rays"))
-        cJSON_AddNumberToObject(sj, "contour_shadow_rays_per_viewing_ray",
-                                stats->contour_viewing_rays
-                                    ? (double)stats->contour_shadow_rays / (double)stats->contour_viewing_rays
-                                    : 0.0);
-    /* the tiled driver's distribution (docs/distributed.md) */
-    cJSON_AddNumberToObject(sj, "tile_count", stats->tiles);
-    cJSON_AddNumberToObject(sj, "tiles_resumed", stats->tiles_resumed);
-    cJSON_AddNumberToObject(sj, "ranks", stats->ranks > 1 ? stats->ranks : 1);
-    if (stats->ranks > 1) {
-        int n = stats->ranks < PN_STATS_MAX_RANKS ? stats->ranks : PN_STATS_MAX_RANKS;
-        cJSON *busy = cJSON_AddArrayToObject(sj, "rank_busy_seconds");
-        cJSON *tiles = cJSON_AddArrayToObject(sj, "rank_tiles");
-        for (int r = 0; r < n; r++) {
-            cJSON_AddItemToArray(busy, cJSON_CreateNumber(stats->rank_busy_seconds[r]));
-            cJSON_AddItemToArray(tiles, cJSON_CreateNumber(stats->rank_tiles[r]));
+    for (int i = 0; i < pn_stat_count(); i++) {
+        const pn_stat_info *si = pn_stat_get(i);
+        double v = 0.0;
+        if (si->per_rank) {
+            int n = pn_stats_get_array(stats, si->name, NULL, 0);
+            double *values = n > 0 ? malloc((size_t)n * sizeof *values) : NULL;
+            if (!values) continue;
+            pn_stats_get_array(stats, si->name, values, n);
+            cJSON_AddItemToObject(sj, si->name, cJSON_CreateDoubleArray(values, n));
+            free(values);
+        } else if (pn_stats_get(stats, si->name, &v)) {
+            if (si->type == PN_STAT_FLAG)
+                cJSON_AddBoolToObject(sj, si->name, v != 0.0);
+            else
+                cJSON_AddNumberToObject(sj, si->name, v);
         }
     }
     cJSON_AddItemToObject(root, "scene_info", scene_info_json(info, scene));
@@ -335,12 +233,21 @@ static void print_options_line(const render_options *o, int m) {
     printf("\n");
 }
 
-void print_render_summary(const render_options *o, const pn_scene_info *info, const pn_render_stats *stats,
-                          const char *image_path) {
+/* The statistic `name` of the render, 0 when it did not produce it. */
+static double stat(pn_stats stats, const char *name) {
+    double v = 0.0;
+    return pn_stats_get(stats, name, &v) ? v : 0.0;
+}
+
+static unsigned long long stat_u(pn_stats stats, const char *name) {
+    return (unsigned long long)stat(stats, name);
+}
+
+void print_render_summary(const render_options *o, const pn_scene_info *info, pn_stats stats, const char *image_path) {
     printf("scene          %s\n", o->scene_path);
     print_options_line(o, o->integrator);
     print_options_line(o, o->driver);
-    printf("resolution     %dx%d", stats->width, stats->height);
+    printf("resolution     %dx%d", (int)stat(stats, "width"), (int)stat(stats, "height"));
     if (o->settings.has_crop)
         printf(" (crop %g,%g,%g,%g)", (double)o->settings.crop[0], (double)o->settings.crop[1],
                (double)o->settings.crop[2], (double)o->settings.crop[3]);
@@ -352,29 +259,37 @@ void print_render_summary(const render_options *o, const pn_scene_info *info, co
     else if (threshold > 0.0)
         printf("sampling       adaptive, threshold %g\n", threshold);
     printf("time           parse %.2f s, BVH %.2f s, render %.2f s (%d threads)\n", info->parse_seconds,
-           info->bvh_seconds, stats->render_seconds, stats->threads);
-    if (stats->tiles_resumed)
-        printf("resumed        %u of %u tiles from the checkpoint\n", stats->tiles_resumed, stats->tiles);
-    if (stats->ranks > 1) {
-        printf("ranks          %d, busy", stats->ranks);
-        for (int r = 0; r < stats->ranks && r < PN_STATS_MAX_RANKS; r++)
-            printf("%s %.2f s (%u tiles)", r ? "," : "", stats->rank_busy_seconds[r], stats->rank_tiles[r]);
+           info->bvh_seconds, stat(stats, "render_seconds"), (int)stat(stats, "threads"));
+    if (stat_u(stats, "tiles_resumed"))
+        printf("resumed        %llu of %llu tiles from the checkpoint\n", stat_u(stats, "tiles_resumed"),
+               stat_u(stats, "tile_count"));
+    int ranks = (int)stat(stats, "ranks");
+    if (ranks > 1) {
+        double *busy = malloc((size_t)ranks * sizeof *busy), *tiles = malloc((size_t)ranks * sizeof *tiles);
+        int n = busy && tiles ? pn_stats_get_array(stats, "rank_busy_seconds", busy, ranks) : 0;
+        if (n > 0) n = pn_stats_get_array(stats, "rank_tiles", tiles, ranks);
+        printf("ranks          %d, busy", ranks);
+        for (int r = 0; r < n && r < ranks; r++)
+            printf("%s %.2f s (%llu tiles)", r ? "," : "", busy[r], (unsigned long long)tiles[r]);
         printf("\n");
+        free(busy);
+        free(tiles);
     }
-    print_count("eye rays", stats->eye_rays);
-    print_count("shadow rays", stats->shadow_rays);
-    print_count("specular rays", stats->specular_rays);
-    printf("eye/pixel      mean %.2f, max %llu\n", stats->eye_rays_per_pixel_mean,
-           (unsigned long long)stats->eye_rays_per_pixel_max);
-    printf("shadow/pixel   mean %.1f, max %llu\n", stats->shadow_rays_per_pixel_mean,
-           (unsigned long long)stats->shadow_rays_per_pixel_max);
-    printf("speed          %.2f Mrays/s\n", stats->mrays_per_second);
-    if (stats->vpl_count)
+    print_count("eye rays", stat_u(stats, "eye_rays"));
+    print_count("shadow rays", stat_u(stats, "shadow_rays"));
+    print_count("specular rays", stat_u(stats, "specular_rays"));
+    printf("eye/pixel      mean %.2f, max %llu\n", stat(stats, "eye_rays_per_pixel_mean"),
+           stat_u(stats, "eye_rays_per_pixel_max"));
+    printf("shadow/pixel   mean %.1f, max %llu\n", stat(stats, "shadow_rays_per_pixel_mean"),
+           stat_u(stats, "shadow_rays_per_pixel_max"));
+    printf("speed          %.2f Mrays/s\n", stat(stats, "mrays_per_second"));
+    if (stat_u(stats, "vpl_count"))
         printf("VPLs           %llu (%llu paths), preprocessing %.2f s (VPLs %.2f s, light tree %.2f s), "
                "bounds/pixel %.1f\n",
-               (unsigned long long)stats->vpl_count, (unsigned long long)stats->vpl_paths, stats->preprocess_seconds,
-               stats->vpl_seconds, stats->light_tree_seconds, stats->bound_evaluations_per_pixel_mean);
-    printf("peak memory    %.1f MiB\n", (double)stats->peak_memory_bytes / (1024.0 * 1024.0));
+               stat_u(stats, "vpl_count"), stat_u(stats, "vpl_paths"), stat(stats, "preprocess_seconds"),
+               stat(stats, "vpl_seconds"), stat(stats, "light_tree_seconds"),
+               stat(stats, "bound_evaluations_per_pixel_mean"));
+    printf("peak memory    %.1f MiB\n", stat(stats, "peak_memory_bytes") / (1024.0 * 1024.0));
     printf("wrote          %s", image_path);
     if (o->png_path) printf(", %s", o->png_path);
     if (o->stats_path) printf(", %s", o->stats_path);

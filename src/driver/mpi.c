@@ -391,18 +391,21 @@ pn_status pn_dist_run_tiles(pn_context ctx, pn_tile_work *work, pn_dist_report *
 }
 
 void pn_dist_reduce_stats(pn_render_stats *s) {
-    /* What integrators count themselves (not per pixel): totals over the ranks. */
-    uint64_t *counts[] = {&s->contour_viewing_rays, &s->contour_shadow_rays, &s->contour_integrations,
-                          &s->contour_interpolated, &s->contour_restarts,    &s->contour_subdivisions,
-                          &s->contour_culled_spans, &s->illumcut_pairs};
-    enum { N = sizeof counts / sizeof counts[0] };
-    double mine[N + 1], sum[N + 1];
-    for (int i = 0; i < N; i++) mine[i] = (double)*counts[i];
-    mine[N] = s->bound_evaluations_per_pixel_mean; /* each rank's count over the whole window */
-    MPI_Reduce(mine, sum, N + 1, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    /* What integrators count themselves (not per pixel): totals over the ranks, the entries the
+     * statistics table (render/stats.c) marks rank_sum. */
+    enum { N = 64 };
+    const pn_stat_decl *decls[N];
+    double mine[N], sum[N];
+    int n = 0;
+    for (int i = 0; i < pn_stats_decl_count() && n < N; i++) {
+        const pn_stat_decl *d = pn_stats_decl(i);
+        if (!d->rank_sum) continue;
+        decls[n] = d;
+        mine[n++] = pn_stats_value(s, d);
+    }
+    MPI_Reduce(mine, sum, n, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
     if (world_rank != 0) return;
-    for (int i = 0; i < N; i++) *counts[i] = (uint64_t)sum[i];
-    s->bound_evaluations_per_pixel_mean = sum[N];
+    for (int i = 0; i < n; i++) pn_stats_store(s, decls[i], sum[i]);
 }
 
 #endif

@@ -4,6 +4,7 @@
  * threads in chunks by an atomic counter; each point's value depends only on the scene, the
  * settings and its index (integrators/point_eval.c). */
 #include "driver/points.h"
+#include "driver/settings.h"
 
 #include "core/context.h"
 #include "core/threadpool.h"
@@ -48,12 +49,16 @@ static void run_chunk(void *user, size_t chunk, int worker) {
     }
 }
 
-pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
+pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_settings *caller_settings,
                          const pn_illuminance_point *points, int count, double *lux) {
-    if (!ctx || !scene || !settings || (count > 0 && (!points || !lux)) || count < 0) {
+    if (!ctx || !scene || !caller_settings || (count > 0 && (!points || !lux)) || count < 0) {
         if (ctx) pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_illuminance: NULL argument or negative count");
         return PN_ERROR_INVALID_ARGUMENT;
     }
+    pn_render_settings settings_copy;
+    pn_status copied = pn_render_settings_copy(ctx, "pn_illuminance", caller_settings, &settings_copy);
+    if (copied != PN_OK) return copied;
+    const pn_render_settings *settings = &settings_copy;
     const pn_method_entry *ientry = pn_registry_method_kind(PN_METHOD_INTEGRATOR, (int)settings->integrator);
     const pn_method_entry *dentry = pn_registry_method_kind(PN_METHOD_DRIVER, (int)PN_DRIVER_DEFAULT);
     if (!ientry || !dentry)

@@ -11,7 +11,8 @@
 #include "core/context.h"
 #include "core/threadpool.h"
 #include "driver/progressive.h" /* issue 6: progressive drivers */
-#include "driver/tiles.h"       /* issue 16: tiles for MPI ranks, pieces and checkpoints */
+#include "driver/settings.h"
+#include "driver/tiles.h" /* issue 16: tiles for MPI ranks, pieces and checkpoints */
 #include "film/aovs.h"
 #include "integrators/registry.h"
 #include "io/image.h"
@@ -380,14 +381,55 @@ pn_status pn_driver_prepare_job(pn_context ctx, struct pn_scene_s *scene, const 
     return PN_OK;
 }
 
-pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *settings, pn_image *out_image,
-                    pn_render_stats *stats) {
+pn_status pn_render_settings_copy(pn_context ctx, const char *who, const pn_render_settings *in,
+                                  pn_render_settings *out) {
+    size_t size = in->struct_size ? in->struct_size : sizeof *out;
+    if (size < sizeof *out)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "%s: settings.struct_size %zu is smaller than any layout of pn_render_settings (%zu)",
+                               who, size, sizeof *out);
+    /* A newer caller's fields beyond this layout must be at their defaults (zero). */
+    for (size_t i = sizeof *out; i < size; i++)
+        if (((const unsigned char *)in)[i] != 0)
+            return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                                   "%s: settings set fields unknown to penumbra %s (struct_size %zu, known %zu)", who,
+                                   PN_VERSION_STRING, size, sizeof *out);
+    memcpy(out, in, sizeof *out);
+    out->struct_size = (uint32_t)sizeof *out;
+    return PN_OK;
+}
+
+/* What every finished or cancelled render's statistics hold besides the drivers' counters, and
+ * which methods produced them (the by-name interface answers from the table for those). */
+static void finish_stats(pn_stats stats, const struct pn_scene_s *scene, const pn_method_entry *integrator,
+                         const pn_method_entry *driver, pn_status st) {
+    if (!stats || (st != PN_OK && st != PN_ERROR_CANCELLED)) return;
+    stats->fields.parse_seconds = scene->parse_seconds;
+    stats->fields.bvh_seconds = scene->bvh_seconds;
+    if (stats->fields.ranks < 1) stats->fields.ranks = 1;
+    stats->integrator = pn_method_find(PN_METHOD_INTEGRATOR, integrator->info.name);
+    stats->driver = pn_method_find(PN_METHOD_DRIVER, driver->info.name);
+    stats->produced = true;
+}
+
+pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *caller_settings, pn_image *out_image,
+                    pn_stats stats_out) {
     if (out_image) *out_image = NULL;
-    if (stats) memset(stats, 0, sizeof *stats);
-    if (!ctx || !scene || !settings || !out_image) {
+    pn_render_stats *stats = NULL;
+    if (stats_out) {
+        memset(&stats_out->fields, 0, sizeof stats_out->fields);
+        stats_out->integrator = stats_out->driver = -1;
+        stats_out->produced = false;
+        stats = &stats_out->fields;
+    }
+    if (!ctx || !scene || !caller_settings || !out_image) {
         if (ctx) pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_render: NULL argument");
         return PN_ERROR_INVALID_ARGUMENT;
     }
+    pn_render_settings settings_copy;
+    pn_status copied = pn_render_settings_copy(ctx, "pn_render", caller_settings, &settings_copy);
+    if (copied != PN_OK) return copied;
+    const pn_render_settings *settings = &settings_copy;
     /* The chosen methods are entries of the one table (integrators/registry.c). */
     const pn_method_entry *ientry = pn_registry_method_kind(PN_METHOD_INTEGRATOR, (int)settings->integrator);
     const pn_method_entry *dentry = pn_registry_method_kind(PN_METHOD_DRIVER, (int)settings->driver);
@@ -398,7 +440,10 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     pn_render_job job;
     pn_progress progress;
     pn_status st = pn_driver_prepare_job(ctx, scene, settings, ientry, dentry, &job, &progress);
-    if (st != PN_OK) return st;
+    if (st != PN_OK) {
+        finish_stats(stats_out, scene, ientry, dentry, st); /* cancelled before rendering: zeros */
+        return st;
+    }
     pn_progress_window(&progress, pn_progress_value(&progress), 1.0);
     /* Progressive drivers (issue 6: dcm, painter, uniform, full) render a work image of their own. */
     if (dentry->info.capabilities & PN_CAP_PROGRESSIVE)
@@ -411,6 +456,7 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *se
     if (integ->release) integ->release(&job);
     pn_progress_destroy(&progress);
     atomic_store(&ctx->cancel, 0);
+    finish_stats(stats_out, scene, ientry, dentry, st);
     return st;
 }
 

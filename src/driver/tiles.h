@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "film/aovs.h"
 #include "render/render_job.h"
+#include "render/stats.h"
 
 #include <stdatomic.h>
 #include <stdbool.h>

@@ -29,6 +29,7 @@
 #include "film/aovs.h"
 #include "lights/vpl.h"
 #include "render/render_job.h"
+#include "render/stats.h"
 
 #include <stdbool.h>
 #include <stdint.h>

@@ -5,4 +5,5 @@ list(APPEND PN_SOURCES
   src/render/eye_path.c
   src/render/progress.c
   src/render/shadow.c
+  src/render/stats.c
 )

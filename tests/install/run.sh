@@ -5,7 +5,8 @@
 #    WORK_DIR/prefix (a scratch prefix, rebuilt on every run);
 # 2. checks that the installed CMake and pkg-config files point only into that prefix;
 # 3. builds tests/install/consumer.c with the flags that pkg-config reads from penumbra.pc and
-#    runs it with LD_LIBRARY_PATH pointing at the installed library;
+#    runs it with LD_LIBRARY_PATH pointing at the installed library; then compiles README.md's
+#    library example (-Wall -Wextra -Werror) the same way and runs it on a tiny scene;
 # 4. configures and builds tests/install/CMakeLists.txt, which calls find_package(penumbra),
 #    against the prefix and runs that consumer too;
 # 5. runs the installed `penumbra --version`.
@@ -126,6 +127,33 @@ if command -v ldd >/dev/null 2>&1; then
     esac
 fi
 "$work/pc/consumer" "$missing_scene" || fail "the pkg-config consumer failed (status $?)"
+
+# --- 3b. README.md's library example, compiled against the installed header and run ---------
+say "building README.md's library example with pkg-config"
+awk '/^```c$/ { inside = 1; text = ""; next }
+     inside && /^```$/ { if (text ~ /#include <penumbra\/penumbra.h>/) { printf "%s", text; exit } inside = 0; next }
+     inside { text = text $0 "\n" }' "$source_dir/README.md" >"$work/pc/readme_example.c"
+grep -q 'pn_render(' "$work/pc/readme_example.c" || fail "no library example (a C block with pn_render) in README.md"
+# shellcheck disable=SC2086
+run "$work/logs/readme-compile.log" "$CC" -std=c11 -Wall -Wextra -Werror -o "$work/pc/readme_example" \
+    "$work/pc/readme_example.c" $extra_flags $pc_flags \
+    || fail "README.md's library example does not compile against the installed header (output above)"
+cat >"$work/pc/tiny.pbrt" <<'SCENE'
+LookAt 0 3 4  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 45 ]
+Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 6 ]
+WorldBegin
+LightSource "point" "point3 from" [ 1 2 1 ] "rgb I" [ 2 2 2 ]
+Material "diffuse" "rgb reflectance" [ 0.6 0.6 0.6 ]
+Shape "sphere" "float radius" [ 0.5 ]
+SCENE
+example_out=$("$work/pc/readme_example" "$work/pc/tiny.pbrt" "$work/pc/tiny.exr") \
+    || fail "README.md's library example failed on a tiny scene (status $?)"
+case $example_out in
+    "8x6, "*" s, "*" shadow rays/pixel") ;;
+    *) fail "README.md's library example printed '$example_out'" ;;
+esac
+[ -s "$work/pc/tiny.exr" ] || fail "README.md's library example wrote no image"
 unset LD_LIBRARY_PATH
 
 # --- 4. a consumer built through find_package(penumbra) -------------------------------------
