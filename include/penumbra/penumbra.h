@@ -548,7 +548,9 @@ PN_API pn_status pn_image_crop(pn_context ctx, pn_image image, int x0, int y0, i
  * EXR writer stores it as the data window inside the display window, as pbrt-v4 does. */
 PN_API void pn_image_window(pn_image image, int window[4]);
 /* Reads every layer of an EXR file (beauty "R,G,B", "x.R/G/B" as layer x, other channels as
- * one-channel layers) with its data and display windows. Errors read "file: message". */
+ * one-channel layers) with its data and display windows. Errors read "file: message". A data
+ * window over the context's pixel limit, or more pixels x channels than an RGB image at that
+ * limit, is refused before anything is allocated. */
 PN_API pn_status pn_image_read_layers(pn_context ctx, const char *path, pn_image *out_image);
 /* Assembles crop images of one render into the whole image: every part must have the same
  * display window and the same layers, no two may overlap, and together they must cover the
