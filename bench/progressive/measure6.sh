@@ -6,6 +6,8 @@
 # Scenes: stair hall bath glossy (bathroom-72 with its original materials). Variants: dcm
 # (default), dcm-paper (--dcm-variant paper), painter; set VARIANTS to choose. Runs under nice;
 # methods alternate scene by scene, so ratios within one scene come from one stretch of load.
+# SIZE=full renders at the prog-hr64 cases' own resolutions (bench/bench.conf: staircase 576x1024,
+# the others 1024x1024, the same crop); the default, quarter, at 288x512 and 384x384.
 set -u
 BIN=$1
 OUT=$2
@@ -15,6 +17,7 @@ S=$HERE/../shared/scenes
 SCENES=${*:-"stair hall bath glossy"}
 VARIANTS=${VARIANTS:-"dcm dcm-paper painter"}
 STOP=${STOP:-6}
+SIZE=${SIZE:-quarter}
 COMMON="--spp 64 --shadow-rays 4 --seed 0 --crop 0.3,0.7,0.3,0.7 --threads 2 --quiet"
 mkdir -p "$OUT"
 cpu() { # label command...: runs it, prints CPU seconds
@@ -28,12 +31,13 @@ metric() { # reference image -> "L1 L2"
 printf "%-8s %-10s %8s %8s %8s %8s\n" scene method relL1 relL2 cpu_s fraction
 for sc in $SCENES; do
   case $sc in
-    stair) file=$S/staircase-832/staircase-832-matte.pbrt; res=288x512 ;;
-    hall) file=$S/hall-many/hall-many-matte.pbrt; res=384x384 ;;
-    bath) file=$S/bathroom-72/bathroom-72-matte.pbrt; res=384x384 ;;
-    glossy) file=$S/bathroom-72/bathroom-72.pbrt; res=384x384 ;;
+    stair) file=$S/staircase-832/staircase-832-matte.pbrt; res=288x512; fullres=576x1024 ;;
+    hall) file=$S/hall-many/hall-many-matte.pbrt; res=384x384; fullres=1024x1024 ;;
+    bath) file=$S/bathroom-72/bathroom-72-matte.pbrt; res=384x384; fullres=1024x1024 ;;
+    glossy) file=$S/bathroom-72/bathroom-72.pbrt; res=384x384; fullres=1024x1024 ;;
     *) echo "unknown scene $sc" >&2; exit 2 ;;
   esac
+  [ "$SIZE" = full ] && res=$fullres
   full=$OUT/$sc-full.exr
   if [ ! -f "$full" ]; then
     t=$(cpu "$sc-full" "$BIN" render "$file" -o "$full" --resolution $res $COMMON --driver full)

@@ -103,11 +103,23 @@
  *    with each part alone). A margin of 4 pixels instead of 1 around the block
  *    (reading the neighbours' evaluated pixels) was measured and dropped: staircase rel L2 0.0283
  *    -> 0.0382.
+ *  - Albedo rays (issue 18, progressive.c primary_refine_row): where the integrator reports the
+ *    eye rays it traces (reference at a fixed --spp), work pixels whose centre ray's albedo
+ *    differs by more than 5% (PN_PROG_ALBEDO_RAYS_BORDER) from a 4-neighbour's take their albedo
+ *    factor from the first 16 of the integrator's own eye rays (PN_PROG_ALBEDO_RAYS) instead of
+ *    the filtered centre rays (borders under 30%) or the 3 x 3 grid. Why: an interpolated pixel
+ *    is the quotient times this factor, and the full render weighs the texture under its pixel
+ *    filter with exactly those rays; the filtered centre rays alias fine texture (staircase's
+ *    wallpaper), about 14% of the 6% image's error. Effect at 6% (full prog-hr64
+ *    staircase, rel L1 / L2): 0.0191 / 0.0183 -> 0.0165 / 0.0162, CPU 1/13.7 -> 1/11.4 of the full
+ *    render (all 64 rays: 0.0162, 1/7.2; 8 rays: 0.0172; 16 rays at every albedo difference:
+ *    0.0165; the 3 x 3 grid at 5% borders: 0.0180; a 4 x 4 grid: 0.0173; bench/progressive/
+ *    README.md, "Stop 15"). Emitter borders keep all of the integrator's eye rays, as before.
  *
  * Switches (--dcm-off, dcm.h PN_DCM_OFF_*): edge-first (order of work), order (order of boundary
  * evaluation), discrepancy, noise (the Monte Carlo tests: contrast and lazy noise terms, the
  * zero-order flat-boundary rule), lattice-mean, segments, demod (the quotient of progressive.c,
- * as --raw-radiance), guided. --dcm-variant paper switches all of them off. What stays in the
+ * as --raw-radiance), guided, albedo-rays. --dcm-variant paper switches all of them off. What stays in the
  * paper variant, as the paper has no counterpart to choose instead: visible lines from the
  * primary buffer (the paper's Z-buffer visible lines), Fig. 9 (e)-(h) by the next iteration,
  * elements on RGB, and the first-order test's rule for an exhausted inner layer. */

@@ -26,6 +26,11 @@ enum {
 
 typedef struct pn_prog pn_prog;
 
+/* dcm's albedo rays (dcm.c's header): how many of the integrator's eye rays, and the relative
+ * albedo difference between neighbouring centre rays that marks a border for them. */
+#define PN_PROG_ALBEDO_RAYS 16u
+#define PN_PROG_ALBEDO_RAYS_BORDER 0.05f
+
 /* Draws the driver's approximate work image into img (W*H RGB) and, when not NULL, its block map
  * (class and direction per work pixel; see PN_AOV_BLOCK_MAP). */
 typedef void (*pn_prog_draw_fn)(pn_prog *p, void *driver, float *img, float *block_class, float *block_dir);
@@ -50,6 +55,9 @@ struct pn_prog {
     bool integ_emitted;     /* the integrator reports each estimate's emitted part */
     uint32_t pixel_samples; /* the integrator's eye rays per pixel in pn_pixel_eye_sample's
                                convention (0: unknown); they replace the g x g grid */
+    uint32_t albedo_rays;   /* dcm's albedo rays (issue 18): at albedo borders (found at
+                               PN_PROG_ALBEDO_RAYS_BORDER) the first this many of the integrator's
+                               eye rays replace the grid (0: off, the grid at 30% borders) */
     float *relvar;          /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
     unsigned char *state;
     size_t evaluated;
