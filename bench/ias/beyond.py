@@ -43,6 +43,9 @@ METHOD_ARGS = {
     "bvh": [["--integrator", "reference", "--light-sampler", "bvh", "--spp", s] for s in BASE_SPP],
     "ias-paper": [["--integrator", "ias", "--ias-variant", "paper", "--threshold", t] for t in ("0.04", "0.01")],
     "ias": [["--integrator", "ias", "--threshold", t] for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # the default variant with the paper's fixed eye rays (issue 21's growing eye rays off)
+    "ias-aa32": [["--integrator", "ias", "--ias-aa-threshold", "0", "--threshold", t]
+                 for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):
@@ -57,10 +60,16 @@ def cpu_run(cmd):
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def relmse(penumbra, ref, img):
+def diff(penumbra, ref, img):
+    """(relMSE, mean luminance of img over ref's, minus 1) from `penumbra diff`."""
     out = subprocess.run([penumbra, "diff", ref, img], check=True, capture_output=True, text=True).stdout
     m = re.search(r"^relMSE\s+([0-9.eE+-]+)", out, re.M)
-    return float(m.group(1))
+    lum = re.search(r"mean luminance reference ([0-9.eE+-]+), image ([0-9.eE+-]+)", out)
+    return float(m.group(1)), float(lum.group(2)) / float(lum.group(1)) - 1.0
+
+
+def relmse(penumbra, ref, img):
+    return diff(penumbra, ref, img)[0]
 
 
 def render_seconds(stats_path):
@@ -104,14 +113,16 @@ def main():
                 print(f"beyond: {name}: converged reference, {conv_spp} spp, seed {seed}", file=sys.stderr)
                 subprocess.run([penumbra, "render", path, "--integrator", "reference", "--spp", conv_spp, "--seed",
                                 str(seed), "--threads", threads, "-o", img] + common + conv_extra, check=True)
-        floor = 0.5 * relmse(penumbra, conv[0], conv[1])
-        print(f"beyond: {name}: converged render's own relMSE {floor:.3g}", file=sys.stderr)
+        floor, conv_bias = diff(penumbra, conv[0], conv[1])
+        floor *= 0.5
+        print(f"beyond: {name}: converged render's own relMSE {floor:.3g}, mean luminance of the second seed "
+              f"{100 * conv_bias:+.3f}%", file=sys.stderr)
         skip = os.environ.get("SKIP", "").split()
         methods = [m for m in all_methods if f"{name}:{m}" not in skip]
         times = {(m, k): [] for m in methods for k in range(2)}
         walls = {(m, k): [] for m in methods for k in range(2)}
         load = []
-        err, mem = {}, {}
+        err, mem, bias = {}, {}, {}
         main_bin = os.environ.get("MAIN_BIN", "")
         for r in range(runs):
             load.append(cpu_run([penumbra, "info", path]))
@@ -126,7 +137,8 @@ def main():
                     times[(m, k)].append(cpu_run(cmd + common + METHOD_ARGS[m][k]))
                     walls[(m, k)].append(render_seconds(stats))
                     if r == 0:
-                        err[(m, k)] = max(relmse(penumbra, conv[0], img) - floor, 1e-12)
+                        e, bias[(m, k)] = diff(penumbra, conv[0], img)
+                        err[(m, k)] = max(e - floor, 1e-12)
                         mem[(m, k)] = peak_memory(stats)
         t_load = median(load)
         print(f"beyond: {name}: scene load {t_load:.3f} s CPU (median of {runs}), subtracted", file=sys.stderr)
@@ -135,7 +147,8 @@ def main():
             for k in range(2):
                 t, e = pts[m][k]
                 print(f"{name:16s} {m:10s} level {k}: {t:8.3f} s CPU  relMSE {e:.4g}  peak {mem[(m, k)] / 1e6:.0f} MB"
-                      f"  (process {median(times[(m, k)]):.3f} s CPU, render loop {median(walls[(m, k)]):.3f} s wall)")
+                      f"  (process {median(times[(m, k)]):.3f} s CPU, render loop {median(walls[(m, k)]):.3f} s wall,"
+                      f" mean luminance {100 * bias[(m, k)]:+.3f}%)")
         measured[name] = {m: {"pts": pts[m], "mem": max(round(mem[(m, k)] / 1e6) for k in range(2))} for m in methods}
         order.append(name)
         sys.stdout.flush()

@@ -59,7 +59,17 @@
  *    max(1.5 N_C, 50): fewer where the cut is small, and N_C no longer grows with the emitters;
  *  - ias-cluster-numbers sobol: the cluster choice takes dimension 5's Sobol number itself (no
  *    stratum jitter; sample_pixel). Always with the BVH cut: its descent continues with the
- *    cluster's number rescaled within the node; with members, dimension 9 picks the point. */
+ *    cluster's number rescaled within the node; with members, dimension 9 picks the point;
+ *  - ias-aa-threshold 0.01 (issue 21): below that threshold a pixel takes aa_rays 0.01 / T eye
+ *    rays, so that the antialiasing regions' error falls with T (ias_eye_rays: with the paper's
+ *    fixed 32 the relMSE levelled off, slope 0.52 against T on tests/test_ias_converge.c's scene;
+ *    1.10 with the growing count);
+ *  - adaptive-rule auto = cross (issue 21; src/driver/render.c resolves auto): weights and
+ *    stopping from the block's other pixels (pixel_estimate_cross), so the pixel's own values do
+ *    not decide when it stops; with the growing eye rays the mean luminance is within its
+ *    standard error of the converged render (test_ias_converge);
+ *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
+ *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md. */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
@@ -117,6 +127,7 @@ typedef struct ias_shared {
     bool sobol_direct;     /* the cluster choice takes its Sobol number as it is (no stratum jitter) */
     unsigned pass_rays;    /* pass j takes (j + 1) pass_rays shadow rays; 0: the paper's §5.8 */
     uint32_t aa_rays;      /* eye rays per pixel (ias_eye_rays) */
+    double prior_share;    /* the least weight c_U's PDF keeps in eq. 6 (build_pdf_table); 0: Fig. 2's */
     int cut_size;
     pn_light_bvh bvh;
     int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
@@ -223,6 +234,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->sobol_direct = !paper && job->ias_cluster_numbers == PN_IAS_NUMBERS_SOBOL;
     sh->cut_size = job->ias_cut_size > 0 ? (int)job->ias_cut_size : 1;
     sh->aa_rays = ias_eye_rays(job, paper);
+    sh->prior_share = sh->bvh_cut ? job->ias_prior_share : 0.0;
     pn_status st;
     int next;
     if (sh->bvh_cut) {
@@ -724,6 +736,14 @@ static void build_pdf_table(const ias_shared *sh, ias_scratch *s, const ias_regi
     if (!(fp > 0.0)) {
         cu += cp;
         cp = 0.0;
+    }
+    /* A defensive mixture (ias-prior-share): the prior keeps at least this weight, so that the
+     * variance is at most 1 / share times the prior's own whatever the feedback learned. */
+    if (cu < sh->prior_share && cb + cp > 0.0) {
+        const double k = (1.0 - sh->prior_share) / (cb + cp);
+        cb *= k;
+        cp *= k;
+        cu = sh->prior_share;
     }
     const double ku = fq > 0.0 ? cu / fq : 0.0, kb = cb > 0.0 ? cb / fb : 0.0, kp = cp > 0.0 ? cp / fp : 0.0;
     double acc = 0.0;
