@@ -1,10 +1,10 @@
 /* test_ias_converge.c — ias's threshold mode converges to the right image (issue 21, ias's part;
- * docs/adaptive-sampling.md): with the default variant's rule (the cross test, its passes
- * weighted and stopped by the block's other pixels, and eye rays growing as 1 / T below
- * ias-aa-threshold) the relMSE against a fixed-spp converged render falls in proportion to the
- * threshold, and the mean luminance at the smallest threshold is within a statistical bound of
- * the converged one. The former default (the paper's own-variance test with the paper's fixed 32
- * eye rays) levels off and must show it here, or the scene would test nothing. */
+ * docs/adaptive-sampling.md): with the converging rule (--adaptive-rule cross, its passes
+ * weighted and stopped by the block's other pixels, and --ias-aa-threshold 0.01, eye rays growing
+ * as 1 / T) the relMSE against a fixed-spp converged render falls in proportion to the threshold,
+ * and the mean luminance at the smallest threshold is within a statistical bound of the converged
+ * one. The default (the paper's own-variance test with the paper's fixed 32 eye rays) levels off
+ * and must show it here, or the scene would test nothing. */
 #include "harness.h"
 
 #include "penumbra/penumbra.h"
@@ -114,7 +114,7 @@ static double fit_slope(const double *t, const double *e, int n) {
 }
 
 /* relMSE over T = 0.004, 0.001, 0.00025 (two seeds each, the converged render's own relMSE
- * subtracted): measured slope 1.10 with the default rule, 0.52 with the former one (paper's test,
+ * subtracted): measured slope 1.10 with the converging rule, 0.52 with the default (paper's test,
  * 32 eye rays), 0.65 with the cross test alone (the eye rays' error does not fall) and 1.02 with
  * the paper's test and the growing eye rays; the range [0.8, 1.6] admits noise of the three points
  * (about +-0.15 here between seed pairs). Mean luminance at T = 0.00025: +0.005% (bound about
@@ -132,11 +132,12 @@ static void test_ias_error_proportional_to_threshold(void) {
     CHECK(ref && ref2);
     if (ref && ref2) {
         const double t[3] = {0.004, 0.001, 0.00025};
+        static const char *const rule[] = {"adaptive-rule", "cross", "ias-aa-threshold", "0.01", NULL};
         static const char *const former[] = {"adaptive-rule", "paper", "ias-aa-threshold", "0", NULL};
         const double floor = 0.5 * relmse(ref, ref2); /* the converged render's own relMSE */
         double e[3], old[3] = {0, 0, 0}, lum[2] = {0, 0}, diff2 = 0.0;
         for (int k = 0; k < 3; k++) {
-            pn_image img[2] = {render(ctx, scene, 0, t[k], NULL, 1), render(ctx, scene, 0, t[k], NULL, 2)};
+            pn_image img[2] = {render(ctx, scene, 0, t[k], rule, 1), render(ctx, scene, 0, t[k], rule, 2)};
             CHECK(img[0] && img[1]);
             e[k] = img[0] && img[1] ? 0.5 * (relmse(ref, img[0]) + relmse(ref, img[1])) - floor : (double)NAN;
             if (k == 2 && img[0] && img[1]) {
@@ -146,7 +147,7 @@ static void test_ias_error_proportional_to_threshold(void) {
             }
             pn_image_free(img[0]);
             pn_image_free(img[1]);
-            if (k == 1) continue; /* the former rule at the two ends only */
+            if (k == 1) continue; /* the default rule at the two ends only */
             pn_image imo = render(ctx, scene, 0, t[k], former, 1);
             CHECK(imo != NULL);
             old[k] = imo ? relmse(ref, imo) - floor : (double)NAN;
@@ -160,12 +161,12 @@ static void test_ias_error_proportional_to_threshold(void) {
         const double sigma = sqrt(0.25 * diff2 + 0.5 * luminance_diff2(ref, ref2)) / lref;
         const double bias = lias / lref - 1.0;
         fprintf(stderr,
-                "  relMSE %.3g %.3g %.3g at T = 0.004 0.001 0.00025: slope %.3f (former rule %.3g .. %.3g: slope "
+                "  relMSE %.3g %.3g %.3g at T = 0.004 0.001 0.00025: slope %.3f (default rule %.3g .. %.3g: slope "
                 "%.3f); converged render's own relMSE %.3g; mean luminance %+.4f%% (standard error %.4f%%)\n",
                 e[0], e[1], e[2], slope, old[0], old[2], old_slope, floor, 100.0 * bias, 100.0 * sigma);
         CHECK(floor < 0.2 * e[2]); /* the converged render's noise is not what is measured */
         CHECK_MSG(slope > 0.8 && slope < 1.6, "slope %.3f", slope);
-        CHECK_MSG(old_slope < 0.8, "former rule's slope %.3f", old_slope); /* the scene shows the failure */
+        CHECK_MSG(old_slope < 0.8, "default rule's slope %.3f", old_slope); /* the scene shows the failure */
         CHECK_MSG(fabs(bias) < 4.0 * sigma, "mean luminance %+.4f%%, 4 sigma %.4f%%", 100.0 * bias, 400.0 * sigma);
         for (int k = 0; k < 3; k++) CHECK(e[k] < t[k]); /* s^2/L^2 < T per pixel: the mean is below T */
     }

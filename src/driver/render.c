@@ -260,12 +260,10 @@ pn_status pn_driver_resolve_settings(pn_context ctx, struct pn_scene_s *scene, c
         job->spp = integ->info.default_spp;
     job->threshold = s->threshold > 0.0 ? s->threshold : 0.01;
     /* adaptive-rule auto: cross for the reference (unbiased, and faster than the paper's rule at
-     * equal relMSE on the bench scenes) and for ias's default variant (issue 21); the paper's
-     * own test for ias's paper variant (docs/adaptive-sampling.md). */
+     * equal relMSE on the bench scenes); for ias its own test, which its cross variant did not
+     * beat (docs/adaptive-sampling.md). */
     if (job->adaptive_rule == PN_ADAPTIVE_AUTO)
-        job->adaptive_rule = integ->integrator == &pn_integrator_ias && job->ias_variant == PN_IAS_VARIANT_PAPER
-                                 ? PN_ADAPTIVE_PAPER
-                                 : PN_ADAPTIVE_CROSS;
+        job->adaptive_rule = integ->integrator == &pn_integrator_ias ? PN_ADAPTIVE_PAPER : PN_ADAPTIVE_CROSS;
     /* vpl-depth not given: the scene's Integrator "maxdepth" (pbrt-v4 counts the camera segment,
      * so maxdepth - 1 bounces), else the declared default. */
     bool depth_given = pn_options_is_set(s->options, pn_option_find("vpl-depth"));

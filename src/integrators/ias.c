@@ -60,14 +60,13 @@
  *  - ias-cluster-numbers sobol: the cluster choice takes dimension 5's Sobol number itself (no
  *    stratum jitter; sample_pixel). Always with the BVH cut: its descent continues with the
  *    cluster's number rescaled within the node; with members, dimension 9 picks the point;
- *  - ias-aa-threshold 0.01 (issue 21): below that threshold a pixel takes aa_rays 0.01 / T eye
- *    rays, so that the antialiasing regions' error falls with T (ias_eye_rays: with the paper's
- *    fixed 32 the relMSE levelled off, slope 0.52 against T on tests/test_ias_converge.c's scene;
- *    1.10 with the growing count);
- *  - adaptive-rule auto = cross (issue 21; src/driver/render.c resolves auto): weights and
- *    stopping from the block's other pixels (pixel_estimate_cross), so the pixel's own values do
- *    not decide when it stops; with the growing eye rays the mean luminance is within its
- *    standard error of the converged render (test_ias_converge);
+ *  - ias-aa-threshold T0 (issue 21; off by default, 0): below T0 a pixel takes aa_rays T0 / T
+ *    eye rays, so that the antialiasing regions' error falls with T (ias_eye_rays). With
+ *    --adaptive-rule cross (weights and stopping from the block's other pixels,
+ *    pixel_estimate_cross) and T0 = 0.01 the relMSE falls as T (slope 1.10 on
+ *    tests/test_ias_converge.c's scene, against 0.52 for the default) and the mean luminance is
+ *    within its standard error of the converged render. Not the default: on the bench it won on
+ *    hall-many and lost on staircase-832 (bench/RESULTS.md, 2026-12-02 night);
  *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
  *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md. */
 #include "integrators/integrator.h"

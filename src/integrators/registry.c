@@ -162,8 +162,8 @@ static const pn_option_decl options[] = {
     {{"adaptive-rule", PN_OPTION_CHOICE, "auto", 0, 0, 0, 0, "", "auto,paper,cross",
       "with a threshold, when a pixel stops taking eye rays: 'cross' (two independent eye-ray streams, each "
       "sized by the other's pilot: unbiased; ias: the test on the block's other pixels), 'paper' (s^2/L^2 of "
-      "the kept samples, sections 5.1 and 5.9: biased) or 'auto' (cross for reference and ias's default variant, "
-      "paper for ias's paper variant: docs/adaptive-sampling.md)"},
+      "the kept samples, sections 5.1 and 5.9: biased) or 'auto' (cross for reference, paper for ias, the "
+      "faster of the two on the bench scenes: docs/adaptive-sampling.md)"},
      BIT(M_REFERENCE) | BIT(M_IAS),
      F(adaptive_rule),
      PN_FIELD_INT,
@@ -240,9 +240,10 @@ static const pn_option_decl options[] = {
      F(ias_pass_rays),
      PN_FIELD_U32,
      0},
-    {{"ias-aa-threshold", PN_OPTION_DOUBLE, "0.01", 0, 1, 0, 0, "", "",
+    {{"ias-aa-threshold", PN_OPTION_DOUBLE, "0", 0, 1, 0, 0, "", "",
       "default variant: below this threshold a pixel takes aa-rays x this / threshold eye rays (at most 4096), so "
-      "that the antialiasing regions' error falls with the threshold too (0: always aa-rays)"},
+      "that the antialiasing regions' error falls with the threshold too (0: always aa-rays; 0.01 with "
+      "adaptive-rule cross: the converging rule of docs/adaptive-sampling.md)"},
      BIT(M_IAS),
      F(ias_aa_threshold),
      PN_FIELD_F64,

@@ -40,7 +40,7 @@ typedef struct pn_job_list {
 /* The stopping rules of an adaptive render (docs/adaptive-sampling.md); the codes of the choices
  * of the option adaptive-rule, in its declared order. */
 enum {
-    PN_ADAPTIVE_AUTO = 0,  /* reference and ias default: cross; ias paper variant: paper */
+    PN_ADAPTIVE_AUTO = 0,  /* reference: cross; ias: paper */
     PN_ADAPTIVE_PAPER = 1, /* Donikian et al. 2006 sections 5.1/5.9: s^2/L^2 of the kept samples, biased */
     PN_ADAPTIVE_CROSS = 2  /* two independent eye-ray streams, each one's count decided by the
                               other's pilot: unbiased */
@@ -88,8 +88,7 @@ typedef struct pn_render_job {
     /* reference */
     int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
     /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is
-     * resolved by pn_render to CROSS for reference and ias's default variant, PAPER for its paper
-     * variant, never left AUTO) */
+     * resolved by pn_render to CROSS for reference and PAPER for ias, never left AUTO) */
     int adaptive_rule;
     /* VPL integrators */
     uint32_t vpls, vpl_max_depth, max_cut;
