@@ -65,8 +65,9 @@
  *    --adaptive-rule cross (weights and stopping from the block's other pixels,
  *    pixel_estimate_cross) and T0 = 0.01 the relMSE falls as T (slope 1.10 on
  *    tests/test_ias_converge.c's scene, against 0.52 for the default) and the mean luminance is
- *    within its standard error of the converged render. Not the default: on the bench it won on
- *    hall-many and lost on staircase-832 (bench/RESULTS.md, 2026-12-02 night);
+ *    within its standard error of the converged render. Not the default yet: on the bench it won
+ *    on hall-many and bathroom-72, and on staircase-832 the one-seed bench and three seeds
+ *    disagreed (bench/RESULTS.md, 2026-12-02 night);
  *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
  *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md. */
 #include "integrators/integrator.h"
