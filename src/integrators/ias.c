@@ -211,9 +211,9 @@ static bool build_post_order(ias_shared *sh) {
  * antialiasing regions (which eye-ray points a pixel's light is averaged over) is the same at
  * every threshold and no number of shadow rays removes it: on tests/test_ias.c's scene at 64x48,
  * relMSE 8.6e-5, 4.8e-5, 2.7e-5 at thresholds 0.01, 0.0025, 0.000625 (slope 0.41 against T).
- * The default variant (ias-aa-threshold T0) takes aa_rays T0 / T eye rays below T0, so that the
- * regions' share of the error falls as T does (the same thresholds with 32, 128, 512 eye rays:
- * 8.6e-5, 3.8e-5, 9.3e-6, slope 0.80; issue 21's relMSE-proportional-to-T test). */
+ * With ias-aa-threshold T0 > 0 (default variant only; off by default) a pixel takes aa_rays T0 / T
+ * eye rays below T0, so that the regions' share of the error falls as T does (the same thresholds
+ * with 32, 128, 512 eye rays: 8.6e-5, 3.8e-5, 9.3e-6, slope 0.80; tests/test_ias_converge.c). */
 static uint32_t ias_eye_rays(const pn_render_job *job, bool paper) {
     double t0 = paper ? 0.0 : job->ias_aa_threshold, n = (double)job->aa_rays;
     if (t0 > 0.0 && job->threshold > 0.0 && job->threshold < t0) n = ceil(n * t0 / job->threshold);
