@@ -1,2 +1,3 @@
 pn_add_test(test_ias)
 pn_add_test(test_ias_default)
+pn_add_test(test_ias_converge)

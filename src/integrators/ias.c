@@ -59,7 +59,17 @@
  *    max(1.5 N_C, 50): fewer where the cut is small, and N_C no longer grows with the emitters;
  *  - ias-cluster-numbers sobol: the cluster choice takes dimension 5's Sobol number itself (no
  *    stratum jitter; sample_pixel). Always with the BVH cut: its descent continues with the
- *    cluster's number rescaled within the node; with members, dimension 9 picks the point. */
+ *    cluster's number rescaled within the node; with members, dimension 9 picks the point;
+ *  - ias-aa-threshold T0 (issue 21; off by default, 0): below T0 a pixel takes aa_rays T0 / T
+ *    eye rays, so that the antialiasing regions' error falls with T (ias_eye_rays). With
+ *    --adaptive-rule cross (weights and stopping from the block's other pixels,
+ *    pixel_estimate_cross) and T0 = 0.01 the relMSE falls as T (slope 1.10 on
+ *    tests/test_ias_converge.c's scene, against 0.52 for the default) and the mean luminance is
+ *    within its standard error of the converged render. Not the default yet: on the bench it won
+ *    on hall-many and bathroom-72, and on staircase-832 the one-seed bench and three seeds
+ *    disagreed (bench/RESULTS.md, 2026-12-02 night);
+ *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
+ *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md. */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
@@ -117,6 +127,8 @@ typedef struct ias_shared {
     bool member_points;    /* shadow rays from the region's eye-ray points, not its representative */
     bool sobol_direct;     /* the cluster choice takes its Sobol number as it is (no stratum jitter) */
     unsigned pass_rays;    /* pass j takes (j + 1) pass_rays shadow rays; 0: the paper's §5.8 */
+    uint32_t aa_rays;      /* eye rays per pixel (ias_eye_rays) */
+    double prior_share;    /* the least weight c_U's PDF keeps in eq. 6 (build_pdf_table); 0: Fig. 2's */
     int cut_size;
     pn_light_bvh bvh;
     int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
@@ -196,6 +208,19 @@ static bool build_post_order(ias_shared *sh) {
     return true;
 }
 
+/* Eye rays per pixel. The paper's aa_rays (32) are shot once and fixed, so the error of the
+ * antialiasing regions (which eye-ray points a pixel's light is averaged over) is the same at
+ * every threshold and no number of shadow rays removes it: on tests/test_ias.c's scene at 64x48,
+ * relMSE 8.6e-5, 4.8e-5, 2.7e-5 at thresholds 0.01, 0.0025, 0.000625 (slope 0.41 against T).
+ * With ias-aa-threshold T0 > 0 (default variant only; off by default) a pixel takes aa_rays T0 / T
+ * eye rays below T0, so that the regions' share of the error falls as T does (the same thresholds
+ * with 32, 128, 512 eye rays: 8.6e-5, 3.8e-5, 9.3e-6, slope 0.80; tests/test_ias_converge.c). */
+static uint32_t ias_eye_rays(const pn_render_job *job, bool paper) {
+    double t0 = paper ? 0.0 : job->ias_aa_threshold, n = (double)job->aa_rays;
+    if (t0 > 0.0 && job->threshold > 0.0 && job->threshold < t0) n = ceil(n * t0 / job->threshold);
+    return (uint32_t)fmin(n, 4096.0); /* aa-rays' own largest value */
+}
+
 static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     ias_shared *sh = calloc(1, sizeof *sh);
     if (!sh) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
@@ -209,6 +234,8 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->member_points = !paper && job->ias_points == PN_IAS_POINTS_MEMBERS;
     sh->sobol_direct = !paper && job->ias_cluster_numbers == PN_IAS_NUMBERS_SOBOL;
     sh->cut_size = job->ias_cut_size > 0 ? (int)job->ias_cut_size : 1;
+    sh->aa_rays = ias_eye_rays(job, paper);
+    sh->prior_share = sh->bvh_cut ? job->ias_prior_share : 0.0;
     pn_status st;
     int next;
     if (sh->bvh_cut) {
@@ -489,7 +516,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->fb_cache = calloc(IAS_CLASSES * ids, sizeof *s->fb_cache);
     s->fp_cache = calloc(IAS_CLASSES * ids, sizeof *s->fp_cache);
     s->fp_stamp = calloc(IAS_CLASSES * ids, sizeof *s->fp_stamp);
-    s->n_of = malloc(((size_t)job->aa_rays + 1) * sizeof *s->n_of);
+    s->n_of = malloc(((size_t)sh->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
     s->pixel_seen = calloc(sh->bvh_cut ? 1 : (size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
     if (!s->cut_prior || !s->fprior || (sh->bvh_cut && !table_grow(&s->table))) {
@@ -715,6 +742,14 @@ static void build_pdf_table(const ias_shared *sh, ias_scratch *s, const ias_regi
     if (!(fp > 0.0)) {
         cu += cp;
         cp = 0.0;
+    }
+    /* A defensive mixture (ias-prior-share): the prior keeps at least this weight, so that the
+     * variance is at most 1 / share times the prior's own whatever the feedback learned. */
+    if (cu < sh->prior_share && cb + cp > 0.0) {
+        const double k = (1.0 - sh->prior_share) / (cb + cp);
+        cb *= k;
+        cp *= k;
+        cu = sh->prior_share;
     }
     const double ku = fq > 0.0 ? cu / fq : 0.0, kb = cb > 0.0 ? cb / fb : 0.0, kp = cp > 0.0 ? cp / fp : 0.0;
     double acc = 0.0;
@@ -1196,7 +1231,7 @@ static void reset_regions(ias_scratch *s, ias_pixel *px) {
 static bool push_point(ias_scratch *s, ptrdiff_t region, const pn_eye_path *path, const pn_bsdf *b,
                        const pn_render_job *job, float fw) {
     if (s->tmp_used == s->tmp_cap) {
-        int cap = s->tmp_cap ? 2 * s->tmp_cap : (int)job->aa_rays;
+        int cap = s->tmp_cap ? 2 * s->tmp_cap : (int)((const ias_shared *)job->integrator_data)->aa_rays;
         ias_point *t = realloc(s->points_tmp, (size_t)cap * sizeof *t);
         if (!t) return false;
         s->points_tmp = t;
@@ -1316,7 +1351,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         memset(&out[pi], 0, sizeof out[pi]);
         out[pi].depth = INFINITY;
         vec3 emitted = v3(0, 0, 0);
-        for (uint32_t r = 0; r < job->aa_rays; r++) {
+        for (uint32_t r = 0; r < sh->aa_rays; r++) {
             uint32_t i = eye_index++;
             float rx, ry, fw;
             pn_camera_filter_sample(&job->camera, x, y, pn_sobol_sample(i, 0, scramble),
@@ -1393,7 +1428,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             ncl += g->weight * (double)g->cut_count;
         }
         px->clusters = px->region_weight > 0.0 ? ncl / px->region_weight : 0.0;
-        out[pi].eye_rays = job->aa_rays;
+        out[pi].eye_rays = sh->aa_rays;
         out[pi].aa_regions = (uint32_t)px->region_count;
         bool any_cluster = false;
         for (int k = 0; k < px->region_count; k++) any_cluster |= s->regions[px->first_region + k].cut_count > 0;

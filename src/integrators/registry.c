@@ -241,6 +241,21 @@ static const pn_option_decl options[] = {
      F(ias_pass_rays),
      PN_FIELD_U32,
      0},
+    {{"ias-aa-threshold", PN_OPTION_DOUBLE, "0", 0, 1, 0, 0, "", "",
+      "default variant: below this threshold a pixel takes aa-rays x this / threshold eye rays (at most 4096), so "
+      "that the antialiasing regions' error falls with the threshold too (0: always aa-rays; 0.01 with "
+      "adaptive-rule cross: the converging rule of docs/adaptive-sampling.md)"},
+     BIT(M_IAS),
+     F(ias_aa_threshold),
+     PN_FIELD_F64,
+     0},
+    {{"ias-prior-share", PN_OPTION_DOUBLE, "0", 0, 1, 0, 0, "", "",
+      "default variant with ias-cut bvh: the least weight the prior (ias-prior) keeps in every pass's PDF, a "
+      "defensive mixture with the learned PDFs (0: the paper's Fig. 2 weights)"},
+     BIT(M_IAS),
+     F(ias_prior_share),
+     PN_FIELD_F64,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},

@@ -83,6 +83,8 @@ typedef struct pn_render_job {
     int ias_cluster_numbers; /* PN_IAS_NUMBERS_* */
     uint32_t ias_cut_size;   /* nodes of a light-BVH cut */
     uint32_t ias_pass_rays;  /* pass j takes (j + 1) times this; 0: the paper's 1.5 N_C >= 50 */
+    double ias_aa_threshold; /* below this threshold the eye rays grow as 1 / threshold; 0: off */
+    double ias_prior_share;  /* least weight of the prior in eq. 6's blend; 0: Fig. 2's weights */
     /* reference */
     int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
     /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is
