@@ -18,6 +18,7 @@
 #include "core/threadpool.h"
 #include "render/progress.h"
 #include "shade/bsdf.h"
+#include "spectral/transport.h"
 
 #include <stdatomic.h>
 #include <stdint.h>
@@ -381,6 +382,7 @@ typedef struct shade_point {
     pn_hit hit;
     vec3 wo, throughput;
     pn_bsdf b;
+    pn_swl wl;     /* spectral mode: this eye ray's wavelengths (b.wl points here); else off */
     vec3 value;    /* this eye ray's radiance so far */
     vec3 gradient; /* this eye ray's irradiance-luminance gradient from contour lights */
     uint32_t contour_rays;
@@ -851,7 +853,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 pn_dvec3 ns = pn_dv3_from(sp->b.ns);
                 double f = pn_dv3_dot(s->g[k].g, ns);
                 if (!(f > 0.0)) f = 0.0;
-                vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, cl->emit));
+                vec3 le = pn_light_radiance_spectral(job->lights, &job->lights->lights[cl->index], cl->emit, sp->b.wl);
+                vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, le));
                 sp->value = v3_add(sp->value, v3_scale(c, (float)f));
                 sp->contour_rays += s->ev[k].rays;
                 if (cd->trace) {
@@ -900,8 +903,9 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             float fw, u_specular;
             vec3 ro, rd;
             pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
+            const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &sp->wl);
             pn_eye_path path;
-            pn_trace_eye_path(job, ro, rd, u_specular, &path);
+            pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
             if (i == 0) {
                 out[q].depth = path.first_depth;
                 out[q].normal = path.first_normal;
@@ -915,7 +919,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
                 sp->hit = path.hit;
                 sp->wo = path.wo;
                 sp->throughput = path.throughput;
-                pn_bsdf_at(job->scene, &path.hit, path.wo, &sp->b);
+                pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &sp->b);
                 sp->diffuse = sp->b.kind == PN_MATERIAL_LAMBERT_BLINN && v3_is_zero(sp->b.ks);
                 sp->object = object_key(&path.hit);
                 /* Everything the contour integration does not treat: the reference's code. */
@@ -931,7 +935,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         for (int q = 0; q < batch->count; q++) {
             shade_point *sp = &s->sp[q];
             pixel_acc *a = &s->acc[q];
-            vec3 value = sp->value;
+            vec3 value = pn_swl_rgb(&sp->wl, sp->value); /* spectral mode: to sRGB where it is added */
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             a->shadow_rays += sp->contour_rays;
             int px = batch->pixels[q][0];

@@ -85,7 +85,9 @@ static cut_entry heap_pop(lc_scratch *s, size_t *n) {
     return top;
 }
 
-/* M · G · V of VPL `rep` at the receiver per unit intensity (one shadow ray when non-zero). */
+/* M · G · V of VPL `rep` at the receiver per unit intensity (one shadow ray when non-zero). In
+ * spectral mode r is the receiver with its wavelengths switched off (unit_receiver), so the unit
+ * is not upsampled; cluster_value multiplies it by the cluster's intensity at the wavelengths. */
 static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_receiver *r, uint32_t *shadow_rays) {
     vec3 wi;
     float dist;
@@ -96,10 +98,25 @@ static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_r
     return t == 1.0f ? v : v3_scale(v, t);
 }
 
+/* The receiver for unit_value: r without its wavelengths (kd_w, ks_w stay spectral). */
+static pn_vpl_receiver unit_receiver(const pn_vpl_receiver *r) {
+    pn_vpl_receiver u = *r;
+    u.wl.on = false;
+    return u;
+}
+
+/* A cluster's term of the cut: its unit value times its summed intensity, in spectral mode at the
+ * receiver's wavelengths as the representative's spectrum (the RGB sum as one illuminant or black
+ * body: exact when the cluster's VPLs share one colour, docs/spectral.md). */
+static vec3 cluster_value(const pn_lightcut_context *cx, const pn_vpl_receiver *r, const pn_light_node *nd, vec3 unit) {
+    return v3_mul(unit, pn_vpl_intensity_at(cx->lights, &cx->set->vpls[nd->rep], nd->intensity, &r->wl));
+}
+
 /* The radiance at one receiver by a lightcut; adds bound evaluations and the cut size, and the
  * sum of the final cut's error bounds to *bound_sum (may be NULL). */
 static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const pn_vpl_receiver *r, vec3 *out,
                            uint32_t *shadow_rays, uint64_t *bounds, uint64_t *cut_size, float *bound_sum) {
+    const pn_vpl_receiver ru = unit_receiver(r);
     const pn_light_tree *t = cx->tree;
     const pn_vpl_set *set = cx->set;
     pn_receiver_bounds rb = {r->p, r->p,  r->ns, 0.0f,        pn_reflect(r->wo, r->ns),
@@ -112,8 +129,8 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
         int32_t root = t->roots[k];
         if (root < 0) continue;
         const pn_light_node *nd = &t->nodes[root];
-        cut_entry e = {0.0f, root, k, unit_value(cx, nd->rep, r, shadow_rays)};
-        total = v3_add(total, v3_mul(e.unit, nd->intensity));
+        cut_entry e = {0.0f, root, k, unit_value(cx, nd->rep, &ru, shadow_rays)};
+        total = v3_add(total, cluster_value(cx, r, nd, e.unit));
         if (nd->left >= 0) {
             pn_light_bounds lb = pn_light_node_bounds(nd, k);
             e.bound = pn_bound_error(&rb, &lb, nd->intensity, set->min_dist2);
@@ -127,17 +144,17 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
     }
     const float delta = cx->error_bound;
     while (n > 0) {
-        if (s->heap[0].bound <= delta * v3_luminance(total)) break;
+        if (s->heap[0].bound <= delta * pn_swl_luminance(&r->wl, total)) break;
         if (cx->max_cut > 0 && n + finished >= cx->max_cut) break;
         cut_entry e = heap_pop(s, &n);
         const pn_light_node *nd = &t->nodes[e.node];
-        total = v3_sub(total, v3_mul(e.unit, nd->intensity));
+        total = v3_sub(total, cluster_value(cx, r, nd, e.unit));
         int32_t kids[2] = {nd->left, nd->right};
         for (int c = 0; c < 2; c++) {
             const pn_light_node *ch = &t->nodes[kids[c]];
             cut_entry ce = {0.0f, kids[c], e.kind, v3(0, 0, 0)};
-            ce.unit = ch->rep == nd->rep ? e.unit : unit_value(cx, ch->rep, r, shadow_rays);
-            total = v3_add(total, v3_mul(ce.unit, ch->intensity));
+            ce.unit = ch->rep == nd->rep ? e.unit : unit_value(cx, ch->rep, &ru, shadow_rays);
+            total = v3_add(total, cluster_value(cx, r, ch, ce.unit));
             if (ch->left >= 0) {
                 pn_light_bounds lb = pn_light_node_bounds(ch, e.kind);
                 ce.bound = pn_bound_error(&rb, &lb, ch->intensity, set->min_dist2);
@@ -202,6 +219,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
                     if (isfinite(lx)) lux_sum += (double)lx * (double)sp.weight;
                 }
             }
+            value = pn_swl_rgb(&sp.r.wl, value); /* spectral mode: the sample's wavelengths to sRGB */
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             sum = v3_madd(sum, value, sp.weight);
             wsum += (double)sp.weight;
