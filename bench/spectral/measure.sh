@@ -6,18 +6,21 @@
 #  2. cost: the CPU time (user + sys) of each integrator and progressive driver in both modes on
 #     one scene, methods and modes alternated, median of 3, minus the CPU time of the same command
 #     on a one-pixel window (scene loading and preprocessing, the same in both modes).
-# The scenes' own film resolution (that of the references). usage:
-#   bench/spectral/measure.sh [BUILD_DIR] [OUT_DIR]
+# The scenes' own film resolution (that of the references); veach-ajar-matte's centre is dark in
+# direct light, so its crop is the lit corner. usage:
+#   bench/spectral/measure.sh [BUILD_DIR] [OUT_DIR] [accuracy|cost|all]
 set -eu
 here=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$here/build}
 out=${2:-/tmp/penumbra-spectral}
+what=${3:-all}
 shared=$here/../shared
 mkdir -p "$out"
 pn=$build/penumbra
 CROP=0.35,0.65,0.35,0.65
 SPP=16
 
+if [ "$what" != cost ]; then
 echo "## accuracy: reference integrator, crop $CROP, $SPP spp, image / pbrt-v4 (luminance R G B)"
 echo "| scene | RGB mode | spectral mode |"
 echo "|---|---|---|"
@@ -27,17 +30,21 @@ for s in bathroom-72/bathroom-72-matte cornell-box/cornell-box-matte cornell-con
          veach-ajar/veach-ajar-matte; do
     name=${s#*/}
     ref=$shared/reference/$name.exr
+    crop=$CROP
+    [ "$name" = veach-ajar-matte ] && crop=0.8,1,0.6,1
     line="| $name |"
     for mode in rgb spectral; do
         flag=""; [ $mode = spectral ] && flag=--spectral
         # shellcheck disable=SC2086
-        "$pn" render "$shared/scenes/$s.pbrt" -o "$out/$name.$mode.exr" --crop $CROP \
+        "$pn" render "$shared/scenes/$s.pbrt" -o "$out/$name.$mode.exr" --crop $crop \
             --spp $SPP --threads 2 --quiet $flag 2>/dev/null
-        x0=${CROP%%,*}; r=${CROP#*,}; x1=${r%%,*}; r=${r#*,}; y0=${r%%,*}; y1=${r#*,}
+        x0=${crop%%,*}; r=${crop#*,}; x1=${r%%,*}; r=${r#*,}; y0=${r%%,*}; y1=${r#*,}
         line="$line $("$build/pn_crop_means" "$ref" "$out/$name.$mode.exr" "$x0" "$x1" "$y0" "$y1") |"
     done
     echo "$line"
 done
+fi
+[ "$what" = accuracy ] && exit 0
 
 # CPU seconds (user + sys) of one command.
 cpu() {
@@ -53,7 +60,7 @@ echo
 echo "## cost: staircase-832-matte (288x512), crop $TCROP, CPU seconds of the render (median of 3, minus a one-pixel window)"
 echo "| method | RGB (s) | spectral (s) | spectral / RGB |"
 echo "|---|---|---|---|"
-for m in "reference" "ias" "contour" "contour-mc" "vpl --vpls 4000" "lightcuts --vpls 20000" \
+for m in "reference" "ias" "contour --spp 16" "contour-mc --spp 16" "vpl --vpls 4000" "lightcuts --vpls 20000" \
          "illumcut --vpls 20000" "reference --driver dcm" "reference --driver painter" "reference --driver uniform"; do
     integ=${m%% *}; rest=""; [ "$integ" != "$m" ] && rest=${m#* }
     base="$pn render $SCENE -o $out/t.exr --threads 2 --quiet --integrator $integ $rest"

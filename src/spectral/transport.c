@@ -7,6 +7,7 @@
 
 #include <math.h>
 #include <pthread.h>
+#include <stdint.h>
 
 /* 1 / luminance of the tabulated D65 (the factor that makes its Y 1), and 1 / (integral of
  * y-bar): set once. The luminance is the integral of the product of the two interpolated tables
@@ -65,14 +66,54 @@ vec3 pn_swl_albedo_on(const pn_swl *w, vec3 rgb) {
     return spectrum_at(w, c);
 }
 
+/* The spectrum of an unbounded colour, rgb / (2 max), is looked up with its components rounded to
+ * multiples of 2^-16 (a change of at most 8e-6 in the table's input, far below its 1e-3
+ * interpolation error), so that the VPLs and light samples of one light, whose RGB differ only by
+ * a scalar (and so in the last bits of rgb / (2 max)), share one key. A per-thread table
+ * (direct-mapped by the key) remembers the sigmoid coefficients of the last keys: the VPL
+ * integrators upsample thousands of intensities of a few colours per eye sample (illumcut in an
+ * order where the wavelengths change from one to the next), and a hit costs three sigmoids instead
+ * of a table lookup. The coefficients are a function of the key only, whether they come from the
+ * table or not, so images do not depend on the thread count. */
+#define PN_UNBOUNDED_QUANTUM 65536.0f
+#define PN_UNBOUNDED_CACHE 256
+
+typedef struct unbounded_entry {
+    uint32_t key[3];
+    float c[3];
+    bool used;
+} unbounded_entry;
+
+static _Thread_local unbounded_entry g_unbounded_cache[PN_UNBOUNDED_CACHE];
+
+static vec3 unbounded_unit(const pn_swl *w, const uint32_t key[3]) {
+    uint32_t h = (key[0] * 73856093u) ^ (key[1] * 19349663u) ^ (key[2] * 83492791u);
+    unbounded_entry *e = &g_unbounded_cache[(h ^ (h >> 9)) % PN_UNBOUNDED_CACHE];
+    if (!(e->used && e->key[0] == key[0] && e->key[1] == key[1] && e->key[2] == key[2])) {
+        const float rgb[3] = {(float)key[0] / PN_UNBOUNDED_QUANTUM, (float)key[1] / PN_UNBOUNDED_QUANTUM,
+                              (float)key[2] / PN_UNBOUNDED_QUANTUM};
+        pn_rgb2spec_lookup(pn_rgb2spec_srgb(), rgb, e->c);
+        for (int i = 0; i < 3; i++) e->key[i] = key[i];
+        e->used = true;
+    }
+    return v3(sigmoid_at(e->c, w->lambda[0]), sigmoid_at(e->c, w->lambda[1]), sigmoid_at(e->c, w->lambda[2]));
+}
+
+/* Comparisons rather than fmaxf and lrintf, which this build calls in libm (no NaN reaches the
+ * rounding: the components are >= 0 and finite there). */
+static inline float clamp_nonneg(float x) {
+    return x > 0.0f ? x : 0.0f;
+}
+
 vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb) {
-    float r = fmaxf(rgb.x, 0.0f), g = fmaxf(rgb.y, 0.0f), b = fmaxf(rgb.z, 0.0f);
-    float m = fmaxf(r, fmaxf(g, b));
+    float r = clamp_nonneg(rgb.x), g = clamp_nonneg(rgb.y), b = clamp_nonneg(rgb.z);
+    float m = r > g ? r : g;
+    m = m > b ? m : b;
     if (!(m > 0.0f) || !isfinite(m)) return v3(0, 0, 0);
     if (r == g && g == b) return v3(r, r, r);
-    float scale = 2.0f * m, inv = 1.0f / scale;
-    const float c[3] = {r * inv, g * inv, b * inv};
-    return v3_scale(spectrum_at(w, c), scale);
+    float scale = 2.0f * m, inv = PN_UNBOUNDED_QUANTUM / scale;
+    const uint32_t key[3] = {(uint32_t)(r * inv + 0.5f), (uint32_t)(g * inv + 0.5f), (uint32_t)(b * inv + 0.5f)};
+    return v3_scale(unbounded_unit(w, key), scale);
 }
 
 vec3 pn_swl_illuminant_on(const pn_swl *w, vec3 rgb) {
@@ -92,14 +133,6 @@ vec3 pn_swl_xyz_on(const pn_swl *w, vec3 v) {
     }
     double k = g_inv_y_integral / PN_SWL_COUNT;
     return v3((float)(xyz[0] * k), (float)(xyz[1] * k), (float)(xyz[2] * k));
-}
-
-vec3 pn_swl_xyz(const pn_swl *w, vec3 v) {
-    if (pn_swl_active(w)) return pn_swl_xyz_on(w, v);
-    const double rgb[3] = {v.x, v.y, v.z};
-    double xyz[3];
-    pn_linear_srgb_to_xyz(rgb, xyz);
-    return v3((float)xyz[0], (float)xyz[1], (float)xyz[2]);
 }
 
 vec3 pn_swl_rgb_on(const pn_swl *w, vec3 v) {

@@ -48,6 +48,8 @@ static inline bool pn_swl_active(const pn_swl *w) {
     return w && w->on;
 }
 
+/* The conversions for active wavelengths (w->on); the wrappers below call them in spectral mode
+ * only. pn_swl_xyz_on is the film's XYZ of a value at the wavelengths (see the header). */
 vec3 pn_swl_albedo_on(const pn_swl *w, vec3 rgb);
 vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb);
 vec3 pn_swl_illuminant_on(const pn_swl *w, vec3 rgb);
@@ -72,8 +74,6 @@ static inline vec3 pn_swl_illuminant(const pn_swl *w, vec3 rgb) {
 static inline vec3 pn_swl_rgb(const pn_swl *w, vec3 v) {
     return pn_swl_active(w) ? pn_swl_rgb_on(w, v) : v;
 }
-/* A radiance at the wavelengths as CIE XYZ (in RGB mode, the XYZ of linear sRGB v). */
-vec3 pn_swl_xyz(const pn_swl *w, vec3 v);
 /* The luminance (CIE Y) of a value at the wavelengths (v3_luminance in RGB mode). */
 static inline float pn_swl_luminance(const pn_swl *w, vec3 v) {
     return pn_swl_active(w) ? pn_swl_xyz_on(w, v).y : v3_luminance(v);
