@@ -99,9 +99,8 @@ typedef struct pn_vpl_receiver {
     vec3 kd, ks; /* linear sRGB: the bounds use these */
     float exponent;
     /* What eq. 1 multiplies: kd and ks at the eye sample's wavelengths wl in spectral mode
-     * (spectral/transport.h), else kd and ks themselves. VPL intensities are upsampled at wl as
-     * illuminants where they are used (pn_vpl_contribution; the cut integrators at their call
-     * sites); wl.on is false in RGB mode. */
+     * (spectral/transport.h), else kd and ks themselves. VPL intensities are upsampled at wl where
+     * they are used (pn_vpl_intensity_at); wl.on is false in RGB mode. */
     vec3 kd_w, ks_w;
     pn_swl wl;
 } pn_vpl_receiver;
@@ -120,9 +119,8 @@ vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_
 
 /* Like pn_vpl_contribution but with the intensity replaced by `intensity` (eq. 3: the
  * representative's M and G with its cluster's summed intensity). Intensities are linear sRGB;
- * in spectral mode (r->wl.on) they are upsampled at r's wavelengths as illuminants, here and in
- * pn_vpl_contribution_inline (a cluster's summed RGB as one illuminant: exact when its VPLs share
- * one chromaticity, docs/spectral.md). */
+ * in spectral mode (r->wl.on) they are upsampled at r's wavelengths, here and in
+ * pn_vpl_contribution_inline, by pn_vpl_intensity_at. */
 vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 intensity, const pn_vpl_receiver *r,
                               float min_dist2, vec3 *wi, float *dist);
 
