@@ -1,2 +1,3 @@
 # Spectral mode's data, RGB upsampling and wavelength sampling (issue 20).
 pn_add_test(test_spectral)
+pn_add_test(test_spectral_transport)

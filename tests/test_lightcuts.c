@@ -142,6 +142,7 @@ static void test_bounds_never_below_truth(void) {
             bool lambert = !glossy || (t % 6 == 3 && i % 3 == 1);
             r->ks = lambert ? v3(0, 0, 0) : v3(pn_rng_float(&rng), pn_rng_float(&rng), pn_rng_float(&rng));
             r->exponent = lambert ? 1.0f : 1.0f + 200.0f * pn_rng_float(&rng);
+            *r = pn_vpl_receiver_rgb(r->p, r->ng, r->ns, r->wo, r->kd, r->ks, r->exponent);
             vec3 refl = pn_reflect(r->wo, r->ns);
             if (i == 0) {
                 rb = (pn_receiver_bounds){r->p,  r->p,        r->ns,       0.0f, refl, 0.0f, r->kd,
@@ -370,7 +371,7 @@ static void test_lightcut_guarantee(void) {
         pn_bsdf b;
         pn_bsdf_at(scene, &hit, v3_neg(d), &b);
         if (b.kind != PN_MATERIAL_LAMBERT_BLINN) continue;
-        pn_vpl_receiver r = {hit.p, b.ng, b.ns, v3_neg(d), b.kd, b.ks, b.exponent};
+        pn_vpl_receiver r = pn_vpl_receiver_rgb(hit.p, b.ng, b.ns, v3_neg(d), b.kd, b.ks, b.exponent);
         vec3 exact = v3(0, 0, 0);
         for (uint32_t k = 0; k < set.count; k++) {
             vec3 wi;

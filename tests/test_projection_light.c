@@ -511,7 +511,7 @@ static void check_light_vpl_bound(pn_scene scene, const char *what) {
         vec3 to = v3_normalize(v3_sub(v->p, r.p));
         r.ng = r.ns = v3_normalize(v3_add(to, v3(0.3f, 0.0f, 0.0f)));
         r.wo = v3(0, 0, 1);
-        r.kd = v3(0.7f, 0.5f, 0.3f);
+        r.kd = r.kd_w = v3(0.7f, 0.5f, 0.3f);
         vec3 wi;
         float dist;
         vec3 c = pn_vpl_contribution(scene->lights, v, &r, set.min_dist2, &wi, &dist);

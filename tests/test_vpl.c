@@ -88,6 +88,7 @@ static void test_contribution_is_eq1(void) {
         r.kd = v3(0.3f, 0.6f, 0.9f);
         r.ks = (i % 2) ? v3(0.2f, 0.1f, 0.4f) : v3(0, 0, 0);
         r.exponent = 1.0f + 100.0f * pn_rng_float(&rng);
+        r = pn_vpl_receiver_rgb(r.p, r.ng, r.ns, r.wo, r.kd, r.ks, r.exponent);
         float dmin2 = (i % 4 == 0) ? 0.0f : 0.3f;
         vec3 wi;
         float dist;

@@ -230,7 +230,7 @@ static void test_lightcuts_within_bound_of_vpl(void) {
         pn_bsdf b;
         pn_bsdf_at(scene, &hit, v3_neg(d), &b);
         if (b.kind != PN_MATERIAL_LAMBERT_BLINN) continue;
-        pn_vpl_receiver rc = {hit.p, b.ng, b.ns, v3_neg(d), b.kd, b.ks, b.exponent};
+        pn_vpl_receiver rc = pn_vpl_receiver_rgb(hit.p, b.ng, b.ns, v3_neg(d), b.kd, b.ks, b.exponent);
         vec3 exact = v3(0, 0, 0);
         for (uint32_t k = 0; k < set.count; k++) {
             vec3 wi;

@@ -19,6 +19,7 @@
 #include "core/threadpool.h"
 #include "render/progress.h"
 #include "shade/bsdf.h"
+#include "spectral/transport.h"
 
 #include <stdatomic.h>
 #include <stdint.h>
@@ -382,6 +383,7 @@ typedef struct shade_point {
     pn_hit hit;
     vec3 wo, throughput;
     pn_bsdf b;
+    pn_swl wl;     /* spectral mode: this eye ray's wavelengths (b.wl points here); else off */
     vec3 value;    /* this eye ray's radiance so far */
     vec3 gradient; /* this eye ray's irradiance-luminance gradient from contour lights */
     double lux;    /* PN_AOV_ILLUMINANCE: this eye ray's direct illuminance (lx, white receiver) */
@@ -873,7 +875,8 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 pn_dvec3 ns = pn_dv3_from(sp->b.ns);
                 double f = pn_dv3_dot(s->g[k].g, ns);
                 if (!(f > 0.0)) f = 0.0;
-                vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, cl->emit));
+                vec3 le = pn_light_radiance_spectral(job->lights, &job->lights->lights[cl->index], cl->emit, sp->b.wl);
+                vec3 c = v3_mul(sp->throughput, v3_mul(sp->b.kd, le));
                 sp->value = v3_add(sp->value, v3_scale(c, (float)f));
                 /* Illuminance on a white receiver: E = pi L F (contour.c, eq. 4-5), in lux for L in
                  * cd/m^2 (docs/units.md). */
@@ -926,8 +929,9 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             float fw, u_specular;
             vec3 ro, rd;
             pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
+            const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &sp->wl);
             pn_eye_path path;
-            pn_trace_eye_path(job, ro, rd, u_specular, &path);
+            pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
             if (i == 0) {
                 out[q].depth = path.first_depth;
                 out[q].normal = path.first_normal;
@@ -941,7 +945,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
                 sp->hit = path.hit;
                 sp->wo = path.wo;
                 sp->throughput = path.throughput;
-                pn_bsdf_at(job->scene, &path.hit, path.wo, &sp->b);
+                pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &sp->b);
                 sp->diffuse = sp->b.kind == PN_MATERIAL_LAMBERT_BLINN && v3_is_zero(sp->b.ks);
                 sp->object = object_key(&path.hit);
                 /* Everything the contour integration does not treat: the reference's code. */
@@ -961,7 +965,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         for (int q = 0; q < batch->count; q++) {
             shade_point *sp = &s->sp[q];
             pixel_acc *a = &s->acc[q];
-            vec3 value = sp->value;
+            vec3 value = pn_swl_rgb(&sp->wl, sp->value); /* spectral mode: to sRGB where it is added */
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             a->shadow_rays += sp->contour_rays;
             int px = batch->pixels[q][0];

@@ -1155,7 +1155,11 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                                 atomic_store_explicit(&sh->seen[slot], 1, memory_order_relaxed);
                             }
                         }
-                        v = v3_scale(v3_mul(v3_mul(f, radiance), throughput), cos_i / pdf);
+                        /* Spectral mode: this sample's own wavelengths, converted back to sRGB here. */
+                        vec3 fl = job->spectral ? pn_spectral_sample_value(job, bsdf, wo, wi, radiance, throughput,
+                                                                           light, q, scramble)
+                                                : v3_mul(v3_mul(f, radiance), throughput);
+                        v = v3_scale(fl, cos_i / pdf);
                         if (transmittance != 1.0f) v = v3_scale(v, transmittance);
                         if (pt) v = v3_scale(v, pt->share);
                         if (lux)

@@ -454,7 +454,9 @@ static bool phase1_descend(ic_render *ir, pair_stack *st, int32_t group) {
         bool narrow = light_aperture(Q, pr.kind) < IC_PHASE1_APERTURE;
         bool close_enough = fmaxf(rR, rQ) < IC_PHASE1_RATIO * dRQ && narrow;
         if (close_enough || (r_leaf && q_leaf)) {
-            R->acc = v3_add(R->acc, shade_point(ir, &t->points[R->rep], Q, 0));
+            /* Spectral mode: the representative's wavelengths to sRGB (Phase I is shared by points
+             * of other wavelengths). */
+            R->acc = v3_add(R->acc, pn_swl_rgb(&t->points[R->rep].r.wl, shade_point(ir, &t->points[R->rep], Q, 0)));
             continue;
         }
         bool refine_q = pn_illumcut_phase1_refines_light(rR, rQ, narrow, r_leaf, q_leaf);
@@ -954,7 +956,7 @@ static void eye_chunk(void *user, size_t chunk, int worker) {
                 pn_eye_point_apply(&pt, s, &sp, o);
             }
             ic_sample *smp = &ir->samples[pix * ir->spp + s];
-            smp->emitted = sp.emitted;
+            smp->emitted = pn_swl_rgb(&sp.r.wl, sp.emitted); /* spectral mode: to sRGB here */
             smp->throughput = sp.throughput;
             smp->weight = sp.weight;
             smp->point = sp.has_point ? 0 : -1;
@@ -1085,7 +1087,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
             vec3 value = smp->emitted, a = smp->emitted;
             if (smp->point >= 0) {
                 const ic_point *p = &t->points[smp->point];
-                value = v3_add(value, v3_mul(smp->throughput, p->L));
+                value = v3_add(value, pn_swl_rgb(&p->r.wl, v3_mul(smp->throughput, p->L)));
                 a = v3_add(a, v3_mul(smp->throughput, p->approx));
                 o->shadow_rays += p->shadow_rays;
                 if (isfinite(p->lux)) lux += p->lux * (double)smp->weight;

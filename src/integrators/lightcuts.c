@@ -22,7 +22,9 @@ typedef struct cut_entry {
     float bound;
     int32_t node;
     int32_t kind;
-    vec3 unit; /* M · G · V of the representative per unit intensity */
+    vec3 unit;     /* M · G · V of the representative per unit intensity */
+    vec3 unit_rgb; /* the same with the RGB reflectances (spectral mode; else unit) */
+    vec3 value;    /* the cluster's term of the total: unit times its intensity (cluster_value) */
 } cut_entry;
 
 typedef struct lc_scratch {
@@ -85,35 +87,73 @@ static cut_entry heap_pop(lc_scratch *s, size_t *n) {
     return top;
 }
 
-/* M · G · V of VPL `rep` at the receiver per unit intensity (one shadow ray when non-zero). */
-static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_receiver *r, uint32_t *shadow_rays) {
+/* M · G · V of VPL `rep` at the receiver per unit intensity (one shadow ray when non-zero). In
+ * spectral mode r is the receiver with its wavelengths switched off (unit_receiver), so the unit
+ * is not upsampled (cluster_value multiplies it by the cluster's intensity at the wavelengths),
+ * and r_rgb the receiver with its RGB reflectances: *unit_rgb, the unit RGB mode computes, which
+ * the cut's stopping test uses, so the cut is RGB mode's. Without r_rgb (RGB mode) *unit_rgb is
+ * the unit itself. */
+static vec3 unit_value(const pn_lightcut_context *c, int32_t rep, const pn_vpl_receiver *r,
+                       const pn_vpl_receiver *r_rgb, vec3 *unit_rgb, uint32_t *shadow_rays) {
     vec3 wi;
     float dist;
-    vec3 v = pn_vpl_contribution_inline(c->lights, &c->set->vpls[rep], v3(1, 1, 1), r, c->set->min_dist2, &wi, &dist);
-    if (v3_is_zero(v)) return v;
+    const pn_vpl *vpl = &c->set->vpls[rep];
+    vec3 v = pn_vpl_contribution_inline(c->lights, vpl, v3(1, 1, 1), r, c->set->min_dist2, &wi, &dist);
+    vec3 vr = v;
+    if (r_rgb) {
+        vec3 wi_rgb;
+        float dist_rgb;
+        vr = pn_vpl_contribution_inline(c->lights, vpl, v3(1, 1, 1), r_rgb, c->set->min_dist2, &wi_rgb, &dist_rgb);
+    }
+    *unit_rgb = vr;
+    if (v3_is_zero(v) && v3_is_zero(vr)) return v;
     (*shadow_rays)++;
     float t = pn_vpl_transmittance(c->accel, r, wi, dist, c->thin_glass);
+    if (t != 1.0f) *unit_rgb = v3_scale(vr, t);
     return t == 1.0f ? v : v3_scale(v, t);
+}
+
+/* The receivers for unit_value: r without its wavelengths (kd_w, ks_w stay spectral), and with its
+ * RGB reflectances. */
+static pn_vpl_receiver unit_receiver(const pn_vpl_receiver *r) {
+    pn_vpl_receiver u = *r;
+    u.wl.on = false;
+    return u;
+}
+static pn_vpl_receiver rgb_receiver(const pn_vpl_receiver *r) {
+    return pn_vpl_receiver_rgb(r->p, r->ng, r->ns, r->wo, r->kd, r->ks, r->exponent);
+}
+
+/* A cluster's term of the cut: its unit value times its summed intensity, in spectral mode at the
+ * receiver's wavelengths as the representative's spectrum (the RGB sum as one illuminant or black
+ * body: exact when the cluster's VPLs share one colour, docs/spectral.md). */
+static vec3 cluster_value(const pn_lightcut_context *cx, const pn_vpl_receiver *r, const pn_light_node *nd, vec3 unit) {
+    return v3_mul(unit, pn_vpl_intensity_at(cx->lights, &cx->set->vpls[nd->rep], nd->intensity, &r->wl));
 }
 
 /* The radiance at one receiver by a lightcut; adds bound evaluations and the cut size, and the
  * sum of the final cut's error bounds to *bound_sum (may be NULL). */
 static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const pn_vpl_receiver *r, vec3 *out,
                            uint32_t *shadow_rays, uint64_t *bounds, uint64_t *cut_size, float *bound_sum) {
+    const pn_vpl_receiver ru = unit_receiver(r), rr = rgb_receiver(r);
+    const pn_vpl_receiver *r_rgb = r->wl.on ? &rr : NULL;
     const pn_light_tree *t = cx->tree;
     const pn_vpl_set *set = cx->set;
     pn_receiver_bounds rb = {r->p, r->p,  r->ns, 0.0f,        pn_reflect(r->wo, r->ns),
                              0.0f, r->kd, r->ks, r->exponent, r->exponent,
                              1.0f, 0.0f,  1.0f,  0.0f};
     size_t n = 0;
-    vec3 total = v3(0, 0, 0);
+    vec3 total = v3(0, 0, 0), total_rgb = v3(0, 0, 0); /* total_rgb: RGB mode's, for the stopping test */
     uint64_t finished = 0; /* clusters of the cut outside the heap (exact leaves, zero bounds) */
     for (int k = 0; k < PN_VPL_KIND_COUNT; k++) {
         int32_t root = t->roots[k];
         if (root < 0) continue;
         const pn_light_node *nd = &t->nodes[root];
-        cut_entry e = {0.0f, root, k, unit_value(cx, nd->rep, r, shadow_rays)};
-        total = v3_add(total, v3_mul(e.unit, nd->intensity));
+        cut_entry e = {0.0f, root, k, v3(0, 0, 0), v3(0, 0, 0), v3(0, 0, 0)};
+        e.unit = unit_value(cx, nd->rep, &ru, r_rgb, &e.unit_rgb, shadow_rays);
+        e.value = cluster_value(cx, r, nd, e.unit);
+        total = v3_add(total, e.value);
+        total_rgb = v3_add(total_rgb, v3_mul(e.unit_rgb, nd->intensity));
         if (nd->left >= 0) {
             pn_light_bounds lb = pn_light_node_bounds(nd, k);
             e.bound = pn_bound_error(&rb, &lb, nd->intensity, set->min_dist2);
@@ -127,17 +167,25 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
     }
     const float delta = cx->error_bound;
     while (n > 0) {
-        if (s->heap[0].bound <= delta * v3_luminance(total)) break;
+        if (s->heap[0].bound <= delta * v3_luminance(total_rgb)) break;
         if (cx->max_cut > 0 && n + finished >= cx->max_cut) break;
         cut_entry e = heap_pop(s, &n);
         const pn_light_node *nd = &t->nodes[e.node];
-        total = v3_sub(total, v3_mul(e.unit, nd->intensity));
+        total = v3_sub(total, e.value);
+        total_rgb = v3_sub(total_rgb, v3_mul(e.unit_rgb, nd->intensity));
         int32_t kids[2] = {nd->left, nd->right};
         for (int c = 0; c < 2; c++) {
             const pn_light_node *ch = &t->nodes[kids[c]];
-            cut_entry ce = {0.0f, kids[c], e.kind, v3(0, 0, 0)};
-            ce.unit = ch->rep == nd->rep ? e.unit : unit_value(cx, ch->rep, r, shadow_rays);
-            total = v3_add(total, v3_mul(ce.unit, ch->intensity));
+            cut_entry ce = {0.0f, kids[c], e.kind, v3(0, 0, 0), v3(0, 0, 0), v3(0, 0, 0)};
+            if (ch->rep == nd->rep) {
+                ce.unit = e.unit;
+                ce.unit_rgb = e.unit_rgb;
+            } else {
+                ce.unit = unit_value(cx, ch->rep, &ru, r_rgb, &ce.unit_rgb, shadow_rays);
+            }
+            ce.value = cluster_value(cx, r, ch, ce.unit);
+            total = v3_add(total, ce.value);
+            total_rgb = v3_add(total_rgb, v3_mul(ce.unit_rgb, ch->intensity));
             if (ch->left >= 0) {
                 pn_light_bounds lb = pn_light_node_bounds(ch, e.kind);
                 ce.bound = pn_bound_error(&rb, &lb, ch->intensity, set->min_dist2);
@@ -202,6 +250,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
                     if (isfinite(lx)) lux_sum += (double)lx * (double)sp.weight;
                 }
             }
+            value = pn_swl_rgb(&sp.r.wl, value); /* spectral mode: the sample's wavelengths to sRGB */
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             sum = v3_madd(sum, value, sp.weight);
             wsum += (double)sp.weight;

@@ -68,6 +68,7 @@
 #include "core/rng.h"
 #include "lights/light_bvh.h"
 #include "shade/bsdf.h"
+#include "spectral/transport.h"
 
 #include <math.h>
 #include <stdatomic.h>
@@ -143,8 +144,10 @@ static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_s
     pn_pixel_eye_sample(job, c->px, c->py, scramble, i, &ro, &rd, &fw, &u_specular);
     const bool timed = i % PN_TIMING_STRIDE == 0u;
     double t_start = timed ? pn_clock_seconds() : 0.0;
+    pn_swl wl_storage;
+    const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &wl_storage);
     pn_eye_path path;
-    pn_trace_eye_path(job, ro, rd, u_specular, &path);
+    pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
     if (timed) c->embree_seconds += pn_clock_seconds() - t_start;
     if (!c->first_done) {
         c->first_done = true;
@@ -156,7 +159,7 @@ static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_s
     vec3 value = path.emitted;
     if (path.has_point) {
         pn_bsdf b;
-        pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+        pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &b);
         const pn_light_bvh *bvh = job->integrator_data; /* set only with the BVH sampler */
         vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0);
         const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
@@ -168,6 +171,9 @@ static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_s
             if (lux && isfinite(e)) ps->weighted_lux += (double)e * (double)fw;
         }
     }
+    /* Spectral mode: the eye ray's value at its wavelengths to linear sRGB, where it is added. */
+    value = pn_swl_rgb(wl, value);
+    path.emitted = pn_swl_rgb(wl, path.emitted);
     if (!v3_is_finite(value)) value = path.emitted = v3(0, 0, 0);
     ps->n++;
     ps->weighted_sum = v3_madd(ps->weighted_sum, value, fw);

@@ -119,7 +119,8 @@ bool pn_reference_direct_irradiance(const pn_render_job *job, pn_reference_direc
         if (!(visibility > 0.0f)) continue;
         float w = cos_i / (ls.pdf * prob);
         if (visibility != 1.0f) w *= visibility;
-        direct = v3_add(direct, v3_scale(v3_mul(f, ls.radiance), w));
+        /* Spectral mode: the sample's radiance at the BSDF's wavelengths; the illuminance stays RGB. */
+        direct = v3_add(direct, v3_scale(v3_mul(f, pn_light_radiance_spectral(job->lights, l, ls.radiance, b->wl)), w));
         if (irradiance) incident = v3_madd(incident, ls.radiance, w);
     }
     *sum = direct;

@@ -480,6 +480,15 @@ static const pn_option_decl options[] = {
      F(preview_every_seconds),
      PN_FIELD_F64,
      0},
+    /* every method (issue 20): spectral light transport */
+    {{"spectral", PN_OPTION_FLAG, "0", 0, 0, 0, 0, "", "",
+      "spectral light transport as pbrt-v4: each eye sample carries 3 wavelengths, RGB inputs upsampled "
+      "(reflectances by Jakob-Hanika 2019, emissions times D65), the film integrates against the CIE 1931 matching "
+      "functions (docs/spectral.md); off: RGB products, bit-identical to earlier versions"},
+     (1u << M_COUNT) - 1u,
+     F(spectral),
+     PN_FIELD_BOOL,
+     0},
 };
 #define OPTION_COUNT ((int)(sizeof options / sizeof options[0]))
 

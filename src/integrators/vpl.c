@@ -49,6 +49,7 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
                 float lx = pn_photometric(E);
                 if (lux && isfinite(lx)) lux_sum += (double)lx * (double)sp.weight;
             }
+            value = pn_swl_rgb(&sp.r.wl, value); /* spectral mode: the sample's wavelengths to sRGB */
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
             sum = v3_madd(sum, value, sp.weight);
             wsum += (double)sp.weight;

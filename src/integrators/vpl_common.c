@@ -98,6 +98,9 @@ pn_vpl_receiver pn_vpl_irradiance_receiver(const pn_vpl_receiver *r) {
     pn_vpl_receiver w = *r;
     w.kd = v3(PN_PI, PN_PI, PN_PI);
     w.ks = v3(0, 0, 0);
+    w.kd_w = w.kd;
+    w.ks_w = w.ks;
+    w.wl.on = false; /* the illuminance stays linear sRGB in spectral mode */
     w.exponent = 1.0f;
     return w;
 }

@@ -7,6 +7,7 @@
 #include "core/warn.h"
 #include "scene/photometry.h"
 #include "scene/scene.h"
+#include "spectral/transport.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -317,6 +318,8 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         l->area = PN_PI * d->radius * d->radius;
         l->emit = em->radiance;
         l->two_sided = em->two_sided;
+        l->kelvin = em->kelvin;
+        l->kelvin_scale = em->kelvin_scale;
         l->mesh = mi;
         if (d->inner_radius > 0.0f)
             pn_warn(scene->ctx, &scene->warnings, "%s: the disk light's inner radius is ignored for light sampling",
@@ -341,6 +344,8 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         float k = pn_emission_area_scale(m, em, t);
         l->emit = v3_scale(em->radiance, k);
         l->two_sided = em->two_sided;
+        l->kelvin = em->kelvin;
+        l->kelvin_scale = em->kelvin_scale;
         l->mesh = mi;
         l->prim = (int)t;
         vec3 rp0, re1, re2;
@@ -471,6 +476,10 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             st = err->status;
             break;
         }
+        if (d->kelvin > 0.0f && d->kind != PN_LIGHTDEF_INFINITE && d->kind != PN_LIGHTDEF_PROJECTION) {
+            l->kelvin = d->kelvin;
+            l->kelvin_scale = (float)pn_blackbody_unit_scale(d->kelvin);
+        }
         switch (d->kind) {
         case PN_LIGHTDEF_POINT:
             l->kind = PN_LIGHT_POINT;
@@ -590,6 +599,8 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         l->area = 4.0f * PN_PI * s->radius * s->radius;
         l->emit = scene->emissions[s->emission].radiance;
         l->two_sided = false;
+        l->kelvin = scene->emissions[s->emission].kelvin;
+        l->kelvin_scale = scene->emissions[s->emission].kelvin_scale;
     }
     if (st != PN_OK) {
         free(ll.items);
@@ -624,6 +635,20 @@ vec3 pn_hit_emission(const struct pn_scene_s *scene, const pn_hit *hit, vec3 w) 
     if (e->per_shape != 0 && hit->mesh >= 0 && hit->mesh < scene->mesh_count)
         le = v3_scale(le, pn_emission_area_scale(&scene->meshes[hit->mesh], e, hit->prim));
     return le;
+}
+
+vec3 pn_light_radiance_spectral(const pn_lights *lights, const pn_light *l, vec3 rgb, const pn_swl *wl) {
+    (void)lights;
+    if (l->kelvin > 0.0f) return pn_swl_blackbody(wl, l->kelvin, l->kelvin_scale, rgb);
+    return pn_swl_illuminant(wl, rgb);
+}
+
+vec3 pn_hit_emission_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3 w, const pn_swl *wl) {
+    vec3 le = pn_hit_emission(scene, hit, w);
+    if (!pn_swl_active(wl) || hit->emission < 0 || hit->emission >= scene->emission_count) return le;
+    const pn_emission *e = &scene->emissions[hit->emission];
+    if (e->kelvin > 0.0f) return pn_swl_blackbody(wl, e->kelvin, e->kelvin_scale, le);
+    return pn_swl_illuminant(wl, le);
 }
 
 /* ---- unoccluded irradiance ---------------------------------------------------------------- */

@@ -44,6 +44,9 @@ typedef struct pn_light {
                         within cos_total_width of it) */
     int mesh, prim; /* area lights from meshes: source triangle(s), for `info` and tests */
     float power;    /* PROJECTION: luminous power, luminance(emit * phi) (pn_projection) */
+    /* A "blackbody" emission: its temperature (K) and pn_blackbody_unit_scale, which spectral mode
+     * emits (pn_light_radiance_spectral) instead of upsampling emit; 0 otherwise. */
+    float kelvin, kelvin_scale;
 } pn_light;
 
 /* An environment map prepared for lookup and importance sampling by luminance. */
@@ -172,6 +175,14 @@ vec3 pn_emission_radiance(const struct pn_scene_s *scene, int emission, vec3 ng,
  * pn_emission_radiance, with "power" normalised per pbrt-v4 shape when the emission says so. */
 struct pn_hit;
 vec3 pn_hit_emission(const struct pn_scene_s *scene, const struct pn_hit *hit, vec3 w);
+/* pn_hit_emission at the wavelengths wl in spectral mode (NULL: RGB): the emission's RGB as an
+ * illuminant spectrum (spectral/transport.h). */
+struct pn_swl;
+/* A light sample's radiance (or a value of light l times a positive factor, linear sRGB) at the
+ * wavelengths wl (NULL: rgb itself): as an illuminant spectrum (spectral/transport.h). */
+vec3 pn_light_radiance_spectral(const pn_lights *lights, const pn_light *l, vec3 rgb, const struct pn_swl *wl);
+vec3 pn_hit_emission_spectral(const struct pn_scene_s *scene, const struct pn_hit *hit, vec3 w,
+                              const struct pn_swl *wl);
 
 /* The factor applied to a mesh emission's radiance for triangle t: 1 / (area of its pbrt-v4
  * shape) when "power" is normalised per shape (pn_emission.per_shape), else 1. */

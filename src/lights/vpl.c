@@ -192,7 +192,7 @@ static bool direct_samples(const pn_lights *L, const vec3 *power, uint32_t budge
                 /* Two-sided: the sides alternate, each carrying the power of both halves. */
                 if (l->two_sided && ((j + side0) & 1u)) nn = v3_neg(nn);
                 /* power_i / pi is the intensity along the normal of the whole light. */
-                v = (pn_vpl){p, nn, v3_scale(power[i], PN_INV_PI * weight), PN_VPL_ORIENTED, -1};
+                v = (pn_vpl){p, nn, v3_scale(power[i], PN_INV_PI * weight), PN_VPL_ORIENTED, i};
             } else {
                 vec3 w = pn_sample_uniform_sphere(u1, u2);
                 vec3 le = pn_env_radiance(&L->envs[l->env], w);
@@ -382,7 +382,7 @@ pn_status pn_vpl_trace_with(const struct pn_scene_s *scene, const pn_lights *L, 
                 if (l->two_sided && pn_rng_float(&rng) < 0.5f) nn = v3_neg(nn);
                 /* The start point is an oriented VPL: a Lambertian emitter of power beta has
                  * intensity beta / pi along its normal. */
-                pn_vpl v = {o, nn, v3_scale(beta, PN_INV_PI), PN_VPL_ORIENTED, -1};
+                pn_vpl v = {o, nn, v3_scale(beta, PN_INV_PI), PN_VPL_ORIENTED, lo};
                 if (!buf_push(&buf, v, true)) goto oom;
                 float w1 = pn_rng_float(&rng), w2 = pn_rng_float(&rng);
                 d = v3_normalize(frame_dir(nn, pn_sample_cosine_hemisphere(w1, w2)));
@@ -490,9 +490,12 @@ vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 int
         float peak = lights->projections[l->env].peak;
         vec3 f = pn_projection_factor(lights, l, v3_neg(w));
         if (v3_is_zero(f) || !(peak > 0.0f)) return v3(0, 0, 0);
+        if (r->wl.on)
+            return v3_mul(pn_vpl_brdf_cos_inline(r, w),
+                          pn_swl_illuminant(&r->wl, v3_mul(intensity, v3_scale(f, g / peak))));
         return v3_mul(v3_mul(pn_vpl_brdf_cos_inline(r, w), intensity), v3_scale(f, g / peak));
     }
-    return v3_scale(v3_mul(pn_vpl_brdf_cos_inline(r, w), intensity), g);
+    return pn_vpl_scaled_product(lights, v, pn_vpl_brdf_cos_inline(r, w), intensity, g, &r->wl);
 }
 
 vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_receiver *r, float min_dist2, vec3 *wi,

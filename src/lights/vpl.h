@@ -32,6 +32,7 @@
 #include "lights/lights.h"
 #include "shade/bounds.h"
 #include "shade/bsdf.h"
+#include "spectral/transport.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -46,7 +47,8 @@ typedef struct pn_vpl {
     vec3 intensity; /* OMNI: intensity W/sr; ORIENTED: intensity along the normal; DIRECTIONAL:
                        irradiance on a surface facing the light */
     int32_t kind;   /* pn_vpl_kind */
-    int32_t light;  /* OMNI: the scene light (spot falloff, goniometric factor); else -1 */
+    int32_t light;  /* OMNI: the scene light (spot falloff, goniometric factor); ORIENTED at an area
+                       light (direct light): that light (its spectrum in spectral mode); else -1 */
 } pn_vpl;
 
 typedef struct pn_vpl_settings {
@@ -94,9 +96,20 @@ void pn_vpl_set_free(pn_vpl_set *set);
  * (Lambert + normalised Blinn-Phong). */
 typedef struct pn_vpl_receiver {
     vec3 p, ng, ns, wo;
-    vec3 kd, ks;
+    vec3 kd, ks; /* linear sRGB: the bounds use these */
     float exponent;
+    /* What eq. 1 multiplies: kd and ks at the eye sample's wavelengths wl in spectral mode
+     * (spectral/transport.h), else kd and ks themselves. VPL intensities are upsampled at wl where
+     * they are used (pn_vpl_intensity_at); wl.on is false in RGB mode. */
+    vec3 kd_w, ks_w;
+    pn_swl wl;
 } pn_vpl_receiver;
+
+/* A receiver of linear sRGB reflectances (RGB mode: kd_w = kd, ks_w = ks, no wavelengths). */
+static inline pn_vpl_receiver pn_vpl_receiver_rgb(vec3 p, vec3 ng, vec3 ns, vec3 wo, vec3 kd, vec3 ks, float exponent) {
+    pn_vpl_receiver r = {p, ng, ns, wo, kd, ks, exponent, kd, ks, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, false}};
+    return r;
+}
 
 /* The unshadowed contribution M · G · I of VPL v at receiver r (eq. 1 without V), with the
  * clamped distance; *wi receives the unit direction towards the VPL and *dist its distance
@@ -105,7 +118,9 @@ vec3 pn_vpl_contribution(const pn_lights *lights, const pn_vpl *v, const pn_vpl_
                          float *dist);
 
 /* Like pn_vpl_contribution but with the intensity replaced by `intensity` (eq. 3: the
- * representative's M and G with its cluster's summed intensity). */
+ * representative's M and G with its cluster's summed intensity). Intensities are linear sRGB;
+ * in spectral mode (r->wl.on) they are upsampled at r's wavelengths, here and in
+ * pn_vpl_contribution_inline, by pn_vpl_intensity_at. */
 vec3 pn_vpl_contribution_with(const pn_lights *lights, const pn_vpl *v, vec3 intensity, const pn_vpl_receiver *r,
                               float min_dist2, vec3 *wi, float *dist);
 
@@ -119,16 +134,45 @@ vec3 pn_vpl_receiver_brdf_cos(const pn_vpl_receiver *r, vec3 wi);
 static inline vec3 pn_vpl_brdf_cos_inline(const pn_vpl_receiver *r, vec3 wi) {
     float cos_i = v3_dot(r->ns, wi);
     if (cos_i <= 0.0f || v3_dot(r->ng, wi) <= 0.0f) return v3(0, 0, 0);
-    vec3 f = v3_scale(r->kd, PN_INV_PI);
-    if (!v3_is_zero(r->ks)) {
+    vec3 f = v3_scale(r->kd_w, PN_INV_PI);
+    if (!v3_is_zero(r->ks_w)) {
         /* eq. 1: beta is the angle between the reflected view direction and the light. */
         vec3 refl = pn_reflect(r->wo, r->ns);
         float cb = v3_dot(refl, wi);
         if (!(cb > 0.0f)) cb = 0.0f;
         float lobe = (r->exponent + 2.0f) * (0.5f * PN_INV_PI) * powf(cb, r->exponent);
-        f = v3_madd(f, r->ks, lobe);
+        f = v3_madd(f, r->ks_w, lobe);
     }
     return v3_scale(f, cos_i);
+}
+
+/* A VPL's (or its cluster's) RGB intensity at the wavelengths wl (RGB mode: itself), with the
+ * spectrum of the VPL v (the representative of the cluster) scaled to the intensity's luminance:
+ * the black body of v's scene light when it has one, else v's RGB intensity as an illuminant. For
+ * v's own intensity this is v's spectrum; for a cluster of one colour it is the cluster's; for a
+ * cluster of mixed colours the representative's colour stands for the cluster's, as its geometry
+ * does (eq. 3; the representative is drawn in proportion to luminance, so the colour is right on
+ * average). One spectrum per light colour also keeps pn_swl_illuminant_on's table hit. */
+static inline vec3 pn_vpl_intensity_at(const pn_lights *lights, const pn_vpl *v, vec3 intensity, const pn_swl *wl) {
+    if (!wl->on) return intensity;
+    float yv = v3_luminance(v->intensity), yi = v3_luminance(intensity);
+    vec3 colour = yv > 0.0f ? v->intensity : intensity;
+    float k = yv > 0.0f ? yi / yv : 1.0f;
+    vec3 s;
+    if (v->light >= 0 && v->kind != PN_VPL_DIRECTIONAL && lights->lights[v->light].kelvin > 0.0f)
+        s = pn_light_radiance_spectral(lights, &lights->lights[v->light], colour, wl);
+    else
+        s = pn_swl_illuminant_on(wl, colour);
+    return k == 1.0f ? s : v3_scale(s, k);
+}
+
+/* (f * intensity) * g with the intensity at the wavelengths wl; in spectral mode the upsampling
+ * is skipped when f is zero (a VPL below the receiver's horizon). */
+static inline vec3 pn_vpl_scaled_product(const pn_lights *lights, const pn_vpl *v, vec3 f, vec3 intensity, float g,
+                                         const pn_swl *wl) {
+    if (!wl->on) return v3_scale(v3_mul(f, intensity), g);
+    if (v3_is_zero(f)) return f;
+    return v3_scale(v3_mul(f, pn_vpl_intensity_at(lights, v, intensity, wl)), g);
 }
 
 /* VPLs at scene lights (spot falloff, goniometric factor) go through the library function. */
@@ -158,7 +202,7 @@ static inline vec3 pn_vpl_contribution_inline(const pn_lights *lights, const pn_
     *wi = w;
     *dist = len;
     if (g <= 0.0f) return v3(0, 0, 0);
-    return v3_scale(v3_mul(pn_vpl_brdf_cos_inline(r, w), intensity), g);
+    return pn_vpl_scaled_product(lights, v, pn_vpl_brdf_cos_inline(r, w), intensity, g, &r->wl);
 }
 
 /* True when nothing blocks the segment from r towards the VPL (a shadow ray). */

@@ -1,14 +1,40 @@
 /* eye_path.c — camera rays followed through perfect specular reflection and refraction to the
- * first surface whose direct illumination is estimated. */
+ * first surface whose direct illumination is estimated; in spectral mode at the eye sample's
+ * wavelengths (pn_eye_wavelengths, docs/spectral.md). */
 #include "render/batch.h"
 
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "shade/bsdf.h"
+#include "spectral/transport.h"
 
 #include <string.h>
 
 void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specular, pn_eye_path *path) {
+    pn_trace_eye_path_spectral(job, o, d, u_specular, NULL, path);
+}
+
+const pn_swl *pn_eye_wavelengths(const pn_render_job *job, uint32_t scramble, uint32_t i, pn_swl *storage) {
+    if (!job->spectral) return NULL;
+    pn_swl_sample(pn_sobol_sample(i, PN_SOBOL_DIMS - 1, scramble ^ 0x3c6ef372u), storage);
+    return storage;
+}
+
+vec3 pn_spectral_sample_value(const pn_render_job *job, const pn_bsdf *b, vec3 wo, vec3 wi, vec3 radiance,
+                              vec3 throughput, int light, uint32_t index, uint32_t scramble) {
+    pn_swl wl;
+    pn_swl_sample(pn_sobol_sample(index, PN_SOBOL_DIMS - 1, scramble ^ 0x9b05688cu), &wl);
+    pn_bsdf bw = *b;
+    bw.kd = pn_swl_albedo(&wl, b->rgb_kd);
+    bw.ks = pn_swl_albedo(&wl, b->rgb_ks);
+    vec3 f = pn_bsdf_eval(&bw, wo, wi);
+    vec3 le = light >= 0 ? pn_light_radiance_spectral(job->lights, &job->lights->lights[light], radiance, &wl)
+                         : pn_swl_illuminant(&wl, radiance);
+    return pn_swl_rgb(&wl, v3_mul(v3_mul(f, le), pn_swl_albedo(&wl, throughput)));
+}
+
+void pn_trace_eye_path_spectral(const pn_render_job *job, vec3 o, vec3 d, float u_specular, const pn_swl *wl,
+                                pn_eye_path *path) {
     memset(path, 0, sizeof *path);
     path->throughput = v3(1, 1, 1);
     path->first_depth = INFINITY;
@@ -20,19 +46,20 @@ void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specula
         pn_hit hit;
         path->rays++;
         if (!pn_accel_intersect(job->accel, o, d, tmin, INFINITY, &hit)) {
-            vec3 le = pn_lights_environment_radiance(job->lights, d);
+            vec3 le = pn_swl_illuminant(wl, pn_lights_environment_radiance(job->lights, d));
             path->emitted = v3_add(path->emitted, v3_mul(path->throughput, le));
             return;
         }
         vec3 wo = v3_neg(d);
         if (hit.emission >= 0)
-            path->emitted = v3_add(path->emitted, v3_mul(path->throughput, pn_hit_emission(scene, &hit, wo)));
+            path->emitted =
+                v3_add(path->emitted, v3_mul(path->throughput, pn_hit_emission_spectral(scene, &hit, wo, wl)));
         pn_bsdf b;
-        pn_bsdf_at(scene, &hit, wo, &b);
+        pn_bsdf_at_spectral(scene, &hit, wo, wl, &b);
         if (depth == 0) {
             path->first_depth = hit.t;
             path->first_normal = b.ns;
-            path->first_albedo = b.kind == PN_MATERIAL_LAMBERT_BLINN ? b.kd : b.specular;
+            path->first_albedo = b.kind == PN_MATERIAL_LAMBERT_BLINN ? b.rgb_kd : b.rgb_specular;
         }
         if (b.kind == PN_MATERIAL_LAMBERT_BLINN) {
             if (!pn_bsdf_is_shadable(&b)) return;
@@ -91,8 +118,10 @@ void pn_eye_point_trace(const pn_render_job *job, int px, int py, uint32_t i, pn
     float fw, u_specular;
     vec3 ro, rd;
     pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
+    pn_swl wl_storage;
+    const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &wl_storage);
     pn_eye_path path;
-    pn_trace_eye_path(job, ro, rd, u_specular, &path);
+    pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
     memset(out, 0, sizeof *out);
     out->rays = path.rays;
     out->first_depth = path.first_depth;
@@ -102,16 +131,19 @@ void pn_eye_point_trace(const pn_render_job *job, int px, int py, uint32_t i, pn
     sp->weight = fw;
     sp->emitted = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
     sp->throughput = path.throughput;
+    if (wl) sp->r.wl = *wl;
     if (!path.has_point) return;
     pn_bsdf b;
-    pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+    pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &b);
     sp->has_point = true;
     sp->r.p = path.hit.p;
     sp->r.ng = b.ng;
     sp->r.ns = b.ns;
     sp->r.wo = path.wo;
-    sp->r.kd = b.kd;
-    sp->r.ks = b.ks;
+    sp->r.kd = b.rgb_kd;
+    sp->r.ks = b.rgb_ks;
+    sp->r.kd_w = b.kd;
+    sp->r.ks_w = b.ks;
     sp->r.exponent = b.exponent;
 }
 

@@ -96,6 +96,7 @@ typedef struct pn_render_job {
     bool visibility_sampling;
     bool vpl_direct_only; /* the lights themselves as VPLs, no bounces (direct light only) */
     bool opaque_glass;    /* thin glass panes block shadow rays (option opaque-glass; render/shadow.c) */
+    bool spectral;        /* spectral transport (option spectral; spectral/transport.h) */
     /* contour / contour-mc (Vedel 1993; Kok & Jansen 1992) */
     uint32_t contour_grid, contour_steps, contour_span, contour_flags;
     double contour_mc_threshold;
@@ -148,6 +149,25 @@ typedef struct pn_eye_path {
 /* Traces the camera ray o + t d through mirrors, dielectrics and interfaces. u_specular drives
  * the first reflect/refract choice; deeper choices use a hash of (seed, u_specular, depth). */
 void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specular, pn_eye_path *path);
+/* pn_trace_eye_path in spectral mode: emission, the environment and specular tints at the
+ * wavelengths wl (NULL: RGB, as pn_trace_eye_path). first_albedo stays linear sRGB. */
+struct pn_swl;
+void pn_trace_eye_path_spectral(const pn_render_job *job, vec3 o, vec3 d, float u_specular, const struct pn_swl *wl,
+                                pn_eye_path *path);
+/* The wavelengths of eye sample i of the pixel sequence `scramble` in spectral mode, written to
+ * *storage; NULL in RGB mode. From a Sobol dimension of its own (PN_SOBOL_DIMS - 1, its own
+ * scramble), so RGB mode's numbers are unchanged. */
+const struct pn_swl *pn_eye_wavelengths(const pn_render_job *job, uint32_t scramble, uint32_t i,
+                                        struct pn_swl *storage);
+/* Spectral mode, for integrators that share an eye ray's shading point between light samples
+ * (ias): the linear sRGB of f(wo, wi) L T for one light sample at wavelengths of its own (from
+ * Sobol dimension PN_SOBOL_DIMS - 1 of sample `index` in the sequence `scramble`, salted apart from
+ * pn_eye_wavelengths). b is the RGB BSDF (pn_bsdf_at), radiance the light sample's RGB radiance
+ * from scene light `light` (-1: an environment region), throughput the RGB specular tints (as one
+ * albedo spectrum: exact for one tint). */
+struct pn_bsdf;
+vec3 pn_spectral_sample_value(const pn_render_job *job, const struct pn_bsdf *b, vec3 wo, vec3 wi, vec3 radiance,
+                              vec3 throughput, int light, uint32_t index, uint32_t scramble);
 
 /* Eye sample i of full-image pixel (px, py) in the per-pixel convention of the `reference`
  * integrator: one scrambled Sobol sequence per pixel (the scramble a hash of the seed and the

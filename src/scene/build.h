@@ -32,6 +32,10 @@ pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double
 /* RGB of a named pbrt-v4 spectrum (metal-Cu-eta, glass-BK7, stdillum-D65, ...); false if unknown. */
 bool pn_named_spectrum_rgb(const char *name, vec3 *out);
 
+/* The temperature of parameter `name` when it is a "blackbody" value (spectral mode emits the
+ * black body itself), else 0. */
+float pn_params_blackbody_kelvin(const pn_params *ps, const char *name);
+
 /* Linear sRGB of a blackbody at `kelvin`, normalised to luminance 1. */
 vec3 pn_blackbody_rgb(double kelvin);
 

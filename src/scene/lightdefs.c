@@ -51,6 +51,7 @@
 #include "scene/parser_internal.h"
 #include "scene/photometry.h"
 #include "scene/sky.h"
+#include "spectral/transport.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -291,6 +292,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
         if (st == PN_OK && strcmp(type, "goniometric") != 0) st = pn_params_vec3(ps, "from", from, &from, err);
         if (st != PN_OK) return st;
         d.intensity = v3_scale(I, (float)scale);
+        d.kelvin = pn_params_blackbody_kelvin(ps, "I");
         d.position = mat4_apply_point(world_from_light, from);
         if (strcmp(type, "point") == 0) {
             d.kind = PN_LIGHTDEF_POINT;
@@ -359,6 +361,7 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
         if (!(v3_length(w) > 0.0f) || !v3_is_finite(w))
             return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "distant light with \"from\" equal to \"to\"");
         d.kind = PN_LIGHTDEF_DISTANT;
+        d.kelvin = pn_params_blackbody_kelvin(ps, "L");
         d.direction = v3_normalize(w);
         d.intensity = apply_power(v3_scale(L, (float)scale), photometric(ps, "L", L), illuminance, 1.0);
         warn_ignored(scene, ps, "power", "is not supported for distant lights (use \"illuminance\"); ignored");
@@ -452,6 +455,8 @@ pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, co
         warn_ignored(scene, ps, "filename", "(an emission image) is not supported; the constant \"L\" is used");
     out->emission.radiance = v3_scale(L, (float)scale);
     out->emission.two_sided = two_sided;
+    out->emission.kelvin = pn_params_blackbody_kelvin(ps, "L");
+    out->emission.kelvin_scale = (float)pn_blackbody_unit_scale(out->emission.kelvin);
     out->power = power;
     out->photometric = (float)photometric(ps, "L", L);
     if (!v3_is_finite(out->emission.radiance))

@@ -115,6 +115,9 @@ typedef struct pn_emission {
      * The radiance of a triangle is then radiance / (area of its shape); pn_emission_area_scale
      * (lights/lights.h) computes the factor. */
     int per_shape;
+    /* "blackbody" L: the temperature (K) and pn_blackbody_unit_scale of it, which spectral mode
+     * emits instead of upsampling radiance (spectral/transport.h); 0 for other emissions. */
+    float kelvin, kelvin_scale;
 } pn_emission;
 
 /* A triangle mesh. Positions/normals are in world space, or in the object's space for meshes of
@@ -194,10 +197,11 @@ typedef struct pn_light_def {
                            false: equirectangular (latitude-longitude) */
     mat4 world_from_light;                    /* INFINITE / GONIOMETRIC orientation */
     mat4 light_from_world;
-    char *source;            /* "file:line" */
-    float fov_deg;           /* PROJECTION: the frustum's angle across the image's shorter side */
-    int photometry;          /* GONIOMETRIC from an IES / EULUMDAT file: index into photometries, or -1 */
-    double photometry_scale; /* that file's candela times this is what the light emits */
+    char *source;               /* "file:line" */
+    float fov_deg;              /* PROJECTION: the frustum's angle across the image's shorter side */
+    int photometry;             /* GONIOMETRIC from an IES / EULUMDAT file: index into photometries, or -1 */
+    double photometry_scale;    /* that file's candela times this is what the light emits */
+    float kelvin, kelvin_scale; /* "blackbody" I or L (point, spot, goniometric, distant): as pn_emission's */
 } pn_light_def;
 
 /* ---- camera and film --------------------------------------------------------------------- */

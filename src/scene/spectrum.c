@@ -29,6 +29,10 @@
  * Spectra outside the sRGB gamut (very red or very blue emitters, saturated reflectances) would
  * get negative channels; those are set to 0.
  *
+ * Spectral mode (--spectral, spectral/transport.h) upsamples these RGB values where they are used;
+ * a light's "blackbody" value is also kept as its temperature (pn_params_blackbody_kelvin,
+ * pn_light_def.kelvin, pn_emission.kelvin), and spectral mode emits Planck's law itself.
+ *
  * The colour matching functions are the multi-lobe Gaussian fit of Wyman, Sloan and Shirley,
  * "Simple Analytic Approximations to the CIE XYZ Color Matching Functions", JCGT 2(2), 2013.
  */
@@ -400,6 +404,13 @@ pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spec
     *out = c;
     if (found) *found = true;
     return PN_OK;
+}
+
+float pn_params_blackbody_kelvin(const pn_params *ps, const char *name) {
+    const pn_param *p = pn_params_find(ps, name);
+    if (!p || p->type != PN_PT_BLACKBODY || p->num_count < 1 || !(p->nums[0] > 0.0) || !isfinite(p->nums[0]))
+        return 0.0f;
+    return (float)p->nums[0];
 }
 
 pn_status pn_params_spectrum_value(const pn_params *ps, const char *name, double lambda_nm, double def, double *out,

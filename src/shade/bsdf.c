@@ -2,6 +2,8 @@
  * oriented, Lambert + Blinn–Phong. */
 #include "shade/bsdf.h"
 
+#include "spectral/transport.h"
+
 #include <string.h>
 
 /* SplitMix64's finaliser (Steele, Lea and Flood 2014): a 64-bit mixing function. */
@@ -51,6 +53,14 @@ int pn_material_resolve(const struct pn_scene_s *scene, int material, vec3 p, ve
 }
 
 void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_bsdf *out) {
+    pn_bsdf_at_spectral(scene, hit, wo, NULL, out);
+}
+
+/* The material's RGB values (kd, ks, specular) looked up at the hit; *base_kd the diffuse
+ * texture's value before a coating, *coat the material when it is coated (else NULL). */
+static void bsdf_at_rgb(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_bsdf *out, vec3 *base_kd,
+                        const pn_material **coat) {
+    *coat = NULL;
     int mi = pn_material_resolve(scene, hit->material, hit->p, wo, hit->u, hit->v);
     const pn_material *m = (mi >= 0 && mi < scene->material_count) ? &scene->materials[mi] : NULL;
     out->ng = hit->ng;
@@ -71,11 +81,36 @@ void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_b
     }
     out->kind = m->kind;
     out->kd = pn_texture_eval(scene, m->kd, hit->u, hit->v);
-    if (m->coated) out->kd = pn_coated_diffuse(out->kd, m->coat_transmission, m->coat_internal);
+    *base_kd = out->kd;
+    if (m->coated) {
+        *coat = m;
+        out->kd = pn_coated_diffuse(out->kd, m->coat_transmission, m->coat_internal);
+    }
     out->ks = pn_texture_eval(scene, m->ks, hit->u, hit->v);
     out->exponent = m->exponent;
     out->specular = m->specular;
     out->eta = m->eta > 0.0f ? m->eta : 1.5f;
+}
+
+void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, const struct pn_swl *wl,
+                         pn_bsdf *out) {
+    vec3 base_kd = v3(0, 0, 0);
+    const pn_material *coat;
+    bsdf_at_rgb(scene, hit, wo, out, &base_kd, &coat);
+    out->rgb_kd = out->kd;
+    out->rgb_ks = out->ks;
+    out->rgb_specular = out->specular;
+    out->wl = pn_swl_active(wl) ? wl : NULL;
+    if (!out->wl) return;
+    /* The coating's series is per wavelength, so the base's reflectance is upsampled before it:
+     * the texture's RGB is what pbrt-v4 upsamples too. */
+    if (coat) {
+        out->kd = pn_coated_diffuse(pn_swl_albedo(wl, base_kd), coat->coat_transmission, coat->coat_internal);
+    } else {
+        out->kd = pn_swl_albedo(wl, out->kd);
+    }
+    out->ks = pn_swl_albedo(wl, out->ks);
+    out->specular = pn_swl_albedo(wl, out->specular);
 }
 
 vec3 pn_bsdf_eval(const pn_bsdf *b, vec3 wo, vec3 wi) {

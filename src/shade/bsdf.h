@@ -17,11 +17,21 @@ typedef struct pn_bsdf {
     float eta;
     vec3 ng, ns;   /* normals flipped to the side of wo */
     bool entering; /* wo is on the side the geometric normal points to (dielectric: outside) */
+    /* Spectral mode (spectral/transport.h): kd, ks and specular above hold their values at the
+     * wavelengths *wl, and these their linear sRGB (for AOVs and bounds); in RGB mode wl is NULL
+     * and these equal kd, ks, specular. */
+    const struct pn_swl *wl;
+    vec3 rgb_kd, rgb_ks, rgb_specular;
 } pn_bsdf;
 
 /* Evaluates the material at a hit, seen from direction wo (unit, pointing away from the
  * surface towards the viewer). */
 void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_bsdf *out);
+/* pn_bsdf_at at the wavelengths wl (NULL: RGB): reflectances upsampled as albedo spectra where
+ * they are looked up (pbrt-v4's RGBAlbedoSpectrum of the texture's value). wl must outlive out. */
+struct pn_swl;
+void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, const struct pn_swl *wl,
+                         pn_bsdf *out);
 
 /* The material seen at a hit: `material` itself, or for a MIX material (pbrt-v4's mix) the
  * input chosen at point p seen from wo with the mix's amount at (u, v), repeated through nested

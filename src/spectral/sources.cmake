@@ -4,5 +4,6 @@ list(APPEND PN_SOURCES
   src/spectral/cie.c
   src/spectral/cie_data.c
   src/spectral/rgb2spec.c
+  src/spectral/transport.c
   src/spectral/wavelengths.c
 )

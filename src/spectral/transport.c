@@ -1,0 +1,162 @@
+/* transport.c — spectral mode's wavelengths and conversions (transport.h). */
+#include "spectral/transport.h"
+
+#include "spectral/cie.h"
+#include "spectral/rgb2spec.h"
+#include "spectral/wavelengths.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdint.h>
+
+/* 1 / luminance of the tabulated D65 (the factor that makes its Y 1), and 1 / (integral of
+ * y-bar): set once. The luminance is the integral of the product of the two interpolated tables
+ * (trapezoid rule at 0.25 nm, exact to 1e-6 for these piecewise linear functions), the quantity
+ * the film's estimator is unbiased for. */
+static double g_d65_scale, g_inv_y_integral;
+static pthread_once_t g_once = PTHREAD_ONCE_INIT;
+
+static void transport_init(void) {
+    double yint = pn_cie_y_integral(), sum = 0.0;
+    const double h = 0.25;
+    for (double l = PN_LAMBDA_MIN; l <= PN_LAMBDA_MAX + 1e-9; l += h) {
+        double w = (l == PN_LAMBDA_MIN || l > PN_LAMBDA_MAX - 1e-9) ? 0.5 * h : h;
+        double bar[3];
+        pn_cie_xyz_bar(l, bar);
+        sum += w * bar[1] * pn_cie_table_eval(pn_cie_d65_5nm, l);
+    }
+    g_d65_scale = yint / sum;
+    g_inv_y_integral = 1.0 / yint;
+}
+
+double pn_swl_d65(double lambda) {
+    pthread_once(&g_once, transport_init);
+    return g_d65_scale * pn_cie_table_eval(pn_cie_d65_5nm, lambda);
+}
+
+void pn_swl_sample(float u, pn_swl *out) {
+    for (int i = 0; i < PN_SWL_COUNT; i++) {
+        double ui = (double)u + (double)i / PN_SWL_COUNT;
+        if (ui >= 1.0) ui -= 1.0;
+        double lambda = pn_visible_wavelength_sample(ui);
+        out->lambda[i] = (float)lambda;
+        out->inv_pdf[i] = (float)(1.0 / pn_visible_wavelength_pdf(lambda));
+        out->illum[i] = (float)pn_swl_d65(lambda);
+    }
+    out->on = true;
+}
+
+/* The sigmoid-polynomial spectrum of coefficients c at the wavelengths, in float as pbrt-v4. */
+static float sigmoid_at(const float c[3], float lambda) {
+    float x = (c[0] * lambda + c[1]) * lambda + c[2];
+    if (isinf(x)) return x > 0.0f ? 1.0f : 0.0f;
+    return 0.5f + x / (2.0f * sqrtf(1.0f + x * x));
+}
+
+static vec3 spectrum_at(const pn_swl *w, const float rgb[3]) {
+    float c[3];
+    pn_rgb2spec_lookup(pn_rgb2spec_srgb(), rgb, c);
+    return v3(sigmoid_at(c, w->lambda[0]), sigmoid_at(c, w->lambda[1]), sigmoid_at(c, w->lambda[2]));
+}
+
+vec3 pn_swl_albedo_on(const pn_swl *w, vec3 rgb) {
+    float r = fminf(fmaxf(rgb.x, 0.0f), 1.0f), g = fminf(fmaxf(rgb.y, 0.0f), 1.0f), b = fminf(fmaxf(rgb.z, 0.0f), 1.0f);
+    if (r == g && g == b) return v3(r, r, r);
+    const float c[3] = {r, g, b};
+    return spectrum_at(w, c);
+}
+
+/* The spectrum of an unbounded colour, rgb / (2 max), is looked up with its components rounded to
+ * multiples of 2^-16 (a change of at most 8e-6 in the table's input, far below its 1e-3
+ * interpolation error), so that the VPLs and light samples of one light, whose RGB differ only by
+ * a scalar (and so in the last bits of rgb / (2 max)), share one key. A per-thread table
+ * (direct-mapped by the key) remembers the sigmoid coefficients of the last keys: the VPL
+ * integrators upsample thousands of intensities of a few colours per eye sample (illumcut in an
+ * order where the wavelengths change from one to the next), and a hit costs three sigmoids instead
+ * of a table lookup. The coefficients are a function of the key only, whether they come from the
+ * table or not, so images do not depend on the thread count. */
+#define PN_UNBOUNDED_QUANTUM 65536.0f
+#define PN_UNBOUNDED_CACHE 256
+
+typedef struct unbounded_entry {
+    uint32_t key[3];
+    float c[3];
+    bool used;
+} unbounded_entry;
+
+static _Thread_local unbounded_entry g_unbounded_cache[PN_UNBOUNDED_CACHE];
+
+static vec3 unbounded_unit(const pn_swl *w, const uint32_t key[3]) {
+    uint32_t h = (key[0] * 73856093u) ^ (key[1] * 19349663u) ^ (key[2] * 83492791u);
+    unbounded_entry *e = &g_unbounded_cache[(h ^ (h >> 9)) % PN_UNBOUNDED_CACHE];
+    if (!(e->used && e->key[0] == key[0] && e->key[1] == key[1] && e->key[2] == key[2])) {
+        const float rgb[3] = {(float)key[0] / PN_UNBOUNDED_QUANTUM, (float)key[1] / PN_UNBOUNDED_QUANTUM,
+                              (float)key[2] / PN_UNBOUNDED_QUANTUM};
+        pn_rgb2spec_lookup(pn_rgb2spec_srgb(), rgb, e->c);
+        for (int i = 0; i < 3; i++) e->key[i] = key[i];
+        e->used = true;
+    }
+    return v3(sigmoid_at(e->c, w->lambda[0]), sigmoid_at(e->c, w->lambda[1]), sigmoid_at(e->c, w->lambda[2]));
+}
+
+/* Comparisons rather than fmaxf and lrintf, which this build calls in libm (no NaN reaches the
+ * rounding: the components are >= 0 and finite there). */
+static inline float clamp_nonneg(float x) {
+    return x > 0.0f ? x : 0.0f;
+}
+
+vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb) {
+    float r = clamp_nonneg(rgb.x), g = clamp_nonneg(rgb.y), b = clamp_nonneg(rgb.z);
+    float m = r > g ? r : g;
+    m = m > b ? m : b;
+    if (!(m > 0.0f) || !isfinite(m)) return v3(0, 0, 0);
+    if (r == g && g == b) return v3(r, r, r);
+    float scale = 2.0f * m, inv = PN_UNBOUNDED_QUANTUM / scale;
+    const uint32_t key[3] = {(uint32_t)(r * inv + 0.5f), (uint32_t)(g * inv + 0.5f), (uint32_t)(b * inv + 0.5f)};
+    return v3_scale(unbounded_unit(w, key), scale);
+}
+
+vec3 pn_swl_illuminant_on(const pn_swl *w, vec3 rgb) {
+    vec3 s = pn_swl_unbounded_on(w, rgb);
+    return v3(s.x * w->illum[0], s.y * w->illum[1], s.z * w->illum[2]);
+}
+
+vec3 pn_swl_xyz_on(const pn_swl *w, vec3 v) {
+    pthread_once(&g_once, transport_init);
+    double xyz[3] = {0.0, 0.0, 0.0};
+    const float val[3] = {v.x, v.y, v.z};
+    for (int i = 0; i < PN_SWL_COUNT; i++) {
+        double bar[3];
+        pn_cie_xyz_bar(w->lambda[i], bar);
+        double s = (double)val[i] * (double)w->inv_pdf[i];
+        for (int k = 0; k < 3; k++) xyz[k] += bar[k] * s;
+    }
+    double k = g_inv_y_integral / PN_SWL_COUNT;
+    return v3((float)(xyz[0] * k), (float)(xyz[1] * k), (float)(xyz[2] * k));
+}
+
+vec3 pn_swl_rgb_on(const pn_swl *w, vec3 v) {
+    vec3 x = pn_swl_xyz_on(w, v);
+    const double xyz[3] = {x.x, x.y, x.z};
+    double rgb[3];
+    pn_xyz_to_linear_srgb(xyz, rgb);
+    return v3((float)rgb[0], (float)rgb[1], (float)rgb[2]);
+}
+
+double pn_blackbody_unit_scale(double kelvin) {
+    if (!(kelvin > 0.0)) return 0.0;
+    double sum = 0.0;
+    for (double l = PN_LAMBDA_MIN; l <= PN_LAMBDA_MAX; l += 1.0) {
+        double bar[3];
+        pn_cie_xyz_bar(l, bar);
+        sum += (l == PN_LAMBDA_MIN || l == PN_LAMBDA_MAX ? 0.5 : 1.0) * bar[1] * pn_planck(l, kelvin);
+    }
+    return sum > 0.0 ? pn_cie_y_integral() / sum : 0.0;
+}
+
+vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb) {
+    if (!pn_swl_active(w)) return rgb;
+    double k = (double)v3_luminance(rgb) * (double)unit_scale;
+    return v3((float)(k * pn_planck(w->lambda[0], kelvin)), (float)(k * pn_planck(w->lambda[1], kelvin)),
+              (float)(k * pn_planck(w->lambda[2], kelvin)));
+}

@@ -1,0 +1,94 @@
+/* transport.h — what an eye sample carries in spectral mode (--spectral) and the conversions at the
+ * points of use, after pbrt-v4 (SampledWavelengths, RGBAlbedoSpectrum, RGBUnboundedSpectrum,
+ * RGBIlluminantSpectrum, RGBFilm with the "cie1931" sensor).
+ *
+ * An eye sample draws PN_SWL_COUNT = 3 wavelengths (a hero and two companions stratified in the
+ * CDF of wavelengths.h's density), and every vec3 of its path then holds values at those three
+ * wavelengths instead of R, G and B: the existing vec3 arithmetic of every integrator carries them
+ * unchanged. pbrt-v4 carries 4; 3 is what a vec3 holds, and a fourth would need a second type
+ * through every integrator (measured cost and noise: docs/spectral.md).
+ *
+ * Only the places where a colour enters the path convert, each through one of:
+ *   albedo      a reflectance (kd, ks, specular tints): rgb clamped to [0, 1], the
+ *               sigmoid-polynomial spectrum of rgb2spec.h;
+ *   unbounded   an unbounded value (conductor eta, k): 2 max(rgb) times the spectrum of
+ *               rgb / (2 max(rgb));
+ *   illuminant  an emission (area lights, light samples, environment texels, VPL intensities):
+ *               the unbounded spectrum times the colour space's illuminant, D65 normalised to
+ *               luminance 1 as pbrt-v4 normalises it (so white (1,1,1) emits D65 of Y = 1);
+ * and the value an eye sample adds to its pixel is turned back into linear sRGB by
+ *     XYZ = (1 / n) sum_i cmf(lambda_i) L(lambda_i) / pdf(lambda_i) / (integral of y-bar)
+ * (pbrt-v4's PixelSensor::ToSensorRGB for the CIE 1931 sensor, then XYZ -> sRGB).
+ *
+ * Every function takes the wavelengths as a pointer that is NULL (or not `on`) in RGB mode, where
+ * it returns its argument unchanged: RGB mode's arithmetic is untouched, bit for bit.
+ *
+ * A shortcut, exact in the model: grey reflectances and grey emissions (r = g = b) are constant
+ * spectra, so they skip the table (the sigmoid of a constant is that constant). */
+#ifndef PN_SPECTRAL_TRANSPORT_H
+#define PN_SPECTRAL_TRANSPORT_H
+
+#include "core/vecmath.h"
+
+#include <stdbool.h>
+
+#define PN_SWL_COUNT 3
+
+typedef struct pn_swl {
+    float lambda[PN_SWL_COUNT];  /* nm */
+    float inv_pdf[PN_SWL_COUNT]; /* 1 / (density of each wavelength alone, per nm) */
+    float illum[PN_SWL_COUNT];   /* the illuminant (D65, luminance 1) at lambda */
+    bool on;
+} pn_swl;
+
+/* The wavelengths of uniform u in [0, 1): the hero at u, companions at u + 1/3, u + 2/3 (mod 1). */
+void pn_swl_sample(float u, pn_swl *out);
+
+static inline bool pn_swl_active(const pn_swl *w) {
+    return w && w->on;
+}
+
+/* The conversions for active wavelengths (w->on); the wrappers below call them in spectral mode
+ * only. pn_swl_xyz_on is the film's XYZ of a value at the wavelengths (see the header). */
+vec3 pn_swl_albedo_on(const pn_swl *w, vec3 rgb);
+vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb);
+vec3 pn_swl_illuminant_on(const pn_swl *w, vec3 rgb);
+vec3 pn_swl_rgb_on(const pn_swl *w, vec3 v);
+vec3 pn_swl_xyz_on(const pn_swl *w, vec3 v);
+
+/* A reflectance at the wavelengths (rgb itself in RGB mode). */
+static inline vec3 pn_swl_albedo(const pn_swl *w, vec3 rgb) {
+    return pn_swl_active(w) ? pn_swl_albedo_on(w, rgb) : rgb;
+}
+/* An unbounded value at the wavelengths (rgb itself in RGB mode). */
+static inline vec3 pn_swl_unbounded(const pn_swl *w, vec3 rgb) {
+    return pn_swl_active(w) ? pn_swl_unbounded_on(w, rgb) : rgb;
+}
+/* An emission at the wavelengths (rgb itself in RGB mode). Linear in positive scale factors:
+ * illuminant(k rgb) = k illuminant(rgb), so a light sample's radiance (the light's RGB times a
+ * geometric factor) may be converted after the factor is applied. */
+static inline vec3 pn_swl_illuminant(const pn_swl *w, vec3 rgb) {
+    return pn_swl_active(w) ? pn_swl_illuminant_on(w, rgb) : rgb;
+}
+/* A radiance at the wavelengths as linear sRGB (v itself in RGB mode). */
+static inline vec3 pn_swl_rgb(const pn_swl *w, vec3 v) {
+    return pn_swl_active(w) ? pn_swl_rgb_on(w, v) : v;
+}
+/* The luminance (CIE Y) of a value at the wavelengths (v3_luminance in RGB mode). */
+static inline float pn_swl_luminance(const pn_swl *w, vec3 v) {
+    return pn_swl_active(w) ? pn_swl_xyz_on(w, v).y : v3_luminance(v);
+}
+
+/* A black body's emission at `kelvin` at the wavelengths, scaled so that its luminance equals that
+ * of rgb (the value RGB mode uses for it): Y(rgb) * planck(lambda) * unit_scale, with unit_scale
+ * from pn_blackbody_unit_scale. RGB mode: rgb. */
+vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb);
+/* 1 / the luminance of Planck's law at `kelvin` (W / (m^2 sr m) as pn_planck): the factor that
+ * gives the black body luminance 1. 0 for kelvin <= 0. */
+double pn_blackbody_unit_scale(double kelvin);
+
+/* The colour space's illuminant, normalised to luminance 1 (pbrt-v4's normalisation of
+ * stdillum-D65), at lambda (nm). */
+double pn_swl_d65(double lambda);
+
+#endif

@@ -1,0 +1,263 @@
+/* test_spectral_transport.c — spectral mode (--spectral, issue 20) end to end: a white light on a
+ * white diffuser renders the same in RGB and spectral mode (every integrator, within the noise of
+ * the wavelength sampling); a saturated light on a saturated surface gives the spectral product
+ * of pbrt-v4's model (sigmoid-polynomial reflectance times the light's illuminant spectrum,
+ * integrated here at 1 nm) where RGB mode gives the product of the RGBs; a blackbody light gives
+ * its colour on a white diffuser; images are bit-identical for any thread count. */
+#include "harness.h"
+
+#include "penumbra/penumbra.h"
+#include "spectral/cie.h"
+#include "spectral/rgb2spec.h"
+#include "spectral/transport.h"
+
+#include <math.h>
+#include <string.h>
+#include <unistd.h>
+
+static char tmpdir[256];
+
+/* A 10 x 10 diffuser of reflectance `kd` at z = 0 under a 1 x 1 square light `light` at height 1
+ * facing down, seen from the side; 24 x 24 pixels around the light's foot. */
+static pn_scene load_plane(pn_context ctx, const char *light, const char *kd) {
+    char text[2048];
+    snprintf(text, sizeof text,
+             "LookAt 3 0 0.5  0 0 0  0 0 1\n"
+             "Camera \"perspective\" \"float fov\" [ 20 ]\n"
+             "Film \"rgb\" \"integer xresolution\" [ 24 ] \"integer yresolution\" [ 24 ]\n"
+             "WorldBegin\n"
+             "Material \"diffuse\" \"rgb reflectance\" [ %s ]\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ]\n"
+             "   \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+             "AttributeBegin\n"
+             "  AreaLightSource \"diffuse\" %s\n"
+             "  Shape \"trianglemesh\" \"point3 P\" [ -0.5 -0.5 1  -0.5 0.5 1  0.5 0.5 1  0.5 -0.5 1 ]\n"
+             "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+             "AttributeEnd\n",
+             kd, light);
+    const char *path = pn_test_write_file(tmpdir, "plane.pbrt", text);
+    pn_scene scene = NULL;
+    if (!path || pn_scene_load(ctx, path, &scene) != PN_OK) {
+        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+        return NULL;
+    }
+    return scene;
+}
+
+static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind integrator, bool spectral, uint32_t spp,
+                       int threads) {
+    pn_options o = pn_options_new();
+    pn_options_set(ctx, o, "spectral", spectral ? "1" : "0");
+    if (integrator == PN_INTEGRATOR_VPL || integrator == PN_INTEGRATOR_LIGHTCUTS ||
+        integrator == PN_INTEGRATOR_ILLUMCUT) {
+        pn_options_set(ctx, o, "vpls", "2000");
+        pn_options_set(ctx, o, "vpl-direct-only", "1");
+    }
+    pn_render_settings s = {0};
+    s.integrator = integrator;
+    s.spp = integrator == PN_INTEGRATOR_IAS ? 0 : spp; /* ias: its adaptive default */
+    s.seed = 3;
+    s.threads = threads;
+    s.options = o;
+    pn_image img = NULL;
+    if (pn_render(ctx, scene, &s, &img, NULL) != PN_OK) fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+    pn_options_free(o);
+    return img;
+}
+
+/* Mean and standard error over pixels of a[c] / b[c] - expected[c] for each channel (pixels
+ * where b is not positive are skipped). */
+static void ratio_stats(pn_image a, pn_image b, double mean[3], double se[3]) {
+    const float *pa = pn_image_layer_data(a, 0), *pb = pn_image_layer_data(b, 0);
+    size_t n = (size_t)pn_image_width(a) * (size_t)pn_image_height(a);
+    for (int c = 0; c < 3; c++) {
+        double s = 0.0, s2 = 0.0;
+        size_t k = 0;
+        for (size_t i = 0; i < n; i++) {
+            double vb = pb[3 * i + (size_t)c];
+            if (!(vb > 1e-6)) continue;
+            double r = (double)pa[3 * i + (size_t)c] / vb;
+            s += r;
+            s2 += r * r;
+            k++;
+        }
+        mean[c] = k ? s / (double)k : 0.0;
+        double var = k > 1 ? (s2 - s * s / (double)k) / (double)(k - 1) : (double)INFINITY;
+        se[c] = sqrt(var / (double)k);
+    }
+}
+
+/* White light (1 1 1) on a white diffuser: spectral mode's image equals RGB mode's within 4
+ * standard errors of the wavelengths' noise plus 1e-3 (both constant spectra are exact in the
+ * model; what is left is the XYZ -> sRGB white point of the 5 nm tables), for every integrator.
+ * The light sampling uses the same numbers in both modes, so the per-pixel ratio has only the
+ * wavelengths' noise. */
+static void test_white_furnace_every_integrator(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_plane(ctx, "\"rgb L\" [ 2 2 2 ]", "1 1 1");
+    CHECK(scene != NULL);
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    const pn_integrator_kind kinds[] = {PN_INTEGRATOR_REFERENCE,  PN_INTEGRATOR_IAS, PN_INTEGRATOR_CONTOUR,
+                                        PN_INTEGRATOR_CONTOUR_MC, PN_INTEGRATOR_VPL, PN_INTEGRATOR_LIGHTCUTS,
+                                        PN_INTEGRATOR_ILLUMCUT};
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++) {
+        pn_image rgb = render(ctx, scene, kinds[k], false, 8, 2);
+        pn_image spec = render(ctx, scene, kinds[k], true, 8, 2);
+        CHECK(rgb && spec);
+        if (rgb && spec) {
+            double m[3], se[3];
+            ratio_stats(spec, rgb, m, se);
+            for (int c = 0; c < 3; c++)
+                CHECK_MSG(fabs(m[c] - 1.0) <= 4.0 * se[c] + 1e-3, "integrator %d channel %d: ratio %.5f (se %.2g)",
+                          (int)kinds[k], c, m[c], se[c]);
+            fprintf(stderr, "  integrator %d: spectral / RGB %.5f %.5f %.5f (se %.1e %.1e %.1e)\n", (int)kinds[k], m[0],
+                    m[1], m[2], se[0], se[1], se[2]);
+        }
+        pn_image_free(rgb);
+        pn_image_free(spec);
+    }
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* The linear sRGB of the spectral product of reflectance kd and light rgb in pbrt-v4's model:
+ * XYZ = (1 / integral of y-bar) * integral of cmf(l) s_kd(l) 2m s_(light/2m)(l) D65(l) dl, D65 of
+ * luminance 1, at 1 nm; the coefficients from the same table the renderer uses. */
+static void spectral_product(const float kd[3], const float light[3], double rgb[3]) {
+    float ckd[3], cl[3], m = fmaxf(light[0], fmaxf(light[1], light[2]));
+    const float ln[3] = {light[0] / (2 * m), light[1] / (2 * m), light[2] / (2 * m)};
+    pn_rgb2spec_lookup(pn_rgb2spec_srgb(), kd, ckd);
+    pn_rgb2spec_lookup(pn_rgb2spec_srgb(), ln, cl);
+    double xyz[3] = {0, 0, 0};
+    for (double l = PN_LAMBDA_MIN; l <= PN_LAMBDA_MAX; l += 1.0) {
+        double w = (l == PN_LAMBDA_MIN || l == PN_LAMBDA_MAX) ? 0.5 : 1.0, bar[3];
+        pn_cie_xyz_bar(l, bar);
+        double s = pn_sigmoid_spectrum(ckd, l) * 2.0 * (double)m * pn_sigmoid_spectrum(cl, l) * pn_swl_d65(l);
+        for (int j = 0; j < 3; j++) xyz[j] += w * bar[j] * s;
+    }
+    for (int j = 0; j < 3; j++) xyz[j] /= pn_cie_y_integral();
+    pn_xyz_to_linear_srgb(xyz, rgb);
+}
+
+/* Orange light on an orange diffuser: against the same scene with white light and a white
+ * diffuser in RGB mode (the geometry alone, pixel by pixel), spectral mode gives the spectral
+ * product, RGB mode the product of the RGBs, which is brighter in red by several percent. */
+static void test_saturated_product(void) {
+    const float kd[3] = {0.6f, 0.3f, 0.1f}, light[3] = {1.0f, 0.45f, 0.12f};
+    double expected[3];
+    spectral_product(kd, light, expected);
+    pn_context ctx = pn_context_new();
+    pn_scene white = load_plane(ctx, "\"rgb L\" [ 1 1 1 ]", "1 1 1");
+    pn_scene orange = load_plane(ctx, "\"rgb L\" [ 1 0.45 0.12 ]", "0.6 0.3 0.1");
+    CHECK(white && orange);
+    if (white && orange) {
+        pn_image geometry = render(ctx, white, PN_INTEGRATOR_REFERENCE, false, 16, 2);
+        pn_image spec = render(ctx, orange, PN_INTEGRATOR_REFERENCE, true, 32, 2);
+        pn_image rgb = render(ctx, orange, PN_INTEGRATOR_REFERENCE, false, 16, 2);
+        CHECK(geometry && spec && rgb);
+        if (geometry && spec && rgb) {
+            double m[3], se[3], mr[3], ser[3];
+            ratio_stats(spec, geometry, m, se);
+            ratio_stats(rgb, geometry, mr, ser);
+            double y = 0.2126 * expected[0] + 0.7152 * expected[1] + 0.0722 * expected[2];
+            fprintf(stderr, "  model %.5f %.5f %.5f, spectral %.5f %.5f %.5f (se %.1e %.1e %.1e), RGB %.5f %.5f %.5f\n",
+                    expected[0], expected[1], expected[2], m[0], m[1], m[2], se[0], se[1], se[2], mr[0], mr[1], mr[2]);
+            for (int c = 0; c < 3; c++)
+                CHECK_MSG(fabs(m[c] - expected[c]) <= 4.0 * se[c] + 2e-3 * y, "channel %d: %.5f, model %.5f", c, m[c],
+                          expected[c]);
+            /* RGB mode: the product of the RGBs, exactly (same light samples), and off the model. */
+            for (int c = 0; c < 3; c++) CHECK_NEAR(mr[c], (double)kd[c] * (double)light[c], 1e-4);
+            CHECK_MSG(mr[0] > expected[0] * 1.03, "RGB mode's red %.5f is not above the spectral %.5f", mr[0],
+                      expected[0]);
+        }
+        pn_image_free(geometry);
+        pn_image_free(spec);
+        pn_image_free(rgb);
+    }
+    pn_scene_free(white);
+    pn_scene_free(orange);
+    pn_context_free(ctx);
+}
+
+/* The CIE chromaticity of the black body at `kelvin`, integrated at 1 nm. */
+static void planck_xy(double kelvin, double xy[2]) {
+    double xyz[3] = {0, 0, 0};
+    for (double l = PN_LAMBDA_MIN; l <= PN_LAMBDA_MAX; l += 1.0) {
+        double bar[3];
+        pn_cie_xyz_bar(l, bar);
+        for (int j = 0; j < 3; j++) xyz[j] += bar[j] * pn_planck(l, kelvin);
+    }
+    double s = xyz[0] + xyz[1] + xyz[2];
+    xy[0] = xyz[0] / s;
+    xy[1] = xyz[1] / s;
+}
+
+/* A blackbody light on a white diffuser: the image's mean colour has the black body's CIE
+ * chromaticity. Tolerance: see the test's output and docs/spectral.md. */
+static void test_blackbody_chromaticity(void) {
+    pn_context ctx = pn_context_new();
+    const double temps[] = {2200.0, 3000.0, 6500.0};
+    for (int t = 0; t < 3; t++) {
+        char light[64];
+        snprintf(light, sizeof light, "\"blackbody L\" [ %g ]", temps[t]);
+        pn_scene scene = load_plane(ctx, light, "1 1 1");
+        CHECK(scene != NULL);
+        if (!scene) continue;
+        pn_image img = render(ctx, scene, PN_INTEGRATOR_REFERENCE, true, 64, 2);
+        CHECK(img != NULL);
+        if (img) {
+            const float *p = pn_image_layer_data(img, 0);
+            size_t n = (size_t)pn_image_width(img) * (size_t)pn_image_height(img);
+            double rgb[3] = {0, 0, 0}, xyz[3];
+            for (size_t i = 0; i < n; i++)
+                for (int c = 0; c < 3; c++) rgb[c] += (double)p[3 * i + (size_t)c];
+            pn_linear_srgb_to_xyz(rgb, xyz);
+            double s = xyz[0] + xyz[1] + xyz[2], xy[2];
+            planck_xy(temps[t], xy);
+            fprintf(stderr, "  %g K: image x %.5f y %.5f, Planck x %.5f y %.5f\n", temps[t], xyz[0] / s, xyz[1] / s,
+                    xy[0], xy[1]);
+            CHECK_NEAR(xyz[0] / s, xy[0], 1e-3);
+            CHECK_NEAR(xyz[1] / s, xy[1], 1e-3);
+        }
+        pn_image_free(img);
+        pn_scene_free(scene);
+    }
+    pn_context_free(ctx);
+}
+
+/* Spectral mode's images are bit-identical for 1 and 2 threads (reference, ias, lightcuts,
+ * illumcut). */
+static void test_thread_determinism(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_plane(ctx, "\"rgb L\" [ 1 0.45 0.12 ]", "0.6 0.3 0.1");
+    CHECK(scene != NULL);
+    const pn_integrator_kind kinds[] = {PN_INTEGRATOR_REFERENCE, PN_INTEGRATOR_IAS, PN_INTEGRATOR_LIGHTCUTS,
+                                        PN_INTEGRATOR_ILLUMCUT};
+    for (size_t k = 0; scene && k < sizeof kinds / sizeof kinds[0]; k++) {
+        pn_image a = render(ctx, scene, kinds[k], true, 4, 1), b = render(ctx, scene, kinds[k], true, 4, 2);
+        CHECK(a && b);
+        if (a && b) {
+            size_t n = (size_t)pn_image_width(a) * (size_t)pn_image_height(a) * 3;
+            CHECK_MSG(memcmp(pn_image_layer_data(a, 0), pn_image_layer_data(b, 0), n * sizeof(float)) == 0,
+                      "integrator %d differs between 1 and 2 threads", (int)kinds[k]);
+        }
+        pn_image_free(a);
+        pn_image_free(b);
+    }
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+static void test_setup(void) {
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_spectral_transport_XXXXXX");
+    if (!mkdtemp(tmpdir)) {
+        fprintf(stderr, "mkdtemp failed\n");
+        exit(1);
+    }
+}
+
+PN_TESTS(TEST(test_setup), TEST(test_white_furnace_every_integrator), TEST(test_saturated_product),
+         TEST(test_blackbody_chromaticity), TEST(test_thread_determinism))
