@@ -47,9 +47,7 @@
  * Two variants (issue 15; --ias-variant). `paper` is everything above, unchanged. `default`
  * departs where the bench (bench/ias/beyond.sh) showed the paper losing, each departure its own
  * option (registry.c) with its reason and measured effect where it is implemented:
- *  - ias-cut bvh (an option; the default cut is trees again since stop 15: with this cut the
- *    default variant came out 45% dark on scenes/office's spot lights, cause not found, see
- *    docs/methods/ias.md): the clusters are a cut of the light BVH of at most ias-cut-size nodes
+ *  - ias-cut bvh: the clusters are a cut of the light BVH of at most ias-cut-size nodes
  *    (pn_light_bvh_cut), a node's light chosen by the BVH's importance descent, and the statistics
  *    kept in a hash table per worker (ias_table): cost per point O(cut size + tree depth) and
  *    memory following the shadow rays, not lights x pixels (compute_cut, ias_table);
@@ -1179,7 +1177,10 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 record(sh, block, pix, id, light, lum_v, visible);
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
             /* The sample's estimate of the region's direct light (eq. 2 with this pass's PDF). */
-            double w = 1.0 / (p_cluster * p_light);
+            /* A descent that found no light with importance at this point (p_light 0) is a sample
+             * of value 0, not 0 / 0: the NaN it made used to zero the whole pixel at output (the
+             * default variant's BVH cut came out 45% dark on scenes/office's spots). */
+            double w = p_cluster > 0.0 && p_light > 0.0 ? 1.0 / (p_cluster * p_light) : 0.0;
             double ly = lum_v * w;
             r->sum += ly;
             r->sum2 += ly * ly;
