@@ -47,7 +47,9 @@
  * Two variants (issue 15; --ias-variant). `paper` is everything above, unchanged. `default`
  * departs where the bench (bench/ias/beyond.sh) showed the paper losing, each departure its own
  * option (registry.c) with its reason and measured effect where it is implemented:
- *  - ias-cut bvh: the clusters are a cut of the light BVH of at most ias-cut-size nodes
+ *  - ias-cut bvh (an option; the default cut is trees since stop 15: 2.2% dark on
+ *    living-env-138-matte, cause not found, docs/methods/ias.md): the clusters are a cut of the
+ *    light BVH of at most ias-cut-size nodes
  *    (pn_light_bvh_cut), a node's light chosen by the BVH's importance descent, and the statistics
  *    kept in a hash table per worker (ias_table): cost per point O(cut size + tree depth) and
  *    memory following the shadow rays, not lights x pixels (compute_cut, ias_table);

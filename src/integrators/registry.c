@@ -199,7 +199,7 @@ static const pn_option_decl options[] = {
      F(ias_variant),
      PN_FIELD_INT,
      PN_IAS_VARIANT_DEFAULT},
-    {{"ias-cut", PN_OPTION_CHOICE, "bvh", 0, 0, 0, 0, "", "trees,bvh",
+    {{"ias-cut", PN_OPTION_CHOICE, "trees", 0, 0, 0, 0, "", "trees,bvh",
       "default variant: the clusters of a point, 'trees' (the paper's cut of the cluster trees by solid angle) or "
       "'bvh' (a cut of the light BVH by importance with at most ias-cut-size nodes: cost per point independent of "
       "the number of lights)"},
