@@ -47,14 +47,16 @@
  * Two variants (issue 15; --ias-variant). `paper` is everything above, unchanged. `default`
  * departs where the bench (bench/ias/beyond.sh) showed the paper losing, each departure its own
  * option (registry.c) with its reason and measured effect where it is implemented:
- *  - ias-cut bvh (an option; the default cut is trees since stop 15: 2.2% dark on
- *    living-env-138-matte, cause not found, docs/methods/ias.md): the clusters are a cut of the
+ *  - ias-cut bvh (an option; the default cut is trees: the BVH cut was 2.2% dark on
+ *    living-env-138-matte until balance_prior, and after it was slower at equal relMSE on three of
+ *    four shared crops, docs/methods/ias.md): the clusters are a cut of the
  *    light BVH of at most ias-cut-size nodes
  *    (pn_light_bvh_cut), a node's light chosen by the BVH's importance descent, and the statistics
  *    kept in a hash table per worker (ias_table): cost per point O(cut size + tree depth) and
  *    memory following the shadow rays, not lights x pixels (compute_cut, ias_table);
  *  - ias-prior importance: c_U's PDF (all of pass 0's) is the BVH descent's own probability of
- *    each cut node instead of uniform (compute_cut, build_pdf_table);
+ *    each cut node instead of uniform, the tree, each distant light and each environment map
+ *    taking equal shares as in pbrt-v4 (compute_cut, balance_prior, build_pdf_table);
  *  - ias-points members: shadow rays leave from the region's eye-ray points, not from its
  *    representative (push_point, group_points);
  *  - ias-pass-rays N: pass j takes max((j + 1) N, 1.5 N_C) shadow rays per pixel instead of
@@ -584,10 +586,11 @@ static int env_of(const ias_shared *sh, int id) {
  * cut, the tree's share split by the descent's probabilities and an environment's by its regions'
  * power x cosine. Comparing the root's importance with the regions' power instead (the earlier
  * rule) weighs unoccluded bounds: on living-env-138-matte, whose 138 mostly hidden point lights
- * bound 10-20x the sky's irradiance, the sky seen through the windows got about 11% of the first
- * pass and its regions as little as 3e-5 of later passes' PDFs; their rare samples (up to 250x the
- * pixel's value) made the pass estimates so skewed that the inverse-variance combination and the
- * convergence test turned them into a dark image (-4.3% at 256x144, crop 0.4-0.6, T = 0.01). */
+ * bound far more than the sky, the sky seen through the windows (most of a pixel's light) got 11%
+ * of a pixel's first pass and its regions as little as 3e-5 of later passes' PDFs; their rare
+ * samples (over 300x the pixel's value) left each pass unbiased but so skewed that the
+ * inverse-variance combination and the convergence test turned them into a dark image (-4.3% at
+ * 256x144, crop 0.4-0.6, T = 0.01; -0.4% with this rule, trees -0.7%, four seeds). */
 static void balance_prior(const ias_shared *sh, const int *out, double *prior, int k_tree, int k) {
     int groups = k_tree > 0 ? 1 : 0;
     for (int i = k_tree; i < k; i++) /* a distant light, or the first region of an environment */
