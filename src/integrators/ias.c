@@ -638,8 +638,9 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
                 imp[j] = imp[j - 1];
                 imp[j - 1] = f;
             }
-        /* The tree's share against distant lights and environment regions: its root's importance
-         * (a bound on its irradiance times pi, the unit of their priors below). */
+        /* The nodes' descent probabilities times the root's importance. The root's factor no longer
+         * sets the tree's share against distant lights and environment regions (balance_prior
+         * does); it is kept so that scenes without them keep their images bit for bit. */
         const double root = k > 0 ? (double)pn_light_bounds_importance(&sh->bvh.nodes[0].b, r->origin, n) : 0.0;
         for (int i = k - 1; i >= 0; i--) prior[i] = root * (double)imp[i];
         k_tree = k;
