@@ -47,6 +47,11 @@ METHOD_ARGS = {
     # the default variant with the paper's fixed eye rays (issue 21's growing eye rays off)
     "ias-aa32": [["--integrator", "ias", "--ias-aa-threshold", "0", "--threshold", t]
                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # the default variant with each cluster cut named (issue 15: which one is the default)
+    "ias-bvh": [["--integrator", "ias", "--ias-cut", "bvh", "--threshold", t]
+                for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-trees": [["--integrator", "ias", "--ias-cut", "trees", "--threshold", t]
+                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):

@@ -47,14 +47,16 @@
  * Two variants (issue 15; --ias-variant). `paper` is everything above, unchanged. `default`
  * departs where the bench (bench/ias/beyond.sh) showed the paper losing, each departure its own
  * option (registry.c) with its reason and measured effect where it is implemented:
- *  - ias-cut bvh (an option; the default cut is trees since stop 15: 2.2% dark on
- *    living-env-138-matte, cause not found, docs/methods/ias.md): the clusters are a cut of the
+ *  - ias-cut bvh (an option; the default cut is trees: the BVH cut was 2.2% dark on
+ *    living-env-138-matte until balance_prior, and after it was slower at equal relMSE on three of
+ *    four shared crops, docs/methods/ias.md): the clusters are a cut of the
  *    light BVH of at most ias-cut-size nodes
  *    (pn_light_bvh_cut), a node's light chosen by the BVH's importance descent, and the statistics
  *    kept in a hash table per worker (ias_table): cost per point O(cut size + tree depth) and
  *    memory following the shadow rays, not lights x pixels (compute_cut, ias_table);
  *  - ias-prior importance: c_U's PDF (all of pass 0's) is the BVH descent's own probability of
- *    each cut node instead of uniform (compute_cut, build_pdf_table);
+ *    each cut node instead of uniform, the tree, each distant light and each environment map
+ *    taking equal shares as in pbrt-v4 (compute_cut, balance_prior, build_pdf_table);
  *  - ias-points members: shadow rays leave from the region's eye-ray points, not from its
  *    representative (push_point, group_points);
  *  - ias-pass-rays N: pass j takes max((j + 1) N, 1.5 N_C) shadow rays per pixel instead of
@@ -572,6 +574,44 @@ static bool reserve_cut(ias_scratch *s, int more) {
     return true;
 }
 
+/* The environment map of cluster id `id` >= light_ids (ids of map e start at env_base[e]). */
+static int env_of(const ias_shared *sh, int id) {
+    int e = 0;
+    while (e + 1 < sh->env_count && id >= sh->env_base[e + 1]) e++;
+    return e;
+}
+
+/* The importance prior's shares between the light BVH, each distant light and each environment
+ * map, as pbrt-v4's BVH light sampler gives them: 1 / G each of the G that have entries in the
+ * cut, the tree's share split by the descent's probabilities and an environment's by its regions'
+ * power x cosine. Comparing the root's importance with the regions' power instead (the earlier
+ * rule) weighs unoccluded bounds: on living-env-138-matte, whose 138 mostly hidden point lights
+ * bound far more than the sky, the sky seen through the windows (most of a pixel's light) got 11%
+ * of a pixel's first pass and its regions as little as 3e-5 of later passes' PDFs; their rare
+ * samples (over 300x the pixel's value) left each pass unbiased but so skewed that the
+ * inverse-variance combination and the convergence test turned them into a dark image (-4.3% at
+ * 256x144, crop 0.4-0.6, T = 0.01; -0.4% with this rule, trees -0.7%, four seeds). */
+static void balance_prior(const ias_shared *sh, const int *out, double *prior, int k_tree, int k) {
+    int groups = k_tree > 0 ? 1 : 0;
+    for (int i = k_tree; i < k; i++) /* a distant light, or the first region of an environment */
+        if (out[i] < sh->light_ids || i == k_tree || out[i - 1] < sh->light_ids ||
+            env_of(sh, out[i]) != env_of(sh, out[i - 1]))
+            groups++;
+    if (groups < 2) return; /* one group: its own proportions are the PDF */
+    const double share = 1.0 / (double)groups;
+    for (int i = 0; i < k;) {
+        int j = i + 1;
+        if (i >= k_tree && out[i] >= sh->light_ids)
+            while (j < k && env_of(sh, out[j]) == env_of(sh, out[i])) j++;
+        else if (i < k_tree)
+            j = k_tree;
+        double sum = 0.0;
+        for (int m = i; m < j; m++) sum += prior[m];
+        for (int m = i; m < j; m++) prior[m] = sum > 0.0 ? share * prior[m] / sum : share / (double)(j - i);
+        i = j;
+    }
+}
+
 /* The clusters of a region's point: the tree cut, distant lights above the horizon, and the
  * environment regions not below it, as cluster ids. */
 static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_region *r) {
@@ -579,7 +619,7 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
     if (!reserve_cut(s, sh->max_cut)) return false;
     int *out = s->cut + s->cut_used;
     double *prior = s->cut_prior + s->cut_used;
-    int k;
+    int k, k_tree = 0;
     if (sh->bvh_cut) {
         /* The light BVH cut, each node with the probability the BVH's own descent gives it (so
          * that the prior PDF followed by the descent in the node is exactly pbrt's light BVH
@@ -598,10 +638,12 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
                 imp[j] = imp[j - 1];
                 imp[j - 1] = f;
             }
-        /* The tree's share against distant lights and environment regions: its root's importance
-         * (a bound on its irradiance times pi, the unit of their priors below). */
+        /* The nodes' descent probabilities times the root's importance. The root's factor no longer
+         * sets the tree's share against distant lights and environment regions (balance_prior
+         * does); it is kept so that scenes without them keep their images bit for bit. */
         const double root = k > 0 ? (double)pn_light_bounds_importance(&sh->bvh.nodes[0].b, r->origin, n) : 0.0;
         for (int i = k - 1; i >= 0; i--) prior[i] = root * (double)imp[i];
+        k_tree = k;
         for (int d = 0; d < sh->distant_count; d++) {
             const pn_light *l = &job->lights->lights[sh->distant[d]];
             float c = v3_dot(n, l->n);
@@ -625,6 +667,7 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
             out[k++] = sh->env_base[e] + q;
         }
     }
+    if (sh->bvh_cut) balance_prior(sh, out, prior, k_tree, k);
     r->cut_first = s->cut_used;
     r->cut_count = k;
     s->cut_used += k;
