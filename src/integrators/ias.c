@@ -64,14 +64,15 @@
  *  - ias-cluster-numbers sobol: the cluster choice takes dimension 5's Sobol number itself (no
  *    stratum jitter; sample_pixel). Always with the BVH cut: its descent continues with the
  *    cluster's number rescaled within the node; with members, dimension 9 picks the point;
- *  - ias-aa-threshold T0 (issue 21; off by default, 0): below T0 a pixel takes aa_rays T0 / T
- *    eye rays, so that the antialiasing regions' error falls with T (ias_eye_rays). With
- *    --adaptive-rule cross (weights and stopping from the block's other pixels,
- *    pixel_estimate_cross) and T0 = 0.01 the relMSE falls as T (slope 1.10 on
- *    tests/test_ias_converge.c's scene, against 0.52 for the default) and the mean luminance is
- *    within its standard error of the converged render. Not the default yet: on the bench it won
- *    on hall-many and bathroom-72, and on staircase-832 the one-seed bench and three seeds
- *    disagreed (bench/RESULTS.md, 2026-12-02 night);
+ *  - ias-aa-threshold T0 (issue 21; 0.01 by default since stop 16, 0 the paper's): below T0 a
+ *    pixel takes aa_rays T0 / T eye rays, so that the antialiasing regions' error falls with T
+ *    (ias_eye_rays); at T >= T0 nothing changes. relMSE slope against T 1.02 instead of 0.52 on
+ *    tests/test_ias_converge.c's scene; at T = 0.001 on the bench crops relMSE 0.6-0.8x that of
+ *    32 eye rays for 1.1-1.5x the CPU (docs/methods/ias.md). With --adaptive-rule cross (weights
+ *    and stopping from the block's other pixels, pixel_estimate_cross) the mode is unbiased: the
+ *    default test's eq. 7-8 weights include the pixel's own samples and bias the image by about
+ *    -0.1% (-0.07% to -0.15% on the bench crops), a firefly suppression that cross's weights give
+ *    up for 1.4-42x the relMSE at fixed passes (docs/adaptive-sampling.md, "ias");
  *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
  *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md. */
 #include "integrators/integrator.h"

@@ -241,10 +241,10 @@ static const pn_option_decl options[] = {
      F(ias_pass_rays),
      PN_FIELD_U32,
      0},
-    {{"ias-aa-threshold", PN_OPTION_DOUBLE, "0", 0, 1, 0, 0, "", "",
+    {{"ias-aa-threshold", PN_OPTION_DOUBLE, "0.01", 0, 1, 0, 0, "", "",
       "default variant: below this threshold a pixel takes aa-rays x this / threshold eye rays (at most 4096), so "
-      "that the antialiasing regions' error falls with the threshold too (0: always aa-rays; 0.01 with "
-      "adaptive-rule cross: the converging rule of docs/adaptive-sampling.md)"},
+      "that the antialiasing regions' error falls with the threshold too (0: always aa-rays, the paper's; with "
+      "adaptive-rule cross the unbiased converging rule of docs/adaptive-sampling.md)"},
      BIT(M_IAS),
      F(ias_aa_threshold),
      PN_FIELD_F64,
