@@ -55,7 +55,7 @@ static const pn_method_entry methods[M_COUNT] = {
           "Donikian et al. 2006, section 5.1", DIRECT,
           PN_CAP_PER_PIXEL | PN_CAP_PROGRESSIVE | PN_CAP_CROP | PN_CAP_SPP | PN_CAP_THRESHOLD | PN_CAP_EMITTED |
               PN_CAP_EYE_SAMPLES,
-          PN_AOV_ILLUMINANCE, "", 64},
+          PN_AOV_ILLUMINANCE | PN_AOV_MELANOPIC_EDI, "", 64},
          &pn_integrator_reference},
     /* Not PN_CAP_PROGRESSIVE (issue 18): refused by dcm, painter and uniform for the reason
      * IAS_NOT_PROGRESSIVE gives; the full driver, whose batches are whole blocks, takes it. */

@@ -87,6 +87,27 @@ vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb)
  * gives the black body luminance 1. 0 for kelvin <= 0. */
 double pn_blackbody_unit_scale(double kelvin);
 
+/* A tabulated emission spectrum kept as a spectrum in spectral mode (a "spectrum" value given as
+ * numbers, an .spd file, or the named stdillum-D65 / stdillum-A, whose CIE tables cie.h has):
+ * piecewise linear between its wavelengths and held at its end values outside them, as
+ * scene/spectrum.c reads the same values for RGB mode. scale is 1 / the function's luminance
+ * (∫ ȳ S dλ / ∫ ȳ dλ with cie.h's tables, trapezoid rule at 0.1 nm; 0 without luminance). */
+typedef struct pn_spd {
+    int count;
+    double *lambda, *value; /* count each, lambda increasing */
+    double scale;
+} pn_spd;
+
+/* A new pn_spd of `count` (lambda, value) pairs (increasing lambda); NULL when out of memory. A
+ * function without luminance gets scale 0 (it emits nothing, as its RGB). Free with pn_spd_free. */
+pn_spd *pn_spd_new(const double *pairs, int count);
+void pn_spd_free(pn_spd *s);
+/* The function at lambda (nm). */
+double pn_spd_eval(const pn_spd *s, double lambda);
+/* A tabulated emission at the wavelengths, scaled so that its luminance equals that of rgb (the
+ * value RGB mode uses for it, as pn_swl_blackbody): Y(rgb) * scale * S(lambda). RGB mode: rgb. */
+vec3 pn_swl_tabulated(const pn_swl *w, const pn_spd *s, vec3 rgb);
+
 /* The colour space's illuminant, normalised to luminance 1 (pbrt-v4's normalisation of
  * stdillum-D65), at lambda (nm). */
 double pn_swl_d65(double lambda);
