@@ -107,7 +107,7 @@ typedef struct pn_vpl_receiver {
 
 /* A receiver of linear sRGB reflectances (RGB mode: kd_w = kd, ks_w = ks, no wavelengths). */
 static inline pn_vpl_receiver pn_vpl_receiver_rgb(vec3 p, vec3 ng, vec3 ns, vec3 wo, vec3 kd, vec3 ks, float exponent) {
-    pn_vpl_receiver r = {p, ng, ns, wo, kd, ks, exponent, kd, ks, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, false}};
+    pn_vpl_receiver r = {p, ng, ns, wo, kd, ks, exponent, kd, ks, {.on = false}};
     return r;
 }
 

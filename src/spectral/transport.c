@@ -44,6 +44,19 @@ void pn_swl_sample(float u, pn_swl *out) {
         out->inv_pdf[i] = (float)(1.0 / pn_visible_wavelength_pdf(lambda));
         out->illum[i] = (float)pn_swl_d65(lambda);
     }
+    /* The film's maps (transport.h): the CIE lookups once per set of wavelengths, not per value
+     * converted (illumcut converts one value per cluster pair of Phase I). */
+    const double k = g_inv_y_integral / PN_SWL_COUNT;
+    for (int i = 0; i < PN_SWL_COUNT; i++) {
+        double bar[3], xyz[3], rgb[3];
+        pn_cie_xyz_bar(out->lambda[i], bar);
+        for (int c = 0; c < 3; c++) xyz[c] = bar[c] * (double)out->inv_pdf[i] * k;
+        pn_xyz_to_linear_srgb(xyz, rgb);
+        for (int c = 0; c < 3; c++) {
+            out->xyz_w[c][i] = (float)xyz[c];
+            out->rgb_w[c][i] = (float)rgb[c];
+        }
+    }
     out->on = true;
 }
 
@@ -122,26 +135,20 @@ vec3 pn_swl_illuminant_on(const pn_swl *w, vec3 rgb) {
     return v3(s.x * w->illum[0], s.y * w->illum[1], s.z * w->illum[2]);
 }
 
+/* A 3 x 3 map of the values at the wavelengths, accumulated in double. */
+static inline vec3 swl_map(const float m[3][PN_SWL_COUNT], vec3 v) {
+    const double a = v.x, b = v.y, c = v.z;
+    double out[3];
+    for (int k = 0; k < 3; k++) out[k] = (double)m[k][0] * a + (double)m[k][1] * b + (double)m[k][2] * c;
+    return v3((float)out[0], (float)out[1], (float)out[2]);
+}
+
 vec3 pn_swl_xyz_on(const pn_swl *w, vec3 v) {
-    pthread_once(&g_once, transport_init);
-    double xyz[3] = {0.0, 0.0, 0.0};
-    const float val[3] = {v.x, v.y, v.z};
-    for (int i = 0; i < PN_SWL_COUNT; i++) {
-        double bar[3];
-        pn_cie_xyz_bar(w->lambda[i], bar);
-        double s = (double)val[i] * (double)w->inv_pdf[i];
-        for (int k = 0; k < 3; k++) xyz[k] += bar[k] * s;
-    }
-    double k = g_inv_y_integral / PN_SWL_COUNT;
-    return v3((float)(xyz[0] * k), (float)(xyz[1] * k), (float)(xyz[2] * k));
+    return swl_map(w->xyz_w, v);
 }
 
 vec3 pn_swl_rgb_on(const pn_swl *w, vec3 v) {
-    vec3 x = pn_swl_xyz_on(w, v);
-    const double xyz[3] = {x.x, x.y, x.z};
-    double rgb[3];
-    pn_xyz_to_linear_srgb(xyz, rgb);
-    return v3((float)rgb[0], (float)rgb[1], (float)rgb[2]);
+    return swl_map(w->rgb_w, v);
 }
 
 double pn_blackbody_unit_scale(double kelvin) {

@@ -38,6 +38,12 @@ typedef struct pn_swl {
     float lambda[PN_SWL_COUNT];  /* nm */
     float inv_pdf[PN_SWL_COUNT]; /* 1 / (density of each wavelength alone, per nm) */
     float illum[PN_SWL_COUNT];   /* the illuminant (D65, luminance 1) at lambda */
+    /* The film's estimator as two 3 x 3 maps of the values at the wavelengths, set by
+     * pn_swl_sample so that a conversion costs 9 multiply-adds and no CIE table lookup:
+     * xyz_w[k][i] = cmf_k(lambda_i) / pdf(lambda_i) / (n * integral of y-bar), and rgb_w the
+     * XYZ -> linear sRGB matrix times xyz_w. */
+    float xyz_w[3][PN_SWL_COUNT];
+    float rgb_w[3][PN_SWL_COUNT];
     bool on;
 } pn_swl;
 
