@@ -29,9 +29,13 @@
  * Spectra outside the sRGB gamut (very red or very blue emitters, saturated reflectances) would
  * get negative channels; those are set to 0.
  *
- * Spectral mode (--spectral, spectral/transport.h) upsamples these RGB values where they are used;
- * a light's "blackbody" value is also kept as its temperature (pn_params_blackbody_kelvin,
- * pn_light_def.kelvin, pn_emission.kelvin), and spectral mode emits Planck's law itself.
+ * Spectral mode (--spectral, spectral/transport.h) upsamples these RGB values where they are used,
+ * except for light emission that has a spectrum of its own: a "blackbody" value is also kept as
+ * its temperature (pn_params_blackbody_kelvin, pn_light_def.kelvin, pn_emission.kelvin), and a
+ * "spectrum" given as numbers, an .spd file, stdillum-D65 or stdillum-A as the tabulated function
+ * (pn_params_light_spectrum: a pn_spd owned by the scene, pn_light_def.spd, pn_emission.spd), and
+ * spectral mode emits those (Planck's law, the table) scaled to the luminance of the RGB value
+ * read here. Negative tabulated values are dropped there as negative channels are here.
  *
  * The colour matching functions are the multi-lobe Gaussian fit of Wyman, Sloan and Shirley,
  * "Simple Analytic Approximations to the CIE XYZ Color Matching Functions", JCGT 2(2), 2013.
