@@ -283,6 +283,21 @@ static void test_tabulated_spectrum(void) {
     }
     pn_image_free(a);
     pn_image_free(b);
+    /* The same band from an .spd file (wavelength, value lines, '#' comments) is the same light:
+     * its render is bit-identical to the numeric spectrum's. */
+    CHECK(pn_test_write_file(tmpdir, "band.spd", "# a green line\n535 0\n540 1\n545 0\n") != NULL);
+    pn_scene file = load_plane(ctx, "\"spectrum L\" \"band.spd\" \"float scale\" [ 2 ]");
+    CHECK(file != NULL);
+    if (file) {
+        pn_image c = NULL, t = NULL;
+        CHECK(render(ctx, file, true, 4, 0, PN_INTEGRATOR_REFERENCE, &c) == PN_OK);
+        CHECK(render(ctx, tab, true, 4, 0, PN_INTEGRATOR_REFERENCE, &t) == PN_OK);
+        size_t bytes = (size_t)16 * 16 * 3 * sizeof(float);
+        CHECK(c && t && memcmp(pn_image_layer_data(c, 0), pn_image_layer_data(t, 0), bytes) == 0);
+        pn_image_free(c);
+        pn_image_free(t);
+        pn_scene_free(file);
+    }
     /* The melanopic EDI at points (spectral mode, 1024 samples per point): the band's closed form,
      * not its projection's. */
     pn_illuminance_point pts[4];
