@@ -324,6 +324,7 @@ static void test_usage_errors(void) {
         {{"render", "x.pbrt", "--adaptive-rule", "fast"}, "expected 'auto', 'paper' or 'cross'"},
         {{"render", "x.pbrt", "--integrator", "ias", "--light-sampler", "bvh"}, "applies to the reference integrator"},
         {{"render", "x.pbrt", "--aov-png=yes"}, "--aov-png"},
+        {{"illuminance", "x.pbrt", "--grid", "0,0,1,1", "--melanopic"}, "--melanopic needs --spectral"},
         {{"render", "x.pbrt", "--spp", "0"}, "invalid value '0' for --spp"},
         {{"render", "x.pbrt", "--spp", "4x"}, "invalid value '4x' for --spp"},
         {{"render", "x.pbrt", "--spp", "-3"}, "invalid value '-3' for --spp"},

@@ -6,10 +6,11 @@
 
 #include "film/aovs.h"
 #include "io/image.h"
+#include "spectral/cie.h"
 
 #include <stdint.h>
 
-#define ALL_BITS ((PN_AOV_LUMINANCE << 1) - 1u) /* bits 0..18 of the public enum */
+#define ALL_BITS ((PN_AOV_MELANOPIC_EDI << 1) - 1u) /* bits 0..20 of the public enum */
 
 static void test_every_bit_has_one_selectable_layer(void) {
     uint32_t seen = 0;
@@ -37,7 +38,7 @@ static void test_public_names_are_the_table(void) {
     int n = 0;
     for (int i = 0; i < pn_aov_layer_count(); i++) n += !pn_aov_layer_at(i)->derived;
     CHECK(pn_aov_count() == n);
-    CHECK(n == 19);
+    CHECK(n == 21);
     for (int i = 0; i < n; i++) {
         uint32_t bit = 0;
         const char *name = pn_aov_name(i, &bit);
@@ -46,13 +47,13 @@ static void test_public_names_are_the_table(void) {
         CHECK(l && strcmp(l->name, name) == 0);
     }
     CHECK(pn_aov_name(n, NULL) == NULL && pn_aov_name(-1, NULL) == NULL);
-    /* The common layers: the first six names, and luminance (every integrator's radiance). */
+    /* The common layers: the first six names, luminance and XYZ (every integrator's radiance). */
     uint32_t common = 0, bit;
     for (int i = 0; i < 6; i++) {
         pn_aov_name(i, &bit);
         common |= bit;
     }
-    CHECK((common | PN_AOV_LUMINANCE) == PN_AOV_COMMON);
+    CHECK((common | PN_AOV_LUMINANCE | PN_AOV_XYZ) == PN_AOV_COMMON);
 }
 
 static void test_method_aovs_exist(void) {
@@ -87,6 +88,7 @@ static void fill_estimates(pn_pixel_estimate *px, int n) {
         px[i].phase1 = v3(f, 2 * f, 3 * f);
         px[i].gradient = v3(-f, 0.5f, f);
         px[i].illuminance = 250.0f + f;
+        px[i].melanopic_edi = 125.0f + f;
     }
 }
 
@@ -126,6 +128,8 @@ static void test_assemble_all(void) {
     const float *pa = pn_image_layer_data(img, layer_index(img, "passes"));
     const float *lx = pn_image_layer_data(img, layer_index(img, "illuminance"));
     const float *lm = pn_image_layer_data(img, layer_index(img, "luminance"));
+    const float *xyz = pn_image_layer_data(img, layer_index(img, "XYZ"));
+    const float *mel = pn_image_layer_data(img, layer_index(img, "melanopic_edi"));
     for (int i = 0; i < N; i++) {
         CHECK(b[3 * i] == px[i].radiance.x && b[3 * i + 2] == px[i].radiance.z);
         CHECK(sr[i] == (float)(10 * i + 1));
@@ -138,6 +142,13 @@ static void test_assemble_all(void) {
         /* the Rec. 709 Y of the radiance (docs/units.md) */
         double y = 0.2126 * (i + 0.5) + 0.7152 * (i + 0.25) + 0.0722 * (i + 0.125);
         CHECK_NEAR(lm[i], y, 1e-4 * y);
+        /* XYZ: the IEC 61966-2-1 matrix of the radiance; Y within 4e-4 of the luminance */
+        const double rgb[3] = {i + 0.5, i + 0.25, i + 0.125};
+        double e[3];
+        pn_linear_srgb_to_xyz(rgb, e);
+        for (int k = 0; k < 3; k++) CHECK(xyz[3 * i + k] == (float)e[k]);
+        CHECK_NEAR(xyz[3 * i + 1], y, 4e-4 * y);
+        CHECK(mel[i] == 125.0f + (float)i);
     }
     CHECK_NEAR(lb[0], 2.0, 1e-6);
     CHECK_NEAR(lb[1], 3.0, 1e-6);

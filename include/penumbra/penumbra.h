@@ -291,10 +291,14 @@ enum {
     PN_AOV_ILLUMINANCE = 1u << 17,       /* illuminance (lux) on the first non-specular surface seen:
                                             direct (reference), total (vpl, lightcuts); see
                                             docs/lighting-design.md */
-    PN_AOV_LUMINANCE = 1u << 18          /* luminance (cd/m^2) of the pixel's radiance */
+    PN_AOV_LUMINANCE = 1u << 18,         /* luminance (cd/m^2) of the pixel's radiance */
+    PN_AOV_XYZ = 1u << 19,               /* CIE 1931 XYZ of the pixel's radiance (Y in cd/m^2) */
+    PN_AOV_MELANOPIC_EDI = 1u << 20      /* melanopic equivalent daylight (D65) illuminance (lux,
+                                            CIE S 026) where the illuminance AOV is computed;
+                                            spectral mode only; see docs/lighting-design.md */
 };
-/* the layers every integrator writes under the tiled driver: the first six and luminance */
-#define PN_AOV_COMMON (0x3fu | PN_AOV_LUMINANCE)
+/* the layers every integrator writes under the tiled driver: the first six, luminance and XYZ */
+#define PN_AOV_COMMON (0x3fu | PN_AOV_LUMINANCE | PN_AOV_XYZ)
 
 /* Number of AOV layers, and the name and PN_AOV_* bit of layer i (NULL when out of range). */
 PN_API int pn_aov_count(void);
@@ -442,6 +446,12 @@ typedef struct pn_illuminance_point {
  * result does not depend on the thread count. Driver and image settings are ignored. */
 PN_API pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
                                 const pn_illuminance_point *points, int count, double *lux);
+/* pn_illuminance that also writes the melanopic equivalent daylight (D65) illuminance of each
+ * point (CIE S 026, lux) into edi[i], from the same light samples at wavelengths of their own.
+ * Needs spectral mode (the option "spectral") and the reference integrator, else
+ * PN_ERROR_INVALID_ARGUMENT; edi NULL is pn_illuminance. */
+PN_API pn_status pn_illuminance_melanopic(pn_context ctx, pn_scene scene, const pn_render_settings *settings,
+                                          const pn_illuminance_point *points, int count, double *lux, double *edi);
 
 /* Renders the scene. On success *out_image is a new image (free with pn_image_free) holding the
  * beauty and the requested AOVs; stats (may be NULL) receives the render's statistics, replacing

@@ -41,6 +41,9 @@ static const char illuminance_help[] =
     "  --png-style S          bands (default), lines or smooth\n"
     "  --daylight-factor E    also the daylight factor, 100 x E_point / E (E: the unobstructed\n"
     "                         horizontal illuminance of the scene's sky, in lux)\n"
+    "  --melanopic            also the melanopic EDI (CIE S 026 melanopic equivalent daylight (D65)\n"
+    "                         illuminance, lux): a CSV column melanopic_edi_lux and its statistics;\n"
+    "                         needs --spectral and --integrator reference\n"
     "\n"
     "Every option of 'penumbra render' that selects and tunes the integrator applies: --integrator,\n"
     "--spp (samples per point, default 64), --seed, --threads, --shadow-rays, --vpls, ... The result\n"
@@ -257,18 +260,19 @@ static char *replace_extension(const char *path, const char *ext) {
 }
 
 static int write_csv(pn_context ctx, pn_output_set set, const char *path, const pn_illuminance_point *pts,
-                     const double *lux, int n, double df_reference) {
-    size_t cap = (size_t)n * 160 + 128, len = 0;
+                     const double *lux, const double *edi, int n, double df_reference) {
+    size_t cap = (size_t)n * 180 + 160, len = 0;
     char *buf = malloc(cap);
     if (!buf) return EXIT_SYSTEM;
-    len += (size_t)snprintf(buf + len, cap - len, "x,y,z,nx,ny,nz,illuminance_lux%s\n",
-                            df_reference > 0.0 ? ",daylight_factor_percent" : "");
+    len += (size_t)snprintf(buf + len, cap - len, "x,y,z,nx,ny,nz,illuminance_lux%s%s\n",
+                            df_reference > 0.0 ? ",daylight_factor_percent" : "", edi ? ",melanopic_edi_lux" : "");
     for (int i = 0; i < n; i++) {
         const pn_illuminance_point *p = &pts[i];
         len += (size_t)snprintf(buf + len, cap - len, "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g", (double)p->p[0],
                                 (double)p->p[1], (double)p->p[2], (double)p->n[0], (double)p->n[1], (double)p->n[2],
                                 lux[i]);
         if (df_reference > 0.0) len += (size_t)snprintf(buf + len, cap - len, ",%.9g", 100.0 * lux[i] / df_reference);
+        if (edi) len += (size_t)snprintf(buf + len, cap - len, ",%.9g", edi[i]);
         len += (size_t)snprintf(buf + len, cap - len, "\n");
     }
     pn_status st = pn_output_set_add_file(ctx, set, path, buf, len);
@@ -298,8 +302,8 @@ static void add_stats(cJSON *root, const char *prefix, grid_stats s) {
 }
 
 static int write_json(pn_context ctx, pn_output_set set, const char *path, const char *scene, const char *integrator,
-                      pn_options options, const grid_spec *g, const pn_illuminance_point *pts, const double *lux, int n,
-                      double df_reference, double seconds) {
+                      pn_options options, const grid_spec *g, const pn_illuminance_point *pts, const double *lux,
+                      const double *edi, int n, double df_reference, double seconds) {
     cJSON *root = cJSON_CreateObject();
     if (!root) return EXIT_SYSTEM;
     cJSON_AddStringToObject(root, "scene", scene);
@@ -314,6 +318,7 @@ static int write_json(pn_context ctx, pn_output_set set, const char *path, const
         cJSON_AddNumberToObject(root, "unobstructed_illuminance_lux", df_reference);
         add_stats(root, "DF", stats_of(lux, n, 100.0 / df_reference));
     }
+    if (edi) add_stats(root, "EDI_mel", stats_of(edi, n, 1.0));
     if (g->has) {
         static const char *axes = "xyz";
         int au, av;
@@ -338,6 +343,10 @@ static int write_json(pn_context ctx, pn_output_set set, const char *path, const
         double p[3] = {pts[i].p[0], pts[i].p[1], pts[i].p[2]};
         cJSON_AddItemToArray(coords, cJSON_CreateDoubleArray(p, 3));
         cJSON_AddItemToArray(values, cJSON_CreateNumber(lux[i]));
+    }
+    if (edi) {
+        cJSON *mel = cJSON_AddArrayToObject(root, "melanopic_edi_lux");
+        for (int i = 0; i < n; i++) cJSON_AddItemToArray(mel, cJSON_CreateNumber(edi[i]));
     }
     char *text = json_print(root);
     cJSON_Delete(root);
@@ -402,6 +411,7 @@ int command_illuminance(int argc, char **argv) {
     grid_spec g = {0, 0, 0, 0, 0, 0.75, 0.5, 2, 0, 0};
     const char *points_path = NULL, *csv_path = "illuminance.csv", *json_path = NULL, *png_path = NULL;
     double df_reference = 0.0;
+    int melanopic = 0;
     pn_false_color_style style = PN_FALSE_COLOR_BANDS;
     /* Our options are taken out; the rest (scene, integrator and its options) go to render's parser. */
     char **rest = calloc((size_t)argc + 2, sizeof *rest);
@@ -419,6 +429,10 @@ int command_illuminance(int argc, char **argv) {
             fputs(illuminance_help, stdout);
             free(rest);
             return EXIT_OK;
+        }
+        if (strcmp(a, "--melanopic") == 0) {
+            melanopic = 1;
+            continue;
         }
         if (!takes) {
             rest[nrest++] = argv[i];
@@ -489,12 +503,25 @@ int command_illuminance(int argc, char **argv) {
         pn_options_free(o.options);
         return usage_error(cmd, "no scene file given");
     }
+    if (melanopic) {
+        double spectral = 0.0;
+        int si = pn_option_find("spectral");
+        if (si >= 0 && pn_options_is_set(o.options, si)) pn_options_get(o.options, si, &spectral, NULL, 0);
+        /* The integrator is checked by pn_illuminance_melanopic (reference only). */
+        const char *why = spectral == 0.0 ? "needs --spectral (the melanopic EDI is integrated from the light's "
+                                            "spectrum at sampled wavelengths, which RGB mode does not carry)"
+                                          : NULL;
+        if (why) {
+            pn_options_free(o.options);
+            return usage_error(cmd, "--melanopic %s", why);
+        }
+    }
     char *json_default = json_path ? NULL : replace_extension(csv_path, ".json");
     char *png_default = png_path ? NULL : replace_extension(csv_path, ".png");
     if (!json_path) json_path = json_default;
     if (!png_path) png_path = png_default;
     pn_illuminance_point *pts = NULL;
-    double *lux = NULL;
+    double *lux = NULL, *edi = NULL;
     int n = 0;
     pn_context ctx = NULL;
     pn_scene scene = NULL;
@@ -513,8 +540,9 @@ int command_illuminance(int argc, char **argv) {
         }
     }
     lux = calloc((size_t)n, sizeof *lux);
+    edi = melanopic ? calloc((size_t)n, sizeof *edi) : NULL;
     ctx = pn_context_new();
-    if (!lux || !ctx) {
+    if (!lux || !ctx || (melanopic && !edi)) {
         code = EXIT_SYSTEM;
         goto done;
     }
@@ -526,7 +554,7 @@ int command_illuminance(int argc, char **argv) {
         goto done;
     }
     double t0 = monotonic_seconds();
-    st = pn_illuminance(ctx, scene, &o.settings, pts, n, lux);
+    st = pn_illuminance_melanopic(ctx, scene, &o.settings, pts, n, lux, edi);
     double seconds = monotonic_seconds() - t0;
     if (st != PN_OK) {
         code = report_failure(ctx, st);
@@ -539,9 +567,9 @@ int command_illuminance(int argc, char **argv) {
         code = EXIT_SYSTEM;
         goto done;
     }
-    code = write_csv(ctx, set, csv_path, pts, lux, n, df_reference);
+    code = write_csv(ctx, set, csv_path, pts, lux, edi, n, df_reference);
     if (code == EXIT_OK)
-        code = write_json(ctx, set, json_path, o.scene_path, integrator, o.options, &g, pts, lux, n, df_reference,
+        code = write_json(ctx, set, json_path, o.scene_path, integrator, o.options, &g, pts, lux, edi, n, df_reference,
                           seconds);
     if (code == EXIT_OK && g.has)
         code = write_isolux(ctx, set, png_path, &g, lux, df_reference > 0.0 ? 100.0 / df_reference : 1.0, style,
@@ -557,6 +585,10 @@ int command_illuminance(int argc, char **argv) {
             grid_stats d = stats_of(lux, n, 100.0 / df_reference);
             printf("daylight factor: min %.4g%%, mean %.4g%%, max %.4g%%\n", d.min, d.mean, d.max);
         }
+        if (edi) {
+            grid_stats m = stats_of(edi, n, 1.0);
+            printf("melanopic EDI: min %.6g lx, mean %.6g lx, max %.6g lx\n", m.min, m.mean, m.max);
+        }
         printf("wrote %s, %s%s%s\n", csv_path, json_path, g.has ? ", " : "", g.has ? png_path : "");
     }
 done:
@@ -564,6 +596,7 @@ done:
     pn_context_free(ctx);
     free(pts);
     free(lux);
+    free(edi);
     free(json_default);
     free(png_default);
     pn_options_free(o.options);

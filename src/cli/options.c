@@ -297,7 +297,16 @@ int parse_render_args(int argc, char **argv, render_options *o) {
         const uint32_t own = driver_own_aovs();
         char names[512];
         int own_only = (md->capabilities & PN_CAP_OWN_AOVS) != 0;
-        if (o->settings.aovs == all_aovs()) o->settings.aovs = own_only ? md->aovs : all_aovs() & ~own;
+        if (o->settings.aovs == all_aovs()) {
+            o->settings.aovs = own_only ? md->aovs : all_aovs() & ~own;
+            /* "all" holds melanopic_edi only where it can be computed: in spectral mode, by an
+             * integrator that declares it (asked for by name elsewhere, it is refused). */
+            double spectral = 0.0;
+            int si = pn_option_find("spectral");
+            if (si >= 0 && pn_options_is_set(o->options, si)) pn_options_get(o->options, si, &spectral, NULL, 0);
+            if (!(spectral != 0.0 && (mi->aovs & PN_AOV_MELANOPIC_EDI)))
+                o->settings.aovs &= ~(uint32_t)PN_AOV_MELANOPIC_EDI;
+        }
         if (own_only && (o->settings.aovs & ~md->aovs)) {
             format_aov_names(md->aovs, names, sizeof names);
             FAIL(usage_error(cmd, "with --driver %s only the AOVs %s exist", md->name, names));

@@ -2,7 +2,8 @@
  * and point lists, docs/lighting-design.md). The settings are resolved as for pn_render, the
  * integrator prepared once (light BVH, VPL set and tree), and the points handed to the worker
  * threads in chunks by an atomic counter; each point's value depends only on the scene, the
- * settings and its index (integrators/point_eval.c). */
+ * settings and its index (integrators/point_eval.c). pn_illuminance_melanopic adds each point's
+ * melanopic EDI (CIE S 026) in spectral mode. */
 #include "driver/points.h"
 #include "driver/settings.h"
 
@@ -24,6 +25,7 @@ typedef struct points_shared {
     const pn_illuminance_point *points;
     int count;
     double *lux;
+    double *edi; /* NULL unless the melanopic EDI is asked for */
     void **scratch;
     atomic_int failed;
 } points_shared;
@@ -42,7 +44,8 @@ static void run_chunk(void *user, size_t chunk, int worker) {
         const pn_illuminance_point *pt = &ps->points[i];
         vec3 p = v3(pt->p[0], pt->p[1], pt->p[2]);
         vec3 n = v3_normalize(v3(pt->n[0], pt->n[1], pt->n[2]));
-        if (!pn_point_illuminance(ps->job, ps->integrator, ps->scratch[worker], p, n, (uint32_t)i, &ps->lux[i])) {
+        if (!pn_point_illuminance(ps->job, ps->integrator, ps->scratch[worker], p, n, (uint32_t)i, &ps->lux[i],
+                                  ps->edi ? &ps->edi[i] : NULL)) {
             atomic_store(&ps->failed, (int)PN_ERROR_OUT_OF_MEMORY);
             return;
         }
@@ -51,6 +54,11 @@ static void run_chunk(void *user, size_t chunk, int worker) {
 
 pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_settings *caller_settings,
                          const pn_illuminance_point *points, int count, double *lux) {
+    return pn_illuminance_melanopic(ctx, scene, caller_settings, points, count, lux, NULL);
+}
+
+pn_status pn_illuminance_melanopic(pn_context ctx, pn_scene scene, const pn_render_settings *caller_settings,
+                                   const pn_illuminance_point *points, int count, double *lux, double *edi) {
     if (!ctx || !scene || !caller_settings || (count > 0 && (!points || !lux)) || count < 0) {
         if (ctx) pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "pn_illuminance: NULL argument or negative count");
         return PN_ERROR_INVALID_ARGUMENT;
@@ -69,6 +77,10 @@ pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_setting
                                "integrator %s does not compute illuminance at points (reference: direct; vpl, "
                                "lightcuts: total)",
                                ientry->info.name);
+    if (edi && !pn_point_melanopic_supported(integ))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "the melanopic EDI at points is computed by the reference integrator only (not %s)",
+                               ientry->info.name);
     for (int i = 0; i < count; i++) {
         const float *v = points[i].p, *n = points[i].n;
         bool finite = true;
@@ -81,9 +93,18 @@ pn_status pn_illuminance(pn_context ctx, pn_scene scene, const pn_render_setting
     pn_progress progress;
     pn_status st = pn_driver_prepare_job(ctx, scene, settings, ientry, dentry, &job, &progress);
     if (st != PN_OK) return st;
+    if (edi && !job.spectral) {
+        if (integ->release) integ->release(&job);
+        pn_progress_destroy(&progress);
+        atomic_store(&ctx->cancel, 0);
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "the melanopic EDI needs spectral mode (the option spectral, --spectral): it is "
+                               "integrated from the light's spectrum at sampled wavelengths, which RGB mode does "
+                               "not carry");
+    }
     pn_threadpool *pool = pn_threadpool_create(settings->threads);
     int workers = pool ? pn_threadpool_size(pool) : 0;
-    points_shared ps = {&job, integ, points, count, lux, NULL, 0};
+    points_shared ps = {&job, integ, points, count, lux, edi, NULL, 0};
     ps.scratch = pool ? calloc((size_t)workers + 1, sizeof *ps.scratch) : NULL;
     if (!pool || !ps.scratch) {
         st = pn_context_fail(ctx, PN_ERROR_OUT_OF_MEMORY, "out of memory for %d points", count);

@@ -284,6 +284,16 @@ pn_status pn_driver_resolve_settings(pn_context ctx, struct pn_scene_s *scene, c
     job->max_specular_depth = s->max_specular_depth > 0 ? s->max_specular_depth : 8;
     job->seed = s->seed;
     job->aovs = s->aovs;
+    /* The melanopic EDI is integrated from spectra at sampled wavelengths (spectral/melanopic.h):
+     * in spectral mode only, and by the integrators that declare it. */
+    if ((s->aovs & PN_AOV_MELANOPIC_EDI) && !job->spectral)
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
+                               "the melanopic_edi AOV needs spectral mode (the option spectral, --spectral): it is "
+                               "integrated from the light's spectrum at sampled wavelengths, which RGB mode does not "
+                               "carry");
+    if ((s->aovs & PN_AOV_MELANOPIC_EDI) && !(integ->info.aovs & PN_AOV_MELANOPIC_EDI))
+        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT, "integrator %s does not compute the melanopic_edi AOV",
+                               integ->info.name);
     job->cancel = &ctx->cancel;
     return PN_OK;
 }

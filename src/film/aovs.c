@@ -4,6 +4,7 @@
 
 #include "core/photometry.h"
 #include "io/image.h"
+#include "spectral/cie.h"
 
 #include <math.h>
 #include <string.h>
@@ -35,6 +36,11 @@ static const pn_aov_layer layers[] = {
     /* Lighting design (docs/lighting-design.md): lux and cd/m^2. */
     {"illuminance", PN_AOV_ILLUMINANCE, 1, PN_AOV_FROM_FLOAT, EST(illuminance), false},
     {"luminance", PN_AOV_LUMINANCE, 1, PN_AOV_FROM_LUMINANCE, EST(radiance), false},
+    /* Colorimetry (docs/spectral.md): the pixel's CIE 1931 XYZ, channels X, Y, Z written as
+     * XYZ.R, XYZ.G, XYZ.B (io/exr.c's naming of three-channel layers). */
+    {"XYZ", PN_AOV_XYZ, 3, PN_AOV_FROM_XYZ, EST(radiance), false},
+    /* CIE S 026 melanopic EDI, lux (spectral mode; docs/lighting-design.md). */
+    {"melanopic_edi", PN_AOV_MELANOPIC_EDI, 1, PN_AOV_FROM_FLOAT, EST(melanopic_edi), false},
 };
 
 #define LAYER_COUNT ((int)(sizeof layers / sizeof layers[0]))
@@ -78,6 +84,13 @@ float *pn_film_add_aov(pn_image img, uint32_t bit) {
     return l ? pn_image_add_layer(img, l->name, l->channels) : NULL;
 }
 
+vec3 pn_film_xyz(vec3 rgb) {
+    const double in[3] = {rgb.x, rgb.y, rgb.z};
+    double xyz[3];
+    pn_linear_srgb_to_xyz(in, xyz);
+    return v3((float)xyz[0], (float)xyz[1], (float)xyz[2]);
+}
+
 /* Fills one layer from the estimates. */
 static void fill_layer(const pn_aov_layer *l, const pn_pixel_estimate *pixels, size_t n, float *dst) {
     for (size_t i = 0; i < n; i++) {
@@ -108,6 +121,15 @@ static void fill_layer(const pn_aov_layer *l, const pn_pixel_estimate *pixels, s
             vec3 v;
             memcpy(&v, field, sizeof v);
             dst[i] = pn_photometric(v);
+            break;
+        }
+        case PN_AOV_FROM_XYZ: {
+            vec3 v;
+            memcpy(&v, field, sizeof v);
+            v = pn_film_xyz(v);
+            dst[3 * i] = v.x;
+            dst[3 * i + 1] = v.y;
+            dst[3 * i + 2] = v.z;
             break;
         }
         case PN_AOV_FROM_DRIVER: break;

@@ -39,16 +39,20 @@ typedef struct pn_pixel_estimate {
     /* PN_AOV_ILLUMINANCE: illuminance (lux) on the first non-specular surface of the eye
      * samples, filter-weighted as radiance (reference: direct; vpl, lightcuts: total) */
     float illuminance;
+    /* PN_AOV_MELANOPIC_EDI: melanopic EDI (lux, CIE S 026; spectral/melanopic.h) on the same
+     * receivers from the same samples as illuminance, in spectral mode (0 otherwise) */
+    float melanopic_edi;
 } pn_pixel_estimate;
 
 /* How a layer's value is obtained. */
 typedef enum pn_aov_source {
-    PN_AOV_FROM_U32,      /* (float) of a uint32_t field of pn_pixel_estimate */
-    PN_AOV_FROM_FLOAT,    /* a float field */
-    PN_AOV_FROM_VEC3,     /* a vec3 field, 3 channels */
-    PN_AOV_FROM_LOG10P1,  /* log10(1 + float field): a derived layer for false-colour pictures */
-    PN_AOV_FROM_DRIVER,   /* not in the estimate: a progressive driver fills it from its own state */
-    PN_AOV_FROM_LUMINANCE /* the luminance Y of a vec3 field, in SI units (core/photometry.h, docs/units.md) */
+    PN_AOV_FROM_U32,       /* (float) of a uint32_t field of pn_pixel_estimate */
+    PN_AOV_FROM_FLOAT,     /* a float field */
+    PN_AOV_FROM_VEC3,      /* a vec3 field, 3 channels */
+    PN_AOV_FROM_LOG10P1,   /* log10(1 + float field): a derived layer for false-colour pictures */
+    PN_AOV_FROM_DRIVER,    /* not in the estimate: a progressive driver fills it from its own state */
+    PN_AOV_FROM_LUMINANCE, /* the luminance Y of a vec3 field, in SI units (core/photometry.h, docs/units.md) */
+    PN_AOV_FROM_XYZ        /* CIE 1931 XYZ of a linear-sRGB vec3 field, 3 channels (pn_film_xyz) */
 } pn_aov_source;
 
 /* One layer of the output image besides the beauty. Layers are written in table order. */
@@ -60,6 +64,11 @@ typedef struct pn_aov_layer {
     size_t offset; /* offsetof the field in pn_pixel_estimate (unused for PN_AOV_FROM_DRIVER) */
     bool derived;  /* written with another layer of the same bit, not selectable by name */
 } pn_aov_layer;
+
+/* CIE 1931 XYZ of a linear sRGB value (the inverse of the matrix spectral mode's film applies to the
+ * XYZ it integrates, spectral/cie.h, so in spectral mode this is the pixel's integrated XYZ).
+ * Units: Y is the luminance of a radiance (cd/m^2), X and Z alike (docs/units.md). */
+vec3 pn_film_xyz(vec3 rgb);
 
 /* The table, in write order, and its length. */
 int pn_aov_layer_count(void);

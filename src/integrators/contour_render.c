@@ -19,6 +19,7 @@
 #include "core/threadpool.h"
 #include "render/progress.h"
 #include "shade/bsdf.h"
+#include "spectral/melanopic.h"
 #include "spectral/transport.h"
 
 #include <stdatomic.h>
@@ -387,6 +388,7 @@ typedef struct shade_point {
     vec3 value;    /* this eye ray's radiance so far */
     vec3 gradient; /* this eye ray's irradiance-luminance gradient from contour lights */
     double lux;    /* PN_AOV_ILLUMINANCE: this eye ray's direct illuminance (lx, white receiver) */
+    double mel;    /* PN_AOV_MELANOPIC_EDI: its melanopic EDI (lx, spectral mode, at wl) */
     uint32_t contour_rays;
     uint32_t rays_by[PN_CPH_COUNT], visible_rays; /* trace: rays by phase, visible ones */
     unsigned why;                                 /* trace: bit r set when integrated for reason r (WHY_*) */
@@ -399,6 +401,7 @@ typedef struct pixel_acc {
     vec3 weighted_sum, gradient_sum;
     double weight_sum, lum_mean, lum_m2;
     double weighted_lux; /* PN_AOV_ILLUMINANCE: filter-weighted illuminance of the eye rays */
+    double weighted_mel; /* PN_AOV_MELANOPIC_EDI: the same for the melanopic EDI */
     uint32_t n, shadow_rays, specular_rays;
 } pixel_acc;
 
@@ -796,6 +799,7 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                                  contour_scratch *s, uint32_t eye_index, span_tally *tally) {
     const bool gradient = (job->aovs & PN_AOV_GRADIENT) != 0;
     const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
+    const bool mel = (job->aovs & PN_AOV_MELANOPIC_EDI) != 0 && job->spectral;
     const int span_max = (int)job->contour_span;
     for (int li = 0; li < cd->count; li++) {
         const contour_light *cl = &cd->lights[li];
@@ -881,6 +885,9 @@ static void shade_contour_lights(const pn_render_job *job, const contour_data *c
                 /* Illuminance on a white receiver: E = pi L F (contour.c, eq. 4-5), in lux for L in
                  * cd/m^2 (docs/units.md). */
                 if (lux) sp->lux += (double)PN_PI * (double)pn_photometric(cl->emit) * f;
+                /* Its melanopic EDI from the emission at the eye ray's wavelengths (pi L F). */
+                if (mel && pn_swl_active(sp->b.wl))
+                    sp->mel += (double)PN_PI * (double)pn_swl_melanopic_edi_on(sp->b.wl, le) * f;
                 sp->contour_rays += s->ev[k].rays;
                 if (cd->trace) {
                     for (int r = 0; r < PN_CPH_COUNT; r++) sp->rays_by[r] += s->ev[k].rays_by[r];
@@ -908,7 +915,8 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         return PN_ERROR_OUT_OF_MEMORY;
     const uint32_t spp = job->spp > 0 ? job->spp : 1;
     const uint32_t S = job->shadow_rays;
-    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
+    const bool mel = (job->aovs & PN_AOV_MELANOPIC_EDI) != 0 && job->spectral;
+    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0 || mel;
     span_tally tally = {0, 0, 0, 0, 0};
     uint64_t viewing = 0, contour_rays = 0;
     for (int q = 0; q < batch->count; q++) {
@@ -949,15 +957,19 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
                 sp->diffuse = sp->b.kind == PN_MATERIAL_LAMBERT_BLINN && v3_is_zero(sp->b.ks);
                 sp->object = object_key(&path.hit);
                 /* Everything the contour integration does not treat: the reference's code. */
-                vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0);
+                vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0), incident_wl = v3(0, 0, 0);
                 double unused_seconds = 0.0;
-                if (pn_reference_direct_irradiance(job, &s->ref, NULL, &sp->b, path.hit.p, path.wo, i, scramble,
-                                                   sp->diffuse ? cd->skip : NULL, false, &direct,
-                                                   lux ? &incident : NULL, &s->acc[q].shadow_rays, &unused_seconds)) {
+                const bool mel_here = mel && pn_swl_active(wl);
+                if (pn_reference_direct_irradiance_wl(job, &s->ref, NULL, &sp->b, path.hit.p, path.wo, i, scramble,
+                                                      sp->diffuse ? cd->skip : NULL, false, &direct,
+                                                      lux ? &incident : NULL, mel_here ? &incident_wl : NULL,
+                                                      &s->acc[q].shadow_rays, &unused_seconds)) {
                     sp->value = v3_add(sp->value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
                     /* PN_AOV_ILLUMINANCE: the other lights' part, from the same light samples. */
                     float e = pn_photometric(incident) / (float)S;
                     if (lux && isfinite(e)) sp->lux = (double)e;
+                    float m = mel_here ? pn_swl_melanopic_edi_on(wl, incident_wl) / (float)S : 0.0f;
+                    if (mel_here && isfinite(m)) sp->mel = (double)m;
                 }
             }
         }
@@ -991,6 +1003,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             a->weighted_sum = v3_madd(a->weighted_sum, value, sp->fw);
             a->gradient_sum = v3_madd(a->gradient_sum, sp->gradient, sp->fw);
             if (isfinite(sp->lux)) a->weighted_lux += sp->lux * (double)sp->fw;
+            if (isfinite(sp->mel)) a->weighted_mel += sp->mel * (double)sp->fw;
             a->weight_sum += (double)sp->fw;
             double y = (double)v3_luminance(value);
             double delta = y - a->lum_mean;
@@ -1008,6 +1021,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             o->radiance = v3_scale(a->weighted_sum, (float)(1.0 / a->weight_sum));
             o->gradient = v3_scale(a->gradient_sum, (float)(1.0 / a->weight_sum));
             o->illuminance = (float)(a->weighted_lux / a->weight_sum);
+            o->melanopic_edi = (float)(a->weighted_mel / a->weight_sum);
         }
         double var_of_mean = a->n > 1 ? a->lum_m2 / ((double)(a->n - 1) * (double)a->n) : 0.0;
         o->relative_variance = a->lum_mean > 0.0 ? (float)(var_of_mean / (a->lum_mean * a->lum_mean)) : 0.0f;

@@ -11,7 +11,12 @@
  *   lightcuts  a lightcut for that receiver (Walter et al. 2005 §4, its relative error bound).
  *
  * The VPL set is the render's (its clamp included: a VPL closer than the clamp distance is
- * counted at that distance, as in the image). Illuminance = Y of the irradiance (core/photometry.h, docs/units.md). */
+ * counted at that distance, as in the image). Illuminance = Y of the irradiance (core/photometry.h, docs/units.md).
+ *
+ * Melanopic EDI (spectral mode, reference only): each of the spp samples draws 3 wavelengths
+ * (pn_eye_wavelengths of the point's sequence) and its light samples' radiance at them
+ * (pn_reference_direct_irradiance_wl); the EDI is pn_swl_melanopic_edi_on of that irradiance,
+ * averaged as the illuminance is. The illuminance itself stays the RGB estimate, as in RGB mode. */
 #include "integrators/point_eval.h"
 
 #include "core/photometry.h"
@@ -19,6 +24,8 @@
 #include "integrators/illumcut.h"
 #include "integrators/reference_direct.h"
 #include "shade/bsdf.h"
+#include "spectral/melanopic.h"
+#include "spectral/transport.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -26,6 +33,10 @@
 
 /* Salt of the points' scrambles (no pixel has this hash input). */
 #define PN_POINT_SALT UINT64_C(0x6c75782d67726964)
+
+bool pn_point_melanopic_supported(const pn_integrator *integrator) {
+    return integrator == &pn_integrator_reference;
+}
 
 bool pn_point_supported(const pn_integrator *integrator) {
     return integrator == &pn_integrator_reference || integrator == &pn_integrator_vpl ||
@@ -58,7 +69,7 @@ static pn_vpl_receiver point_receiver(vec3 p, vec3 n) {
 }
 
 static bool reference_point(const pn_render_job *job, pn_reference_direct_scratch *s, vec3 p, vec3 n, uint32_t index,
-                            double *lux) {
+                            double *lux, double *edi) {
     pn_bsdf b;
     memset(&b, 0, sizeof b);
     b.kind = PN_MATERIAL_LAMBERT_BLINN;
@@ -67,17 +78,24 @@ static bool reference_point(const pn_render_job *job, pn_reference_direct_scratc
     b.entering = true;
     const uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ PN_POINT_SALT, (uint64_t)index, 0u);
     const uint32_t spp = job->spp > 0 ? job->spp : 64u;
-    double sum = 0.0;
+    double sum = 0.0, sum_mel = 0.0;
     for (uint32_t i = 0; i < spp; i++) {
-        vec3 direct, irradiance = v3(0, 0, 0);
+        vec3 direct, irradiance = v3(0, 0, 0), irradiance_wl = v3(0, 0, 0);
         uint32_t rays = 0;
         double embree = 0.0;
-        if (!pn_reference_direct_irradiance(job, s, job->integrator_data, &b, p, n, i, scramble, NULL, false, &direct,
-                                            &irradiance, &rays, &embree))
+        pn_swl wl_storage;
+        b.wl = edi ? pn_eye_wavelengths(job, scramble, i, &wl_storage) : NULL;
+        if (!pn_reference_direct_irradiance_wl(job, s, job->integrator_data, &b, p, n, i, scramble, NULL, false,
+                                               &direct, &irradiance, b.wl ? &irradiance_wl : NULL, &rays, &embree))
             continue; /* no light can reach the point */
         sum += (double)pn_photometric(irradiance);
+        if (b.wl) {
+            float m = pn_swl_melanopic_edi_on(b.wl, irradiance_wl);
+            if (isfinite(m)) sum_mel += (double)m;
+        }
     }
     *lux = sum / ((double)spp * (double)job->shadow_rays);
+    if (edi) *edi = sum_mel / ((double)spp * (double)job->shadow_rays);
     return true;
 }
 
@@ -108,9 +126,11 @@ static bool lightcuts_point(const pn_render_job *job, vec3 p, vec3 n, double *lu
 }
 
 bool pn_point_illuminance(const pn_render_job *job, const pn_integrator *integrator, void *scratch, vec3 p, vec3 n,
-                          uint32_t index, double *lux) {
+                          uint32_t index, double *lux, double *edi) {
     *lux = 0.0;
-    if (integrator == &pn_integrator_reference) return reference_point(job, scratch, p, n, index, lux);
+    if (edi) *edi = 0.0;
+    if (integrator == &pn_integrator_reference)
+        return reference_point(job, scratch, p, n, index, lux, job->spectral ? edi : NULL);
     if (integrator == &pn_integrator_vpl) {
         vpl_point(job, p, n, lux);
         return true;

@@ -68,6 +68,7 @@
 #include "core/rng.h"
 #include "lights/light_bvh.h"
 #include "shade/bsdf.h"
+#include "spectral/melanopic.h"
 #include "spectral/transport.h"
 
 #include <math.h>
@@ -99,6 +100,7 @@ static void reference_scratch_free(void *p) {
 typedef struct pixel_state {
     vec3 weighted_sum, weighted_emitted;
     double weighted_lux; /* PN_AOV_ILLUMINANCE: filter-weighted illuminance of the eye rays */
+    double weighted_mel; /* PN_AOV_MELANOPIC_EDI: the same for the melanopic EDI (spectral mode) */
     double weight_sum;
     double lum_mean, lum_m2; /* Welford on the luminance of eye-ray values */
     uint32_t n, shadow_rays, specular_rays;
@@ -161,14 +163,18 @@ static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_s
         pn_bsdf b;
         pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &b);
         const pn_light_bvh *bvh = job->integrator_data; /* set only with the BVH sampler */
-        vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0);
-        const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
-        if (pn_reference_direct_irradiance(job, c->s, bvh, &b, path.hit.p, path.wo, i, scramble, NULL, timed, &direct,
-                                           lux ? &incident : NULL, &ps->shadow_rays, &c->embree_seconds)) {
+        vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0), incident_wl = v3(0, 0, 0);
+        const bool mel = (job->aovs & PN_AOV_MELANOPIC_EDI) && pn_swl_active(wl);
+        const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0 || mel;
+        if (pn_reference_direct_irradiance_wl(job, c->s, bvh, &b, path.hit.p, path.wo, i, scramble, NULL, timed,
+                                              &direct, lux ? &incident : NULL, mel ? &incident_wl : NULL,
+                                              &ps->shadow_rays, &c->embree_seconds)) {
             value = v3_add(value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
             ps->light_samples += S;
             float e = pn_photometric(incident) / (float)S;
             if (lux && isfinite(e)) ps->weighted_lux += (double)e * (double)fw;
+            float m = mel ? pn_swl_melanopic_edi_on(wl, incident_wl) / (float)S : 0.0f;
+            if (mel && isfinite(m)) ps->weighted_mel += (double)m * (double)fw;
         }
     }
     /* Spectral mode: the eye ray's value at its wavelengths to linear sRGB, where it is added. */
@@ -278,6 +284,9 @@ static void render_pixel_cross(pixel_context *c, uint32_t scramble_a) {
     double la = a.weight_sum != 0.0 ? a.weighted_lux / a.weight_sum : 0.0;
     double lb = b.weight_sum != 0.0 ? b.weighted_lux / b.weight_sum : 0.0;
     o->illuminance = (float)(0.5 * (la + lb));
+    double ma = a.weight_sum != 0.0 ? a.weighted_mel / a.weight_sum : 0.0;
+    double mb = b.weight_sum != 0.0 ? b.weighted_mel / b.weight_sum : 0.0;
+    o->melanopic_edi = (float)(0.5 * (ma + mb));
     double va = a.n > 1 ? a.lum_m2 / ((double)(a.n - 1) * (double)a.n) : 0.0;
     double vb = b.n > 1 ? b.lum_m2 / ((double)(b.n - 1) * (double)b.n) : 0.0;
     double mean = 0.5 * (a.lum_mean + b.lum_mean);
@@ -312,6 +321,7 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
             o->radiance = v3_scale(ps.weighted_sum, (float)(1.0 / ps.weight_sum));
             o->emitted = v3_scale(ps.weighted_emitted, (float)(1.0 / ps.weight_sum));
             o->illuminance = (float)(ps.weighted_lux / ps.weight_sum);
+            o->melanopic_edi = (float)(ps.weighted_mel / ps.weight_sum);
         }
         double var_of_mean = ps.n > 1 ? ps.lum_m2 / ((double)(ps.n - 1) * (double)ps.n) : 0.0;
         o->relative_variance = ps.lum_mean > 0.0 ? (float)(var_of_mean / (ps.lum_mean * ps.lum_mean)) : 0.0f;

@@ -84,11 +84,21 @@ bool pn_reference_direct_irradiance(const pn_render_job *job, pn_reference_direc
                                     const pn_bsdf *b, vec3 p, vec3 wo, uint32_t i, uint32_t scramble,
                                     const unsigned char *skip, bool timed, vec3 *sum, vec3 *irradiance,
                                     uint32_t *shadow_rays, double *embree_seconds) {
+    return pn_reference_direct_irradiance_wl(job, s, bvh, b, p, wo, i, scramble, skip, timed, sum, irradiance, NULL,
+                                             shadow_rays, embree_seconds);
+}
+
+bool pn_reference_direct_irradiance_wl(const pn_render_job *job, pn_reference_direct_scratch *s,
+                                       const pn_light_bvh *bvh, const pn_bsdf *b, vec3 p, vec3 wo, uint32_t i,
+                                       uint32_t scramble, const unsigned char *skip, bool timed, vec3 *sum,
+                                       vec3 *irradiance, vec3 *irradiance_wl, uint32_t *shadow_rays,
+                                       double *embree_seconds) {
+    if (irradiance_wl && !irradiance) irradiance_wl = NULL; /* only beside the RGB irradiance */
     const uint32_t S = job->shadow_rays;
     float total = 0.0f;
     int m = bvh ? 0 : build_light_pdf(job, p, b->ng, s, skip, &total);
     if (!bvh && !(m > 0 && total > 0.0f)) return false;
-    vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0);
+    vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0), incident_wl = v3(0, 0, 0);
     float eps = pn_accel_ray_epsilon(job->accel, p);
     vec3 origin = v3_madd(p, b->ng, eps);
     pn_light_sample_cache cache = {0};
@@ -119,11 +129,15 @@ bool pn_reference_direct_irradiance(const pn_render_job *job, pn_reference_direc
         if (!(visibility > 0.0f)) continue;
         float w = cos_i / (ls.pdf * prob);
         if (visibility != 1.0f) w *= visibility;
-        /* Spectral mode: the sample's radiance at the BSDF's wavelengths; the illuminance stays RGB. */
-        direct = v3_add(direct, v3_scale(v3_mul(f, pn_light_radiance_spectral(job->lights, l, ls.radiance, b->wl)), w));
+        /* Spectral mode: the sample's radiance at the BSDF's wavelengths; the illuminance stays RGB,
+         * the irradiance at the wavelengths (melanopic EDI) is asked for on its own. */
+        const vec3 radiance = pn_light_radiance_spectral(job->lights, l, ls.radiance, b->wl);
+        direct = v3_add(direct, v3_scale(v3_mul(f, radiance), w));
         if (irradiance) incident = v3_madd(incident, ls.radiance, w);
+        if (irradiance_wl) incident_wl = v3_madd(incident_wl, radiance, w);
     }
     *sum = direct;
     if (irradiance) *irradiance = incident;
+    if (irradiance_wl) *irradiance_wl = incident_wl;
     return true;
 }

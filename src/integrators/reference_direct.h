@@ -40,4 +40,14 @@ bool pn_reference_direct_irradiance(const pn_render_job *job, pn_reference_direc
                                     const unsigned char *skip, bool timed, vec3 *sum, vec3 *irradiance,
                                     uint32_t *shadow_rays, double *embree_seconds);
 
+/* pn_reference_direct_irradiance that also sums, beside the RGB irradiance, the irradiance at
+ * b->wl's wavelengths in spectral mode (each sample's radiance at them, L(lambda) cos / pdf) into
+ * *irradiance_wl, the input of the melanopic EDI (spectral/melanopic.h). irradiance_wl may be
+ * NULL; it is used only with irradiance, and in RGB mode equals *irradiance. */
+bool pn_reference_direct_irradiance_wl(const pn_render_job *job, pn_reference_direct_scratch *s,
+                                       const pn_light_bvh *bvh, const pn_bsdf *b, vec3 p, vec3 wo, uint32_t i,
+                                       uint32_t scramble, const unsigned char *skip, bool timed, vec3 *sum,
+                                       vec3 *irradiance, vec3 *irradiance_wl, uint32_t *shadow_rays,
+                                       double *embree_seconds);
+
 #endif

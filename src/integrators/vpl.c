@@ -4,6 +4,7 @@
 #include "integrators/illumcut.h"
 
 #include "core/photometry.h"
+#include "spectral/melanopic.h"
 
 #include <string.h>
 
@@ -16,21 +17,26 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
     (void)scratch;
     const pn_vpl_data *d = job->integrator_data;
     const uint32_t spp = pn_vpl_spp(job);
-    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
+    const bool mel = (job->aovs & PN_AOV_MELANOPIC_EDI) != 0 && job->spectral;
+    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0 || mel;
     for (int pi = 0; pi < batch->count; pi++) {
         if (atomic_load(job->cancel)) return PN_OK;
         pn_pixel_estimate *o = &out[pi];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
         vec3 sum = v3(0, 0, 0);
-        double wsum = 0.0, lux_sum = 0.0;
+        double wsum = 0.0, lux_sum = 0.0, mel_sum = 0.0;
         for (uint32_t s = 0; s < spp; s++) {
             pn_shading_point sp;
             pn_batch_eye_point(job, batch, pi, s, &sp, o);
             vec3 value = sp.emitted;
             if (sp.has_point) {
-                vec3 L = v3(0, 0, 0), E = v3(0, 0, 0);
+                vec3 L = v3(0, 0, 0), E = v3(0, 0, 0), E_wl = v3(0, 0, 0);
                 const pn_vpl_receiver white = pn_vpl_irradiance_receiver(&sp.r);
+                /* PN_AOV_MELANOPIC_EDI: the white receiver at the eye sample's wavelengths. */
+                pn_vpl_receiver white_wl = white;
+                white_wl.wl = sp.r.wl;
+                const bool mel_here = mel && sp.r.wl.on;
                 for (uint32_t k = 0; k < d->set.count; k++) {
                     vec3 wi;
                     float dist;
@@ -44,10 +50,17 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
                     float t = pn_vpl_transmittance(job->accel, &sp.r, wi, dist, !job->opaque_glass);
                     if (t > 0.0f) L = v3_add(L, t == 1.0f ? c : v3_scale(c, t));
                     if (t > 0.0f) E = v3_madd(E, e, t);
+                    if (t > 0.0f && mel_here)
+                        E_wl = v3_madd(
+                            E_wl,
+                            pn_vpl_contribution(job->lights, &d->set.vpls[k], &white_wl, d->set.min_dist2, &wi, &dist),
+                            t);
                 }
                 value = v3_add(value, v3_mul(sp.throughput, L));
                 float lx = pn_photometric(E);
                 if (lux && isfinite(lx)) lux_sum += (double)lx * (double)sp.weight;
+                float m = mel_here ? pn_swl_melanopic_edi_on(&sp.r.wl, E_wl) : 0.0f;
+                if (mel_here && isfinite(m)) mel_sum += (double)m * (double)sp.weight;
             }
             value = pn_swl_rgb(&sp.r.wl, value); /* spectral mode: the sample's wavelengths to sRGB */
             if (!v3_is_finite(value)) value = v3(0, 0, 0);
@@ -56,6 +69,7 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
         }
         if (wsum != 0.0) o->radiance = v3_scale(sum, (float)(1.0 / wsum));
         if (wsum != 0.0) o->illuminance = (float)(lux_sum / wsum);
+        if (wsum != 0.0) o->melanopic_edi = (float)(mel_sum / wsum);
     }
     return PN_OK;
 }

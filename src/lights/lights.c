@@ -320,6 +320,7 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         l->two_sided = em->two_sided;
         l->kelvin = em->kelvin;
         l->kelvin_scale = em->kelvin_scale;
+        l->spd = em->spd;
         l->mesh = mi;
         if (d->inner_radius > 0.0f)
             pn_warn(scene->ctx, &scene->warnings, "%s: the disk light's inner radius is ignored for light sampling",
@@ -346,6 +347,7 @@ static pn_status add_mesh_lights(struct pn_scene_s *scene, int mi, light_list *l
         l->two_sided = em->two_sided;
         l->kelvin = em->kelvin;
         l->kelvin_scale = em->kelvin_scale;
+        l->spd = em->spd;
         l->mesh = mi;
         l->prim = (int)t;
         vec3 rp0, re1, re2;
@@ -480,6 +482,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
             l->kelvin = d->kelvin;
             l->kelvin_scale = (float)pn_blackbody_unit_scale(d->kelvin);
         }
+        if (d->kind != PN_LIGHTDEF_INFINITE && d->kind != PN_LIGHTDEF_PROJECTION) l->spd = d->spd;
         switch (d->kind) {
         case PN_LIGHTDEF_POINT:
             l->kind = PN_LIGHT_POINT;
@@ -601,6 +604,7 @@ pn_status pn_lights_build(struct pn_scene_s *scene, pn_lights **out, pn_err *err
         l->two_sided = false;
         l->kelvin = scene->emissions[s->emission].kelvin;
         l->kelvin_scale = scene->emissions[s->emission].kelvin_scale;
+        l->spd = scene->emissions[s->emission].spd;
     }
     if (st != PN_OK) {
         free(ll.items);
@@ -639,6 +643,7 @@ vec3 pn_hit_emission(const struct pn_scene_s *scene, const pn_hit *hit, vec3 w) 
 
 vec3 pn_light_radiance_spectral(const pn_lights *lights, const pn_light *l, vec3 rgb, const pn_swl *wl) {
     (void)lights;
+    if (l->spd && pn_swl_active(wl)) return pn_swl_tabulated(wl, l->spd, rgb);
     if (l->kelvin > 0.0f) return pn_swl_blackbody(wl, l->kelvin, l->kelvin_scale, rgb);
     return pn_swl_illuminant(wl, rgb);
 }
@@ -647,6 +652,7 @@ vec3 pn_hit_emission_spectral(const struct pn_scene_s *scene, const pn_hit *hit,
     vec3 le = pn_hit_emission(scene, hit, w);
     if (!pn_swl_active(wl) || hit->emission < 0 || hit->emission >= scene->emission_count) return le;
     const pn_emission *e = &scene->emissions[hit->emission];
+    if (e->spd) return pn_swl_tabulated(wl, e->spd, le);
     if (e->kelvin > 0.0f) return pn_swl_blackbody(wl, e->kelvin, e->kelvin_scale, le);
     return pn_swl_illuminant(wl, le);
 }

@@ -47,6 +47,9 @@ typedef struct pn_light {
     /* A "blackbody" emission: its temperature (K) and pn_blackbody_unit_scale, which spectral mode
      * emits (pn_light_radiance_spectral) instead of upsampling emit; 0 otherwise. */
     float kelvin, kelvin_scale;
+    /* A tabulated "spectrum" emission (scene-owned, spectral/transport.h pn_spd), which spectral
+     * mode emits (pn_swl_tabulated) instead of upsampling emit; NULL otherwise. */
+    const struct pn_spd *spd;
 } pn_light;
 
 /* An environment map prepared for lookup and importance sampling by luminance. */

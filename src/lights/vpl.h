@@ -107,7 +107,7 @@ typedef struct pn_vpl_receiver {
 
 /* A receiver of linear sRGB reflectances (RGB mode: kd_w = kd, ks_w = ks, no wavelengths). */
 static inline pn_vpl_receiver pn_vpl_receiver_rgb(vec3 p, vec3 ng, vec3 ns, vec3 wo, vec3 kd, vec3 ks, float exponent) {
-    pn_vpl_receiver r = {p, ng, ns, wo, kd, ks, exponent, kd, ks, {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, false}};
+    pn_vpl_receiver r = {p, ng, ns, wo, kd, ks, exponent, kd, ks, {.on = false}};
     return r;
 }
 
@@ -148,7 +148,8 @@ static inline vec3 pn_vpl_brdf_cos_inline(const pn_vpl_receiver *r, vec3 wi) {
 
 /* A VPL's (or its cluster's) RGB intensity at the wavelengths wl (RGB mode: itself), with the
  * spectrum of the VPL v (the representative of the cluster) scaled to the intensity's luminance:
- * the black body of v's scene light when it has one, else v's RGB intensity as an illuminant. For
+ * the black body or tabulated spectrum of v's scene light when it has one, else v's RGB intensity
+ * as an illuminant. For
  * v's own intensity this is v's spectrum; for a cluster of one colour it is the cluster's; for a
  * cluster of mixed colours the representative's colour stands for the cluster's, as its geometry
  * does (eq. 3; the representative is drawn in proportion to luminance, so the colour is right on
@@ -159,7 +160,8 @@ static inline vec3 pn_vpl_intensity_at(const pn_lights *lights, const pn_vpl *v,
     vec3 colour = yv > 0.0f ? v->intensity : intensity;
     float k = yv > 0.0f ? yi / yv : 1.0f;
     vec3 s;
-    if (v->light >= 0 && v->kind != PN_VPL_DIRECTIONAL && lights->lights[v->light].kelvin > 0.0f)
+    if (v->light >= 0 && v->kind != PN_VPL_DIRECTIONAL &&
+        (lights->lights[v->light].kelvin > 0.0f || lights->lights[v->light].spd))
         s = pn_light_radiance_spectral(lights, &lights->lights[v->light], colour, wl);
     else
         s = pn_swl_illuminant_on(wl, colour);

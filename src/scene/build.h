@@ -36,6 +36,14 @@ bool pn_named_spectrum_rgb(const char *name, vec3 *out);
  * black body itself), else 0. */
 float pn_params_blackbody_kelvin(const pn_params *ps, const char *name);
 
+/* The tabulated spectrum of emission parameter `name` for spectral mode, when it is a "spectrum"
+ * value given as numbers, an .spd file, or stdillum-D65 / stdillum-A (the illuminants whose CIE
+ * tables spectral/cie.h has): a pn_spd owned by the scene (scene->spds), else NULL (*out; absent,
+ * rgb, blackbody, other names). Call after pn_params_rgb accepted the parameter. */
+struct pn_spd;
+pn_status pn_params_light_spectrum(struct pn_scene_s *scene, const pn_params *ps, const char *name,
+                                   const struct pn_spd **out, pn_err *err);
+
 /* Linear sRGB of a blackbody at `kelvin`, normalised to luminance 1. */
 vec3 pn_blackbody_rgb(double kelvin);
 

@@ -293,6 +293,8 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
         if (st != PN_OK) return st;
         d.intensity = v3_scale(I, (float)scale);
         d.kelvin = pn_params_blackbody_kelvin(ps, "I");
+        st = pn_params_light_spectrum(scene, ps, "I", &d.spd, err);
+        if (st != PN_OK) return st;
         d.position = mat4_apply_point(world_from_light, from);
         if (strcmp(type, "point") == 0) {
             d.kind = PN_LIGHTDEF_POINT;
@@ -362,6 +364,8 @@ pn_status pn_light_from_pbrt(struct pn_scene_s *scene, const char *type, const p
             return error_at(ps->loc, PN_ERROR_BAD_INPUT, err, "distant light with \"from\" equal to \"to\"");
         d.kind = PN_LIGHTDEF_DISTANT;
         d.kelvin = pn_params_blackbody_kelvin(ps, "L");
+        st = pn_params_light_spectrum(scene, ps, "L", &d.spd, err);
+        if (st != PN_OK) return st;
         d.direction = v3_normalize(w);
         d.intensity = apply_power(v3_scale(L, (float)scale), photometric(ps, "L", L), illuminance, 1.0);
         warn_ignored(scene, ps, "power", "is not supported for distant lights (use \"illuminance\"); ignored");
@@ -457,6 +461,8 @@ pn_status pn_area_light_from_pbrt(struct pn_scene_s *scene, const char *type, co
     out->emission.two_sided = two_sided;
     out->emission.kelvin = pn_params_blackbody_kelvin(ps, "L");
     out->emission.kelvin_scale = (float)pn_blackbody_unit_scale(out->emission.kelvin);
+    st = pn_params_light_spectrum(scene, ps, "L", &out->emission.spd, err);
+    if (st != PN_OK) return st;
     out->power = power;
     out->photometric = (float)photometric(ps, "L", L);
     if (!v3_is_finite(out->emission.radiance))

@@ -15,6 +15,7 @@
 #include "scene/ply.h"
 #include "scene/scene.h"
 #include "scene/tokenizer.h"
+#include "spectral/transport.h"
 
 #include <errno.h>
 #include <math.h>
@@ -2060,6 +2061,8 @@ void pn_scene_parse_free(struct pn_scene_s *scene) {
     free(scene->light_defs);
     for (int i = 0; i < scene->photometry_count; i++) pn_photometry_free(scene->photometries[i]);
     free(scene->photometries);
+    for (int i = 0; i < scene->spd_count; i++) pn_spd_free(scene->spds[i]);
+    free(scene->spds);
     pn_warning_list_free(&scene->warnings);
     free(scene);
 }

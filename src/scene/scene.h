@@ -118,6 +118,9 @@ typedef struct pn_emission {
     /* "blackbody" L: the temperature (K) and pn_blackbody_unit_scale of it, which spectral mode
      * emits instead of upsampling radiance (spectral/transport.h); 0 for other emissions. */
     float kelvin, kelvin_scale;
+    /* A tabulated "spectrum" L (numbers, .spd, stdillum-D65/-A): the spectrum spectral mode emits
+     * (pn_swl_tabulated), owned by the scene; NULL otherwise. */
+    const struct pn_spd *spd;
 } pn_emission;
 
 /* A triangle mesh. Positions/normals are in world space, or in the object's space for meshes of
@@ -202,6 +205,7 @@ typedef struct pn_light_def {
     int photometry;             /* GONIOMETRIC from an IES / EULUMDAT file: index into photometries, or -1 */
     double photometry_scale;    /* that file's candela times this is what the light emits */
     float kelvin, kelvin_scale; /* "blackbody" I or L (point, spot, goniometric, distant): as pn_emission's */
+    const struct pn_spd *spd;   /* a tabulated "spectrum" I or L (the same lights): as pn_emission's */
 } pn_light_def;
 
 /* ---- camera and film --------------------------------------------------------------------- */
@@ -290,6 +294,8 @@ struct pn_scene_s {
     int light_def_count;
     struct pn_photometry **photometries; /* measured luminaires, one per distinct file (scene/photometry.h) */
     int photometry_count;
+    struct pn_spd **spds; /* tabulated emission spectra for spectral mode (pn_params_light_spectrum) */
+    int spd_count;
 
     pn_warning_list warnings; /* "file:line:column: message"; parser and light builder (core/warn.h) */
 

@@ -29,9 +29,13 @@
  * Spectra outside the sRGB gamut (very red or very blue emitters, saturated reflectances) would
  * get negative channels; those are set to 0.
  *
- * Spectral mode (--spectral, spectral/transport.h) upsamples these RGB values where they are used;
- * a light's "blackbody" value is also kept as its temperature (pn_params_blackbody_kelvin,
- * pn_light_def.kelvin, pn_emission.kelvin), and spectral mode emits Planck's law itself.
+ * Spectral mode (--spectral, spectral/transport.h) upsamples these RGB values where they are used,
+ * except for light emission that has a spectrum of its own: a "blackbody" value is also kept as
+ * its temperature (pn_params_blackbody_kelvin, pn_light_def.kelvin, pn_emission.kelvin), and a
+ * "spectrum" given as numbers, an .spd file, stdillum-D65 or stdillum-A as the tabulated function
+ * (pn_params_light_spectrum: a pn_spd owned by the scene, pn_light_def.spd, pn_emission.spd), and
+ * spectral mode emits those (Planck's law, the table) scaled to the luminance of the RGB value
+ * read here. Negative tabulated values are dropped there as negative channels are here.
  *
  * The colour matching functions are the multi-lobe Gaussian fit of Wyman, Sloan and Shirley,
  * "Simple Analytic Approximations to the CIE XYZ Color Matching Functions", JCGT 2(2), 2013.
@@ -39,6 +43,8 @@
 #include "scene/build.h"
 
 #include "core/file.h"
+#include "spectral/cie.h"
+#include "spectral/transport.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -404,6 +410,63 @@ pn_status pn_params_rgb(const pn_params *ps, const char *name, vec3 def, pn_spec
     *out = c;
     if (found) *found = true;
     return PN_OK;
+}
+
+/* Appends a pn_spd of the pairs to the scene's table. */
+static pn_status add_spd(struct pn_scene_s *scene, const double *pairs, int count, const pn_spd **out, pn_err *err) {
+    pn_spd *s = pn_spd_new(pairs, count);
+    pn_spd **grown = s ? realloc(scene->spds, (size_t)(scene->spd_count + 1) * sizeof *grown) : NULL;
+    if (!grown) {
+        pn_spd_free(s);
+        return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    }
+    scene->spds = grown;
+    scene->spds[scene->spd_count++] = s;
+    *out = s;
+    return PN_OK;
+}
+
+/* CIE table of 5 nm from PN_LAMBDA_MIN as pairs. */
+static pn_status add_cie_spd(struct pn_scene_s *scene, const double *table, const pn_spd **out, pn_err *err) {
+    double pairs[2 * PN_CIE_TABLE_COUNT];
+    for (int i = 0; i < PN_CIE_TABLE_COUNT; i++) {
+        pairs[2 * i] = PN_LAMBDA_MIN + 5.0 * i;
+        pairs[2 * i + 1] = table[i];
+    }
+    return add_spd(scene, pairs, PN_CIE_TABLE_COUNT, out, err);
+}
+
+pn_status pn_params_light_spectrum(struct pn_scene_s *scene, const pn_params *ps, const char *name, const pn_spd **out,
+                                   pn_err *err) {
+    *out = NULL;
+    const pn_param *p = pn_params_find(ps, name);
+    if (!p || p->type != PN_PT_SPECTRUM) return PN_OK;
+    if (p->str_count == 0) {
+        char msg[256];
+        if (!check_pairs(p->nums, p->num_count, msg, sizeof msg))
+            return pn_param_error(p, err, "\"%s\": %s", name, msg);
+        /* Negative emission is dropped, as RGB mode drops negative channels. */
+        double *v = malloc((size_t)p->num_count * sizeof *v);
+        if (!v) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        for (int i = 0; i < p->num_count; i++) v[i] = i % 2 ? fmax(0.0, p->nums[i]) : p->nums[i];
+        pn_status st = add_spd(scene, v, p->num_count / 2, out, err);
+        free(v);
+        return st;
+    }
+    if (p->str_count != 1) return PN_OK;
+    const char *s = p->strs[0];
+    if (strcmp(s, "stdillum-D65") == 0) return add_cie_spd(scene, pn_cie_d65_5nm, out, err);
+    if (strcmp(s, "stdillum-A") == 0) return add_cie_spd(scene, pn_cie_a_5nm, out, err);
+    vec3 unused;
+    if (pn_named_spectrum_rgb(s, &unused)) return PN_OK; /* other named spectra: their RGB, upsampled */
+    double *vals = NULL;
+    int n = 0;
+    pn_status st = spd_file_pairs(ps, p, s, &vals, &n, err);
+    if (st != PN_OK) return st;
+    for (int i = 1; i < n; i += 2) vals[i] = fmax(0.0, vals[i]);
+    st = add_spd(scene, vals, n / 2, out, err);
+    free(vals);
+    return st;
 }
 
 float pn_params_blackbody_kelvin(const pn_params *ps, const char *name) {

@@ -38,6 +38,12 @@ typedef struct pn_swl {
     float lambda[PN_SWL_COUNT];  /* nm */
     float inv_pdf[PN_SWL_COUNT]; /* 1 / (density of each wavelength alone, per nm) */
     float illum[PN_SWL_COUNT];   /* the illuminant (D65, luminance 1) at lambda */
+    /* The film's estimator as two 3 x 3 maps of the values at the wavelengths, set by
+     * pn_swl_sample so that a conversion costs 9 multiply-adds and no CIE table lookup:
+     * xyz_w[k][i] = cmf_k(lambda_i) / pdf(lambda_i) / (n * integral of y-bar), and rgb_w the
+     * XYZ -> linear sRGB matrix times xyz_w. */
+    float xyz_w[3][PN_SWL_COUNT];
+    float rgb_w[3][PN_SWL_COUNT];
     bool on;
 } pn_swl;
 
@@ -86,6 +92,27 @@ vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb)
 /* 1 / the luminance of Planck's law at `kelvin` (W / (m^2 sr m) as pn_planck): the factor that
  * gives the black body luminance 1. 0 for kelvin <= 0. */
 double pn_blackbody_unit_scale(double kelvin);
+
+/* A tabulated emission spectrum kept as a spectrum in spectral mode (a "spectrum" value given as
+ * numbers, an .spd file, or the named stdillum-D65 / stdillum-A, whose CIE tables cie.h has):
+ * piecewise linear between its wavelengths and held at its end values outside them, as
+ * scene/spectrum.c reads the same values for RGB mode. scale is 1 / the function's luminance
+ * (∫ ȳ S dλ / ∫ ȳ dλ with cie.h's tables, trapezoid rule at 0.1 nm; 0 without luminance). */
+typedef struct pn_spd {
+    int count;
+    double *lambda, *value; /* count each, lambda increasing */
+    double scale;
+} pn_spd;
+
+/* A new pn_spd of `count` (lambda, value) pairs (increasing lambda); NULL when out of memory. A
+ * function without luminance gets scale 0 (it emits nothing, as its RGB). Free with pn_spd_free. */
+pn_spd *pn_spd_new(const double *pairs, int count);
+void pn_spd_free(pn_spd *s);
+/* The function at lambda (nm). */
+double pn_spd_eval(const pn_spd *s, double lambda);
+/* A tabulated emission at the wavelengths, scaled so that its luminance equals that of rgb (the
+ * value RGB mode uses for it, as pn_swl_blackbody): Y(rgb) * scale * S(lambda). RGB mode: rgb. */
+vec3 pn_swl_tabulated(const pn_swl *w, const pn_spd *s, vec3 rgb);
 
 /* The colour space's illuminant, normalised to luminance 1 (pbrt-v4's normalisation of
  * stdillum-D65), at lambda (nm). */
