@@ -1067,7 +1067,7 @@ static void scanline_job(void *user, size_t index, int worker) {
         px[i][1] = y;
     }
     /* A row is not one 8x8 block: contour draws its numbers per pixel and ignores block_x/y. */
-    pn_batch batch = {sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px, 0, NULL};
+    pn_batch batch = {sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px, 0, NULL, 0, NULL, NULL, NULL};
     pn_status st = render_pixels(job, &batch, sj->row_out[worker], sj->scratch[worker], cam->x0, cam->x1);
     if (st != PN_OK) {
         atomic_store(&sj->failed, (int)st);
