@@ -10,6 +10,7 @@
 
 #include "core/rng.h"
 #include "integrators/integrator.h"
+#include "integrators/registry.h"
 #include "penumbra/penumbra.h"
 #include "render/batch.h"
 #include "scene/scene.h"
@@ -249,6 +250,62 @@ static void test_more_hits_contract(pn_scene scene, int W, int H) {
     pn_integrator_reference.release(&job);
 }
 
+/* contour-mc takes its eye rays from the batch too: the same estimates whether its hits came in
+ * advance or through the callback, which it then asks for sample i of every pixel, one at a
+ * time, before sample i + 1; and light added to a given hit reaches its pixel. */
+static void test_contour_mc_hits(pn_context ctx, pn_scene scene, int W, int H) {
+    pn_render_settings rs;
+    memset(&rs, 0, sizeof rs);
+    rs.integrator = PN_INTEGRATOR_CONTOUR_MC;
+    pn_render_job job;
+    atomic_int cancel;
+    job_init(&job, scene, W, H, &cancel);
+    CHECK(pn_registry_resolve(ctx, &rs, pn_registry_method_kind(PN_METHOD_INTEGRATOR, PN_INTEGRATOR_CONTOUR_MC),
+                              pn_registry_method_kind(PN_METHOD_DRIVER, PN_DRIVER_DEFAULT), &job) == PN_OK);
+    job.spp = 2;
+    const pn_integrator *in = &pn_integrator_contour_mc;
+    CHECK(in->batch_hits && in->batch_hits(&job) == 2);
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(in->prepare(&job, &err) == PN_OK);
+    void *scratch = in->scratch_create(&job);
+    CHECK(scratch != NULL);
+    enum { N = 12 };
+    int32_t px[N][2];
+    for (int k = 0; k < N; k++) {
+        px[k][0] = 8 + k % 6;
+        px[k][1] = 4 + k / 6;
+    }
+    const int32_t(*cpx)[2] = (const int32_t(*)[2])px;
+    pn_eye_hit buf[N * 2];
+    recorder *rec = calloc(1, sizeof *rec);
+    pn_pixel_estimate given[N], traced[N];
+    pn_batch_trace_hits(&job, N, cpx, 2, buf);
+    pn_batch a = {1, 0, N, cpx, 0, NULL, 2, buf, recording_more_hits, rec};
+    CHECK(in->render_batch(&job, &a, given, scratch) == PN_OK);
+    CHECK(rec->n == 0);
+    pn_batch b = {1, 0, N, cpx, 0, NULL, 0, NULL, recording_more_hits, rec};
+    CHECK(in->render_batch(&job, &b, traced, scratch) == PN_OK);
+    CHECK_MSG(rec->n == 2 * N, "%d calls", rec->n);
+    bool order = true;
+    for (int c = 0; c < rec->n && c < 2 * N; c++)
+        order &= rec->calls[c].pi == c % N && rec->calls[c].first == (uint32_t)(c / N) && rec->calls[c].count == 1;
+    CHECK(order);
+    int lit = 0;
+    for (int k = 0; k < N; k++) {
+        CHECK_MSG(same_estimate(&given[k], &traced[k]), "pixel %d differs", k);
+        lit += given[k].radiance.x > 0.0f;
+    }
+    CHECK(lit > N / 2);
+    buf[2 * 5 + 1].path.emitted = v3_add(buf[2 * 5 + 1].path.emitted, v3(5, 5, 5));
+    CHECK(in->render_batch(&job, &a, given, scratch) == PN_OK);
+    for (int k = 0; k < N; k++)
+        CHECK(k == 5 ? given[k].radiance.x > traced[k].radiance.x + 0.1f : same_estimate(&given[k], &traced[k]));
+    free(rec);
+    in->scratch_free(scratch);
+    in->release(&job);
+}
+
 /* Determinism: the tiled driver's images, fixed spp and threshold, with 1 and 3 threads. */
 static void test_thread_counts(pn_context ctx, pn_scene scene) {
     for (int mode = 0; mode < 2; mode++) {
@@ -280,6 +337,7 @@ static void run_all(void) {
     if (scene) {
         test_hits_are_the_eye_samples(scene, W, H);
         test_more_hits_contract(scene, W, H);
+        test_contour_mc_hits(ctx, scene, W, H);
         test_thread_counts(ctx, scene);
         pn_scene_free(scene);
     }

@@ -922,39 +922,39 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         if (atomic_load(job->cancel)) break;
         /* Viewing rays for the whole batch first (the paper casts a scanline's). */
         for (int q = 0; q < batch->count; q++) {
-            int px = batch->pixels[q][0], py = batch->pixels[q][1];
             uint32_t scramble = s->scramble[q];
             shade_point *sp = &s->sp[q];
             memset(sp, 0, sizeof *sp);
-            float fw, u_specular;
-            vec3 ro, rd;
-            pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
-            const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &sp->wl);
-            pn_eye_path path;
-            pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
+            /* The driver's eye hit (render/batch.h): in advance under the progressive drivers
+             * and under the tiled driver's blocks (contour-mc); traced for contour's own rows. */
+            pn_eye_hit one;
+            const pn_eye_hit *h = pn_batch_eye_hits(job, batch, q, PN_EYE_SEQ_PIXEL, i, 1, &one);
+            const pn_eye_path *path = &h->path;
+            sp->wl = h->wl; /* zero (off) in RGB mode */
             if (i == 0) {
-                out[q].depth = path.first_depth;
-                out[q].normal = path.first_normal;
-                out[q].albedo = path.first_albedo;
+                out[q].depth = path->first_depth;
+                out[q].normal = path->first_normal;
+                out[q].albedo = path->first_albedo;
             }
-            s->acc[q].specular_rays += path.rays - 1;
-            sp->fw = fw;
-            sp->value = path.emitted;
-            if (path.has_point) {
+            s->acc[q].specular_rays += path->rays - 1;
+            sp->fw = h->weight;
+            sp->value = path->emitted;
+            if (path->has_point) {
                 sp->has_point = true;
-                sp->hit = path.hit;
-                sp->wo = path.wo;
-                sp->throughput = path.throughput;
-                pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &sp->b);
+                sp->hit = path->hit;
+                sp->wo = path->wo;
+                sp->throughput = path->throughput;
+                sp->b = h->bsdf;
+                sp->b.wl = job->spectral ? &sp->wl : NULL;
                 sp->diffuse = sp->b.kind == PN_MATERIAL_LAMBERT_BLINN && v3_is_zero(sp->b.ks);
-                sp->object = object_key(&path.hit);
+                sp->object = object_key(&path->hit);
                 /* Everything the contour integration does not treat: the reference's code. */
                 vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0);
                 double unused_seconds = 0.0;
-                if (pn_reference_direct_irradiance(job, &s->ref, NULL, &sp->b, path.hit.p, path.wo, i, scramble,
+                if (pn_reference_direct_irradiance(job, &s->ref, NULL, &sp->b, path->hit.p, path->wo, i, scramble,
                                                    sp->diffuse ? cd->skip : NULL, false, &direct,
                                                    lux ? &incident : NULL, &s->acc[q].shadow_rays, &unused_seconds)) {
-                    sp->value = v3_add(sp->value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
+                    sp->value = v3_add(sp->value, v3_mul(path->throughput, v3_scale(direct, 1.0f / (float)S)));
                     /* PN_AOV_ILLUMINANCE: the other lights' part, from the same light samples. */
                     float e = pn_photometric(incident) / (float)S;
                     if (lux && isfinite(e)) sp->lux = (double)e;
@@ -1115,6 +1115,12 @@ static pn_status contour_render_image(const pn_render_job *job, struct pn_thread
 }
 
 /* contour's scanline hook lets §5 spans run along whole rows; contour-mc works in blocks. */
+/* The eye rays every pixel takes: the fixed spp (default 1), which the drivers trace in advance
+ * for render_batch. */
+static uint32_t contour_batch_hits(const pn_render_job *job) {
+    return job->spp > 0 ? job->spp : 1;
+}
+
 const pn_integrator pn_integrator_contour = {
     .name = "contour",
     .prepare = contour_prepare,
@@ -1124,6 +1130,7 @@ const pn_integrator pn_integrator_contour = {
     .scratch_free = contour_scratch_free,
     .render_batch = contour_render_batch,
     .render_image = contour_render_image,
+    .batch_hits = contour_batch_hits,
 };
 
 const pn_integrator pn_integrator_contour_mc = {
@@ -1134,4 +1141,5 @@ const pn_integrator pn_integrator_contour_mc = {
     .scratch_create = contour_scratch_create,
     .scratch_free = contour_scratch_free,
     .render_batch = contour_render_batch,
+    .batch_hits = contour_batch_hits,
 };
