@@ -10,7 +10,10 @@
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
  * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
  * as the reference integrator draws them, so that a contour image and a reference image with
- * --spp 1 see the same points and differ only in their direct light. */
+ * --spp 1 see the same points and differ only in their direct light. They are the batch's eye
+ * hits (render/batch.h, pn_batch_eye_hits): traced by the driver for render_batch (contour-mc
+ * under every driver, contour under the progressive ones); contour's scanline rows
+ * (render_image) are batches of its own without a driver, whose hits render/ traces. */
 #include "integrators/contour_internal.h"
 #include "integrators/reference_direct.h"
 

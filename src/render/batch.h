@@ -16,7 +16,8 @@
  *  - VPL receivers (pn_batch_point; pn_integrator.batch_points: vpl, lightcuts, illumcut's batch
  *    path): a fixed number of samples per pixel of the VPL sequence, all traced in advance by the
  *    tiled and progressive drivers through pn_batch_trace_points.
- *  - Eye hits (pn_eye_hit; pn_integrator.batch_hits: reference): the whole end point of the
+ *  - Eye hits (pn_eye_hit; pn_integrator.batch_hits: reference, contour-mc, and contour's
+ *    render_batch, i.e. contour under the progressive drivers): the whole end point of the
  *    path (the hit, its BSDF, the wavelengths, the sequence's scramble, from which the estimator
  *    draws its light samples). The drivers trace in advance the samples 0..n-1 of the pixel
  *    sequence that the integrator says it takes from every pixel (its fixed spp, or the pilot of
@@ -28,14 +29,16 @@
  *    function of (seed, pixel, sequence, index) only, so an image does not depend on which hits
  *    came in advance, on the batch, or on the thread count.
  *
- * What remains (ARCHITECTURE.md): ias still traces its own per-block eye-ray sequences over its
- * passes (pn_eye_hit carries what it reads, but its sequences are per block, not per pixel, and
- * would need a sequence kind of their own); contour and contour-mc trace their own eye rays
- * interleaved with their refinement (pixel sequence, through render/ functions); illumcut's
- * whole-image path (render_image) traces the points of its point tree itself, which would need
- * the driver to trace the image's points in chunks; and the progressive drivers' primary
- * refinement (progressive.c) traces eye rays of the pixel sequence for its demodulation factors
- * outside any batch. */
+ * What remains (ARCHITECTURE.md): eye rays that integrators still trace themselves, through
+ * render/ rather than driver/ code. ias traces its per-block eye-ray sequences over its passes
+ * (pn_eye_hit carries what its estimator reads: the hit, its material, the BSDF; but its sequences
+ * are one per 8x8 block, not per pixel, and would need a sequence kind of their own, with the
+ * block's index numbering). contour's whole-image path (render_image, the tiled driver's: spans
+ * along whole rows) builds batches of its own rows without a driver, so pn_batch_eye_hits traces
+ * their hits through pn_eye_hits_trace (the same samples). illumcut's whole-image path traces the
+ * points of its point tree itself; the driver would have to trace the image's points in chunks.
+ * Outside any batch, the progressive drivers' primary refinement (progressive.c) traces eye rays
+ * of the pixel sequence for its demodulation factors. */
 #ifndef PN_RENDER_BATCH_H
 #define PN_RENDER_BATCH_H
 
