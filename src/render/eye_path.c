@@ -194,11 +194,20 @@ static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scrambl
     vec3 ro, rd;
     pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
     const bool timed = i % PN_EYE_TIMING_STRIDE == 0u;
+    /* Traced on the stack and stored after the clock stops: the timed part is the trace, not the
+     * stores into the batch's hits (a buffer of up to PN_BATCH_HITS_MAX, mostly out of cache). */
+    pn_swl wl_storage;
+    pn_eye_path path;
     double t_start = timed ? pn_clock_seconds() : 0.0;
-    const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &out->wl);
-    if (!wl) memset(&out->wl, 0, sizeof out->wl);
-    pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &out->path);
+    const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &wl_storage);
+    pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
     out->seconds = timed ? (float)(pn_clock_seconds() - t_start) : 0.0f;
+    out->path = path;
+    if (wl)
+        out->wl = wl_storage;
+    else
+        memset(&out->wl, 0, sizeof out->wl);
+    wl = wl ? &out->wl : NULL;
     out->scramble = scramble;
     out->index = i;
     out->weight = fw;
