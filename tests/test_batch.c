@@ -1,7 +1,7 @@
 /* test_batch.c — the batch's eye hits (render/batch.h): what the driver traces, in advance and
  * through the batch's callback (more_hits), and the contract the reference integrator keeps
  * with it. The hits are the eye samples reference traced itself before (its pixel sequence,
- * the cross rule's stream B); a reference estimate is the same bit for bit whichever hits came in
+ * the cross rule's stream B; the VPL integrators' sequence); a reference estimate is the same bit for bit whichever hits came in
  * advance; the callback is asked for exactly the eye rays the pixel takes (count), each range
  * once, in index order, stream A's pilot from the batch before stream B's (order); and images
  * are the same for any thread count, at a fixed spp and with a threshold (determinism). */
@@ -67,6 +67,8 @@ static void test_hits_are_the_eye_samples(pn_scene scene, int W, int H) {
                 uint32_t scramble = pn_pixel_scramble(&job, px, py);
                 if (seq == PN_EYE_SEQ_CROSS_B)
                     scramble = (uint32_t)pn_hash3(job.seed ^ UINT64_C(0x9e3779b97f4a7c15), (uint64_t)scramble, 1u);
+                if (seq == PN_EYE_SEQ_VPL)
+                    scramble = (uint32_t)pn_hash3(job.seed ^ UINT64_C(0x76706c), (uint64_t)px, (uint64_t)py);
                 pn_eye_hit hits[5];
                 pn_eye_hits_trace(&job, px, py, (pn_eye_sequence)seq, 3, 5, hits);
                 for (uint32_t k = 0; k < 5; k++) {

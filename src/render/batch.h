@@ -71,14 +71,15 @@ typedef struct pn_batch_point {
     vec3 first_normal, first_albedo;
 } pn_batch_point;
 
-/* The quasi-random eye-sample sequences of a pixel that pn_eye_hit serves. Each is one
- * Owen-scrambled Sobol sequence, index 0 up (pn_pixel_eye_sample's dimensions), its scramble a
- * hash of the seed and the pixel (pn_eye_sequence_scramble). The VPL integrators' sequence
- * (pn_eye_point_trace) is salted apart from both. */
+/* The quasi-random eye-sample sequences of a pixel. Each is one Owen-scrambled Sobol sequence,
+ * index 0 up (pn_pixel_eye_sample's dimensions), its scramble a hash of the seed and the pixel
+ * (pn_eye_sequence_scramble); every eye sample a driver traces is one of them, through one
+ * tracer (eye_path.c). */
 typedef enum pn_eye_sequence {
     PN_EYE_SEQ_PIXEL = 0,   /* pn_pixel_scramble: reference's fixed-spp sequence (the cross rule's
                                stream A), contour's, the progressive drivers' primary refinement */
     PN_EYE_SEQ_CROSS_B = 1, /* reference's cross-rule stream B (reference.c, render_pixel_cross) */
+    PN_EYE_SEQ_VPL = 2,     /* the VPL integrators' (pn_eye_point_trace), salted apart */
     PN_EYE_SEQ_COUNT
 } pn_eye_sequence;
 

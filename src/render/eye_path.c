@@ -115,39 +115,35 @@ void pn_pixel_eye_sample(const pn_render_job *job, int px, int py, uint32_t scra
     *u_specular = pn_sobol_sample(i, 4, scramble);
 }
 
+static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, pn_eye_hit *out);
+
+/* The VPL receiver form of an eye hit of the VPL sequence (the same tracer as every eye hit). */
 void pn_eye_point_trace(const pn_render_job *job, int px, int py, uint32_t i, pn_batch_point *out) {
-    uint32_t scramble =
-        (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
-    float fw, u_specular;
-    vec3 ro, rd;
-    pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
-    pn_swl wl_storage;
-    const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &wl_storage);
-    pn_eye_path path;
-    pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
+    pn_eye_hit h;
+    trace_hit(job, px, py, pn_eye_sequence_scramble(job, PN_EYE_SEQ_VPL, px, py), i, &h);
+    const pn_eye_path *path = &h.path;
     memset(out, 0, sizeof *out);
-    out->rays = path.rays;
-    out->first_depth = path.first_depth;
-    out->first_normal = path.first_normal;
-    out->first_albedo = path.first_albedo;
+    out->rays = path->rays;
+    out->first_depth = path->first_depth;
+    out->first_normal = path->first_normal;
+    out->first_albedo = path->first_albedo;
     pn_shading_point *sp = &out->sp;
-    sp->weight = fw;
-    sp->emitted = v3_is_finite(path.emitted) ? path.emitted : v3(0, 0, 0);
-    sp->throughput = path.throughput;
-    if (wl) sp->r.wl = *wl;
-    if (!path.has_point) return;
-    pn_bsdf b;
-    pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &b);
+    sp->weight = h.weight;
+    sp->emitted = v3_is_finite(path->emitted) ? path->emitted : v3(0, 0, 0);
+    sp->throughput = path->throughput;
+    if (job->spectral) sp->r.wl = h.wl;
+    if (!path->has_point) return;
+    const pn_bsdf *b = &h.bsdf;
     sp->has_point = true;
-    sp->r.p = path.hit.p;
-    sp->r.ng = b.ng;
-    sp->r.ns = b.ns;
-    sp->r.wo = path.wo;
-    sp->r.kd = b.rgb_kd;
-    sp->r.ks = b.rgb_ks;
-    sp->r.kd_w = b.kd;
-    sp->r.ks_w = b.ks;
-    sp->r.exponent = b.exponent;
+    sp->r.p = path->hit.p;
+    sp->r.ng = b->ng;
+    sp->r.ns = b->ns;
+    sp->r.wo = path->wo;
+    sp->r.kd = b->rgb_kd;
+    sp->r.ks = b->rgb_ks;
+    sp->r.kd_w = b->kd;
+    sp->r.ks_w = b->ks;
+    sp->r.exponent = b->exponent;
 }
 
 void pn_eye_point_apply(const pn_batch_point *pt, uint32_t i, pn_shading_point *sp, pn_pixel_estimate *est) {
@@ -182,6 +178,8 @@ void pn_batch_trace_points(const pn_render_job *job, int count, const int32_t (*
 /* ---- eye hits (render/batch.h) ------------------------------------------------------------- */
 
 uint32_t pn_eye_sequence_scramble(const pn_render_job *job, pn_eye_sequence seq, int px, int py) {
+    if (seq == PN_EYE_SEQ_VPL)
+        return (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
     uint32_t a = pn_pixel_scramble(job, px, py);
     if (seq == PN_EYE_SEQ_CROSS_B) return (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x9e3779b97f4a7c15), (uint64_t)a, 1u);
     return a;
