@@ -44,6 +44,9 @@ typedef struct render_shared {
     pn_pixel_estimate **batch_estimates; /* per worker: block_size^2 estimates */
     uint32_t points_per_pixel;           /* integrator->batch_points, 0 when it traces its own */
     pn_batch_point **batch_points;       /* per worker: block_size^2 * points_per_pixel points */
+    uint32_t hits_per_pixel;             /* integrator->batch_hits, 0 when it traces its own */
+    pn_eye_hit **batch_hits;             /* per worker: block_size^2 * hits_per_pixel hits, at most
+                                            PN_BATCH_HITS_MAX (pn_batch_hits_in_advance) */
     /* Distributed, split or checkpointed renders (driver/tiles.h): the tiles, the blocks of the
      * tile being rendered (indices of the window's blocks), the pool, the checkpoint. */
     pn_tile_grid grid;
@@ -86,12 +89,23 @@ static void render_block(void *user, size_t job_index, int worker) {
             return;
         }
     }
-    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels, 0, NULL};
+    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels, 0, NULL, 0, NULL, NULL, NULL};
     if (rs->points_per_pixel > 0) {
         /* The camera rays and specular chains of the block, traced once here (render/batch.h). */
         pn_batch_trace_points(job, count, batch.pixels, rs->points_per_pixel, rs->batch_points[worker]);
         batch.points_per_pixel = rs->points_per_pixel;
         batch.points = rs->batch_points[worker];
+    }
+    if (rs->integrator->batch_hits) {
+        /* The eye hits every pixel of the block takes, traced here in advance; the integrator gets
+         * any others through the batch's tracer (render/batch.h). */
+        uint32_t per = pn_batch_hits_in_advance(rs->hits_per_pixel, count);
+        if (per > 0) {
+            pn_batch_trace_hits(job, count, batch.pixels, per, rs->batch_hits[worker]);
+            batch.hits_per_pixel = per;
+            batch.hits = rs->batch_hits[worker];
+        }
+        batch.more_hits = pn_batch_more_hits;
     }
     pn_status st = rs->integrator->render_batch(job, &batch, est, rs->scratch[worker]);
     if (st != PN_OK) {
@@ -212,11 +226,14 @@ static void free_batches(render_shared *rs, int workers) {
         if (rs->batch_pixels) free(rs->batch_pixels[w]);
         if (rs->batch_estimates) free(rs->batch_estimates[w]);
         if (rs->batch_points) free(rs->batch_points[w]);
+        if (rs->batch_hits) free(rs->batch_hits[w]);
     }
     free(rs->batch_pixels);
     free(rs->batch_estimates);
     free(rs->batch_points);
+    free(rs->batch_hits);
     rs->batch_points = NULL;
+    rs->batch_hits = NULL;
     rs->batch_pixels = NULL;
     rs->batch_estimates = NULL;
 }
@@ -561,7 +578,13 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         /* Whole-image integrators take no batches here, so no points either. */
         rs.points_per_pixel = integ->batch_points && !integ->render_image ? integ->batch_points(&job) : 0;
         rs.batch_points = rs.points_per_pixel ? calloc((size_t)workers + 1, sizeof *rs.batch_points) : NULL;
-        batches_ok = rs.batch_pixels && rs.batch_estimates && (!rs.points_per_pixel || rs.batch_points);
+        rs.hits_per_pixel = integ->batch_hits && !integ->render_image ? integ->batch_hits(&job) : 0;
+        /* A block of fewer pixels may take more per pixel, never more than this in all. */
+        uint64_t hits_per_batch = (uint64_t)rs.hits_per_pixel * (uint64_t)(B * B);
+        if (hits_per_batch > PN_BATCH_HITS_MAX) hits_per_batch = PN_BATCH_HITS_MAX;
+        rs.batch_hits = hits_per_batch ? calloc((size_t)workers + 1, sizeof *rs.batch_hits) : NULL;
+        batches_ok = rs.batch_pixels && rs.batch_estimates && (!rs.points_per_pixel || rs.batch_points) &&
+                     (!hits_per_batch || rs.batch_hits);
         for (int w = 0; batches_ok && w <= workers; w++) {
             rs.batch_pixels[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_pixels[w]);
             rs.batch_estimates[w] = malloc((size_t)B * (size_t)B * sizeof *rs.batch_estimates[w]);
@@ -569,6 +592,10 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
             if (batches_ok && rs.points_per_pixel) {
                 rs.batch_points[w] = malloc((size_t)B * (size_t)B * rs.points_per_pixel * sizeof *rs.batch_points[w]);
                 batches_ok = rs.batch_points[w] != NULL;
+            }
+            if (batches_ok && hits_per_batch) {
+                rs.batch_hits[w] = malloc((size_t)hits_per_batch * sizeof *rs.batch_hits[w]);
+                batches_ok = rs.batch_hits[w] != NULL;
             }
         }
     }

@@ -10,7 +10,10 @@
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
  * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
  * as the reference integrator draws them, so that a contour image and a reference image with
- * --spp 1 see the same points and differ only in their direct light. */
+ * --spp 1 see the same points and differ only in their direct light. They are the batch's eye
+ * hits (render/batch.h, pn_batch_eye_hits): traced by the driver for render_batch (contour-mc
+ * under every driver, contour under the progressive ones); contour's scanline rows
+ * (render_image) are batches of its own without a driver, whose hits render/ traces. */
 #include "integrators/contour_internal.h"
 #include "integrators/reference_direct.h"
 
@@ -930,41 +933,42 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         if (atomic_load(job->cancel)) break;
         /* Viewing rays for the whole batch first (the paper casts a scanline's). */
         for (int q = 0; q < batch->count; q++) {
-            int px = batch->pixels[q][0], py = batch->pixels[q][1];
             uint32_t scramble = s->scramble[q];
             shade_point *sp = &s->sp[q];
             memset(sp, 0, sizeof *sp);
-            float fw, u_specular;
-            vec3 ro, rd;
-            pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
-            const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &sp->wl);
-            pn_eye_path path;
-            pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
+            /* The driver's eye hit (render/batch.h): in advance under the progressive drivers
+             * and under the tiled driver's blocks (contour-mc); traced for contour's own rows. */
+            pn_eye_hit one;
+            const pn_eye_hit *h = pn_batch_eye_hits(job, batch, q, PN_EYE_SEQ_PIXEL, i, 1, &one);
+            const pn_eye_path *path = &h->path;
+            sp->wl = h->wl; /* zero (off) in RGB mode */
             if (i == 0) {
-                out[q].depth = path.first_depth;
-                out[q].normal = path.first_normal;
-                out[q].albedo = path.first_albedo;
+                out[q].depth = path->first_depth;
+                out[q].normal = path->first_normal;
+                out[q].albedo = path->first_albedo;
             }
-            s->acc[q].specular_rays += path.rays - 1;
-            sp->fw = fw;
-            sp->value = path.emitted;
-            if (path.has_point) {
+            s->acc[q].specular_rays += path->rays - 1;
+            sp->fw = h->weight;
+            sp->value = path->emitted;
+            if (path->has_point) {
                 sp->has_point = true;
-                sp->hit = path.hit;
-                sp->wo = path.wo;
-                sp->throughput = path.throughput;
-                pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &sp->b);
+                sp->hit = path->hit;
+                sp->wo = path->wo;
+                sp->throughput = path->throughput;
+                sp->b = h->bsdf;
+                sp->b.wl = job->spectral ? &sp->wl : NULL;
                 sp->diffuse = sp->b.kind == PN_MATERIAL_LAMBERT_BLINN && v3_is_zero(sp->b.ks);
-                sp->object = object_key(&path.hit);
+                sp->object = object_key(&path->hit);
                 /* Everything the contour integration does not treat: the reference's code. */
                 vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0), incident_wl = v3(0, 0, 0);
                 double unused_seconds = 0.0;
+                const pn_swl *wl = job->spectral ? &sp->wl : NULL;
                 const bool mel_here = mel && pn_swl_active(wl);
-                if (pn_reference_direct_irradiance_wl(job, &s->ref, NULL, &sp->b, path.hit.p, path.wo, i, scramble,
+                if (pn_reference_direct_irradiance_wl(job, &s->ref, NULL, &sp->b, path->hit.p, path->wo, i, scramble,
                                                       sp->diffuse ? cd->skip : NULL, false, &direct,
                                                       lux ? &incident : NULL, mel_here ? &incident_wl : NULL,
                                                       &s->acc[q].shadow_rays, &unused_seconds)) {
-                    sp->value = v3_add(sp->value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
+                    sp->value = v3_add(sp->value, v3_mul(path->throughput, v3_scale(direct, 1.0f / (float)S)));
                     /* PN_AOV_ILLUMINANCE: the other lights' part, from the same light samples. */
                     float e = pn_photometric(incident) / (float)S;
                     if (lux && isfinite(e)) sp->lux = (double)e;
@@ -1081,7 +1085,7 @@ static void scanline_job(void *user, size_t index, int worker) {
         px[i][1] = y;
     }
     /* A row is not one 8x8 block: contour draws its numbers per pixel and ignores block_x/y. */
-    pn_batch batch = {sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px, 0, NULL};
+    pn_batch batch = {sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px, 0, NULL, 0, NULL, NULL, NULL};
     pn_status st = render_pixels(job, &batch, sj->row_out[worker], sj->scratch[worker], cam->x0, cam->x1);
     if (st != PN_OK) {
         atomic_store(&sj->failed, (int)st);
@@ -1129,6 +1133,12 @@ static pn_status contour_render_image(const pn_render_job *job, struct pn_thread
 }
 
 /* contour's scanline hook lets §5 spans run along whole rows; contour-mc works in blocks. */
+/* The eye rays every pixel takes: the fixed spp (default 1), which the drivers trace in advance
+ * for render_batch. */
+static uint32_t contour_batch_hits(const pn_render_job *job) {
+    return job->spp > 0 ? job->spp : 1;
+}
+
 const pn_integrator pn_integrator_contour = {
     .name = "contour",
     .prepare = contour_prepare,
@@ -1138,6 +1148,7 @@ const pn_integrator pn_integrator_contour = {
     .scratch_free = contour_scratch_free,
     .render_batch = contour_render_batch,
     .render_image = contour_render_image,
+    .batch_hits = contour_batch_hits,
 };
 
 const pn_integrator pn_integrator_contour_mc = {
@@ -1148,4 +1159,5 @@ const pn_integrator pn_integrator_contour_mc = {
     .scratch_create = contour_scratch_create,
     .scratch_free = contour_scratch_free,
     .render_batch = contour_render_batch,
+    .batch_hits = contour_batch_hits,
 };

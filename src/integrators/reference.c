@@ -58,14 +58,18 @@
  * renders with. Everything else is the same.
  *
  * Quasi-random dimensions per eye ray i of a pixel: 0-1 pixel filter, 2-3 lens, 4 specular
- * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light. */
+ * choice; per shadow ray j, with index i * S + j: 5 light choice, 6-7 point on the light.
+ *
+ * The eye rays are the driver's (render/batch.h, pn_eye_hit): the tiled and progressive drivers
+ * trace in advance the eye rays every pixel takes (reference_batch_hits: the fixed spp, or the
+ * adaptive rule's first eye rays of stream A) and the batch's callback traces the rest when the
+ * rule asks for them (pn_batch_eye_hits). The integrator traces no camera ray or specular chain;
+ * it continues each eye ray's sequence (its scramble, its index) for the shadow rays. */
 #include "integrators/integrator.h"
 #include "integrators/reference_direct.h"
 
-#include "core/clock.h"
 #include "core/photometry.h"
 #include "core/sobol.h"
-#include "core/rng.h"
 #include "lights/light_bvh.h"
 #include "shade/bsdf.h"
 #include "spectral/melanopic.h"
@@ -76,14 +80,20 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Every PN_TIMING_STRIDE-th eye ray of a pixel has its Embree calls timed; the sum, scaled by the
- * stride, estimates the time spent in Embree without timing every ray. */
-#define PN_TIMING_STRIDE 8u
+/* Eye hits asked of the driver at once beyond its in-advance ones (pn_batch_eye_hits). */
+#define PN_REFERENCE_CHUNK 16u
+
+/* Per-worker scratch. The direct estimator's comes first: integrators/point_eval.c takes this
+ * scratch as a pn_reference_direct_scratch. */
+typedef struct reference_scratch {
+    pn_reference_direct_scratch direct;
+    pn_eye_hit hits[PN_REFERENCE_CHUNK]; /* the driver's further eye hits */
+} reference_scratch;
 
 static void *reference_scratch_create(const pn_render_job *job) {
-    pn_reference_direct_scratch *s = calloc(1, sizeof *s);
+    reference_scratch *s = calloc(1, sizeof *s);
     if (!s) return NULL;
-    if (!pn_reference_direct_init(s, job)) {
+    if (!pn_reference_direct_init(&s->direct, job)) {
         free(s);
         return NULL;
     }
@@ -91,9 +101,9 @@ static void *reference_scratch_create(const pn_render_job *job) {
 }
 
 static void reference_scratch_free(void *p) {
-    pn_reference_direct_scratch *s = p;
+    reference_scratch *s = p;
     if (!s) return;
-    pn_reference_direct_free(s);
+    pn_reference_direct_free(&s->direct);
     free(s);
 }
 
@@ -127,49 +137,47 @@ static bool pixel_done(const pn_render_job *job, const pixel_state *ps) {
     return var_of_mean <= job->threshold * mean * mean;
 }
 
-/* Per-pixel outputs of the first eye ray and the timing, shared by both rules. */
+/* Per-pixel outputs of the first eye ray and the timing, shared by both rules; where the pixel's
+ * eye hits come from (the batch). */
 typedef struct pixel_context {
     const pn_render_job *job;
-    pn_reference_direct_scratch *s;
-    int px, py;
+    reference_scratch *s;
+    const pn_batch *batch;
+    int pi;
     pn_pixel_estimate *o;
     double embree_seconds;
     bool first_done;
 } pixel_context;
 
-/* Traces eye ray i of the stream with the given scramble and adds it to ps. */
-static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_state *ps) {
+/* Adds the eye ray of the driver's hit h (sample h->index of the stream h->scramble) to ps. */
+static void add_eye_ray(pixel_context *c, const pn_eye_hit *h, pixel_state *ps) {
     const pn_render_job *job = c->job;
     const uint32_t S = job->shadow_rays;
-    float fw, u_specular;
-    vec3 ro, rd;
-    pn_pixel_eye_sample(job, c->px, c->py, scramble, i, &ro, &rd, &fw, &u_specular);
-    const bool timed = i % PN_TIMING_STRIDE == 0u;
-    double t_start = timed ? pn_clock_seconds() : 0.0;
-    pn_swl wl_storage;
-    const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &wl_storage);
-    pn_eye_path path;
-    pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
-    if (timed) c->embree_seconds += pn_clock_seconds() - t_start;
+    const uint32_t i = h->index, scramble = h->scramble;
+    const float fw = h->weight;
+    const bool timed = i % PN_EYE_TIMING_STRIDE == 0u;
+    c->embree_seconds += (double)h->seconds;
+    const pn_eye_path *path = &h->path;
     if (!c->first_done) {
         c->first_done = true;
-        c->o->depth = path.first_depth;
-        c->o->normal = path.first_normal;
-        c->o->albedo = path.first_albedo;
+        c->o->depth = path->first_depth;
+        c->o->normal = path->first_normal;
+        c->o->albedo = path->first_albedo;
     }
-    ps->specular_rays += path.rays - 1;
-    vec3 value = path.emitted;
-    if (path.has_point) {
+    ps->specular_rays += path->rays - 1;
+    const pn_swl *wl = pn_eye_hit_wavelengths(job, h);
+    vec3 value = path->emitted;
+    if (path->has_point) {
         pn_bsdf b;
-        pn_bsdf_at_spectral(job->scene, &path.hit, path.wo, wl, &b);
+        pn_eye_hit_bsdf(job, h, &b);
         const pn_light_bvh *bvh = job->integrator_data; /* set only with the BVH sampler */
         vec3 direct = v3(0, 0, 0), incident = v3(0, 0, 0), incident_wl = v3(0, 0, 0);
         const bool mel = (job->aovs & PN_AOV_MELANOPIC_EDI) && pn_swl_active(wl);
         const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0 || mel;
-        if (pn_reference_direct_irradiance_wl(job, c->s, bvh, &b, path.hit.p, path.wo, i, scramble, NULL, timed,
-                                              &direct, lux ? &incident : NULL, mel ? &incident_wl : NULL,
+        if (pn_reference_direct_irradiance_wl(job, &c->s->direct, bvh, &b, path->hit.p, path->wo, i, scramble, NULL,
+                                              timed, &direct, lux ? &incident : NULL, mel ? &incident_wl : NULL,
                                               &ps->shadow_rays, &c->embree_seconds)) {
-            value = v3_add(value, v3_mul(path.throughput, v3_scale(direct, 1.0f / (float)S)));
+            value = v3_add(value, v3_mul(path->throughput, v3_scale(direct, 1.0f / (float)S)));
             ps->light_samples += S;
             float e = pn_photometric(incident) / (float)S;
             if (lux && isfinite(e)) ps->weighted_lux += (double)e * (double)fw;
@@ -179,17 +187,33 @@ static void add_eye_ray(pixel_context *c, uint32_t scramble, uint32_t i, pixel_s
     }
     /* Spectral mode: the eye ray's value at its wavelengths to linear sRGB, where it is added. */
     value = pn_swl_rgb(wl, value);
-    path.emitted = pn_swl_rgb(wl, path.emitted);
-    if (!v3_is_finite(value)) value = path.emitted = v3(0, 0, 0);
+    vec3 emitted = pn_swl_rgb(wl, path->emitted);
+    if (!v3_is_finite(value)) value = emitted = v3(0, 0, 0);
     ps->n++;
     ps->weighted_sum = v3_madd(ps->weighted_sum, value, fw);
-    ps->weighted_emitted = v3_madd(ps->weighted_emitted, path.emitted, fw);
+    ps->weighted_emitted = v3_madd(ps->weighted_emitted, emitted, fw);
     ps->weight_sum += (double)fw;
     double y = (double)v3_luminance(value);
     if (y != 0.0 || !v3_is_zero(value)) ps->any_nonzero = true;
     double delta = y - ps->lum_mean;
     ps->lum_mean += delta / (double)ps->n;
     ps->lum_m2 += delta * (y - ps->lum_mean);
+}
+
+/* Adds eye rays first..end-1 of stream seq, taken from the batch PN_REFERENCE_CHUNK at a time;
+ * when `cancellable`, stops before any of them once the render is cancelled. */
+static void add_eye_rays(pixel_context *c, pn_eye_sequence seq, uint32_t first, uint32_t end, bool cancellable,
+                         pixel_state *ps) {
+    for (uint32_t i = first; i < end;) {
+        if (cancellable && atomic_load(c->job->cancel)) return;
+        uint32_t n = end - i < PN_REFERENCE_CHUNK ? end - i : PN_REFERENCE_CHUNK;
+        const pn_eye_hit *h = pn_batch_eye_hits(c->job, c->batch, c->pi, seq, i, n, c->s->hits);
+        for (uint32_t k = 0; k < n; k++) {
+            if (cancellable && k > 0 && atomic_load(c->job->cancel)) return;
+            add_eye_ray(c, &h[k], ps);
+        }
+        i += n;
+    }
 }
 
 /* ---- the cross rule (adaptive_rule = cross; the header names each departure) -------------- */
@@ -255,21 +279,21 @@ static uint32_t cross_count(const pn_render_job *job, const pixel_state *pilot) 
     return k > n0 ? k : n0;
 }
 
-static void render_pixel_cross(pixel_context *c, uint32_t scramble_a) {
+static void render_pixel_cross(pixel_context *c) {
     const pn_render_job *job = c->job;
-    /* Stream A is the fixed-spp sequence of the pixel; stream B has its own scramble. */
-    const uint32_t scramble_b = (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x9e3779b97f4a7c15), (uint64_t)scramble_a, 1u);
+    /* Stream A is the fixed-spp sequence of the pixel (PN_EYE_SEQ_PIXEL); stream B has its own
+     * scramble (PN_EYE_SEQ_CROSS_B, pn_eye_sequence_scramble). */
     pixel_state a, b;
     memset(&a, 0, sizeof a);
     memset(&b, 0, sizeof b);
     const uint32_t n0 = cross_pilot(job);
-    for (uint32_t i = 0; i < n0; i++) add_eye_ray(c, scramble_a, i, &a);
-    for (uint32_t i = 0; i < n0; i++) add_eye_ray(c, scramble_b, i, &b);
+    add_eye_rays(c, PN_EYE_SEQ_PIXEL, 0, n0, false, &a);
+    add_eye_rays(c, PN_EYE_SEQ_CROSS_B, 0, n0, false, &b);
     /* Each stream's count depends only on the other's pilot, which is independent of it: given
      * its count, a stream's mean is a plain average of independent eye rays, hence unbiased. */
     const uint32_t na = cross_count(job, &b), nb = cross_count(job, &a);
-    for (uint32_t i = n0; i < na && !atomic_load(job->cancel); i++) add_eye_ray(c, scramble_a, i, &a);
-    for (uint32_t i = n0; i < nb && !atomic_load(job->cancel); i++) add_eye_ray(c, scramble_b, i, &b);
+    add_eye_rays(c, PN_EYE_SEQ_PIXEL, n0, na, true, &a);
+    add_eye_rays(c, PN_EYE_SEQ_CROSS_B, n0, nb, true, &b);
     pn_pixel_estimate *o = c->o;
     o->eye_rays = a.n + b.n;
     o->shadow_rays = a.shadow_rays + b.shadow_rays;
@@ -295,28 +319,35 @@ static void render_pixel_cross(pixel_context *c, uint32_t scramble_a) {
 
 static pn_status reference_render_batch(const pn_render_job *job, const pn_batch *batch, pn_pixel_estimate *out,
                                         void *scratch) {
-    pn_reference_direct_scratch *s = scratch;
+    reference_scratch *s = scratch;
     for (int pi = 0; pi < batch->count; pi++) {
-        int px = batch->pixels[pi][0], py = batch->pixels[pi][1];
-        /* One scrambled Sobol sequence per pixel: the value is independent of the batch. */
-        uint32_t scramble = pn_pixel_scramble(job, px, py);
+        /* One scrambled Sobol sequence per pixel (the driver's eye hits): the value is
+         * independent of the batch. */
         pn_pixel_estimate *o = &out[pi];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
-        pixel_context c = {job, s, px, py, o, 0.0, false};
+        pixel_context c = {job, s, batch, pi, o, 0.0, false};
         if (job->spp == 0 && job->adaptive_rule == PN_ADAPTIVE_CROSS) {
-            render_pixel_cross(&c, scramble);
-            o->embree_seconds = (float)(c.embree_seconds * PN_TIMING_STRIDE);
+            render_pixel_cross(&c);
+            o->embree_seconds = (float)(c.embree_seconds * PN_EYE_TIMING_STRIDE);
             continue;
         }
         pixel_state ps;
         memset(&ps, 0, sizeof ps);
-        uint32_t index = 0;
-        while (!pixel_done(job, &ps)) add_eye_ray(&c, scramble, index++, &ps);
+        if (job->spp > 0) {
+            add_eye_rays(&c, PN_EYE_SEQ_PIXEL, 0, job->spp, false, &ps);
+        } else {
+            /* The paper's rule decides after every eye ray: one at a time. */
+            uint32_t index = 0;
+            while (!pixel_done(job, &ps)) {
+                const pn_eye_hit *h = pn_batch_eye_hits(job, batch, pi, PN_EYE_SEQ_PIXEL, index++, 1, s->hits);
+                add_eye_ray(&c, h, &ps);
+            }
+        }
         o->eye_rays = ps.n;
         o->shadow_rays = ps.shadow_rays;
         o->specular_rays = ps.specular_rays;
-        o->embree_seconds = (float)(c.embree_seconds * PN_TIMING_STRIDE);
+        o->embree_seconds = (float)(c.embree_seconds * PN_EYE_TIMING_STRIDE);
         if (ps.weight_sum != 0.0) {
             o->radiance = v3_scale(ps.weighted_sum, (float)(1.0 / ps.weight_sum));
             o->emitted = v3_scale(ps.weighted_emitted, (float)(1.0 / ps.weight_sum));
@@ -327,6 +358,16 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
         o->relative_variance = ps.lum_mean > 0.0 ? (float)(var_of_mean / (ps.lum_mean * ps.lum_mean)) : 0.0f;
     }
     return PN_OK;
+}
+
+/* The eye rays every pixel takes, which the driver traces in advance: the fixed spp; the cross
+ * rule's pilot of stream A; the paper rule's eye rays before its first test (min_eye_rays, or
+ * fewer when the shadow-ray budget ends the pixel sooner: pixel_done). */
+static uint32_t reference_batch_hits(const pn_render_job *job) {
+    if (job->spp > 0) return job->spp;
+    if (job->adaptive_rule == PN_ADAPTIVE_CROSS) return cross_pilot(job);
+    uint64_t by_budget = ((uint64_t)job->max_shadow_rays + job->shadow_rays - 1u) / job->shadow_rays;
+    return by_budget < job->min_eye_rays ? (uint32_t)by_budget : job->min_eye_rays;
 }
 
 /* With the BVH light sampler, the tree is built once per render. */
@@ -358,4 +399,5 @@ const pn_integrator pn_integrator_reference = {
     .scratch_create = reference_scratch_create,
     .scratch_free = reference_scratch_free,
     .render_batch = reference_render_batch,
+    .batch_hits = reference_batch_hits,
 };

@@ -9,20 +9,36 @@
  * eye_path.c), and the progress and cancel path (progress.h). Integrators include no driver/
  * header; driver/ reaches integrators only through integrators/registry.h.
  *
- * What a batch carries today: the pixels (full-image coordinates, in evaluation order), the
- * block they lie in and, for integrators that take a fixed number of eye samples per pixel
- * (pn_integrator.batch_points: vpl, lightcuts, and illumcut's batch path), the shading points of those samples with
- * their filter weights, traced once by the tiled and the progressive drivers through
- * pn_batch_trace_points (camera ray, perfect-specular chain, BSDF at the end point).
+ * What a batch carries: the pixels (full-image coordinates, in evaluation order), the block they
+ * lie in, and the eye samples of those pixels, traced by the driver (camera ray, perfect-specular
+ * chain, BSDF at the end point), in one of two forms:
  *
- * What remains for the full design (ARCHITECTURE.md): the other integrators still trace their own
- * eye rays, through render/ rather than driver/ code. reference's adaptive loop decides how many
- * eye rays a pixel gets, ias traces per-block eye-ray sequences over its passes, contour and
- * contour-mc interleave eye rays with their refinement, and illumcut's whole-image path
- * (render_image) traces the points of its point tree itself. For them the batch needs a way to
- * ask the driver for more points of a pixel (a callback on the batch) and a point type that
- * carries what reference's and ias's estimators read (the hit, not only the VPL receiver); the
- * whole-image path needs the driver to trace the image's points in chunks. */
+ *  - VPL receivers (pn_batch_point; pn_integrator.batch_points: vpl, lightcuts, illumcut's batch
+ *    path): a fixed number of samples per pixel of the VPL sequence, all traced in advance by the
+ *    tiled and progressive drivers through pn_batch_trace_points.
+ *  - Eye hits (pn_eye_hit; pn_integrator.batch_hits: reference, contour-mc, and contour's
+ *    render_batch, i.e. contour under the progressive drivers): the whole end point of the
+ *    path (the hit, its BSDF, the wavelengths, the sequence's scramble, from which the estimator
+ *    draws its light samples). The drivers trace in advance the samples 0..n-1 of the pixel
+ *    sequence that the integrator says it takes from every pixel (its fixed spp, or the pilot of
+ *    its adaptive rule), at most PN_BATCH_HITS_MAX per batch; an integrator that decides per
+ *    pixel how many eye rays it needs (reference's --threshold) gets the others through the
+ *    batch's callback (more_hits), which the driver sets and which traces any range of any
+ *    sequence of a pixel. pn_batch_eye_hits is the one accessor: it returns a range from the
+ *    in-advance hits where they hold it and asks the callback for the rest. Every hit is a
+ *    function of (seed, pixel, sequence, index) only, so an image does not depend on which hits
+ *    came in advance, on the batch, or on the thread count.
+ *
+ * What remains (ARCHITECTURE.md): eye rays that integrators still trace themselves, through
+ * render/ rather than driver/ code. ias traces its per-block eye-ray sequences over its passes
+ * (pn_eye_hit carries what its estimator reads: the hit, its material, the BSDF; but its sequences
+ * are one per 8x8 block, not per pixel, and would need a sequence kind of their own, with the
+ * block's index numbering). contour's whole-image path (render_image, the tiled driver's: spans
+ * along whole rows) builds batches of its own rows without a driver, so pn_batch_eye_hits traces
+ * their hits through pn_eye_hits_trace (the same samples). illumcut's whole-image path traces the
+ * points of its point tree itself; the driver would have to trace the image's points in chunks.
+ * Outside any batch, the progressive drivers' primary refinement (progressive.c) traces eye rays
+ * of the pixel sequence for its demodulation factors. */
 #ifndef PN_RENDER_BATCH_H
 #define PN_RENDER_BATCH_H
 
@@ -30,6 +46,8 @@
 #include "lights/vpl.h"
 #include "render/render_job.h"
 #include "render/stats.h"
+#include "shade/bsdf.h"
+#include "spectral/transport.h"
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -53,6 +71,51 @@ typedef struct pn_batch_point {
     vec3 first_normal, first_albedo;
 } pn_batch_point;
 
+/* The quasi-random eye-sample sequences of a pixel. Each is one Owen-scrambled Sobol sequence,
+ * index 0 up (pn_pixel_eye_sample's dimensions), its scramble a hash of the seed and the pixel
+ * (pn_eye_sequence_scramble); every eye sample a driver traces is one of them, through one
+ * tracer (eye_path.c). */
+typedef enum pn_eye_sequence {
+    PN_EYE_SEQ_PIXEL = 0,   /* pn_pixel_scramble: reference's fixed-spp sequence (the cross rule's
+                               stream A), contour's, the progressive drivers' primary refinement */
+    PN_EYE_SEQ_CROSS_B = 1, /* reference's cross-rule stream B (reference.c, render_pixel_cross) */
+    PN_EYE_SEQ_VPL = 2,     /* the VPL integrators' (pn_eye_point_trace), salted apart */
+    PN_EYE_SEQ_COUNT
+} pn_eye_sequence;
+
+/* Every PN_EYE_TIMING_STRIDE-th eye sample of a sequence (index % stride == 0) has its trace
+ * timed (pn_eye_hit.seconds); the sum, scaled by the stride, estimates the time spent in Embree
+ * without timing every ray. */
+#define PN_EYE_TIMING_STRIDE 8u
+
+/* An eye sample traced by the driver to the end of its perfect-specular chain, with everything an
+ * estimator at the hit reads. Read the BSDF through pn_eye_hit_bsdf and the wavelengths through
+ * pn_eye_hit_wavelengths (the stored BSDF's wavelength pointer is not kept valid: hits are
+ * copied). */
+typedef struct pn_eye_hit {
+    pn_eye_path path;  /* as pn_trace_eye_path_spectral leaves it: emitted and throughput at the
+                         wavelengths in spectral mode */
+    pn_bsdf bsdf;      /* at path.hit seen from path.wo when path.has_point, else zero */
+    pn_swl wl;         /* spectral mode: the sample's wavelengths (pn_eye_wavelengths) */
+    uint32_t scramble; /* the sequence's scramble, from which the estimator draws the sample's
+                          light samples (reference: dimensions 5-7 of index i * S + j) */
+    uint32_t index;    /* the sample's index in its sequence */
+    float weight;      /* pixel filter weight */
+    float seconds;     /* the trace's time when index % PN_EYE_TIMING_STRIDE == 0, else 0 */
+} pn_eye_hit;
+
+/* At most this many eye hits per batch are traced in advance (the tiled driver keeps one buffer
+ * of them per worker; a hit is 328 bytes on x86-64, so 1.3 MB): 64 samples of an 8x8 block. A batch whose integrator asks for more gets
+ * fewer per pixel in advance and the others through its callback. */
+#define PN_BATCH_HITS_MAX 4096u
+
+struct pn_batch;
+/* The driver's tracer of further eye hits (pn_batch.more_hits): fills out[0..count) with
+ * samples first..first+count-1, in index order, of sequence seq of batch pixel pi. Must give
+ * exactly what pn_eye_hits_trace gives. */
+typedef void (*pn_eye_hits_fn)(const pn_render_job *job, const struct pn_batch *batch, int pi, pn_eye_sequence seq,
+                               uint32_t first, uint32_t count, pn_eye_hit *out);
+
 /* A set of pixels of the work image. All pixels of a batch lie in one block of the image
  * (block_x, block_y in block units; blocks are job->block_size pixels square, 8x8 by default, for
  * the tiled driver, 8x8 for the progressive ones), which seeds a block-adaptive integrator's
@@ -65,6 +128,15 @@ typedef struct pn_batch {
      * pixels[i]; NULL (and 0) when the integrator traces its own (see pn_batch_eye_point). */
     uint32_t points_per_pixel;
     const pn_batch_point *points;
+    /* Eye hits the driver traced in advance (pn_integrator.batch_hits): hits[i * hits_per_pixel +
+     * s] is sample s of sequence PN_EYE_SEQ_PIXEL of pixels[i]. hits_per_pixel may be less than
+     * the integrator asked for (PN_BATCH_HITS_MAX); NULL (and 0): none. */
+    uint32_t hits_per_pixel;
+    const pn_eye_hit *hits;
+    /* The driver's tracer of every other eye hit; NULL in a batch built by hand (tests, contour's
+     * rows), where pn_batch_eye_hits calls pn_eye_hits_trace. */
+    pn_eye_hits_fn more_hits;
+    void *more_user; /* the driver's, for more_hits */
 } pn_batch;
 
 /* pn_pixel_estimate, what an integrator returns per pixel, is film's (film/aovs.h). */
@@ -98,6 +170,12 @@ typedef struct pn_integrator {
      * then trace them into batch->points for render_batch (not for render_image). NULL: the
      * integrator traces its own eye rays. */
     uint32_t (*batch_points)(const pn_render_job *job);
+    /* Optional: the number n of eye samples 0..n-1 of sequence PN_EYE_SEQ_PIXEL that the
+     * integrator takes from every pixel of a batch, whatever they hold; the tiled and progressive
+     * drivers trace (up to PN_BATCH_HITS_MAX of) them into batch->hits and set batch->more_hits
+     * for everything else. The integrator reads eye samples only through pn_batch_eye_hits. NULL:
+     * the integrator traces its own eye rays. */
+    uint32_t (*batch_hits)(const pn_render_job *job);
 } pn_integrator;
 
 /* Eye sample i of full-image pixel (px, py) in the VPL integrators' convention (one scrambled
@@ -114,5 +192,33 @@ void pn_batch_eye_point(const pn_render_job *job, const pn_batch *batch, int pi,
 /* Traces per_pixel eye samples of each of count pixels into out (count * per_pixel points). */
 void pn_batch_trace_points(const pn_render_job *job, int count, const int32_t (*pixels)[2], uint32_t per_pixel,
                            pn_batch_point *out);
+
+/* The scramble of sequence seq of full-image pixel (px, py). */
+uint32_t pn_eye_sequence_scramble(const pn_render_job *job, pn_eye_sequence seq, int px, int py);
+/* Samples first..first+count-1 of sequence seq of full-image pixel (px, py), traced into
+ * out[0..count): camera ray (pn_pixel_eye_sample), wavelengths (pn_eye_wavelengths), specular
+ * chain (pn_trace_eye_path_spectral), BSDF at the end point (pn_bsdf_at_spectral). */
+void pn_eye_hits_trace(const pn_render_job *job, int px, int py, pn_eye_sequence seq, uint32_t first, uint32_t count,
+                       pn_eye_hit *out);
+/* The standard pn_eye_hits_fn (the tiled and progressive drivers'): pn_eye_hits_trace of the
+ * batch's pixel. */
+void pn_batch_more_hits(const pn_render_job *job, const pn_batch *batch, int pi, pn_eye_sequence seq, uint32_t first,
+                        uint32_t count, pn_eye_hit *out);
+/* How many eye samples per pixel a driver traces in advance for a batch of count pixels whose
+ * integrator asks for `asked`: asked, capped so that the batch holds at most PN_BATCH_HITS_MAX. */
+uint32_t pn_batch_hits_in_advance(uint32_t asked, int count);
+/* Traces per_pixel samples 0..per_pixel-1 of sequence PN_EYE_SEQ_PIXEL of each of count pixels
+ * into out (count * per_pixel hits, pixel-major), as batch->hits holds them. */
+void pn_batch_trace_hits(const pn_render_job *job, int count, const int32_t (*pixels)[2], uint32_t per_pixel,
+                         pn_eye_hit *out);
+/* Samples first..first+count-1 of sequence seq of batch pixel pi, in index order: a pointer into
+ * batch->hits when it holds the whole range, else buf (count hits) filled from batch->hits and
+ * batch->more_hits (which is asked once, for the range's part past the in-advance hits). */
+const pn_eye_hit *pn_batch_eye_hits(const pn_render_job *job, const pn_batch *batch, int pi, pn_eye_sequence seq,
+                                    uint32_t first, uint32_t count, pn_eye_hit *buf);
+/* The hit's wavelengths (NULL in RGB mode) and its BSDF with them, as pn_bsdf_at_spectral left
+ * it at the hit. */
+const pn_swl *pn_eye_hit_wavelengths(const pn_render_job *job, const pn_eye_hit *hit);
+void pn_eye_hit_bsdf(const pn_render_job *job, const pn_eye_hit *hit, pn_bsdf *out);
 
 #endif
