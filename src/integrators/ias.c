@@ -71,7 +71,25 @@
  *    on hall-many and bathroom-72, and on staircase-832 the one-seed bench and three seeds
  *    disagreed (bench/RESULTS.md, 2026-12-02 night);
  *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
- *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md. */
+ *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md;
+ *  - ias-prior importance with the trees cut (stop 16; ias_speed.c): c_U's PDF, all of pass 0's,
+ *    follows each cluster's unoccluded irradiance at the region's point (a leaf's light as the
+ *    reference's PDF computes it, far-field beyond 8 radii; a cluster from its power and bounding
+ *    sphere), 5% kept uniform, instead of uniform over the ~47 clusters. Reason: on
+ *    bathroom-72-matte the window, one cluster, lights most pixels near it; a uniform first pass
+ *    samples it with probability 1/47, and pixels whose first pass missed it stopped at a twentieth
+ *    of their value (ref 1.1, ias 0.05). Effect (128^2 central crop, T=0.01, one seed): relMSE
+ *    away from emitters 0.0094 -> 0.0027 for 624 -> 686 shadow rays per pixel; --ias-prior
+ *    uniform restores the paper's uniform PDF;
+ *  - ias-emitter-rays 256 (stop 16; ias_speed.c): a pixel whose neighbours' eye rays (in its
+ *    block, itself excluded) saw both emission and no emission takes 256 eye rays in all for what
+ *    it sees directly, no shadow rays. Reason: with the paper's 32 eye rays the pixels along
+ *    bathroom-72's emitter strips were 1/32 of an emitter of luminance 59 or nothing, 66% of the
+ *    crop's relMSE in 111 of its 16384 pixels, at every threshold. Effect: that part 0.018 ->
+ *    0.0012 (T=0.01, one seed), whole crop 0.0276 -> 0.0039 with the prior. The decision reads only
+ *    the neighbours' rays, so the pixel's estimate stays unbiased (its own first 32 rays deciding
+ *    would bias it: a pixel that happened to miss the emitter would keep 0). A sub-pixel emitter
+ *    with no neighbour seeing it is not helped; 0 switches it off. */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
