@@ -87,9 +87,11 @@
  *    bathroom-72's emitter strips were 1/32 of an emitter of luminance 59 or nothing, 66% of the
  *    crop's relMSE in 111 of its 16384 pixels, at every threshold. Effect: that part 0.018 ->
  *    0.0012 (T=0.01, one seed), whole crop 0.0276 -> 0.0039 with the prior. The decision reads only
- *    the neighbours' rays, so the pixel's estimate stays unbiased (its own first 32 rays deciding
- *    would bias it: a pixel that happened to miss the emitter would keep 0). A sub-pixel emitter
- *    with no neighbour seeing it is not helped; 0 switches it off. */
+ *    the neighbours' rays, not the pixel's own (deciding on its own first 32 rays would bias it: a
+ *    pixel that happened to miss the emitter would keep 0); the neighbours' rays come from the same
+ *    scrambled block sequence, so it is independent only up to that sequence's correlation
+ *    (test_ias_speed: the emitter's pixels at 1.0006 of a 1024-spp reference). A sub-pixel
+ *    emitter with no neighbour seeing it is not helped; 0 switches it off. */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"

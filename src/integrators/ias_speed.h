@@ -6,7 +6,7 @@
  *    uniform, with a defensive uniform share so that no cluster of the cut gets probability 0;
  *  - emitter rays: a pixel next to an emitter edge takes more eye rays for what its eye rays see
  *    directly (no shadow rays), decided from its neighbours' eye rays only, so that the decision
- *    does not depend on the pixel's own values (unbiased). */
+ *    does not depend on the pixel's own values (no stopping bias). */
 #ifndef PN_INTEGRATORS_IAS_SPEED_H
 #define PN_INTEGRATORS_IAS_SPEED_H
 
