@@ -262,7 +262,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->aa_rays = ias_eye_rays(job, paper);
     sh->prior_share = sh->bvh_cut ? job->ias_prior_share : 0.0;
     sh->irradiance_prior = !paper && !sh->bvh_cut && job->ias_prior == PN_IAS_PRIOR_IMPORTANCE;
-    sh->emitter_rays = paper ? 0u : job->ias_emitter_rays;
+    sh->emitter_rays = paper ? 0u : job->ias_edge_rays;
     pn_status st;
     int next;
     if (sh->bvh_cut) {

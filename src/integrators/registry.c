@@ -262,7 +262,7 @@ static const pn_option_decl options[] = {
       "for what it sees directly (no shadow rays; the decision does not use the pixel's own rays, so it adds no "
       "bias); 0 or at most aa-rays: none"},
      BIT(M_IAS),
-     F(ias_emitter_rays),
+     F(ias_edge_rays),
      PN_FIELD_U32,
      0},
     /* tiles */
