@@ -283,6 +283,8 @@ static void test_ias_variants(void) {
                                       "jittered",
                                       "ias-aa-threshold",
                                       "0",
+                                      "ias-emitter-rays",
+                                      "0",
                                       "adaptive-rule",
                                       "paper",
                                       NULL};

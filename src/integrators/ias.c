@@ -74,7 +74,27 @@
  *    -0.1% (-0.07% to -0.15% on the bench crops), a firefly suppression that cross's weights give
  *    up for 1.4-42x the relMSE at fixed passes (docs/adaptive-sampling.md, "ias");
  *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
- *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md. */
+ *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md;
+ *  - ias-prior importance with the trees cut (stop 16; ias_speed.c): c_U's PDF, all of pass 0's,
+ *    follows each cluster's unoccluded irradiance at the region's point (a leaf's light as the
+ *    reference's PDF computes it, far-field beyond 8 radii; a cluster from its power and bounding
+ *    sphere), 5% kept uniform, instead of uniform over the ~47 clusters. Reason: on
+ *    bathroom-72-matte the window, one cluster, lights most pixels near it; a uniform first pass
+ *    samples it with probability 1/47, and pixels whose first pass missed it stopped at a twentieth
+ *    of their value (ref 1.1, ias 0.05). Effect (128^2 central crop, T=0.01, one seed): relMSE
+ *    away from emitters 0.0094 -> 0.0027 for 624 -> 686 shadow rays per pixel; --ias-prior
+ *    uniform restores the paper's uniform PDF;
+ *  - ias-emitter-rays 256 (stop 16; ias_speed.c): a pixel whose neighbours' eye rays (in its
+ *    block, itself excluded) saw both emission and no emission takes 256 eye rays in all for what
+ *    it sees directly, no shadow rays. Reason: with the paper's 32 eye rays the pixels along
+ *    bathroom-72's emitter strips were 1/32 of an emitter of luminance 59 or nothing, 66% of the
+ *    crop's relMSE in 111 of its 16384 pixels, at every threshold. Effect: that part 0.018 ->
+ *    0.0012 (T=0.01, one seed), whole crop 0.0276 -> 0.0039 with the prior. The decision reads only
+ *    the neighbours' rays, not the pixel's own (deciding on its own first 32 rays would bias it: a
+ *    pixel that happened to miss the emitter would keep 0); the neighbours' rays come from the same
+ *    scrambled block sequence, so it is independent only up to that sequence's correlation
+ *    (test_ias_speed: the emitter's pixels at 1.0006 of a 1024-spp reference). A sub-pixel
+ *    emitter with no neighbour seeing it is not helped; 0 switches it off. */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
@@ -82,6 +102,7 @@
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "integrators/ias_math.h"
+#include "integrators/ias_speed.h"
 #include "lights/cluster_tree.h"
 #include "lights/env_regions.h"
 #include "lights/light_bvh.h"
@@ -138,6 +159,8 @@ typedef struct ias_shared {
     pn_light_bvh bvh;
     int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
     int distant_count;
+    bool irradiance_prior; /* trees cut: c_U's PDF by each cluster's unoccluded irradiance (ias_speed.h) */
+    uint32_t emitter_rays; /* eye rays for the emitted term next to emitter edges; 0: aa_rays only */
 } ias_shared;
 
 /* The smallest of many empty intervals: the cost a timed interval carries for its own clock
@@ -241,6 +264,8 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->cut_size = job->ias_cut_size > 0 ? (int)job->ias_cut_size : 1;
     sh->aa_rays = ias_eye_rays(job, paper);
     sh->prior_share = sh->bvh_cut ? job->ias_prior_share : 0.0;
+    sh->irradiance_prior = !paper && !sh->bvh_cut && job->ias_prior == PN_IAS_PRIOR_IMPORTANCE;
+    sh->emitter_rays = paper ? 0u : job->ias_edge_rays;
     pn_status st;
     int next;
     if (sh->bvh_cut) {
@@ -356,6 +381,7 @@ typedef struct ias_pixel {
     double pdf_seconds;               /* time keeping PDFs: feedback weights, eq. 6, choosing clusters and
                               lights, recording samples (the per-sample part sampled) */
     uint32_t visible_lights;          /* distinct lights / environment regions seen unoccluded */
+    uint32_t emit_hits;               /* eye rays that saw emission (ias-emitter-rays) */
     pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
 } ias_pixel;
 
@@ -466,7 +492,8 @@ typedef struct ias_scratch {
     int pending_count, pending_cap, pending_pixel;
     ias_point *points, *points_tmp; /* member points, by region; the pixel's, in ray order */
     int point_count, point_cap, tmp_cap, tmp_used;
-    double *fprior; /* per cut entry of the PDF being built */
+    double *fprior;      /* per cut entry of the PDF being built */
+    uint32_t *emit_hits; /* max_pixels: each pixel's eye rays that saw emission (ias-emitter-rays) */
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -489,6 +516,7 @@ static void ias_scratch_free(void *p) {
     free(s->table.e);
     free(s->pending);
     free(s->fprior);
+    free(s->emit_hits);
     free(s->points);
     free(s->points_tmp);
     free(s);
@@ -507,6 +535,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->max_pixels = (int)(job->block_size * job->block_size);
     if (s->max_pixels < IAS_MAX_PIXELS) s->max_pixels = IAS_MAX_PIXELS;
     s->pixels = calloc((size_t)s->max_pixels, sizeof *s->pixels);
+    s->emit_hits = calloc((size_t)s->max_pixels, sizeof *s->emit_hits);
     s->region_cap = s->max_pixels * 8;
     s->regions = malloc((size_t)s->region_cap * sizeof *s->regions);
     s->cut_cap = (int)per_cut * 8;
@@ -524,7 +553,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->n_of = malloc(((size_t)sh->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
     s->pixel_seen = calloc(sh->bvh_cut ? 1 : (size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
-    if (!s->cut_prior || !s->fprior || (sh->bvh_cut && !table_grow(&s->table))) {
+    if (!s->cut_prior || !s->fprior || !s->emit_hits || (sh->bvh_cut && !table_grow(&s->table))) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -725,7 +754,7 @@ static double pixel_feedback(ias_scratch *s, const pn_ias_stats *pixel, int cls,
 }
 
 /* Eq. 6 for a region's point in pass j: fills s->pdf / s->cdf over its cut. */
-static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *pixel, int pass) {
+static void build_pdf(const ias_shared *sh, ias_scratch *s, const ias_region *r, const pn_ias_stats *pixel, int pass) {
     double cu, cb, cp;
     pn_ias_blend_weights(pass, &cu, &cb, &cp);
     int nc = r->cut_count;
@@ -747,10 +776,13 @@ static void build_pdf(ias_scratch *s, const ias_region *r, const pn_ias_stats *p
         cp = 0.0;
     }
     const double u = cu / (double)nc, kb = cb > 0.0 ? cb / fb : 0.0, kp = cp > 0.0 ? cp / fp : 0.0;
+    /* The irradiance prior (default variant): c_U's share by each cluster's unoccluded irradiance. */
+    double *fprior = sh->irradiance_prior ? s->fprior : NULL;
+    if (fprior) pn_ias_prior_pdf(s->cut_prior + r->cut_first, nc, fprior);
     double acc = 0.0;
     s->cdf[0] = 0.0;
     for (int i = 0; i < nc; i++) {
-        double p = u;
+        double p = fprior ? cu * fprior[i] : u;
         if (kb > 0.0) p += kb * fblock[i];
         if (kp > 0.0) p += kp * fpixel[i];
         s->pdf[i] = p;
@@ -1090,7 +1122,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             if (sh->bvh_cut)
                 build_pdf_table(sh, s, r, pass);
             else
-                build_pdf(s, r, pix, pass);
+                build_pdf(sh, s, r, pix, pass);
             built = r;
         }
         px->pdf_seconds += elapsed_since(sh, t_pdf);
@@ -1425,6 +1457,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             out[pi].specular_rays += path.rays - 1;
             emitted = v3_madd(emitted, path.emitted, fw);
             px->weight_sum += (double)fw;
+            if (!v3_is_zero(path.emitted)) px->emit_hits++;
             if (!path.has_point) continue;
             pn_bsdf b;
             pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
@@ -1476,6 +1509,20 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             g->weight = px->weight_sum != 0.0 ? g->weight / px->weight_sum : 0.0;
             double t_cut = pn_clock_seconds();
             if (!compute_cut(job, sh, s, g)) return PN_ERROR_OUT_OF_MEMORY;
+            /* The irradiance prior of the trees' clusters (environment regions keep theirs), once
+             * per pixel for regions with the same cut (the first one's point: a prior need not be
+             * exact, and the polygon irradiance per region was 19% of bathroom-72-matte's time). */
+            const ias_region *same = k > 0 ? &s->regions[px->first_region] : NULL;
+            if (sh->irradiance_prior && same && same_cut(s, same, g))
+                memcpy(s->cut_prior + g->cut_first, s->cut_prior + same->cut_first,
+                       (size_t)g->cut_count * sizeof *s->cut_prior);
+            else if (sh->irradiance_prior)
+                for (int i = 0; i < g->cut_count; i++) {
+                    int id = s->cut[g->cut_first + i];
+                    if (id < sh->forest.node_count)
+                        s->cut_prior[g->cut_first + i] =
+                            pn_ias_cluster_irradiance(&sh->forest, job->lights, id, g->origin, g->bsdf.ng);
+                }
             px->cut_seconds += elapsed_since(sh, t_cut);
             px->region_weight += g->weight;
             ncl += g->weight * (double)g->cut_count;
@@ -1488,6 +1535,24 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         if (!any_cluster) { /* nothing can light this pixel: only what its eye rays saw */
             px->done = true;
             px->result = px->emitted;
+        }
+    }
+
+    /* Emitter rays (default variant, ias_speed.h): pixels whose neighbours' eye rays saw an emitter
+     * edge take emitter_rays eye rays in all for the emitted term, before any test uses it. */
+    if (sh->emitter_rays > sh->aa_rays) {
+        for (int pi = 0; pi < np; pi++) s->emit_hits[pi] = s->pixels[pi].emit_hits;
+        for (int pi = 0; pi < np; pi++) {
+            ias_pixel *px = &s->pixels[pi];
+            if (!pn_ias_emitter_edge(batch->pixels, s->emit_hits, sh->aa_rays, np, pi)) continue;
+            vec3 e = v3_scale(px->emitted, (float)px->weight_sum);
+            double w = px->weight_sum;
+            uint32_t calls = pn_ias_emitter_rays(job, batch->pixels[pi][0], batch->pixels[pi][1],
+                                                 sh->emitter_rays - sh->aa_rays, &e, &w);
+            px->emitted = w != 0.0 ? v3_scale(e, (float)(1.0 / w)) : v3(0, 0, 0);
+            out[pi].eye_rays += sh->emitter_rays - sh->aa_rays;
+            out[pi].specular_rays += calls - (sh->emitter_rays - sh->aa_rays);
+            if (px->done) px->result = px->emitted;
         }
     }
 

@@ -216,7 +216,8 @@ static const pn_option_decl options[] = {
      0},
     {{"ias-prior", PN_OPTION_CHOICE, "importance", 0, 0, 0, 0, "", "uniform,importance",
       "default variant: the PDF of the first pass and the share eq. 6 gives c_U, 'uniform' over the clusters (the "
-      "paper) or by each cluster's importance (with ias-cut bvh; its unoccluded-irradiance bound)"},
+      "paper) or by each cluster's importance (with ias-cut bvh its unoccluded-irradiance bound; with the trees "
+      "cut its unoccluded irradiance, 5% kept uniform)"},
      BIT(M_IAS),
      F(ias_prior),
      PN_FIELD_INT,
@@ -256,6 +257,14 @@ static const pn_option_decl options[] = {
      BIT(M_IAS),
      F(ias_prior_share),
      PN_FIELD_F64,
+     0},
+    {{"ias-emitter-rays", PN_OPTION_INT, "256", 0, 65536, 0, 0, "rays", "",
+      "default variant: a pixel whose neighbours' eye rays saw an emitter's edge takes this many eye rays in all "
+      "for what it sees directly (no shadow rays; the decision does not use the pixel's own rays, so it adds no "
+      "bias); 0 or at most aa-rays: none"},
+     BIT(M_IAS),
+     F(ias_edge_rays),
+     PN_FIELD_U32,
      0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
