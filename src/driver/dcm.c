@@ -450,8 +450,7 @@ typedef struct dcm_state {
     bool regular_done; /* elementary blocks are final */
     dcm_level lv[DCM_MAX_LEVELS];
     uint32_t simple, complex, lazy;
-    uint32_t off;  /* PN_DCM_OFF_*: departures switched off (dcm.h) */
-    float *mixbuf; /* W*H*3: the mixed pixels' new values (mix_pixels) */
+    uint32_t off; /* PN_DCM_OFF_*: departures switched off (dcm.h) */
 } dcm_state;
 
 static void block_extent(const pn_prog *p, const dcm_block *b, int *x1, int *y1) {
@@ -577,8 +576,7 @@ static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, 
     }
 }
 
-static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided,
-                           bool mixed);
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided);
 
 static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, dcm_block *b) {
     int x1, y1, known;
@@ -599,8 +597,7 @@ static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, dcm_
         dir = b->drawn_dir;
     }
     bool guided = b->kind == DCM_PENDING && !(d->off & PN_DCM_OFF_GUIDED);
-    if (!(d->off & PN_DCM_OFF_SEGMENTS) && draw_segmented(p, img, b, rgb, dir, guided, !(d->off & PN_DCM_OFF_MIXED)))
-        return;
+    if (!(d->off & PN_DCM_OFF_SEGMENTS) && draw_segmented(p, img, b, rgb, dir, guided)) return;
     int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
     for (int y = 0; y < ye; y++)
         for (int x = 0; x < xe; x++)
@@ -668,8 +665,7 @@ static double guide_weight(const pn_prog *p, size_t i, size_t j, int dx, int dy)
  * element. Guided (issue 18), the margin is DCM_GUIDE_MARGIN, so that the neighbours' evaluated
  * pixels count, and the weights also ask for agreeing normals and depths (guide_weight).
  * Returns false (nothing drawn) for blocks without a visible line or too large. */
-static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided,
-                           bool mixed) {
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided) {
     int x1, y1, margin = DCM_SEG_MARGIN;
     block_extent(p, b, &x1, &y1);
     int wx0 = b->x0 > margin ? b->x0 - margin : 0;
@@ -715,15 +711,12 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
                 continue;
             }
             /* First from pixels as near to a visible line as this one (pixels next to a line
-             * mix both sides under the pixel filter), then from any of its segment; a pixel that
-             * mix_pixels will mix with its neighbour wants its own side's pure value, from
-             * pixels away from lines. */
-            bool pure = mixed && p->mix_dir && p->mix_dir[gi] != PN_PROG_MIX_NONE;
+             * mix both sides under the pixel filter), then from any of its segment. */
             double acc[3] = {0, 0, 0}, wsum = 0;
             for (int pass = 0; pass < 2 && wsum <= 0.0; pass++)
                 for (int m = 0; m < nk; m++) {
                     int j = known[m];
-                    if (label[j] != label[i] || (pass == 0 && near[j] != (near[i] && !pure))) continue;
+                    if (label[j] != label[i] || (pass == 0 && near[j] != near[i])) continue;
                     int dx = wx0 + j % ww - x, dy = wy0 + j / ww - y;
                     size_t gj = pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
                     double wt = guided ? guide_weight(p, gi, gj, dx, dy) : 1.0 / (double)(dx * dx + dy * dy);
@@ -830,44 +823,7 @@ static void draw_chunk(void *user, size_t job, int worker) {
     }
 }
 
-/* Mixed pixels (issue 18, a departure, see the header): an unevaluated work pixel whose refinement
- * rays partly hit the surface of a 4-neighbour across a visible line is drawn as the mix of both
- * sides, each side's quotient weighted by the albedo and light guide its rays saw there: the
- * pixel's own drawn value for its own part, the neighbour's (evaluated or drawn) for the rest.
- * The new values are computed from the drawn image first and written after, so that the order
- * of pixels does not matter. */
-static void mix_pixels(const pn_prog *p, dcm_state *d, float *img) {
-    if (!p->mix_dir || !p->demod || (d->off & PN_DCM_OFF_MIXED) || d->uniform) return;
-    size_t n = (size_t)p->W * (size_t)p->H;
-    if (!d->mixbuf && !(d->mixbuf = malloc(3 * n * sizeof *d->mixbuf))) return; /* drawn unmixed */
-    static const int dx[4] = {1, -1, 0, 0}, dy[4] = {0, 0, 1, -1};
-    for (int y = 0; y < p->H; y++)
-        for (int x = 0; x < p->W; x++) {
-            size_t i = pn_prog_index(p, x, y);
-            int m = p->mix_dir[i];
-            float *o = d->mixbuf + 3 * i;
-            memcpy(o, img + 3 * i, 3 * sizeof *o);
-            if (m == PN_PROG_MIX_NONE || (p->state[i] & 3) == PN_PX_EVALUATED) continue;
-            size_t j = pn_prog_index(p, x + dx[m], y + dy[m]);
-            const float *qn = (p->state[j] & 3) == PN_PX_EVALUATED ? p->rad + 3 * j : img + 3 * j;
-            float gi = p->guide ? p->guide[i] : 1.0f, gj = p->guide ? p->guide[j] : 1.0f;
-            for (int c = 0; c < 3; c++) {
-                float ft = p->demod[3 * i + c] / gi, fo = p->mix_f[3 * i + c];
-                if (!(ft > 0.0f) || !(fo >= 0.0f) || fo > ft) continue;
-                o[c] = img[3 * i + c] * ((ft - fo) / ft) + qn[c] * (fo * gj) / (ft * gi);
-            }
-        }
-    memcpy(img, d->mixbuf, 3 * n * sizeof *img);
-}
-
-static void dcm_draw_blocks(pn_prog *p, void *driver, float *img, float *cls, float *dir);
-
 static void dcm_draw(pn_prog *p, void *driver, float *img, float *cls, float *dir) {
-    dcm_draw_blocks(p, driver, img, cls, dir);
-    mix_pixels(p, driver, img);
-}
-
-static void dcm_draw_blocks(pn_prog *p, void *driver, float *img, float *cls, float *dir) {
     dcm_state *d = driver;
     draw_run r = {p, d, img, cls, dir, d->reg_spacing, 0, NULL};
     if (!d->regular_done) {
@@ -1263,7 +1219,6 @@ static void dcm_free(void *driver) {
     dcm_state *d = driver;
     if (!d) return;
     for (int l = 0; l < DCM_MAX_LEVELS; l++) free(d->lv[l].b);
-    free(d->mixbuf);
     free(d);
 }
 

@@ -455,24 +455,6 @@ static void centre_path(const pn_prog *p, int x, int y, pn_eye_path *path) {
     pn_trace_eye_path(&p->job, o, d, 0.5f, path);
 }
 
-/* The object of a path's first non-specular hit (-1: none), so that object boundaries seen in
- * mirrors count as visible lines too. */
-static int32_t path_tag(const pn_eye_path *path) {
-    if (!path->has_point) return -1;
-    uint32_t t = (uint32_t)(path->hit.mesh + 1) * 2654435761u ^ (uint32_t)(path->hit.sphere + 1) * 40503u ^
-                 (uint32_t)(path->hit.instance + 1) * 97u;
-    return (int32_t)(t & 0x7fffffffu);
-}
-
-/* Whether two first hits lie on one surface, by the visible lines' rules (discontinuous()). */
-static bool same_surface(int32_t ta, vec3 na, float da, int32_t tb, vec3 nb, float db) {
-    if (ta != tb) return false;
-    if (ta < 0) return true;
-    if (v3_dot(na, nb) < 0.8f) return false;
-    if (!isfinite(da) || !isfinite(db)) return isfinite(da) == isfinite(db);
-    return !(fabsf(da - db) > 0.1f * fminf(da, db));
-}
-
 static void primary_row(void *user, size_t row, int worker) {
     primary_run *r = user;
     pn_prog *p = r->p;
@@ -483,7 +465,11 @@ static void primary_row(void *user, size_t row, int worker) {
         size_t i = pn_prog_index(p, x, y);
         r->depth[i] = path.first_depth;
         if (path.has_point) {
-            p->tag[i] = path_tag(&path);
+            /* The object of the first non-specular hit, so that object boundaries seen in mirrors
+             * count as visible lines too. */
+            uint32_t t = (uint32_t)(path.hit.mesh + 1) * 2654435761u ^ (uint32_t)(path.hit.sphere + 1) * 40503u ^
+                         (uint32_t)(path.hit.instance + 1) * 97u;
+            p->tag[i] = (int32_t)(t & 0x7fffffffu);
             r->normal[i] = path.hit.ng;
         } else {
             p->tag[i] = -1;
@@ -633,20 +619,6 @@ static bool filter_primary(pn_prog *p, float *const *src, const int *ch, int cou
  * 16 rays there would cost 2% of a full render for 2% less error at 6%, at 16 eye rays per pixel),
  * except under dcm's albedo rays (dcm.c's header): borders from 5%, the first PN_PROG_ALBEDO_RAYS
  * of the integrator's eye rays (at 64 eye rays, 14% less error at 6% on staircase). */
-/* dcm's mixed pixels: a refinement ray of pixel i that does not hit i's surface adds its albedo
- * factor, weighted w, to the neighbour across a visible line whose surface it hits (if any). */
-static void mix_split(const pn_prog *p, const primary_run *r, size_t i, const bool across[4], const size_t nbi[4],
-                      const pn_eye_path *sub, float w, vec3 fnb[4]) {
-    int32_t st = path_tag(sub);
-    vec3 sn = sub->has_point ? sub->hit.ng : v3(0, 0, 0);
-    if (same_surface(p->tag[i], r->normal[i], r->depth[i], st, sn, sub->first_depth)) return;
-    for (int m = 0; m < 4; m++)
-        if (across[m] && same_surface(p->tag[nbi[m]], r->normal[nbi[m]], r->depth[nbi[m]], st, sn, sub->first_depth)) {
-            fnb[m] = v3_madd(fnb[m], demod_factor(sub), w);
-            return;
-        }
-}
-
 static void primary_refine_row(void *user, size_t row, int worker) {
     (void)worker;
     primary_run *r = user;
@@ -658,20 +630,6 @@ static void primary_refine_row(void *user, size_t row, int worker) {
         uint64_t key = pn_hash3(p->job.seed, (uint64_t)(x + p->wx0), (uint64_t)(y + p->wy0));
         vec3 f = v3(0, 0, 0), e = v3(0, 0, 0);
         double wsum = 0.0;
-        /* dcm's mixed pixels: the 4-neighbours across a visible line, and the albedo their
-         * surfaces give the rays that hit them */
-        int nbx[4] = {x + 1, x - 1, x, x}, nby[4] = {y, y, y + 1, y - 1};
-        size_t nbi[4];
-        bool across[4] = {false, false, false, false}, any_across = false;
-        vec3 fnb[4] = {v3(0, 0, 0), v3(0, 0, 0), v3(0, 0, 0), v3(0, 0, 0)};
-        if (p->mix_dir)
-            for (int m = 0; m < 4; m++) {
-                if (nbx[m] < 0 || nby[m] < 0 || nbx[m] >= p->W || nby[m] >= p->H) continue;
-                nbi[m] = pn_prog_index(p, nbx[m], nby[m]);
-                across[m] = !same_surface(p->tag[i], r->normal[i], r->depth[i], p->tag[nbi[m]], r->normal[nbi[m]],
-                                          r->depth[nbi[m]]);
-                any_across = any_across || across[m];
-            }
         /* the integrator's own eye rays: all of them along emitters, the first albedo_rays of them
          * along albedo borders (dcm's albedo rays) */
         uint32_t own = r->refine[i] == 2                   ? p->pixel_samples
@@ -687,7 +645,6 @@ static void primary_refine_row(void *user, size_t row, int worker) {
                 pn_eye_path sub;
                 pn_trace_eye_path(&p->job, o, d, u_specular, &sub);
                 f = v3_madd(f, demod_factor(&sub), fw);
-                if (any_across) mix_split(p, r, i, across, nbi, &sub, fw, fnb);
                 if (v3_is_finite(sub.emitted)) e = v3_madd(e, sub.emitted, fw);
                 wsum += (double)fw;
             }
@@ -706,28 +663,11 @@ static void primary_refine_row(void *user, size_t row, int worker) {
                     pn_eye_path sub;
                     pn_trace_eye_path(&p->job, o, d, pn_hash_unit(h ^ 0x51f7u), &sub);
                     f = v3_madd(f, demod_factor(&sub), fw);
-                    if (any_across) mix_split(p, r, i, across, nbi, &sub, fw, fnb);
                     if (v3_is_finite(sub.emitted)) e = v3_madd(e, sub.emitted, fw);
                     wsum += (double)fw;
                 }
         if (wsum == 0.0) continue; /* keep the filtered centre values */
         f = v3_scale(f, (float)(1.0 / wsum));
-        if (any_across) { /* the neighbour whose surface the most albedo came from */
-            int best = -1;
-            float best_l = 0.0f;
-            for (int m = 0; m < 4; m++) {
-                float l = v3_luminance(fnb[m]);
-                if (across[m] && l > best_l) {
-                    best_l = l;
-                    best = m;
-                }
-            }
-            if (best >= 0) {
-                vec3 fo = v3_scale(fnb[best], (float)(1.0 / wsum));
-                p->mix_dir[i] = (unsigned char)best;
-                p->mix_f[3 * i] = fo.x, p->mix_f[3 * i + 1] = fo.y, p->mix_f[3 * i + 2] = fo.z;
-            }
-        }
         if (r->guide) f = v3_scale(f, r->guide[i]); /* the centre rays' filtered guide */
         e = v3_scale(e, (float)(1.0 / wsum));
         float *fd = p->demod + 3 * i, *fe = p->emit + 3 * i;
@@ -870,16 +810,8 @@ pn_status pn_prog_build_primary(pn_prog *p) {
         float *const filtered[3] = {p->demod, p->emit, r.guide};
         const int channels[3] = {3, 3, 1};
         ok = ok && filter_primary(p, filtered, channels, guided ? 3 : 2);
-        if (ok && grid && p->mixed) {
-            ok = (p->mix_dir = malloc(n)) != NULL && (p->mix_f = calloc(3 * n, sizeof *p->mix_f)) != NULL;
-            if (ok) memset(p->mix_dir, PN_PROG_MIX_NONE, n);
-        }
         if (ok && grid) pn_threadpool_run(p->pool, (size_t)p->H, primary_refine_row, &r);
         free(r.refine);
-    }
-    if (ok && p->mix_dir && r.guide) {
-        p->guide = r.guide; /* kept for the mixed pixels (dcm.c) */
-        r.guide = NULL;
     }
     free(r.guide);
     if (!ok) {
@@ -994,9 +926,6 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     if (s->driver == PN_DRIVER_DCM && p->pixel_samples > 0 &&
         !(pn_dcm_off_flags(job->dcm_variant, job->dcm_off) & PN_DCM_OFF_ALBEDO_RAYS))
         p->albedo_rays = PN_PROG_ALBEDO_RAYS;
-    /* dcm's mixed pixels (issue 18, --dcm-off mixed; dcm.c's header) */
-    if (s->driver == PN_DRIVER_DCM && !(pn_dcm_off_flags(job->dcm_variant, job->dcm_off) & PN_DCM_OFF_MIXED))
-        p->mixed = true;
     float crop[4] = {0, 1, 0, 1};
     pn_camera_setup(&job->scene->camera, oc->full_width * scale, oc->full_height * scale, crop, &p->job.camera);
     p->job.camera.x0 = oc->x0 * scale;
@@ -1133,9 +1062,6 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
     free(p->relvar);
     free(p->demod);
     free(p->emit);
-    free(p->mix_dir);
-    free(p->mix_f);
-    free(p->guide);
     free(p->state);
     free(p->queue);
     free(p->tag);

@@ -30,8 +30,6 @@ typedef struct pn_prog pn_prog;
  * albedo difference between neighbouring centre rays that marks a border for them. */
 #define PN_PROG_ALBEDO_RAYS 16u
 #define PN_PROG_ALBEDO_RAYS_BORDER 0.05f
-/* the neighbour of a mixed pixel: right, left, below, above */
-enum { PN_PROG_MIX_RIGHT = 0, PN_PROG_MIX_LEFT = 1, PN_PROG_MIX_DOWN = 2, PN_PROG_MIX_UP = 3, PN_PROG_MIX_NONE = 255 };
 
 /* Draws the driver's approximate work image into img (W*H RGB) and, when not NULL, its block map
  * (class and direction per work pixel; see PN_AOV_BLOCK_MAP). */
@@ -60,15 +58,7 @@ struct pn_prog {
     uint32_t albedo_rays;   /* dcm's albedo rays (issue 18): at albedo borders (found at
                                PN_PROG_ALBEDO_RAYS_BORDER) the first this many of the integrator's
                                eye rays replace the grid (0: off, the grid at 30% borders) */
-    /* dcm's mixed pixels (issue 18, --dcm-off mixed; dcm.c's header): for a pixel whose refinement
-     * rays (below) hit the surface of a 4-neighbour across a visible line, that neighbour
-     * (PN_PROG_MIX_*, PN_PROG_MIX_NONE when none) and the part of the albedo factor its rays
-     * carry (before the light guide); the light guide per pixel, kept for them (1 when none). */
-    bool mixed;
-    unsigned char *mix_dir;
-    float *mix_f;
-    float *guide;
-    float *relvar; /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
+    float *relvar;          /* W*H: relative variance s^2/L^2 of each evaluated pixel's estimate */
     unsigned char *state;
     size_t evaluated;
     int32_t (*queue)[2];
