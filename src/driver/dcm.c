@@ -102,7 +102,9 @@
  *    bathroom-72 0.0324 / 0.0335 -> 0.0289 / 0.0323 (bench/progressive/README.md, "Issue 18",
  *    with each part alone). A margin of 4 pixels instead of 1 around the block
  *    (reading the neighbours' evaluated pixels) was measured and dropped: staircase rel L2 0.0283
- *    -> 0.0382.
+ *    -> 0.0382. So were (stop 16, quarter staircase at 6%, rel L1 0.0280; bench/progressive/
+ *    README.md): pixels next to a visible line drawn as the albedo- and guide-weighted mix of both
+ *    sides' quotients (0.0288), and fill weights 1/d or 1/d^3 (0.0282, 0.0280).
  *  - Albedo rays (issue 18, progressive.c primary_refine_row): where the integrator reports the
  *    eye rays it traces (reference at a fixed --spp), work pixels whose centre ray's albedo
  *    differs by more than 5% (PN_PROG_ALBEDO_RAYS_BORDER) from a 4-neighbour's take their albedo
