@@ -126,8 +126,9 @@
  *    edge blocks crossed by a visible line, away from the line, carried as much of the 6% error
  *    as those next to it; bench/progressive/attribution.patch). Effect at 6% (rel L1 / L2):
  *    quarter staircase 0.0280 / 0.0254 -> 0.0269 / 0.0232; full prog-hr64 staircase 0.0165 /
- *    0.0162 -> 0.0163 / 0.0155, hall-many 0.0077 / 0.0108 -> 0.0076 / 0.0106, glossy
- *    bathroom-72 0.0134 / 0.0197 -> 0.0125 / 0.0194 (bench/progressive/README.md, "Stop 16").
+ *    0.0162 -> 0.0163 / 0.0155, bathroom 0.0146 / 0.0079 -> 0.0138 / 0.0071, hall-many 0.0077 /
+ *    0.0108 -> 0.0076 / 0.0106, glossy bathroom-72 0.0134 / 0.0197 -> 0.0125 / 0.0194
+ *    (bench/progressive/README.md, "Stop 16").
  *
  * Switches (--dcm-off, dcm.h PN_DCM_OFF_*): edge-first (order of work), order (order of boundary
  * evaluation), discrepancy, noise (the Monte Carlo tests: contrast and lazy noise terms, the
