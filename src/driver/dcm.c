@@ -102,7 +102,9 @@
  *    bathroom-72 0.0324 / 0.0335 -> 0.0289 / 0.0323 (bench/progressive/README.md, "Issue 18",
  *    with each part alone). A margin of 4 pixels instead of 1 around the block
  *    (reading the neighbours' evaluated pixels) was measured and dropped: staircase rel L2 0.0283
- *    -> 0.0382.
+ *    -> 0.0382. So were (stop 16, quarter staircase at 6%, rel L1 0.0280; bench/progressive/
+ *    README.md): pixels next to a visible line drawn as the albedo- and guide-weighted mix of both
+ *    sides' quotients (0.0288), and fill weights 1/d or 1/d^3 (0.0282, 0.0280).
  *  - Albedo rays (issue 18, progressive.c primary_refine_row): where the integrator reports the
  *    eye rays it traces (reference at a fixed --spp), work pixels whose centre ray's albedo
  *    differs by more than 5% (PN_PROG_ALBEDO_RAYS_BORDER) from a 4-neighbour's take their albedo
@@ -115,14 +117,26 @@
  *    render (all 64 rays: 0.0162, 1/7.2; 8 rays: 0.0172; 16 rays at every albedo difference:
  *    0.0165; the 3 x 3 grid at 5% borders: 0.0180; a 4 x 4 grid: 0.0173; bench/progressive/
  *    README.md, "Stop 15"). Emitter borders keep all of the integrator's eye rays, as before.
+ *  - Linear fill (issue 18, stop 16): where the guided reconstruction fills a pixel from its
+ *    segment's evaluated pixels and at least three take part, the pixel gets the value at its
+ *    place of the plane fitted to them by least squares with the same weights (inverse squared
+ *    distance x normal and depth agreement), clamped to the range of their values, instead of
+ *    their weighted mean. Why: the weighted mean is a zero-order fit that pulls every pixel
+ *    towards its nearest samples and flattens the gradient of shading between them (the pixels of
+ *    edge blocks crossed by a visible line, away from the line, carried as much of the 6% error
+ *    as those next to it; bench/progressive/attribution.patch). Effect at 6% (rel L1 / L2):
+ *    quarter staircase 0.0280 / 0.0254 -> 0.0269 / 0.0232; full prog-hr64 staircase 0.0165 /
+ *    0.0162 -> 0.0163 / 0.0155, bathroom 0.0146 / 0.0079 -> 0.0138 / 0.0071, hall-many 0.0077 /
+ *    0.0108 -> 0.0076 / 0.0106, glossy bathroom-72 0.0134 / 0.0197 -> 0.0125 / 0.0194
+ *    (bench/progressive/README.md, "Stop 16").
  *
  * Switches (--dcm-off, dcm.h PN_DCM_OFF_*): edge-first (order of work), order (order of boundary
  * evaluation), discrepancy, noise (the Monte Carlo tests: contrast and lazy noise terms, the
  * zero-order flat-boundary rule), lattice-mean, segments, demod (the quotient of progressive.c,
- * as --raw-radiance), guided, albedo-rays. --dcm-variant paper switches all of them off. What stays in the
- * paper variant, as the paper has no counterpart to choose instead: visible lines from the
- * primary buffer (the paper's Z-buffer visible lines), Fig. 9 (e)-(h) by the next iteration,
- * elements on RGB, and the first-order test's rule for an exhausted inner layer. */
+ * as --raw-radiance), guided, albedo-rays, linear. --dcm-variant paper switches all of them off.
+ * What stays in the paper variant, as the paper has no counterpart to choose instead: visible
+ * lines from the primary buffer (the paper's Z-buffer visible lines), Fig. 9 (e)-(h) by the next
+ * iteration, elements on RGB, and the first-order test's rule for an exhausted inner layer. */
 #include "driver/dcm.h"
 
 #include "driver/progressive.h"
@@ -576,7 +590,8 @@ static void draw_bilinear(const pn_prog *p, float *img, int x0, int y0, int x1, 
     }
 }
 
-static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided);
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided,
+                           bool linear);
 
 static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, dcm_block *b) {
     int x1, y1, known;
@@ -597,7 +612,9 @@ static void draw_elements(const pn_prog *p, const dcm_state *d, float *img, dcm_
         dir = b->drawn_dir;
     }
     bool guided = b->kind == DCM_PENDING && !(d->off & PN_DCM_OFF_GUIDED);
-    if (!(d->off & PN_DCM_OFF_SEGMENTS) && draw_segmented(p, img, b, rgb, dir, guided)) return;
+    if (!(d->off & PN_DCM_OFF_SEGMENTS) &&
+        draw_segmented(p, img, b, rgb, dir, guided, guided && !(d->off & PN_DCM_OFF_LINEAR)))
+        return;
     int xe = draw_end(x1, p->W - 1) - b->x0, ye = draw_end(y1, p->H - 1) - b->y0;
     for (int y = 0; y < ye; y++)
         for (int x = 0; x < xe; x++)
@@ -664,8 +681,10 @@ static double guide_weight(const pn_prog *p, size_t i, size_t j, int dx, int dy)
  * are, like it, next to a visible line or not; a pixel whose segment holds none keeps the
  * element. Guided (issue 18), the margin is DCM_GUIDE_MARGIN, so that the neighbours' evaluated
  * pixels count, and the weights also ask for agreeing normals and depths (guide_weight).
+ * With `linear` (issue 18), that fill is the weighted plane fit's value instead of the mean.
  * Returns false (nothing drawn) for blocks without a visible line or too large. */
-static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided) {
+static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided,
+                           bool linear) {
     int x1, y1, margin = DCM_SEG_MARGIN;
     block_extent(p, b, &x1, &y1);
     int wx0 = b->x0 > margin ? b->x0 - margin : 0;
@@ -713,6 +732,9 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
             /* First from pixels as near to a visible line as this one (pixels next to a line
              * mix both sides under the pixel filter), then from any of its segment. */
             double acc[3] = {0, 0, 0}, wsum = 0;
+            double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, svx[3] = {0, 0, 0}, svy[3] = {0, 0, 0};
+            float vmin[3] = {INFINITY, INFINITY, INFINITY}, vmax[3] = {-INFINITY, -INFINITY, -INFINITY};
+            int used = 0;
             for (int pass = 0; pass < 2 && wsum <= 0.0; pass++)
                 for (int m = 0; m < nk; m++) {
                     int j = known[m];
@@ -721,13 +743,40 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
                     size_t gj = pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
                     double wt = guided ? guide_weight(p, gi, gj, dx, dy) : 1.0 / (double)(dx * dx + dy * dy);
                     const float *v = p->rad + 3 * gj;
-                    for (int c = 0; c < 3; c++) acc[c] += wt * (double)v[c];
+                    for (int c = 0; c < 3; c++) {
+                        acc[c] += wt * (double)v[c];
+                        svx[c] += wt * dx * (double)v[c];
+                        svy[c] += wt * dy * (double)v[c];
+                        vmin[c] = fminf(vmin[c], v[c]);
+                        vmax[c] = fmaxf(vmax[c], v[c]);
+                    }
+                    sx += wt * dx, sy += wt * dy, sxx += wt * dx * dx, syy += wt * dy * dy, sxy += wt * dx * dy;
                     wsum += wt;
+                    used++;
                 }
             if (wsum > 0.0)
                 for (int c = 0; c < 3; c++) o[c] = (float)(acc[c] / wsum);
             else
                 pn_dcm_element_value(loop, 3, w, h, dir, fx, fy, o);
+            /* Linear fill (issue 18, see the header): v ~ a + g_x dx + g_y dy fitted to the same
+             * samples by weighted least squares (dx, dy from this pixel, so a is the value here),
+             * a from the normal equations by Cramer's rule, clamped to the samples' range. A fit
+             * whose samples lie nearly on a line (det small against wsum sxx syy) keeps the mean. */
+            if (linear && used >= 3) {
+                double A[3][3] = {{wsum, sx, sy}, {sx, sxx, sxy}, {sy, sxy, syy}};
+                double det = A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) -
+                             A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
+                             A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+                double scale = wsum * sxx * syy;
+                if (scale > 0.0 && fabs(det) > 1e-3 * scale) {
+                    double c00 = A[1][1] * A[2][2] - A[1][2] * A[2][1], c01 = -(A[1][0] * A[2][2] - A[1][2] * A[2][0]),
+                           c02 = A[1][0] * A[2][1] - A[1][1] * A[2][0];
+                    for (int c = 0; c < 3; c++) {
+                        double a = (c00 * acc[c] + c01 * svx[c] + c02 * svy[c]) / det;
+                        o[c] = clampf((float)a, vmin[c], vmax[c]);
+                    }
+                }
+            }
         }
     return true;
 }
