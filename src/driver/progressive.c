@@ -98,6 +98,7 @@ static void store_estimates(pn_prog *p, int worker, const int32_t (*px)[2], cons
         p->relvar[k] = isfinite(est[i].relative_variance) ? est[i].relative_variance : 0.0f;
         c->eye += est[i].eye_rays;
         c->shadow += est[i].shadow_rays;
+        c->non_finite += est[i].non_finite;
         c->spec += est[i].specular_rays;
         c->embree += (double)est[i].embree_seconds;
         if (est[i].eye_rays > c->max_eye) c->max_eye = est[i].eye_rays;
@@ -1028,6 +1029,9 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             if (img_st == PN_OK && p->job.preview && p->snapshot_status == PN_OK) write_preview(p); /* the last */
         }
         if (st == PN_OK && p->snapshot_status != PN_OK) st = p->snapshot_status;
+        uint64_t non_finite = 0;
+        for (int w = 0; w <= p->workers; w++) non_finite += p->counters[w].non_finite;
+        pn_film_warn_non_finite(p->ctx, non_finite, integ->name);
         if (stats) {
             uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
             double embree = 0.0;
@@ -1050,6 +1054,7 @@ pn_status pn_progressive_render(pn_context ctx, const pn_render_settings *s, con
             stats->shadow_rays_per_pixel_mean = evaluated ? (double)shadow / (double)evaluated : 0.0;
             stats->eye_rays_per_pixel_max = max_eye;
             stats->shadow_rays_per_pixel_max = max_shadow;
+            stats->non_finite_samples = non_finite;
             stats->mrays_per_second =
                 stats->render_seconds > 0.0 ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
             stats->partial = st == PN_ERROR_CANCELLED;

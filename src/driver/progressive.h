@@ -68,7 +68,7 @@ struct pn_prog {
     void **scratch;
     /* statistics per worker */
     struct prog_counters {
-        uint64_t eye, shadow, spec, max_eye, max_shadow;
+        uint64_t eye, shadow, spec, max_eye, max_shadow, non_finite;
         double embree;
         uint64_t extra; /* pixels evaluated by pn_prog_eval_now, not yet in `evaluated` */
     } * counters;

@@ -676,6 +676,9 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         free(rs.block_finished);
         return pn_context_fail(ctx, st, "out of memory for the output image");
     }
+    uint64_t non_finite = 0;
+    for (size_t i = 0; i < n; i++) non_finite += rs.pixels[i].non_finite;
+    pn_film_warn_non_finite(ctx, non_finite, integ->name);
     if (stats) {
         uint64_t eye = 0, shadow = 0, spec = 0, max_eye = 0, max_shadow = 0;
         double cut_seconds = 0.0, pdf_seconds = 0.0;
@@ -710,6 +713,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         stats->shadow_rays_per_pixel_mean = (double)shadow / (double)n;
         stats->eye_rays_per_pixel_max = max_eye;
         stats->shadow_rays_per_pixel_max = max_shadow;
+        stats->non_finite_samples = non_finite;
         stats->mrays_per_second =
             stats->render_seconds > 0.0 ? (double)(eye + shadow + spec) / stats->render_seconds * 1e-6 : 0.0;
         stats->peak_memory_bytes = pn_peak_memory_bytes();

@@ -2,6 +2,7 @@
  * aovs.h). The public pn_aov_count / pn_aov_name walk the selectable entries of this table. */
 #include "film/aovs.h"
 
+#include "core/context.h"
 #include "core/photometry.h"
 #include "io/image.h"
 #include "spectral/cie.h"
@@ -135,6 +136,14 @@ static void fill_layer(const pn_aov_layer *l, const pn_pixel_estimate *pixels, s
         case PN_AOV_FROM_DRIVER: break;
         }
     }
+}
+
+void pn_film_warn_non_finite(pn_context ctx, uint64_t count, const char *integrator) {
+    if (count == 0 || !ctx) return;
+    pn_context_log(ctx, PN_LOG_WARNING,
+                   "%llu eye sample%s of the %s integrator came out NaN or infinite and %s counted as 0 (values "
+                   "beyond the float range in the scene, or a bug to report; statistic non_finite_samples)",
+                   (unsigned long long)count, count == 1 ? "" : "s", integrator, count == 1 ? "was" : "were");
 }
 
 pn_status pn_film_assemble(const pn_pixel_estimate *pixels, int width, int height, uint32_t aovs, pn_image *out) {

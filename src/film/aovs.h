@@ -20,6 +20,9 @@ typedef struct pn_pixel_estimate {
                                 (filled where pn_integrator_reports_emitted says so) */
     float relative_variance; /* s^2 / L^2 of the estimate (luminance), 0 when L = 0 */
     uint32_t eye_rays, shadow_rays, specular_rays;
+    /* eye samples (ias: pixels) whose value came out NaN or infinite and were counted as 0: an
+     * integrator's bug made visible (the statistic non_finite_samples, a warning) */
+    uint32_t non_finite;
     float depth;          /* first-hit distance of the first eye ray (INFINITY on a miss) */
     vec3 normal;          /* first-hit shading normal */
     vec3 albedo;          /* first-hit diffuse reflectance */
@@ -80,6 +83,10 @@ const pn_aov_layer *pn_aov_layer_of(uint32_t bit);
  * pixels, zeroed; NULL when out of memory or the bit names no layer. For drivers that fill their
  * own layers. */
 float *pn_film_add_aov(pn_image img, uint32_t bit);
+
+/* Warns through ctx when `count` eye samples of the render came out NaN or infinite (they were
+ * counted as 0, so the image hides them): a bug of the integrator, named in the message. */
+void pn_film_warn_non_finite(pn_context ctx, uint64_t count, const char *integrator);
 
 /* Assembles the image of width x height estimates (row-major): the beauty from radiance and,
  * in table order, every layer of `aovs` that the estimate fills (PN_AOV_FROM_DRIVER layers are

@@ -406,6 +406,7 @@ typedef struct pixel_acc {
     double weighted_lux; /* PN_AOV_ILLUMINANCE: filter-weighted illuminance of the eye rays */
     double weighted_mel; /* PN_AOV_MELANOPIC_EDI: the same for the melanopic EDI */
     uint32_t n, shadow_rays, specular_rays;
+    uint32_t non_finite; /* eye rays whose value was not finite, counted as 0 */
 } pixel_acc;
 
 typedef struct contour_scratch {
@@ -982,7 +983,10 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             shade_point *sp = &s->sp[q];
             pixel_acc *a = &s->acc[q];
             vec3 value = pn_swl_rgb(&sp->wl, sp->value); /* spectral mode: to sRGB where it is added */
-            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            if (!v3_is_finite(value)) {
+                value = v3(0, 0, 0);
+                a->non_finite++;
+            }
             a->shadow_rays += sp->contour_rays;
             int px = batch->pixels[q][0];
             if (sp->contour_rays > 0 && px >= count_x0 && px < count_x1) {
@@ -1019,6 +1023,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
         const pixel_acc *a = &s->acc[q];
         pn_pixel_estimate *o = &out[q];
         o->eye_rays = a->n;
+        o->non_finite = a->non_finite;
         o->shadow_rays = a->shadow_rays;
         o->specular_rays = a->specular_rays;
         if (a->weight_sum != 0.0) {

@@ -1627,6 +1627,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     for (int pi = 0; pi < np; pi++) {
         ias_pixel *px = &s->pixels[pi];
         out[pi].radiance = v3_is_finite(px->result) ? px->result : v3(0, 0, 0);
+        out[pi].non_finite = v3_is_finite(px->result) ? 0u : 1u;
         /* PN_AOV_ILLUMINANCE: the regions' pooled estimates, weighted by area as the radiance. */
         double lux = 0.0;
         for (int k = 0; k < px->region_count; k++) {

@@ -1095,7 +1095,10 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
                 pr += p->pairs;
                 pts++;
             }
-            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            if (!v3_is_finite(value)) {
+                value = v3(0, 0, 0);
+                o->non_finite++;
+            }
             if (!v3_is_finite(a)) a = v3(0, 0, 0);
             sum = v3_madd(sum, value, smp->weight);
             approx = v3_madd(approx, a, smp->weight);

@@ -251,7 +251,10 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
                 }
             }
             value = pn_swl_rgb(&sp.r.wl, value); /* spectral mode: the sample's wavelengths to sRGB */
-            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            if (!v3_is_finite(value)) {
+                value = v3(0, 0, 0);
+                o->non_finite++;
+            }
             sum = v3_madd(sum, value, sp.weight);
             wsum += (double)sp.weight;
         }

@@ -114,6 +114,7 @@ typedef struct pixel_state {
     double weight_sum;
     double lum_mean, lum_m2; /* Welford on the luminance of eye-ray values */
     uint32_t n, shadow_rays, specular_rays;
+    uint32_t non_finite;    /* eye rays whose value was not finite, counted as 0 */
     uint32_t light_samples; /* light samples drawn (S per eye ray that had a light to sample) */
     bool any_nonzero;
 } pixel_state;
@@ -188,7 +189,10 @@ static void add_eye_ray(pixel_context *c, const pn_eye_hit *h, pixel_state *ps) 
     /* Spectral mode: the eye ray's value at its wavelengths to linear sRGB, where it is added. */
     value = pn_swl_rgb(wl, value);
     vec3 emitted = pn_swl_rgb(wl, path->emitted);
-    if (!v3_is_finite(value)) value = emitted = v3(0, 0, 0);
+    if (!v3_is_finite(value)) {
+        value = emitted = v3(0, 0, 0);
+        ps->non_finite++;
+    }
     ps->n++;
     ps->weighted_sum = v3_madd(ps->weighted_sum, value, fw);
     ps->weighted_emitted = v3_madd(ps->weighted_emitted, emitted, fw);
@@ -297,6 +301,7 @@ static void render_pixel_cross(pixel_context *c) {
     pn_pixel_estimate *o = c->o;
     o->eye_rays = a.n + b.n;
     o->shadow_rays = a.shadow_rays + b.shadow_rays;
+    o->non_finite = a.non_finite + b.non_finite;
     o->specular_rays = a.specular_rays + b.specular_rays;
     /* Equal weights, fixed in advance: weights by count would depend on both pilots. */
     vec3 ra = a.weight_sum != 0.0 ? v3_scale(a.weighted_sum, (float)(1.0 / a.weight_sum)) : v3(0, 0, 0);
@@ -345,6 +350,7 @@ static pn_status reference_render_batch(const pn_render_job *job, const pn_batch
             }
         }
         o->eye_rays = ps.n;
+        o->non_finite = ps.non_finite;
         o->shadow_rays = ps.shadow_rays;
         o->specular_rays = ps.specular_rays;
         o->embree_seconds = (float)(c.embree_seconds * PN_EYE_TIMING_STRIDE);

@@ -63,7 +63,10 @@ static pn_status vpl_render_batch(const pn_render_job *job, const pn_batch *batc
                 if (mel_here && isfinite(m)) mel_sum += (double)m * (double)sp.weight;
             }
             value = pn_swl_rgb(&sp.r.wl, value); /* spectral mode: the sample's wavelengths to sRGB */
-            if (!v3_is_finite(value)) value = v3(0, 0, 0);
+            if (!v3_is_finite(value)) {
+                value = v3(0, 0, 0);
+                o->non_finite++;
+            }
             sum = v3_madd(sum, value, sp.weight);
             wsum += (double)sp.weight;
         }

@@ -85,6 +85,13 @@ static const pn_stat_decl stats_table[] = {
      PN_STAT_U64,
      0,
      false},
+    {{"non_finite_samples", PN_STAT_COUNT, "samples", "", SUM, 0,
+      "eye samples (ias: pixels) whose value was NaN or infinite and was counted as 0 (values beyond the float range, "
+      "or a bug)"},
+     F(non_finite_samples),
+     PN_STAT_U64,
+     0,
+     false},
     {{"mrays_per_second", PN_STAT_MEAN, "Mrays/s", "", MEAN, 0, "all rays over render_seconds, in millions"},
      F(mrays_per_second),
      PN_STAT_F64,

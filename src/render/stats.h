@@ -23,6 +23,8 @@ typedef struct pn_render_stats {
     uint64_t eye_rays, shadow_rays, specular_rays;
     double shadow_rays_per_pixel_mean, eye_rays_per_pixel_mean;
     uint64_t shadow_rays_per_pixel_max, eye_rays_per_pixel_max;
+    uint64_t non_finite_samples; /* eye samples (ias: pixels) whose value was NaN or infinite,
+                                    counted as 0 (pn_pixel_estimate.non_finite) */
     double mrays_per_second;
     uint64_t peak_memory_bytes;
     int partial; /* 1 when cancelled: only finished tiles hold values */
