@@ -9,7 +9,7 @@
 #   bench/ias/aa_converge.sh [BUILD_DIR] [OUT_DIR]
 #
 # Environment: PN_SHARED (../shared), THREADS (1), CROP (0.45,0.55,0.45,0.55), REF_SPP (2048),
-# THRESHOLDS ("0.01 0.0025 0.001"), AAS ("0 0.01"), SEEDS ("0 1"), EXTRA (more ias options),
+# THRESHOLDS ("0.01 0.0025 0.001"), AAS ("0 0.01"), SEEDS ("0 1"), IAS_EXTRA (more ias options),
 # SCENES (folder/file, default the four many-light scenes' matte variants). One line per render.
 set -eu
 BUILD=${1:-build}
@@ -21,43 +21,29 @@ REF_SPP=${REF_SPP:-2048}
 THRESHOLDS=${THRESHOLDS:-0.01 0.0025 0.001}
 AAS=${AAS:-0 0.01}
 SEEDS=${SEEDS:-0 1}
-EXTRA=${EXTRA:-}
+IAS_EXTRA=${IAS_EXTRA:-}
+EXTRA= # lib.sh adds EXTRA to every render, the converged ones too
 SCENES=${SCENES:-hall-many/hall-many-matte staircase-832/staircase-832-matte bathroom-72/bathroom-72-matte living-env-138/living-env-138-matte}
 mkdir -p "$OUT"
 PN="$BUILD/penumbra"
 
-render() { # OUT.exr options...: prints the CPU seconds
-    out=$1
-    shift
-    /usr/bin/time -f "%U %S" -o "$out.time" "$PN" render "$scene" --crop "$CROP" --threads "$THREADS" --quiet \
-        -o "$out" "$@" 2>/dev/null
-    awk '{ printf "%.3f", $1 + $2 }' "$out.time"
-}
-
-line() { # TAG CPU IMAGE
-    "$PN" diff "$ref" "$3" --json | awk -v tag="$1" -v cpu="$2" -v name="$name" '
-        /"relmse"/ { r = $2 } /"rel_l1"/ { l = $2 }
-        /"mean_luminance_reference"/ { mr = $2 } /"mean_luminance_image"/ { mi = $2 }
-        END { gsub(",", "", r); gsub(",", "", l); gsub(",", "", mr); gsub(",", "", mi);
-              printf "%-24s %-22s cpu %8.3f relmse %.4e rel_l1 %.5f dmean %+.4f%%\n", name, tag, cpu, r, l,
-                     100 * (mi / mr - 1) }'
-}
+. "$(dirname "$0")/lib.sh"
 
 for s in $SCENES; do
     scene="$SHARED/scenes/$s.pbrt"
     name=$(basename "$s")
     ref="$OUT/$name-ref$REF_SPP-s1000.exr"
     ref2="$OUT/$name-ref$REF_SPP-s1001.exr"
-    [ -f "$ref" ] || render "$ref" --spp "$REF_SPP" --seed 1000 > /dev/null
-    [ -f "$ref2" ] || render "$ref2" --spp "$REF_SPP" --seed 1001 > /dev/null
+    [ -f "$ref" ] || pn_render_cpu "$ref" --spp "$REF_SPP" --seed 1000 > /dev/null
+    [ -f "$ref2" ] || pn_render_cpu "$ref2" --spp "$REF_SPP" --seed 1001 > /dev/null
     {
-        line "ref-seed2" 0 "$ref2"
+        pn_diff_line "ref-seed2" 0 "$ref2"
         for t in $THRESHOLDS; do
             for seed in $SEEDS; do
                 for aa in $AAS; do # alternated within each (threshold, seed)
-                    cpu=$(render "$OUT/tmp.exr" --integrator ias --threshold "$t" --ias-aa-threshold "$aa" \
-                        --seed "$seed" $EXTRA)
-                    line "aa=$aa:t=$t:s=$seed" "$cpu" "$OUT/tmp.exr"
+                    cpu=$(pn_render_cpu "$OUT/tmp.exr" --integrator ias --threshold "$t" --ias-aa-threshold "$aa" \
+                        --seed "$seed" $IAS_EXTRA)
+                    pn_diff_line "aa=$aa:t=$t:s=$seed" "$cpu" "$OUT/tmp.exr"
                 done
             done
         done

@@ -27,42 +27,25 @@ SCENES=${SCENES:-cornell-box/cornell-box-matte cornell-contour/cornell-contour-m
 mkdir -p "$OUT"
 PN="$BUILD/penumbra"
 
-# render NAME OUT.exr options...: prints the CPU seconds of the render
-render() {
-    out=$1
-    shift
-    /usr/bin/time -f "%U %S" -o "$out.time" "$PN" render "$scene" --crop "$CROP" --threads "$THREADS" --quiet \
-        -o "$out" $EXTRA "$@" 2>/dev/null
-    awk '{ printf "%.3f", $1 + $2 }' "$out.time"
-}
-
-# line TAG CPU IMAGE: the metrics of IMAGE against the converged render
-line() {
-    "$PN" diff "$ref" "$3" --json | awk -v tag="$1" -v cpu="$2" -v name="$name" '
-        /"relmse"/ { r = $2 } /"rel_l1"/ { l = $2 }
-        /"mean_luminance_reference"/ { mr = $2 } /"mean_luminance_image"/ { mi = $2 }
-        END { gsub(",", "", r); gsub(",", "", l); gsub(",", "", mr); gsub(",", "", mi);
-              printf "%-36s %-14s cpu %8.3f relmse %.4e rel_l1 %.5f dmean %+.4f%%\n", name, tag, cpu, r, l,
-                     100 * (mi / mr - 1) }'
-}
+. "$(dirname "$0")/lib.sh"
 
 for s in $SCENES; do
     scene="$SHARED/scenes/$s.pbrt"
     name=$(basename "$s")
     ref="$OUT/$name-ref$REF_SPP-s1000.exr"
     ref2="$OUT/$name-ref$REF_SPP-s1001.exr"
-    [ -f "$ref" ] || render "$ref" --spp "$REF_SPP" --seed 1000 > /dev/null
-    [ -f "$ref2" ] || render "$ref2" --spp "$REF_SPP" --seed 1001 > /dev/null
+    [ -f "$ref" ] || pn_render_cpu "$ref" --spp "$REF_SPP" --seed 1000 > /dev/null
+    [ -f "$ref2" ] || pn_render_cpu "$ref2" --spp "$REF_SPP" --seed 1001 > /dev/null
     {
-        line "ref-seed2" 0 "$ref2"
+        pn_diff_line "ref-seed2" 0 "$ref2"
         for n in $SPPS; do
-            cpu=$(render "$OUT/tmp.exr" --spp "$n" --seed 0)
-            line "spp=$n" "$cpu" "$OUT/tmp.exr"
+            cpu=$(pn_render_cpu "$OUT/tmp.exr" --spp "$n" --seed 0)
+            pn_diff_line "spp=$n" "$cpu" "$OUT/tmp.exr"
         done
         for rule in $RULES; do
             for t in $THRESHOLDS; do
-                cpu=$(render "$OUT/tmp.exr" --threshold "$t" --adaptive-rule "$rule" --seed 0)
-                line "$rule:t=$t" "$cpu" "$OUT/tmp.exr"
+                cpu=$(pn_render_cpu "$OUT/tmp.exr" --threshold "$t" --adaptive-rule "$rule" --seed 0)
+                pn_diff_line "$rule:t=$t" "$cpu" "$OUT/tmp.exr"
             done
         done
     } | tee "$OUT/$name.txt"
