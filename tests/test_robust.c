@@ -471,6 +471,13 @@ static void test_exr_layers_pixel_limit(void) {
     CHECK(pn_image_read_layers(ctx, tpath("layers.exr"), &out) == PN_OK && out && out->layer_count == 2);
     pn_image_free(out);
     pn_context_free(ctx);
+    /* `penumbra merge --max-image-pixels` reads its parts under that limit. */
+    CLI_EXPECT(r, 3, "merge", "layers.exr", "-o", "merged.exr", "--max-image-pixels", "4095");
+    CHECK_STR_CONTAINS(r.err, "EXR image of 64x64 pixels is larger than the image pixel limit of 4095 pixels");
+    CHECK(!exists("merged.exr"));
+    CLI_EXPECT(r, 2, "merge", "layers.exr", "-o", "merged.exr", "--max-image-pixels", "0");
+    CLI_EXPECT(r, 0, "merge", "layers.exr", "-o", "merged.exr", "--max-image-pixels", "8192");
+    CHECK(exists("merged.exr"));
 }
 
 /* A NUL byte in a points file of `penumbra illuminance` is refused where it is (before, the line

@@ -9,7 +9,8 @@
  * writes one JSON whose `stats` combine them by the rule the library's statistics table declares
  * for each (pn_stat_info.merge: counts and seconds summed, maxima and sizes of the run the
  * maximum, per-pixel means and fractions weighted by each part's pixels, `partial` if any part
- * was, width and height the whole image's). */
+ * was, width and height the whole image's). --max-image-pixels N sets the pixel limit every part
+ * is read under (the context's, as `info` and `diff` take it). */
 #include "cli/cli.h"
 
 #include <cjson/cJSON.h>
@@ -26,7 +27,8 @@ static const char merge_help[] =
     "\n"
     "options:\n"
     "  -o, --output FILE      the whole image (.exr)\n"
-    "  --stats FILE           combined statistics of the PART.json files\n";
+    "  --stats FILE           combined statistics of the PART.json files\n"
+    "  --max-image-pixels N   refuse a part larger than N pixels (default 268435456)\n";
 
 static cJSON *read_json(const char *path) {
     const char *why = NULL;
@@ -148,6 +150,7 @@ int command_merge(int argc, char **argv) {
     const char *output = NULL, *stats_path = NULL;
     const char **images = calloc((size_t)argc, sizeof *images), **jsons = calloc((size_t)argc, sizeof *jsons);
     int image_count = 0, json_count = 0, code = -1;
+    uint64_t max_pixels = 0; /* --max-image-pixels; 0 = the default */
     if (!images || !jsons) code = EXIT_SYSTEM;
     arg_scanner s = {"merge", argc, argv, 0, "", NULL, 0};
     const char *positional;
@@ -165,6 +168,9 @@ int command_merge(int argc, char **argv) {
             if (!(output = scanner_value(&s))) code = EXIT_USAGE;
         } else if (strcmp(s.name, "--stats") == 0) {
             if (!(stats_path = scanner_value(&s))) code = EXIT_USAGE;
+        } else if (strcmp(s.name, "--max-image-pixels") == 0) {
+            const char *value = scanner_value(&s);
+            if (!value || !parse_pixel_limit("merge", s.name, value, &max_pixels)) code = EXIT_USAGE;
         } else {
             code = usage_error("merge", "unknown option '%s'", s.name);
         }
@@ -187,6 +193,7 @@ int command_merge(int argc, char **argv) {
     cJSON **stats = calloc((size_t)(json_count ? json_count : 1), sizeof *stats);
     pn_image full = NULL;
     if (!ctx || !parts || !stats) code = EXIT_SYSTEM;
+    if (ctx && max_pixels) pn_context_set_image_pixel_limit(ctx, max_pixels);
     for (int i = 0; code < 0 && i < image_count; i++) {
         pn_status st = pn_image_read_layers(ctx, images[i], &parts[i]);
         if (st != PN_OK) code = report_failure(ctx, st);
