@@ -768,27 +768,27 @@ static void test_goniometric_image_renders_the_same(void) {
 static void test_bad_files_refused(void) {
     struct {
         const char *file;
-        int line;
+        int line, col; /* col: the offending value's, or 1 for a whole-line field */
         const char *says;
     } cases[] = {
-        {"bad_truncated.ies", 9, "ends before candela value 1 of 3"},
-        {"bad_negative.ies", 10, "is negative"},
-        {"bad_nan.ies", 10, "not a finite number"},
-        {"bad_counts.ies", 10, "unexpected"},
-        {"bad_nonmonotonic.ies", 8, "must increase"},
-        {"bad_type_a.ies", 6, "type A"},
-        {"bad_tilt_file.ies", 5, "TILT=lamp.tlt"},
-        {"bad_symmetry.ies", 9, "match no LM-63 symmetry"},
-        {"bad_no_tilt.ies", 3, "no \"TILT=\" line"},
-        {"bad_truncated.ldt", 60, "ends before C-angle"},
-        {"bad_negative.ldt", 201, "is negative"},
-        {"bad_isym.ldt", 3, "Isym"},
-        {"bad_counts.ldt", 585, "unexpected"},
+        {"bad_truncated.ies", 9, 1, "ends before candela value 1 of 3"},
+        {"bad_negative.ies", 10, 17, "is negative"},
+        {"bad_nan.ies", 10, 17, "not a finite number"},
+        {"bad_counts.ies", 10, 25, "unexpected"},
+        {"bad_nonmonotonic.ies", 8, 6, "must increase"},
+        {"bad_type_a.ies", 6, 14, "type A"},
+        {"bad_tilt_file.ies", 5, 1, "TILT=lamp.tlt"},
+        {"bad_symmetry.ies", 9, 3, "match no LM-63 symmetry"},
+        {"bad_no_tilt.ies", 3, 1, "no \"TILT=\" line"},
+        {"bad_truncated.ldt", 60, 1, "ends before C-angle"},
+        {"bad_negative.ldt", 201, 1, "is negative"},
+        {"bad_isym.ldt", 3, 1, "Isym"},
+        {"bad_counts.ldt", 585, 1, "unexpected"},
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         char path[512], want[640];
         snprintf(path, sizeof path, DATA "%s", cases[k].file);
-        snprintf(want, sizeof want, "%s:%d: ", path, cases[k].line);
+        snprintf(want, sizeof want, "%s:%d:%d: ", path, cases[k].line, cases[k].col);
         pn_err err;
         pn_err_init(&err);
         pn_photometry *p = NULL;
@@ -812,7 +812,7 @@ static void test_bad_files_refused(void) {
         out[n] = '\0';
         fclose(f);
     }
-    CHECK_MSG(strstr(out, "bad_nan.ies:10: ") != NULL, "CLI said: %s", out);
+    CHECK_MSG(strstr(out, "bad_nan.ies:10:17: ") != NULL, "CLI said: %s", out);
 }
 
 PN_TESTS(TEST(test_lumens_match_stated), TEST(test_symmetry_forms_agree), TEST(test_ies_and_eulumdat_agree),

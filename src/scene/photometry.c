@@ -61,7 +61,9 @@ typedef struct reader {
     int line; /* line of pos (1-based) */
     const char *name;
     pn_err *err;
-    int last_line; /* line of the last token read */
+    int last_line;          /* line of the last token read */
+    const char *line_begin; /* first byte of the line pos is on */
+    int last_col;           /* 1-based column of the last token read */
 } reader;
 
 static pn_status fail(reader *r, int line, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -72,16 +74,23 @@ static pn_status fail(reader *r, int line, const char *fmt, ...) {
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
-    return pn_err_set(r->err, PN_ERROR_BAD_INPUT, "%s:%d: %s", r->name, line, msg);
+    /* The column: the last token's where the message is about its line (a value read by
+     * next_token), else the line's first column (EULUMDAT's whole-line fields, a header line). */
+    int col = line == r->last_line && r->last_col > 0 ? r->last_col : 1;
+    return pn_err_set(r->err, PN_ERROR_BAD_INPUT, "%s:%d:%d: %s", r->name, line, col, msg);
 }
 
 /* The next token separated by blanks, commas or line ends; false at the end of the text. */
 static bool next_token(reader *r, char *buf, size_t size) {
     while (r->pos < r->end && (isspace((unsigned char)*r->pos) || *r->pos == ',')) {
-        if (*r->pos == '\n') r->line++;
+        if (*r->pos == '\n') {
+            r->line++;
+            r->line_begin = r->pos + 1;
+        }
         r->pos++;
     }
     if (r->pos >= r->end) return false;
+    r->last_col = (int)(r->pos - (r->line_begin ? r->line_begin : r->text)) + 1;
     size_t n = 0;
     while (r->pos < r->end && !isspace((unsigned char)*r->pos) && *r->pos != ',') {
         if (n + 1 < size) buf[n++] = *r->pos;
@@ -323,6 +332,7 @@ static const char *take_line(reader *r, size_t *len) {
     if (r->pos < r->end) {
         r->pos++;
         r->line++;
+        r->line_begin = r->pos;
     }
     while (*len > 0 && (s[*len - 1] == '\r' || s[*len - 1] == ' ' || s[*len - 1] == '\t')) (*len)--;
     return s;
