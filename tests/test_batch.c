@@ -257,19 +257,31 @@ static void test_more_hits_contract(pn_scene scene, int W, int H) {
     pn_integrator_reference.release(&job);
 }
 
+/* A job of method `kind` resolved from the table as a render would (its options' defaults). */
+static void resolve_job(pn_context ctx, pn_scene scene, int W, int H, pn_integrator_kind kind, uint32_t spp,
+                        double threshold, pn_options options, pn_render_job *job, atomic_int *cancel) {
+    pn_render_settings rs;
+    memset(&rs, 0, sizeof rs);
+    rs.integrator = kind;
+    rs.spp = spp;
+    rs.threshold = threshold;
+    rs.options = options;
+    job_init(job, scene, W, H, cancel);
+    CHECK(pn_registry_resolve(ctx, &rs, pn_registry_method_kind(PN_METHOD_INTEGRATOR, kind),
+                              pn_registry_method_kind(PN_METHOD_DRIVER, PN_DRIVER_DEFAULT), job) == PN_OK);
+    job->spp = spp; /* the common settings are the driver's to copy (render.c) */
+    job->threshold = threshold;
+    if (job->adaptive_rule == PN_ADAPTIVE_AUTO)
+        job->adaptive_rule = kind == PN_INTEGRATOR_IAS ? PN_ADAPTIVE_PAPER : PN_ADAPTIVE_CROSS;
+}
+
 /* contour-mc takes its eye rays from the batch too: the same estimates whether its hits came in
  * advance or through the callback, which it then asks for sample i of every pixel, one at a
  * time, before sample i + 1; and light added to a given hit reaches its pixel. */
 static void test_contour_mc_hits(pn_context ctx, pn_scene scene, int W, int H) {
-    pn_render_settings rs;
-    memset(&rs, 0, sizeof rs);
-    rs.integrator = PN_INTEGRATOR_CONTOUR_MC;
     pn_render_job job;
     atomic_int cancel;
-    job_init(&job, scene, W, H, &cancel);
-    CHECK(pn_registry_resolve(ctx, &rs, pn_registry_method_kind(PN_METHOD_INTEGRATOR, PN_INTEGRATOR_CONTOUR_MC),
-                              pn_registry_method_kind(PN_METHOD_DRIVER, PN_DRIVER_DEFAULT), &job) == PN_OK);
-    job.spp = 2;
+    resolve_job(ctx, scene, W, H, PN_INTEGRATOR_CONTOUR_MC, 2, 0.0, NULL, &job, &cancel);
     const pn_integrator *in = &pn_integrator_contour_mc;
     CHECK(in->batch_hits && in->batch_hits(&job) == 2);
     pn_err err;
@@ -311,24 +323,6 @@ static void test_contour_mc_hits(pn_context ctx, pn_scene scene, int W, int H) {
     free(rec);
     in->scratch_free(scratch);
     in->release(&job);
-}
-
-/* A job of method `kind` resolved from the table as a render would (its options' defaults). */
-static void resolve_job(pn_context ctx, pn_scene scene, int W, int H, pn_integrator_kind kind, uint32_t spp,
-                        double threshold, pn_options options, pn_render_job *job, atomic_int *cancel) {
-    pn_render_settings rs;
-    memset(&rs, 0, sizeof rs);
-    rs.integrator = kind;
-    rs.spp = spp;
-    rs.threshold = threshold;
-    rs.options = options;
-    job_init(job, scene, W, H, cancel);
-    CHECK(pn_registry_resolve(ctx, &rs, pn_registry_method_kind(PN_METHOD_INTEGRATOR, kind),
-                              pn_registry_method_kind(PN_METHOD_DRIVER, PN_DRIVER_DEFAULT), job) == PN_OK);
-    job->spp = spp; /* the common settings are the driver's to copy (render.c) */
-    job->threshold = threshold;
-    if (job->adaptive_rule == PN_ADAPTIVE_AUTO)
-        job->adaptive_rule = kind == PN_INTEGRATOR_IAS ? PN_ADAPTIVE_PAPER : PN_ADAPTIVE_CROSS;
 }
 
 /* What ias traced itself before the batch carried its eye rays (its ias.c of stop 16): eye ray

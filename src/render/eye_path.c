@@ -318,16 +318,13 @@ void pn_batch_supply(const pn_render_job *job, const pn_integrator *integ, pn_ba
 }
 
 pn_batch pn_batch_part(const pn_batch *from, int block_x, int block_y, int count, const int32_t (*pixels)[2]) {
-    pn_batch b;
-    memset(&b, 0, sizeof b);
-    b.block_x = block_x;
-    b.block_y = block_y;
-    b.count = count;
-    b.pixels = pixels;
-    b.more_hits = from->more_hits;
-    b.more_user = from->more_user;
-    b.more_points = from->more_points;
-    return b;
+    return (pn_batch){.block_x = block_x,
+                      .block_y = block_y,
+                      .count = count,
+                      .pixels = pixels,
+                      .more_hits = from->more_hits,
+                      .more_user = from->more_user,
+                      .more_points = from->more_points};
 }
 
 const pn_eye_hit *pn_batch_eye_hits(const pn_render_job *job, const pn_batch *batch, int pi, pn_eye_sequence seq,
