@@ -12,6 +12,10 @@
 #                   files that hand parsed lights to the light builder (lightdefs.c: light
 #                   definitions and their kinds; scene_load.c: builds the light records after
 #                   parsing). Those two are the known remaining scene -> lights edges.
+#   4. src/integrators/ includes nothing from driver/, and traces no eye ray itself: it calls none
+#                   of render/'s eye tracers (pn_camera_ray, pn_camera_filter_sample,
+#                   pn_pixel_eye_sample, pn_trace_eye_path*, pn_eye_point_trace, pn_eye_hits_trace);
+#                   its eye samples come from the batch (render/batch.h), traced by the driver.
 #   usage: check_layers.sh SOURCE_DIR          check SOURCE_DIR/src
 #          check_layers.sh --self-test         check that each rule catches a planted violation
 set -u
@@ -32,6 +36,12 @@ check_tree() {
         grep -rn --include='*.c' --include='*.h' '^[[:space:]]*#[[:space:]]*include[[:space:]]*"lights/' "$src/scene" 2>/dev/null |
             grep -v "^$src/scene/\(lightdefs\|scene_load\)\.c:" |
             sed 's/$/  <- scene\/ includes lights\/ only in lightdefs.c and scene_load.c/'
+        grep -rn --include='*.c' --include='*.h' '^[[:space:]]*#[[:space:]]*include[[:space:]]*"driver/' \
+            "$src/integrators" 2>/dev/null | sed 's/$/  <- integrators\/ must not include driver\//'
+        grep -rnE --include='*.c' \
+            '\b(pn_camera_ray|pn_camera_filter_sample|pn_pixel_eye_sample|pn_trace_eye_path(_spectral)?|pn_eye_point_trace|pn_eye_hits_trace)[[:space:]]*\(' \
+            "$src/integrators" 2>/dev/null |
+            sed 's/$/  <- integrators\/ read eye samples from the batch (render\/batch.h), the driver traces them/'
     )
     if [ -n "$out" ]; then
         printf '%s\n' "$out"
@@ -48,7 +58,7 @@ if [ "${1:-}" = "--self-test" ]; then
     # and accept the allowed edges.
     plant() { # dir file line expect(0 ok / 1 rejected)
         rm -rf "$tmp/src"
-        mkdir -p "$tmp/src/shade" "$tmp/src/lights" "$tmp/src/scene"
+        mkdir -p "$tmp/src/shade" "$tmp/src/lights" "$tmp/src/scene" "$tmp/src/integrators"
         printf '%s\n' "$3" >"$tmp/src/$1/$2"
         check_tree "$tmp" >/dev/null
         got=$?
@@ -72,6 +82,12 @@ if [ "${1:-}" = "--self-test" ]; then
     plant scene parser.c '#include "lights/lights.h"' 1
     plant scene scene_load.c '#include "lights/lights.h"' 0
     plant scene lightdefs.c '#include "lights/lights.h"' 0
+    plant integrators ias.c '#include "driver/render_job.h"' 1
+    plant integrators ias.c '#include "render/batch.h"' 0
+    plant integrators ias.c '    pn_trace_eye_path(job, o, d, u, &path);' 1
+    plant integrators vpl_common.c '        pn_eye_point_trace(job, x, y, s, &pt);' 1
+    plant integrators contour.c 'pn_camera_ray(&job->camera, rx, ry, 0.5f, 0.5f, &o, &d);' 1
+    plant integrators reference.c '    h = pn_batch_eye_hits(job, batch, pi, seq, i, n, buf);' 0
     [ "$fail" -eq 0 ] && echo "check_layers self-test: every rule catches its planted violation"
     exit "$fail"
 fi
@@ -79,7 +95,7 @@ fi
 [ $# -eq 1 ] || { echo "usage: check_layers.sh SOURCE_DIR | --self-test"; exit 2; }
 [ -d "$1/src/shade" ] && [ -d "$1/src/lights" ] && [ -d "$1/src/scene" ] || { echo "no src/{shade,lights,scene} in $1"; exit 2; }
 if check_tree "$1"; then
-    echo "check_layers: shade/, lights/ and scene/ keep their include rules"
+    echo "check_layers: shade/, lights/, scene/ and integrators/ keep their rules"
     exit 0
 fi
 exit 1

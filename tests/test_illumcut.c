@@ -284,7 +284,7 @@ static void test_batch_interface(void) {
         px[i][0] = i % W;
         px[i][1] = i / W;
     }
-    pn_batch all = {0, 0, W * H, (const int32_t(*)[2])px, 0, NULL, 0, NULL, NULL, NULL};
+    pn_batch all = {.count = W * H, .pixels = (const int32_t(*)[2])px, .more_points = pn_batch_more_points};
     CHECK(pn_integrator_illumcut.render_batch(&job, &all, est, NULL) == PN_OK);
     if (whole && ref) {
         const float *w = pn_image_layer_data(whole, 0), *r = pn_image_layer_data(ref, 0);
@@ -299,7 +299,7 @@ static void test_batch_interface(void) {
                 px[n][1] = y;
                 n++;
             }
-        pn_batch block = {1, 1, n, (const int32_t(*)[2])px, 0, NULL, 0, NULL, NULL, NULL};
+        pn_batch block = {1, 1, n, (const int32_t(*)[2])px, .more_points = pn_batch_more_points};
         CHECK(pn_integrator_illumcut.render_batch(&job, &block, est, NULL) == PN_OK);
         double rel = 0.0;
         for (int i = 0; i < n; i++) {
@@ -376,8 +376,8 @@ static void test_batch_points(void) {
         void *scr[2] = {in->scratch_create ? in->scratch_create(&job) : NULL,
                         in->scratch_create ? in->scratch_create(&job) : NULL};
         pn_pixel_estimate a[64], b[64];
-        pn_batch own = {0, 1, n, (const int32_t(*)[2])px, 0, NULL, 0, NULL, NULL, NULL};
-        pn_batch given = {0, 1, n, (const int32_t(*)[2])px, per, pts, 0, NULL, NULL, NULL};
+        pn_batch own = {0, 1, n, (const int32_t(*)[2])px, .more_points = pn_batch_more_points};
+        pn_batch given = {0, 1, n, (const int32_t(*)[2])px, .points_per_pixel = per, .points = pts};
         CHECK(in->render_batch(&job, &own, a, scr[0]) == PN_OK);
         CHECK(in->render_batch(&job, &given, b, scr[1]) == PN_OK);
         int same = 0;

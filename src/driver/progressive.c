@@ -116,47 +116,23 @@ static bool eval_block_pixels(pn_prog *p, int worker, const int32_t (*px)[2], in
         full[i][0] = px[i][0] + p->wx0;
         full[i][1] = px[i][1] + p->wy0;
     }
-    pn_batch batch = {full[0][0] / PN_PROG_BLOCK,
-                      full[0][1] / PN_PROG_BLOCK,
-                      n,
-                      (const int32_t(*)[2])full,
-                      0,
-                      NULL,
-                      0,
-                      NULL,
-                      NULL,
-                      NULL};
-    /* Integrators of a fixed eye-sample count get the block's shading points traced here. */
+    pn_batch batch = {.block_x = full[0][0] / PN_PROG_BLOCK,
+                      .block_y = full[0][1] / PN_PROG_BLOCK,
+                      .count = n,
+                      .pixels = (const int32_t(*)[2])full};
+    /* The eye samples every pixel of the batch takes, traced here in advance (render/batch.h),
+     * and the tracers of the others. */
     uint32_t per_pixel = p->integ->batch_points ? p->integ->batch_points(&p->job) : 0;
-    pn_batch_point *points = NULL;
-    if (per_pixel > 0) {
-        points = malloc((size_t)n * per_pixel * sizeof *points);
-        if (!points) {
-            atomic_store(&p->failed, (int)PN_ERROR_OUT_OF_MEMORY);
-            return false;
-        }
-        pn_batch_trace_points(&p->job, n, batch.pixels, per_pixel, points);
-        batch.points_per_pixel = per_pixel;
-        batch.points = points;
+    uint32_t per_hit = p->integ->batch_hits ? pn_batch_hits_in_advance(p->integ->batch_hits(&p->job), n) : 0;
+    pn_batch_point *points = per_pixel ? malloc((size_t)n * per_pixel * sizeof *points) : NULL;
+    pn_eye_hit *hits = per_hit ? malloc((size_t)n * per_hit * sizeof *hits) : NULL;
+    if ((per_pixel && !points) || (per_hit && !hits)) {
+        free(points);
+        free(hits);
+        atomic_store(&p->failed, (int)PN_ERROR_OUT_OF_MEMORY);
+        return false;
     }
-    /* Integrators that take eye hits (render/batch.h) get those every pixel takes traced here, and
-     * the tracer of the others. */
-    pn_eye_hit *hits = NULL;
-    if (p->integ->batch_hits) {
-        uint32_t per_hit = pn_batch_hits_in_advance(p->integ->batch_hits(&p->job), n);
-        if (per_hit > 0) {
-            hits = malloc((size_t)n * per_hit * sizeof *hits);
-            if (!hits) {
-                free(points);
-                atomic_store(&p->failed, (int)PN_ERROR_OUT_OF_MEMORY);
-                return false;
-            }
-            pn_batch_trace_hits(&p->job, n, batch.pixels, per_hit, hits);
-            batch.hits_per_pixel = per_hit;
-            batch.hits = hits;
-        }
-        batch.more_hits = pn_batch_more_hits;
-    }
+    pn_batch_supply(&p->job, p->integ, &batch, points, hits);
     memset(est, 0, (size_t)n * sizeof *est);
     pn_status st = p->integ->render_batch(&p->job, &batch, est, p->scratch[worker]);
     free(points);

@@ -59,6 +59,7 @@ typedef struct render_shared {
     long tiles_rendered;
     pn_context ctx;
     const pn_method_entry *entry; /* the integrator's entry in the method table */
+    pn_batch window;              /* a whole-image integrator's: the tracers of the window's eye samples */
 } render_shared;
 
 static void render_block(void *user, size_t job_index, int worker) {
@@ -89,24 +90,11 @@ static void render_block(void *user, size_t job_index, int worker) {
             return;
         }
     }
-    pn_batch batch = {gx0 / B, gy0 / B, count, (const int32_t(*)[2])pixels, 0, NULL, 0, NULL, NULL, NULL};
-    if (rs->points_per_pixel > 0) {
-        /* The camera rays and specular chains of the block, traced once here (render/batch.h). */
-        pn_batch_trace_points(job, count, batch.pixels, rs->points_per_pixel, rs->batch_points[worker]);
-        batch.points_per_pixel = rs->points_per_pixel;
-        batch.points = rs->batch_points[worker];
-    }
-    if (rs->integrator->batch_hits) {
-        /* The eye hits every pixel of the block takes, traced here in advance; the integrator gets
-         * any others through the batch's tracer (render/batch.h). */
-        uint32_t per = pn_batch_hits_in_advance(rs->hits_per_pixel, count);
-        if (per > 0) {
-            pn_batch_trace_hits(job, count, batch.pixels, per, rs->batch_hits[worker]);
-            batch.hits_per_pixel = per;
-            batch.hits = rs->batch_hits[worker];
-        }
-        batch.more_hits = pn_batch_more_hits;
-    }
+    pn_batch batch = {.block_x = gx0 / B, .block_y = gy0 / B, .count = count, .pixels = (const int32_t(*)[2])pixels};
+    /* The camera rays and specular chains every pixel of the block takes, traced once here in
+     * advance; the integrator gets any others through the batch's tracers (render/batch.h). */
+    pn_batch_supply(job, rs->integrator, &batch, rs->batch_points ? rs->batch_points[worker] : NULL,
+                    rs->batch_hits ? rs->batch_hits[worker] : NULL);
     pn_status st = rs->integrator->render_batch(job, &batch, est, rs->scratch[worker]);
     if (st != PN_OK) {
         atomic_store(&rs->failed, (int)st);
@@ -148,7 +136,7 @@ static pn_status render_tile(void *user, int tile, pn_pixel_estimate *packed) {
         double span = (1.0 - rs->progress_start) / (double)rs->grid.count;
         pn_progress_window(job->progress, rs->progress_start + span * (double)rs->tiles_rendered,
                            rs->progress_start + span * (double)(rs->tiles_rendered + 1));
-        pn_status st = rs->integrator->render_image(&tjob, rs->pool, buf, tw, th);
+        pn_status st = rs->integrator->render_image(&tjob, rs->pool, &rs->window, buf, tw, th);
         if (st == PN_OK && atomic_load(job->cancel)) st = PN_ERROR_CANCELLED;
         if (st == PN_OK) pn_tile_copy_in(&rs->grid, tile, buf, rs->pixels);
         free(buf);
@@ -557,6 +545,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
     rs.job = &job;
     rs.integrator = integ;
     rs.entry = pn_registry_integrator_entry(integ);
+    pn_batch_set_tracers(&rs.window);
     rs.settings = settings;
     rs.width = job.camera.x1 - job.camera.x0;
     rs.height = job.camera.y1 - job.camera.y0;
@@ -623,7 +612,7 @@ static pn_status run_job(pn_context ctx, const pn_render_settings *settings, con
         if (tiled_status == PN_ERROR_CANCELLED) tiled_status = PN_OK; /* a partial image, as below */
         if (tiled_status != PN_OK && !atomic_load(&rs.failed)) atomic_store(&rs.failed, (int)tiled_status);
     } else if (whole_image) {
-        pn_status ws = whole_image(&job, pool, rs.pixels, rs.width, rs.height);
+        pn_status ws = whole_image(&job, pool, &rs.window, rs.pixels, rs.width, rs.height);
         if (ws != PN_OK)
             atomic_store(&rs.failed, (int)ws);
         else

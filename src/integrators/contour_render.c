@@ -13,7 +13,8 @@
  * --spp 1 see the same points and differ only in their direct light. They are the batch's eye
  * hits (render/batch.h, pn_batch_eye_hits): traced by the driver for render_batch (contour-mc
  * under every driver, contour under the progressive ones); contour's scanline rows
- * (render_image) are batches of its own without a driver, whose hits render/ traces. */
+ * (render_image) are batches of its own (pn_batch_part), whose hits the driver's tracers of the
+ * window supply. */
 #include "integrators/contour_internal.h"
 #include "integrators/reference_direct.h"
 
@@ -938,7 +939,7 @@ static pn_status render_pixels(const pn_render_job *job, const pn_batch *batch, 
             shade_point *sp = &s->sp[q];
             memset(sp, 0, sizeof *sp);
             /* The driver's eye hit (render/batch.h): in advance under the progressive drivers
-             * and under the tiled driver's blocks (contour-mc); traced for contour's own rows. */
+             * and under the tiled driver's blocks (contour-mc); through the window's tracers for contour's own rows. */
             pn_eye_hit one;
             const pn_eye_hit *h = pn_batch_eye_hits(job, batch, q, PN_EYE_SEQ_PIXEL, i, 1, &one);
             const pn_eye_path *path = &h->path;
@@ -1057,6 +1058,7 @@ typedef struct scanline_jobs {
     const pn_render_job *job;
     pn_pixel_estimate *pixels; /* the window, width x height */
     int width;
+    const pn_batch *window;    /* the driver's tracers of the window's eye samples */
     contour_scratch **scratch; /* per worker */
     int32_t (**row_pixels)[2]; /* per worker: the pixels of one scanline job */
     pn_pixel_estimate **row_out;
@@ -1090,7 +1092,8 @@ static void scanline_job(void *user, size_t index, int worker) {
         px[i][1] = y;
     }
     /* A row is not one 8x8 block: contour draws its numbers per pixel and ignores block_x/y. */
-    pn_batch batch = {sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px, 0, NULL, 0, NULL, NULL, NULL};
+    /* Its eye hits come through the driver's tracers (the window's). */
+    pn_batch batch = pn_batch_part(sj->window, sj->row_x0 / 8, y / 8, sj->row_count, (const int32_t(*)[2])px);
     pn_status st = render_pixels(job, &batch, sj->row_out[worker], sj->scratch[worker], cam->x0, cam->x1);
     if (st != PN_OK) {
         atomic_store(&sj->failed, (int)st);
@@ -1102,14 +1105,15 @@ static void scanline_job(void *user, size_t index, int worker) {
     pn_progress_report(job->progress, (double)done / (double)(cam->y1 - cam->y0));
 }
 
-static pn_status contour_render_image(const pn_render_job *job, struct pn_threadpool *pool, pn_pixel_estimate *pixels,
-                                      int width, int height) {
+static pn_status contour_render_image(const pn_render_job *job, struct pn_threadpool *pool, const pn_batch *window,
+                                      pn_pixel_estimate *pixels, int width, int height) {
     const pn_camera *cam = &job->camera;
     const int S = (int)job->contour_span;
     int workers = pn_threadpool_size(pool);
     scanline_jobs sj;
     memset(&sj, 0, sizeof sj);
     sj.job = job;
+    sj.window = window;
     sj.pixels = pixels;
     sj.width = width;
     sj.row_x0 = cam->x0 / S * S;

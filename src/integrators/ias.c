@@ -570,6 +570,8 @@ static void *ias_scratch_create(const pn_render_job *job) {
 /* Every IAS_TIMING_STRIDE-th ray has its Embree call timed; the sum, scaled by the stride,
  * estimates the time spent in Embree (as the reference integrator does). */
 #define IAS_TIMING_STRIDE 8u
+/* Eye rays read from the batch at once when the driver's in-advance hits do not hold them. */
+#define IAS_EYE_CHUNK 16u
 
 static int normal_class(vec3 n) {
     float ax = fabsf(n.x), ay = fabsf(n.y), az = fabsf(n.z);
@@ -1424,7 +1426,8 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     const float pixel_angle =
         2.0f * job->camera.tan_half_fov /
         (float)(job->camera.full_width < job->camera.full_height ? job->camera.full_width : job->camera.full_height);
-    uint32_t eye_index = 0;
+    if (batch->hits_stride != sh->aa_rays) return PN_ERROR_INTERNAL; /* not the driver's ias_batch_hits */
+    pn_eye_hit eye_chunk[IAS_EYE_CHUNK];
 
     /* Points and antialiasing regions (§4.4). */
     for (int pi = 0; pi < np; pi++) {
@@ -1432,23 +1435,20 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         memset(px, 0, offsetof(ias_pixel, stats));
         memset(px->stats, 0, sizeof px->stats);
         px->first_region = s->region_count;
-        int x = batch->pixels[pi][0], y = batch->pixels[pi][1];
         memset(&out[pi], 0, sizeof out[pi]);
         out[pi].depth = INFINITY;
         vec3 emitted = v3(0, 0, 0);
+        /* The pixel's eye rays, traced by the driver: its share of the block's sequence
+         * (render/batch.h, PN_EYE_SEQ_IAS_BLOCK), IAS_EYE_CHUNK at a time. */
+        const pn_eye_hit *hits = NULL;
         for (uint32_t r = 0; r < sh->aa_rays; r++) {
-            uint32_t i = eye_index++;
-            float rx, ry, fw;
-            pn_camera_filter_sample(&job->camera, x, y, pn_sobol_sample(i, 0, scramble),
-                                    pn_sobol_sample(i, 1, scramble), &rx, &ry, &fw);
-            vec3 ro, rd;
-            pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), &ro,
-                          &rd);
-            pn_eye_path path;
-            bool timed = i % IAS_TIMING_STRIDE == 0u;
-            double t0 = timed ? pn_clock_seconds() : 0.0;
-            pn_trace_eye_path(job, ro, rd, pn_sobol_sample(i, 4, scramble), &path);
-            if (timed) px->embree_seconds += (pn_clock_seconds() - t0) * IAS_TIMING_STRIDE;
+            if (r % IAS_EYE_CHUNK == 0)
+                hits = pn_batch_eye_hits(job, batch, pi, PN_EYE_SEQ_IAS_BLOCK, r,
+                                         sh->aa_rays - r < IAS_EYE_CHUNK ? sh->aa_rays - r : IAS_EYE_CHUNK, eye_chunk);
+            const pn_eye_hit *h = &hits[r % IAS_EYE_CHUNK];
+            const float rx = h->raster_x, ry = h->raster_y, fw = h->weight;
+            pn_eye_path path = h->path;
+            px->embree_seconds += (double)h->seconds * IAS_TIMING_STRIDE; /* 0 unless timed */
             if (r == 0) {
                 out[pi].depth = path.first_depth;
                 out[pi].normal = path.first_normal;
@@ -1460,7 +1460,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             if (!v3_is_zero(path.emitted)) px->emit_hits++;
             if (!path.has_point) continue;
             pn_bsdf b;
-            pn_bsdf_at(job->scene, &path.hit, path.wo, &b);
+            pn_eye_hit_bsdf(job, h, &b);
             /* Join a region of this pixel: same material, same plane, within its radius. */
             ias_region *join = NULL;
             for (int k = 0; k < px->region_count; k++) {
@@ -1547,8 +1547,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             if (!pn_ias_emitter_edge(batch->pixels, s->emit_hits, sh->aa_rays, np, pi)) continue;
             vec3 e = v3_scale(px->emitted, (float)px->weight_sum);
             double w = px->weight_sum;
-            uint32_t calls = pn_ias_emitter_rays(job, batch->pixels[pi][0], batch->pixels[pi][1],
-                                                 sh->emitter_rays - sh->aa_rays, &e, &w);
+            uint32_t calls = pn_ias_emitter_rays(job, batch, pi, sh->emitter_rays - sh->aa_rays, &e, &w);
             px->emitted = w != 0.0 ? v3_scale(e, (float)(1.0 / w)) : v3(0, 0, 0);
             out[pi].eye_rays += sh->emitter_rays - sh->aa_rays;
             out[pi].specular_rays += calls - (sh->emitter_rays - sh->aa_rays);
@@ -1683,6 +1682,11 @@ static void ias_report(const pn_render_job *job, pn_render_stats *stats) {
     stats->env_regions_visible_viewpoint = regions;
 }
 
+/* The eye rays every pixel takes (all of its eye rays), which the drivers trace in advance. */
+static uint32_t ias_batch_hits(const pn_render_job *job) {
+    return ias_eye_rays(job, job->ias_variant == PN_IAS_VARIANT_PAPER);
+}
+
 const pn_integrator pn_integrator_ias = {
     .name = "ias",
     .prepare = ias_prepare,
@@ -1691,4 +1695,6 @@ const pn_integrator pn_integrator_ias = {
     .scratch_create = ias_scratch_create,
     .scratch_free = ias_scratch_free,
     .render_batch = ias_render_batch,
+    .batch_hits = ias_batch_hits,
+    .batch_hits_seq = PN_EYE_SEQ_IAS_BLOCK,
 };

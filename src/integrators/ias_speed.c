@@ -66,21 +66,21 @@ bool pn_ias_emitter_edge(const int32_t (*xy)[2], const uint32_t *hits, uint32_t 
     return hit && miss;
 }
 
-uint32_t pn_ias_emitter_rays(const pn_render_job *job, int x, int y, uint32_t count, vec3 *emitted,
+uint32_t pn_ias_emitter_rays(const pn_render_job *job, const pn_batch *batch, int pi, uint32_t count, vec3 *emitted,
                              double *weight_sum) {
-    const uint32_t scramble = pn_pixel_scramble(job, x, y) ^ 0x5eedu;
+    enum { CHUNK = 16 };
+    pn_eye_hit buf[CHUNK];
     uint32_t calls = 0;
     vec3 e = v3(0, 0, 0);
     double w = 0.0;
-    for (uint32_t i = 0; i < count; i++) {
-        vec3 o, d;
-        float fw, u_specular;
-        pn_pixel_eye_sample(job, x, y, scramble, i, &o, &d, &fw, &u_specular);
-        pn_eye_path path;
-        pn_trace_eye_path(job, o, d, u_specular, &path);
-        calls += path.rays;
-        if (v3_is_finite(path.emitted)) e = v3_madd(e, path.emitted, fw);
-        w += (double)fw;
+    for (uint32_t i = 0; i < count; i += CHUNK) {
+        uint32_t n = count - i < CHUNK ? count - i : CHUNK;
+        const pn_eye_hit *h = pn_batch_eye_hits(job, batch, pi, PN_EYE_SEQ_IAS_EMITTER, i, n, buf);
+        for (uint32_t k = 0; k < n; k++) {
+            calls += h[k].path.rays;
+            if (v3_is_finite(h[k].path.emitted)) e = v3_madd(e, h[k].path.emitted, h[k].weight);
+            w += (double)h[k].weight;
+        }
     }
     *emitted = v3_add(*emitted, e);
     *weight_sum += w;

@@ -11,7 +11,7 @@
 #define PN_INTEGRATORS_IAS_SPEED_H
 
 #include "lights/cluster_tree.h"
-#include "render/render_job.h"
+#include "render/batch.h"
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -35,10 +35,12 @@ void pn_ias_prior_pdf(const double *prior, int count, double *out);
  * (hits[k] > 0) and one that did not (hits[k] < rays). */
 bool pn_ias_emitter_edge(const int32_t (*xy)[2], const uint32_t *hits, uint32_t rays, int count, int self);
 
-/* `count` eye rays of full-image pixel (x, y) for the emitted term only, independent of ias's
- * block sequence (the reference's per-pixel convention, pn_pixel_eye_sample, under a scramble of
- * their own): adds their filter-weighted emission to *emitted and their filter weights to
- * *weight_sum; returns the number of intersect calls. */
-uint32_t pn_ias_emitter_rays(const pn_render_job *job, int x, int y, uint32_t count, vec3 *emitted, double *weight_sum);
+/* `count` eye rays of batch pixel pi for the emitted term only, read from the batch: samples 0..
+ * of sequence PN_EYE_SEQ_IAS_EMITTER (render/batch.h; the reference's per-pixel convention under
+ * a scramble of their own, independent of ias's block sequence). Adds their filter-weighted
+ * emission to *emitted and their filter weights to *weight_sum; returns the number of intersect
+ * calls. */
+uint32_t pn_ias_emitter_rays(const pn_render_job *job, const pn_batch *batch, int pi, uint32_t count, vec3 *emitted,
+                             double *weight_sum);
 
 #endif

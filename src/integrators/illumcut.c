@@ -4,7 +4,8 @@
  * visibility sampling (Algorithm 2, "IlluminationCut-Sampling").
  *
  * The whole image window is one batch: every eye sample of every pixel becomes a shading point
- * of one point tree (the tiled driver calls its render_image hook). A driver that hands
+ * of one point tree (the tiled driver calls its render_image hook; the points come through the
+ * driver's tracers of the window, render/batch.h). A driver that hands
  * out pixel sets gets one point tree per set (render_batch); a crop window's pixels therefore
  * differ slightly from the same pixels of the full image (other trees, other pairs), within the
  * error bound.
@@ -314,7 +315,7 @@ typedef struct ic_render {
     ic_sample *samples;
     pn_pixel_estimate *pixels;
     const int32_t (*coords)[2]; /* the batch's pixels, or NULL: the window in raster order */
-    const pn_batch *batch;      /* the batch (its driver-traced points, if any), or NULL */
+    const pn_batch *batch;      /* the driver's batch, or its window (coords NULL): the eye samples' source */
     int32_t count;              /* pixels */
     int width;                  /* of the window (coords == NULL) */
     uint32_t spp;
@@ -933,28 +934,30 @@ static void eye_chunk(void *user, size_t chunk, int worker) {
     ic_render *ir = ((ic_eye_job *)user)->ir;
     const pn_render_job *job = ir->job;
     if (ic_cancelled(ir)) return;
+    size_t first = chunk * IC_EYE_CHUNK;
     size_t end = (chunk + 1) * IC_EYE_CHUNK < (size_t)ir->count ? (chunk + 1) * IC_EYE_CHUNK : (size_t)ir->count;
-    for (size_t pix = chunk * IC_EYE_CHUNK; pix < end; pix++) {
-        int px, py;
-        if (ir->coords) {
-            px = ir->coords[pix][0];
-            py = ir->coords[pix][1];
-        } else {
-            px = job->camera.x0 + (int)(pix % (size_t)ir->width);
-            py = job->camera.y0 + (int)(pix / (size_t)ir->width);
+    /* The eye samples come from the driver: its batch's, or for the window in raster order
+     * through a batch of this chunk's pixels with the window's tracers (render/batch.h). */
+    const pn_batch *from = ir->batch;
+    size_t base = 0;
+    int32_t xy[IC_EYE_CHUNK][2];
+    pn_batch part;
+    if (!ir->coords) {
+        for (size_t pix = first; pix < end; pix++) {
+            xy[pix - first][0] = job->camera.x0 + (int)(pix % (size_t)ir->width);
+            xy[pix - first][1] = job->camera.y0 + (int)(pix / (size_t)ir->width);
         }
+        part = pn_batch_part(ir->batch, 0, 0, (int)(end - first), (const int32_t(*)[2])xy);
+        from = &part;
+        base = first;
+    }
+    for (size_t pix = first; pix < end; pix++) {
         pn_pixel_estimate *o = &ir->pixels[pix];
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
         for (uint32_t s = 0; s < ir->spp; s++) {
             pn_shading_point sp;
-            if (ir->batch) {
-                pn_batch_eye_point(job, ir->batch, (int)pix, s, &sp, o);
-            } else {
-                pn_batch_point pt;
-                pn_eye_point_trace(job, px, py, s, &pt);
-                pn_eye_point_apply(&pt, s, &sp, o);
-            }
+            pn_batch_eye_point(job, from, (int)(pix - base), s, &sp, o);
             ic_sample *smp = &ir->samples[pix * ir->spp + s];
             smp->emitted = pn_swl_rgb(&sp.r.wl, sp.emitted); /* spectral mode: to sRGB here */
             smp->throughput = sp.throughput;
@@ -1133,9 +1136,9 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
     return PN_OK;
 }
 
-static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *pool, pn_pixel_estimate *pixels,
-                                       int width, int height) {
-    return illumcut_render_pixels(job, pool, NULL, NULL, (int32_t)width * height, width, pixels);
+static pn_status illumcut_render_image(const pn_render_job *job, pn_threadpool *pool, const pn_batch *window,
+                                       pn_pixel_estimate *pixels, int width, int height) {
+    return illumcut_render_pixels(job, pool, window, NULL, (int32_t)width * height, width, pixels);
 }
 
 static pn_status illumcut_prepare(pn_render_job *job, pn_err *err) {
@@ -1157,7 +1160,7 @@ const pn_integrator pn_integrator_illumcut = {
     .report = pn_vpl_report,
     .render_batch = illumcut_render_batch,
     .render_image = illumcut_render_image,
-    .batch_points = pn_vpl_batch_points, /* batches only: the whole-image path traces its own */
+    .batch_points = pn_vpl_batch_points, /* batches only: the whole-image path reads its points one by one */
 };
 
 /* ---- for the tests ------------------------------------------------------------------------ */

@@ -11,6 +11,8 @@
 #include "shade/bsdf.h"
 #include "spectral/transport.h"
 
+#include <assert.h>
+#include <math.h>
 #include <string.h>
 
 void pn_trace_eye_path(const pn_render_job *job, vec3 o, vec3 d, float u_specular, pn_eye_path *path) {
@@ -106,21 +108,31 @@ uint32_t pn_pixel_scramble(const pn_render_job *job, int px, int py) {
     return (uint32_t)pn_hash3(job->seed, (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
 }
 
-void pn_pixel_eye_sample(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, vec3 *o, vec3 *d,
-                         float *fw, float *u_specular) {
-    float rx, ry;
-    pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble), &rx,
-                            &ry, fw);
-    pn_camera_ray(&job->camera, rx, ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), o, d);
+/* pn_pixel_eye_sample, with the camera ray's point on the film. */
+static void eye_sample(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, float *rx, float *ry,
+                       vec3 *o, vec3 *d, float *fw, float *u_specular) {
+    pn_camera_filter_sample(&job->camera, px, py, pn_sobol_sample(i, 0, scramble), pn_sobol_sample(i, 1, scramble), rx,
+                            ry, fw);
+    pn_camera_ray(&job->camera, *rx, *ry, pn_sobol_sample(i, 2, scramble), pn_sobol_sample(i, 3, scramble), o, d);
     *u_specular = pn_sobol_sample(i, 4, scramble);
 }
 
-static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, pn_eye_hit *out);
+void pn_pixel_eye_sample(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, vec3 *o, vec3 *d,
+                         float *fw, float *u_specular) {
+    float rx, ry;
+    eye_sample(job, px, py, scramble, i, &rx, &ry, o, d, fw, u_specular);
+}
+
+static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scramble, bool spectral, uint32_t i,
+                      pn_eye_hit *out);
+
+/* A missing eye sample (render/batch.h: a batch without the tracer its integrator reads). */
+static void unsupplied(void);
 
 /* The VPL receiver form of an eye hit of the VPL sequence (the same tracer as every eye hit). */
 void pn_eye_point_trace(const pn_render_job *job, int px, int py, uint32_t i, pn_batch_point *out) {
     pn_eye_hit h;
-    trace_hit(job, px, py, pn_eye_sequence_scramble(job, PN_EYE_SEQ_VPL, px, py), i, &h);
+    trace_hit(job, px, py, pn_eye_sequence_scramble(job, PN_EYE_SEQ_VPL, px, py), true, i, &h);
     const pn_eye_path *path = &h.path;
     memset(out, 0, sizeof *out);
     out->rays = path->rays;
@@ -164,7 +176,15 @@ void pn_batch_eye_point(const pn_render_job *job, const pn_batch *batch, int pi,
         return;
     }
     pn_batch_point pt;
-    pn_eye_point_trace(job, batch->pixels[pi][0], batch->pixels[pi][1], i, &pt);
+    if (batch->more_points) {
+        batch->more_points(job, batch, pi, i, 1, &pt);
+    } else {
+        unsupplied();
+        memset(&pt, 0, sizeof pt);
+        pt.rays = 1;
+        pt.first_depth = INFINITY;
+        pt.sp.emitted = v3(NAN, NAN, NAN);
+    }
     pn_eye_point_apply(&pt, i, sp, est);
 }
 
@@ -175,29 +195,55 @@ void pn_batch_trace_points(const pn_render_job *job, int count, const int32_t (*
             pn_eye_point_trace(job, pixels[k][0], pixels[k][1], s, &out[(size_t)k * per_pixel + s]);
 }
 
+void pn_batch_more_points(const pn_render_job *job, const pn_batch *batch, int pi, uint32_t first, uint32_t count,
+                          pn_batch_point *out) {
+    for (uint32_t k = 0; k < count; k++)
+        pn_eye_point_trace(job, batch->pixels[pi][0], batch->pixels[pi][1], first + k, &out[k]);
+}
+
 /* ---- eye hits (render/batch.h) ------------------------------------------------------------- */
 
+static void unsupplied(void) {
+    assert(!"a batch without the driver's tracer of the eye samples its integrator reads");
+}
+
+/* ias's sequences are traced in RGB (render/batch.h). */
+static bool sequence_spectral(pn_eye_sequence seq) {
+    return seq != PN_EYE_SEQ_IAS_BLOCK && seq != PN_EYE_SEQ_IAS_EMITTER;
+}
+
 uint32_t pn_eye_sequence_scramble(const pn_render_job *job, pn_eye_sequence seq, int px, int py) {
+    assert(seq != PN_EYE_SEQ_IAS_BLOCK);
     if (seq == PN_EYE_SEQ_VPL)
         return (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x76706c), (uint64_t)(uint32_t)px, (uint64_t)(uint32_t)py);
     uint32_t a = pn_pixel_scramble(job, px, py);
     if (seq == PN_EYE_SEQ_CROSS_B) return (uint32_t)pn_hash3(job->seed ^ UINT64_C(0x9e3779b97f4a7c15), (uint64_t)a, 1u);
+    if (seq == PN_EYE_SEQ_IAS_EMITTER) return a ^ 0x5eedu;
     return a;
 }
 
+uint32_t pn_batch_sequence_scramble(const pn_render_job *job, const pn_batch *batch, int pi, pn_eye_sequence seq) {
+    if (seq == PN_EYE_SEQ_IAS_BLOCK)
+        return (uint32_t)pn_hash3(job->seed ^ 0x1a5ull, (uint64_t)(uint32_t)batch->block_x,
+                                  (uint64_t)(uint32_t)batch->block_y);
+    return pn_eye_sequence_scramble(job, seq, batch->pixels[pi][0], batch->pixels[pi][1]);
+}
+
 /* Sample i of the sequence `scramble`: the camera ray first, then, timed on every
- * PN_EYE_TIMING_STRIDE-th sample, the wavelengths and the specular chain; the BSDF last. */
-static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scramble, uint32_t i, pn_eye_hit *out) {
-    float fw, u_specular;
+ * PN_EYE_TIMING_STRIDE-th sample, the wavelengths (in spectral mode, when `spectral`) and the
+ * specular chain; the BSDF last. */
+static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scramble, bool spectral, uint32_t i,
+                      pn_eye_hit *out) {
+    float fw, u_specular, rx, ry;
     vec3 ro, rd;
-    pn_pixel_eye_sample(job, px, py, scramble, i, &ro, &rd, &fw, &u_specular);
+    eye_sample(job, px, py, scramble, i, &rx, &ry, &ro, &rd, &fw, &u_specular);
     const bool timed = i % PN_EYE_TIMING_STRIDE == 0u;
     /* Traced on the stack and stored after the clock stops: the timed part is the trace, not the
      * stores into the batch's hits (a buffer of up to PN_BATCH_HITS_MAX, mostly out of cache). */
     pn_swl wl_storage;
     pn_eye_path path;
     double t_start = timed ? pn_clock_seconds() : 0.0;
-    const pn_swl *wl = pn_eye_wavelengths(job, scramble, i, &wl_storage);
+    const pn_swl *wl = spectral ? pn_eye_wavelengths(job, scramble, i, &wl_storage) : NULL;
     pn_trace_eye_path_spectral(job, ro, rd, u_specular, wl, &path);
     out->seconds = timed ? (float)(pn_clock_seconds() - t_start) : 0.0f;
     out->path = path;
@@ -209,6 +255,8 @@ static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scrambl
     out->scramble = scramble;
     out->index = i;
     out->weight = fw;
+    out->raster_x = rx;
+    out->raster_y = ry;
     if (out->path.has_point)
         pn_bsdf_at_spectral(job->scene, &out->path.hit, out->path.wo, wl, &out->bsdf);
     else
@@ -219,12 +267,16 @@ static void trace_hit(const pn_render_job *job, int px, int py, uint32_t scrambl
 void pn_eye_hits_trace(const pn_render_job *job, int px, int py, pn_eye_sequence seq, uint32_t first, uint32_t count,
                        pn_eye_hit *out) {
     uint32_t scramble = pn_eye_sequence_scramble(job, seq, px, py);
-    for (uint32_t k = 0; k < count; k++) trace_hit(job, px, py, scramble, first + k, &out[k]);
+    for (uint32_t k = 0; k < count; k++) trace_hit(job, px, py, scramble, sequence_spectral(seq), first + k, &out[k]);
 }
 
 void pn_batch_more_hits(const pn_render_job *job, const pn_batch *batch, int pi, pn_eye_sequence seq, uint32_t first,
                         uint32_t count, pn_eye_hit *out) {
-    pn_eye_hits_trace(job, batch->pixels[pi][0], batch->pixels[pi][1], seq, first, count, out);
+    uint32_t scramble = pn_batch_sequence_scramble(job, batch, pi, seq);
+    uint32_t base = seq == PN_EYE_SEQ_IAS_BLOCK ? (uint32_t)pi * batch->hits_stride : 0u;
+    for (uint32_t k = 0; k < count; k++)
+        trace_hit(job, batch->pixels[pi][0], batch->pixels[pi][1], scramble, sequence_spectral(seq), base + first + k,
+                  &out[k]);
 }
 
 uint32_t pn_batch_hits_in_advance(uint32_t asked, int count) {
@@ -239,23 +291,68 @@ void pn_batch_trace_hits(const pn_render_job *job, int count, const int32_t (*pi
         pn_eye_hits_trace(job, pixels[k][0], pixels[k][1], PN_EYE_SEQ_PIXEL, 0, per_pixel, &out[(size_t)k * per_pixel]);
 }
 
+void pn_batch_set_tracers(pn_batch *batch) {
+    batch->more_hits = pn_batch_more_hits;
+    batch->more_points = pn_batch_more_points;
+}
+
+void pn_batch_supply(const pn_render_job *job, const pn_integrator *integ, pn_batch *batch, pn_batch_point *points,
+                     pn_eye_hit *hits) {
+    pn_batch_set_tracers(batch);
+    uint32_t per_point = integ->batch_points ? integ->batch_points(job) : 0;
+    if (per_point > 0) {
+        pn_batch_trace_points(job, batch->count, batch->pixels, per_point, points);
+        batch->points_per_pixel = per_point;
+        batch->points = points;
+    }
+    if (!integ->batch_hits) return;
+    const uint32_t asked = integ->batch_hits(job);
+    batch->hits_seq = integ->batch_hits_seq;
+    batch->hits_stride = asked;
+    uint32_t per = pn_batch_hits_in_advance(asked, batch->count);
+    if (per == 0) return;
+    for (int k = 0; k < batch->count; k++)
+        pn_batch_more_hits(job, batch, k, batch->hits_seq, 0, per, &hits[(size_t)k * per]);
+    batch->hits_per_pixel = per;
+    batch->hits = hits;
+}
+
+pn_batch pn_batch_part(const pn_batch *from, int block_x, int block_y, int count, const int32_t (*pixels)[2]) {
+    return (pn_batch){.block_x = block_x,
+                      .block_y = block_y,
+                      .count = count,
+                      .pixels = pixels,
+                      .more_hits = from->more_hits,
+                      .more_user = from->more_user,
+                      .more_points = from->more_points};
+}
+
 const pn_eye_hit *pn_batch_eye_hits(const pn_render_job *job, const pn_batch *batch, int pi, pn_eye_sequence seq,
                                     uint32_t first, uint32_t count, pn_eye_hit *buf) {
-    uint32_t have = seq == PN_EYE_SEQ_PIXEL && batch->hits ? batch->hits_per_pixel : 0;
+    uint32_t have = seq == batch->hits_seq && batch->hits ? batch->hits_per_pixel : 0;
     const pn_eye_hit *mine = have ? &batch->hits[(size_t)pi * have] : NULL;
     if (first + count <= have) return mine + first;
     uint32_t from_advance = first < have ? have - first : 0;
     if (from_advance) memcpy(buf, mine + first, from_advance * sizeof *buf);
     uint32_t rest_first = first + from_advance, rest = count - from_advance;
-    if (batch->more_hits)
+    if (batch->more_hits) {
         batch->more_hits(job, batch, pi, seq, rest_first, rest, buf + from_advance);
-    else
-        pn_batch_more_hits(job, batch, pi, seq, rest_first, rest, buf + from_advance);
+        return buf;
+    }
+    unsupplied();
+    for (uint32_t k = from_advance; k < count; k++) {
+        pn_eye_hit *h = &buf[k];
+        memset(h, 0, sizeof *h);
+        h->path.emitted = v3(NAN, NAN, NAN);
+        h->path.rays = 1;
+        h->path.first_depth = INFINITY;
+        h->index = first + k;
+    }
     return buf;
 }
 
 const pn_swl *pn_eye_hit_wavelengths(const pn_render_job *job, const pn_eye_hit *hit) {
-    return job->spectral ? &hit->wl : NULL;
+    return job->spectral && hit->wl.on ? &hit->wl : NULL;
 }
 
 void pn_eye_hit_bsdf(const pn_render_job *job, const pn_eye_hit *hit, pn_bsdf *out) {
