@@ -8,7 +8,9 @@
  * dark. Measured here (T = 0.01, seed 1, reference 256 spp): ratio 0.481 with that prior, 1.0023
  * with the prior's shares balanced between the tree and the environment map as pbrt-v4's BVH
  * sampler does (ias.c, balance_prior); the cluster trees' cut (uniform prior) 1.0040. The same
- * cause made living-env-138-matte 2.2% dark with the BVH cut. */
+ * cause made living-env-138-matte 2.2% dark with the BVH cut. The same room at T = 0.001 with the
+ * default cluster trees' cut tests ias-env-floor (stop 17): see
+ * test_env_floor_unbiased_sky_behind_closed_room. */
 #include "harness.h"
 
 #include "penumbra/penumbra.h"
