@@ -73,23 +73,29 @@ static const char *skylight_room(void) {
     return skylight_room_lights(true);
 }
 
-static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, double threshold,
-                       const char *cut) {
+/* A render with option pairs (NULL-terminated). */
+static pn_image render_opts(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, double threshold,
+                            uint64_t seed, int threads, const char *const *opts) {
     pn_render_settings s = {0};
-    pn_options o = pn_options_new();
-    s.options = o;
-    if (cut) CHECK(pn_options_set(ctx, o, "ias-cut", cut) == PN_OK);
+    s.options = pn_options_new();
+    for (int i = 0; opts && opts[i]; i += 2) CHECK(pn_options_set(ctx, s.options, opts[i], opts[i + 1]) == PN_OK);
     s.integrator = kind;
     s.spp = spp;
     s.threshold = threshold;
-    s.seed = 1;
-    s.threads = 1;
+    s.seed = seed;
+    s.threads = threads;
     pn_image img = NULL;
     pn_status st = pn_render(ctx, scene, &s, &img, NULL);
-    pn_options_free(o);
+    pn_options_free(s.options);
     if (st != PN_OK) fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
     CHECK(st == PN_OK);
     return st == PN_OK ? img : NULL;
+}
+
+static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, double threshold,
+                       const char *cut) {
+    const char *opts[] = {"ias-cut", cut, NULL};
+    return render_opts(ctx, scene, kind, spp, threshold, 1, 1, cut ? opts : NULL);
 }
 
 static double mean_luminance(pn_image img) {
@@ -132,25 +138,6 @@ static void test_bvh_cut_unbiased_with_hidden_lights_and_sky(void) {
     CHECK(rmdir(tmpdir) == 0);
 }
 
-/* A render with option pairs (NULL-terminated), 2 threads. */
-static pn_image render_opts(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, double threshold,
-                            uint64_t seed, const char *const *opts) {
-    pn_render_settings s = {0};
-    s.options = pn_options_new();
-    for (int i = 0; opts && opts[i]; i += 2) CHECK(pn_options_set(ctx, s.options, opts[i], opts[i + 1]) == PN_OK);
-    s.integrator = kind;
-    s.spp = spp;
-    s.threshold = threshold;
-    s.seed = seed;
-    s.threads = 2;
-    pn_image img = NULL;
-    pn_status st = pn_render(ctx, scene, &s, &img, NULL);
-    pn_options_free(s.options);
-    if (st != PN_OK) fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
-    CHECK(st == PN_OK);
-    return st == PN_OK ? img : NULL;
-}
-
 /* ias's default (cluster trees' cut) at T = 0.001 in the same room, against a converged render
  * of the room without the boxed point lights (they light nothing, so it is the same image, and
  * the reference integrator's sky samples are not wasted on them: 1024 spp, its two seeds 0.07%
@@ -163,7 +150,7 @@ static double sky_ratio(pn_context ctx, pn_scene scene, double ref, const char *
     const char *opts[] = {"ias-env-floor", floor, NULL};
     double sum = 0.0;
     for (uint64_t seed = 1; seed <= 2; seed++) {
-        pn_image img = render_opts(ctx, scene, PN_INTEGRATOR_IAS, 0, 0.001, seed, opts);
+        pn_image img = render_opts(ctx, scene, PN_INTEGRATOR_IAS, 0, 0.001, seed, 2, opts);
         if (img) sum += mean_luminance(img) / ref;
         pn_image_free(img);
     }
@@ -183,7 +170,7 @@ static void test_env_floor_unbiased_sky_behind_closed_room(void) {
     CHECK(path[0] && pn_scene_load(ctx, path, &scene) == PN_OK);
     CHECK(sky[0] && pn_scene_load(ctx, sky, &sky_scene) == PN_OK);
     if (scene && sky_scene) {
-        pn_image refimg = render_opts(ctx, sky_scene, PN_INTEGRATOR_REFERENCE, 1024, 0.0, 1000, NULL);
+        pn_image refimg = render_opts(ctx, sky_scene, PN_INTEGRATOR_REFERENCE, 1024, 0.0, 1000, 2, NULL);
         const double ref = refimg ? mean_luminance(refimg) : 1.0;
         pn_image_free(refimg);
         const double with = sky_ratio(ctx, scene, ref, "2"), without = sky_ratio(ctx, scene, ref, "0");
