@@ -98,15 +98,17 @@
  *  - ias-env-floor F (stop 17; 2 by default, 0 the paper's; trees cut only): in every pass an
  *    environment region keeps at least F times its pass-0 probability (c_U's PDF alone, the
  *    irradiance prior), renormalised (build_pdf). Reason: behind a mostly closed room the feedback
- *    gives the regions seen through a window almost nothing (pass 9's c_U is 0.05, spread over the
- *    cut: probabilities down to 3e-5), so their rare visible samples come with weights of 10^4 and
- *    more; eq. 7-8's weights, which include the pixel's own samples, and the own-variance stopping
- *    test suppress those passes, a firefly suppressor biased dark: living-env-138-matte -0.132% at
- *    T = 0.001 (8 seeds, crop 0.45-0.55, 2048-spp reference), tests/test_ias_bvh_prior.c's closed
- *    room -2.2%. Effect: -0.044% (F = 1), -0.029% +- 0.003% (F = 2) at relMSE 4.8e-4 -> 3.2e-4 on
- *    living-env-138 for 1.76x the CPU (more passes: the stopping test now sees the variance floor
- *    0 hid); the closed room -0.28%; scenes without an environment map are unchanged bit for bit. With --adaptive-rule cross the floor also makes the unbiased test cheap there
- *    (living-env-138 at F = 2: relMSE 1.2e-3 -> 4.1e-4, +0.010% +- 0.004%; docs/adaptive-sampling.md). */
+ *    gives the regions seen through a window almost nothing (late passes' c_U is 0.05-0.1, spread
+ *    over a cut of some 350 clusters), so their rare visible samples carry weights 1/p in the
+ *    thousands; eq. 7-8's weights, which include the pixel's own samples, and the own-variance
+ *    stopping test suppress those passes and pixels, a firefly suppressor biased dark:
+ *    living-env-138-matte -0.132% at T = 0.001 (8 seeds, crop 0.45-0.55, 2048-spp reference),
+ *    tests/test_ias_bvh_prior.c's closed room -2.2%. Effect: -0.044% (F = 1), -0.029% +- 0.003%
+ *    (F = 2) on living-env-138, relMSE 4.8e-4 -> 3.2e-4, for 1.76x the CPU at F = 2 (more passes:
+ *    the stopping test now sees the variance that floor 0 hid); the closed room -0.28%; scenes
+ *    without an environment map are unchanged bit for bit. With --adaptive-rule cross the floor
+ *    also makes the unbiased test cheap there (living-env-138 at F = 2: relMSE 1.2e-3 -> 4.1e-4,
+ *    +0.010% +- 0.004%; docs/adaptive-sampling.md). */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
