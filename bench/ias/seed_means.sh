@@ -10,6 +10,8 @@
 # bench/ias/aa_converge.sh):
 #   sh bench/ias/seed_means.sh build/penumbra ../shared/scenes/hall-many/hall-many-matte.pbrt \
 #       OUT/hall-many-matte-ref2048-s1000.exr 8 --integrator ias --threshold 1e-7 --max-passes 4 --ias-aa-threshold 0
+# and the environment floor's (stop 17): living-env-138-matte, `--integrator ias --threshold 0.001`
+# with `--ias-env-floor 0`, `1`, `2` (the default), each also with `--adaptive-rule cross`.
 set -eu
 PN=$1
 SCENE=$2

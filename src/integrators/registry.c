@@ -258,6 +258,14 @@ static const pn_option_decl options[] = {
      F(ias_prior_share),
      PN_FIELD_F64,
      0},
+    {{"ias-env-floor", PN_OPTION_DOUBLE, "2", 0, 1000, 0, 0, "", "",
+      "default variant with the cluster trees' cut: in every pass an environment region keeps at least this times "
+      "its pass-0 probability, a defensive floor against the rare bright samples of regions the feedback gave up "
+      "(0: the paper's Fig. 2 weights alone)"},
+     BIT(M_IAS),
+     F(ias_env_floor),
+     PN_FIELD_F64,
+     0},
     {{"ias-emitter-rays", PN_OPTION_INT, "256", 0, 65536, 0, 0, "rays", "",
       "default variant: a pixel whose neighbours' eye rays saw an emitter's edge takes this many eye rays in all "
       "for what it sees directly (no shadow rays; the decision does not use the pixel's own rays, so it adds no "
