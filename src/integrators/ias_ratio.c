@@ -2,7 +2,6 @@
 #include "integrators/ias_ratio.h"
 
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -179,29 +178,6 @@ void pn_ias_ratio_pass(int mode, const pn_ias_ratio_sample *smp, int count, cons
         const double v = nk > 1.0 ? fmax(0.0, (zv2[k] - zv[k] * zv[k] / nk) / (nk - 1.0)) : 0.0;
         var += w * w * v / nk;
         total += n_of[k];
-    }
-    if (getenv("W15DBG")) {
-        static double tl, ta, tn, te, tea;
-        static long np;
-        double a = 0.0;
-        int ne = 0, nea = 0;
-        for (int k = 0; k < region_count; k++)
-            if (n_of[k])
-                for (int e = regions[k].cut_first; e < regions[k].cut_first + regions[k].cut_count; e++) {
-                    ne++;
-                    if (unshadowed[e].x >= 0.0f) {
-                        nea++;
-                        a += regions[k].weight * (double)v3_luminance(v3_mul(regions[k].m, unshadowed[e]));
-                    }
-                }
-        tl += L;
-        ta += a;
-        tn += den;
-        te += ne;
-        tea += nea;
-        np++;
-        if (np % 500 == 0)
-            fprintf(stderr, "L %g U %g MCden %g entries %g inA %g\n", tl / np, ta / np, tn / np, te / np, tea / np);
     }
     *lum = L;
     *rgb = c;
