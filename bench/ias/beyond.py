@@ -52,6 +52,10 @@ METHOD_ARGS = {
                 for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
     "ias-trees": [["--integrator", "ias", "--ias-cut", "trees", "--threshold", t]
                   for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # the default variant with the ratio estimator (ias_ratio.h) in each of its modes
+    **{f"ias-ratio-{mode}": [["--integrator", "ias", "--ias-ratio", mode, "--threshold", t]
+                             for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
+       for mode in ("off", "pixel", "cluster", "control")},
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):

@@ -274,6 +274,21 @@ static const pn_option_decl options[] = {
      F(ias_edge_rays),
      PN_FIELD_U32,
      0},
+    {{"ias-ratio", PN_OPTION_CHOICE, "off", 0, 0, 0, 0, "", "off,pixel,cluster,control",
+      "default variant, trees cut: where a light's (or small cluster's) unshadowed irradiance has a closed form, "
+      "the estimate takes it and the shadow rays only estimate the visible fraction (Heitz et al. 2018's ratio "
+      "estimator): 'pixel' (one ratio over the pixel's samples), 'cluster' (a ratio per cluster), 'control' (a "
+      "control variate with the block's visible fraction learned so far: unbiased), 'off' (the plain estimate)"},
+     BIT(M_IAS),
+     F(ias_ratio),
+     PN_FIELD_INT,
+     0},
+    {{"ias-ratio-members", PN_OPTION_INT, "1", 1, 4096, 0, 0, "lights", "",
+      "default variant with ias-ratio: most lights in a cluster whose closed form (the sum of its lights') is used"},
+     BIT(M_IAS),
+     F(ias_ratio_members),
+     PN_FIELD_U32,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},

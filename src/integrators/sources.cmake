@@ -4,6 +4,7 @@ list(APPEND PN_SOURCES
   src/integrators/reference.c
   src/integrators/ias_math.c
   src/integrators/ias_speed.c
+  src/integrators/ias_ratio.c
   src/integrators/ias.c
   src/integrators/vpl_common.c
   src/integrators/vpl.c

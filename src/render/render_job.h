@@ -76,17 +76,19 @@ typedef struct pn_render_job {
     uint32_t aa_rays, env_regions, max_passes;
     uint32_t block_size; /* pixels per side of the tiled driver's blocks (ias: its blocks) */
     /* ias, issue 15 (integrators/ias.c): the variant and the default variant's departures */
-    int ias_variant;         /* PN_IAS_VARIANT_* */
-    int ias_cut;             /* PN_IAS_CUT_* */
-    int ias_prior;           /* PN_IAS_PRIOR_* */
-    int ias_points;          /* PN_IAS_POINTS_* */
-    int ias_cluster_numbers; /* PN_IAS_NUMBERS_* */
-    uint32_t ias_cut_size;   /* nodes of a light-BVH cut */
-    uint32_t ias_pass_rays;  /* pass j takes (j + 1) times this; 0: the paper's 1.5 N_C >= 50 */
-    double ias_aa_threshold; /* below this threshold the eye rays grow as 1 / threshold; 0: off */
-    double ias_prior_share;  /* least weight of the prior in eq. 6's blend; 0: Fig. 2's weights */
-    double ias_env_floor;    /* environment regions keep this times their pass-0 probability; 0: off */
-    uint32_t ias_edge_rays;  /* ias-emitter-rays: eye rays next to emitter edges; 0: off */
+    int ias_variant;            /* PN_IAS_VARIANT_* */
+    int ias_cut;                /* PN_IAS_CUT_* */
+    int ias_prior;              /* PN_IAS_PRIOR_* */
+    int ias_points;             /* PN_IAS_POINTS_* */
+    int ias_cluster_numbers;    /* PN_IAS_NUMBERS_* */
+    uint32_t ias_cut_size;      /* nodes of a light-BVH cut */
+    uint32_t ias_pass_rays;     /* pass j takes (j + 1) times this; 0: the paper's 1.5 N_C >= 50 */
+    double ias_aa_threshold;    /* below this threshold the eye rays grow as 1 / threshold; 0: off */
+    double ias_prior_share;     /* least weight of the prior in eq. 6's blend; 0: Fig. 2's weights */
+    double ias_env_floor;       /* environment regions keep this times their pass-0 probability; 0: off */
+    uint32_t ias_edge_rays;     /* ias-emitter-rays: eye rays next to emitter edges; 0: off */
+    int ias_ratio;              /* ias-ratio: PN_IAS_RATIO_* (integrators/ias_ratio.h) */
+    uint32_t ias_ratio_members; /* ias-ratio-members: largest cluster given its closed form */
     /* reference */
     int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
     /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is
