@@ -13,28 +13,39 @@ S=$HERE/../shared/scenes
 mkdir -p "$OUT"
 STAIR=$S/staircase-832/staircase-832-matte.pbrt
 BATH=$S/bathroom-72/bathroom-72-matte.pbrt
-C="--crop 0.45,0.55,0.45,0.52 --threads 2 --quiet --spectral"
+C="--crop 0.45,0.55,0.45,0.52 --threads 2 --quiet --spectral" # no spaces in paths
+# One case a line: name, scene, arguments.
+cases() {
+    cat <<CASES
+reference   $STAIR $C --integrator reference --spp 4 --aov all
+ias         $STAIR $C --integrator ias
+contour     $STAIR $C --integrator contour --spp 4
+contour-mc  $STAIR $C --integrator contour-mc --spp 4
+vpl         $STAIR $C --integrator vpl --vpls 2000 --aov all
+lightcuts   $STAIR $C --integrator lightcuts --vpls 4000
+illumcut    $STAIR $C --integrator illumcut --vpls 4000
+dcm         $STAIR $C --driver dcm --spp 4
+bath-ref    $BATH $C --integrator reference --spp 4
+bath-ias    $BATH $C --integrator ias
+bath-lc     $BATH $C --integrator lightcuts --vpls 4000
+CASES
+}
 bad=0
-run() { # name scene args...
-    name=$1; scene=$2; shift 2
-    "$OLD" render "$scene" -o "$OUT/$name.old.exr" "$@" >/dev/null 2>"$OUT/$name.old.err"; a=$?
-    "$NEW" render "$scene" -o "$OUT/$name.new.exr" "$@" >/dev/null 2>"$OUT/$name.new.err"; b=$?
-    if [ $a -ne 0 ] || [ $b -ne 0 ]; then echo "FAILED     $name (exit $a / $b)"; bad=1
-    elif cmp -s "$OUT/$name.old.exr" "$OUT/$name.new.exr"; then echo "same       $name"
-    else echo "DIFFERENT  $name"; bad=1; fi
-}
-# shellcheck disable=SC2086
-{
-run reference   "$STAIR" $C --integrator reference --spp 4 --aov all
-run ias         "$STAIR" $C --integrator ias
-run contour     "$STAIR" $C --integrator contour --spp 4
-run contour-mc  "$STAIR" $C --integrator contour-mc --spp 4
-run vpl         "$STAIR" $C --integrator vpl --vpls 2000 --aov all
-run lightcuts   "$STAIR" $C --integrator lightcuts --vpls 4000
-run illumcut    "$STAIR" $C --integrator illumcut --vpls 4000
-run dcm         "$STAIR" $C --driver dcm --spp 4
-run bath-ref    "$BATH"  $C --integrator reference --spp 4
-run bath-ias    "$BATH"  $C --integrator ias
-run bath-lc     "$BATH"  $C --integrator lightcuts --vpls 4000
-}
+cases | while read -r name scene args; do
+    for which in old new; do
+        bin=$OLD; [ $which = new ] && bin=$NEW
+        # shellcheck disable=SC2086
+        "$bin" render "$scene" -o "$OUT/$name.$which.exr" $args >/dev/null 2>"$OUT/$name.$which.err" ||
+            echo "failed" >"$OUT/$name.$which.status"
+    done
+    if [ -e "$OUT/$name.old.status" ] || [ -e "$OUT/$name.new.status" ]; then
+        echo "FAILED     $name"
+    elif cmp -s "$OUT/$name.old.exr" "$OUT/$name.new.exr"; then
+        echo "same       $name"
+    else
+        echo "DIFFERENT  $name"
+    fi
+    rm -f "$OUT/$name.old.status" "$OUT/$name.new.status"
+done | tee "$OUT/summary.txt"
+grep -qv '^same' "$OUT/summary.txt" && bad=1
 exit $bad
