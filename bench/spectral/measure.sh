@@ -8,7 +8,7 @@
 #     on a one-pixel window (scene loading and preprocessing, the same in both modes).
 # The scenes' own film resolution (that of the references); veach-ajar-matte's centre is dark in
 # direct light, so its crop is the lit corner. usage:
-#   bench/spectral/measure.sh [BUILD_DIR] [OUT_DIR] [accuracy|cost|all]
+#   [METHODS="m1|m2"] bench/spectral/measure.sh [BUILD_DIR] [OUT_DIR] [accuracy|cost|all]
 set -eu
 here=$(cd "$(dirname "$0")/../.." && pwd)
 build=${1:-$here/build}
@@ -60,8 +60,14 @@ echo
 echo "## cost: staircase-832-matte (288x512), crop $TCROP, CPU seconds of the render (median of 3, minus a one-pixel window)"
 echo "| method | RGB (s) | spectral (s) | spectral / RGB |"
 echo "|---|---|---|---|"
-for m in "reference" "ias" "contour --spp 16" "contour-mc --spp 16" "vpl --vpls 4000" "lightcuts --vpls 20000" \
-         "illumcut --vpls 20000" "reference --driver dcm" "reference --driver painter" "reference --driver uniform"; do
+# METHODS (optional): a subset, "|"-separated, e.g. METHODS="ias|lightcuts --vpls 20000".
+all_methods="reference|ias|contour --spp 16|contour-mc --spp 16|vpl --vpls 4000|lightcuts --vpls 20000|\
+illumcut --vpls 20000|reference --driver dcm|reference --driver painter|reference --driver uniform"
+IFS='|'
+# shellcheck disable=SC2086
+set -- ${METHODS:-$all_methods}
+unset IFS
+for m in "$@"; do
     integ=${m%% *}; rest=""; [ "$integ" != "$m" ] && rest=${m#* }
     base="$pn render $SCENE -o $out/t.exr --threads 2 --quiet --integrator $integ $rest"
     for k in 1 2 3; do

@@ -507,7 +507,7 @@ int command_illuminance(int argc, char **argv) {
         double spectral = 0.0;
         int si = pn_option_find("spectral");
         if (si >= 0 && pn_options_is_set(o.options, si)) pn_options_get(o.options, si, &spectral, NULL, 0);
-        /* The integrator is checked by pn_illuminance_melanopic (reference only). */
+        /* The integrator is checked by pn_illuminance_melanopic (reference, vpl, lightcuts). */
         const char *why = spectral == 0.0 ? "needs --spectral (the melanopic EDI is integrated from the light's "
                                             "spectrum at sampled wavelengths, which RGB mode does not carry)"
                                           : NULL;

@@ -385,7 +385,8 @@ typedef struct ias_region {
      * PDF, so they are pooled with equal weights. */
     double lux_sum;
     unsigned lux_n;
-    vec3 ratio_m; /* ias-ratio: the mean over its points of share x throughput x kd / pi */
+    double mel_sum; /* PN_AOV_MELANOPIC_EDI: the same with the melanopic EDI (lux_n of them) */
+    vec3 ratio_m;   /* ias-ratio: the mean over its points of share x throughput x kd / pi */
 } ias_region;
 
 /* An eye ray's own shading point in its antialiasing region (members_points). */
@@ -1172,7 +1173,8 @@ static bool push_ratio_sample(ias_scratch *s, int region, int entry, vec3 v, vec
  * has clusters gets at least two per pass (for a variance) when count > 0. */
 static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_pixel *px, int pass,
                          unsigned count, uint32_t scramble, uint32_t *counter) {
-    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0;
+    const bool mel = (job->aovs & PN_AOV_MELANOPIC_EDI) != 0 && job->spectral;
+    const bool lux = (job->aovs & PN_AOV_ILLUMINANCE) != 0 || mel;
     const double wsum = px->region_weight;
     if (!(wsum > 0.0) || count == 0) return;
     /* Samples to regions by area: floor shares, the rest to the largest remainders. */
@@ -1295,6 +1297,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             }
             vec3 v = v3(0, 0, 0);
             double lux_v = 0.0; /* PN_AOV_ILLUMINANCE: the sample's illuminance on a white receiver */
+            float edi = 0.0f;   /* PN_AOV_MELANOPIC_EDI: the radiance's melanopic EDI, at its wavelengths */
             bool visible = false;
             if (ok && pdf > 0.0f) {
                 vec3 f = pn_bsdf_eval(bsdf, wo, wi);
@@ -1329,7 +1332,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                         }
                         /* Spectral mode: this sample's own wavelengths, converted back to sRGB here. */
                         vec3 fl = job->spectral ? pn_spectral_sample_value(job, bsdf, wo, wi, radiance, throughput,
-                                                                           light, q, scramble)
+                                                                           light, q, scramble, mel ? &edi : NULL)
                                                 : v3_mul(v3_mul(f, radiance), throughput);
                         v = v3_scale(fl, cos_i / pdf);
                         if (transmittance != 1.0f) v = v3_scale(v, transmittance);
@@ -1337,6 +1340,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                         if (lux)
                             lux_v = (double)pn_photometric(radiance) * (double)(cos_i / pdf * transmittance) *
                                     (pt ? (double)pt->share : 1.0);
+                        if (mel) edi *= cos_i / pdf * transmittance * (pt ? pt->share : 1.0f);
                     }
                 }
             }
@@ -1375,6 +1379,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             r->n++;
             if (lux) {
                 r->lux_sum += lux_v * w;
+                r->mel_sum += (double)edi * w;
                 r->lux_n++;
             }
         }
@@ -1803,12 +1808,14 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         out[pi].radiance = v3_is_finite(px->result) ? px->result : v3(0, 0, 0);
         out[pi].non_finite = v3_is_finite(px->result) ? 0u : 1u;
         /* PN_AOV_ILLUMINANCE: the regions' pooled estimates, weighted by area as the radiance. */
-        double lux = 0.0;
+        double lux = 0.0, mel = 0.0; /* PN_AOV_MELANOPIC_EDI: the same pooling */
         for (int k = 0; k < px->region_count; k++) {
             const ias_region *g = &s->regions[px->first_region + k];
             if (g->lux_n > 0) lux += g->weight * g->lux_sum / (double)g->lux_n;
+            if (g->lux_n > 0) mel += g->weight * g->mel_sum / (double)g->lux_n;
         }
         if (isfinite(lux)) out[pi].illuminance = (float)lux;
+        if (isfinite(mel)) out[pi].melanopic_edi = (float)mel;
         out[pi].emitted = v3_is_finite(px->result) && v3_is_finite(px->emitted) ? px->emitted : v3(0, 0, 0);
         out[pi].shadow_rays = px->shadow_rays;
         out[pi].passes = (uint32_t)px->pass_count;

@@ -88,6 +88,7 @@
 #include "core/threadpool.h"
 #include "render/progress.h"
 #include "shade/bsdf.h"
+#include "spectral/melanopic.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -107,6 +108,7 @@ typedef struct ic_point {
     uint32_t shadow_rays;
     int32_t sample;
     double lux; /* PN_AOV_ILLUMINANCE: Phase II illuminance of the point's white Lambertian twin */
+    double mel; /* PN_AOV_MELANOPIC_EDI: the same twin's melanopic EDI, at the point's wavelengths */
 } ic_point;
 
 typedef struct ic_node {
@@ -554,6 +556,7 @@ typedef struct ic_rays {
     int32_t point[IC_QUEUE];
     vec3 c[IC_QUEUE];
     float e[IC_QUEUE];         /* PN_AOV_ILLUMINANCE: the same addition's illuminance (pair_lux) */
+    float m[IC_QUEUE];         /* PN_AOV_MELANOPIC_EDI: its melanopic EDI (pair_mel) */
     signed char ray[IC_QUEUE]; /* index into the rays, or -1 */
     vec3 o[IC_PACKET], d[IC_PACKET];
     float tmin[IC_PACKET], tmax[IC_PACKET];
@@ -581,6 +584,7 @@ static void rays_flush(const ic_render *ir, ic_rays *rb) {
         float t = rb->ray[i] < 0 ? 1.0f : visibility[rb->ray[i]];
         if (t > 0.0f) pts[rb->point[i]].L = v3_add(pts[rb->point[i]].L, t == 1.0f ? rb->c[i] : v3_scale(rb->c[i], t));
         if (t > 0.0f && rb->e[i] != 0.0f) pts[rb->point[i]].lux += (double)(t * rb->e[i]);
+        if (t > 0.0f && rb->m[i] != 0.0f) pts[rb->point[i]].mel += (double)(t * rb->m[i]);
     }
     rb->n = rb->nr = 0;
 }
@@ -598,13 +602,27 @@ static float pair_lux(const ic_render *ir, const ic_point *p, const pn_light_nod
                                                      ir->d->set.min_dist2, &wi, &dist));
 }
 
-/* Queues c (and its illuminance e) for point i (no ray). Adding zero changes no sum, so it is
- * not queued. */
-static void add_queued(const ic_render *ir, ic_rays *rb, int32_t i, vec3 c, float e) {
+/* PN_AOV_MELANOPIC_EDI (spectral mode): the melanopic EDI of what cluster q gives the white twin
+ * of point p at p's wavelengths, unshadowed; 0 without the AOV. Added where pair_lux is. */
+static float pair_mel(const ic_render *ir, const ic_point *p, const pn_light_node *q) {
+    if (!(ir->job->aovs & PN_AOV_MELANOPIC_EDI) || !p->r.wl.on) return 0.0f;
+    pn_vpl_receiver white = pn_vpl_irradiance_receiver(&p->r);
+    white.wl = p->r.wl;
+    vec3 wi;
+    float dist;
+    return pn_swl_melanopic_edi_on(&p->r.wl,
+                                   pn_vpl_contribution_inline(ir->job->lights, &ir->d->set.vpls[q->rep], q->intensity,
+                                                              &white, ir->d->set.min_dist2, &wi, &dist));
+}
+
+/* Queues c (and its illuminance e and melanopic EDI m) for point i (no ray). Adding zero changes
+ * no sum, so it is not queued. */
+static void add_queued(const ic_render *ir, ic_rays *rb, int32_t i, vec3 c, float e, float m) {
     if (v3_is_zero(c)) return;
     rb->point[rb->n] = i;
     rb->c[rb->n] = c;
     rb->e[rb->n] = e;
+    rb->m[rb->n] = m;
     rb->ray[rb->n] = -1;
     if (++rb->n == IC_QUEUE) rays_flush(ir, rb);
 }
@@ -618,10 +636,10 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
                                         ir->d->set.min_dist2, &wi, &dist);
     if (v3_is_zero(c)) return;
     p->shadow_rays++;
-    const float e = pair_lux(ir, p, Q);
+    const float e = pair_lux(ir, p, Q), m = pair_mel(ir, p, Q);
     int k = rb->nr;
     if (!pn_vpl_shadow_ray(ir->job->accel, &p->r, dist, &rb->o[k], &rb->tmax[k])) {
-        add_queued(ir, rb, i, c, e);
+        add_queued(ir, rb, i, c, e, m);
         return;
     }
     rb->d[k] = wi;
@@ -629,6 +647,7 @@ static void shade_point_queued(const ic_render *ir, ic_rays *rb, int32_t i, cons
     rb->point[rb->n] = i;
     rb->c[rb->n] = c;
     rb->e[rb->n] = e;
+    rb->m[rb->n] = m;
     rb->ray[rb->n] = (signed char)k;
     rb->nr++;
     if (++rb->n == IC_QUEUE || rb->nr == IC_PACKET) rays_flush(ir, rb);
@@ -651,7 +670,9 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
     if (!ir->job->visibility_sampling || (Q->left < 0 && !leaf_ok) || n < 8) {
         for (int32_t i = a; i < b; i++) {
             if (i == known && known_vis >= 0) {
-                if (known_vis == 1) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1), pair_lux(ir, &pts[i], Q));
+                if (known_vis == 1)
+                    add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1), pair_lux(ir, &pts[i], Q),
+                               pair_mel(ir, &pts[i], Q));
                 continue; /* occluded: adds nothing */
             }
             shade_point_queued(ir, rb, i, Q);
@@ -703,7 +724,8 @@ static void adaptive_sampling(const ic_render *ir, ic_rays *rb, int32_t a, int32
         if (vis[k] == 0 || vis[k] == 2) occluded++;
     }
     if (visible > 0 && occluded == 0) {
-        for (int32_t i = a; i < b; i++) add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1), pair_lux(ir, &pts[i], Q));
+        for (int32_t i = a; i < b; i++)
+            add_queued(ir, rb, i, shade_point(ir, &pts[i], Q, 1), pair_lux(ir, &pts[i], Q), pair_mel(ir, &pts[i], Q));
     } else if (occluded > 0 && visible == 0) {
         return;
     } else {
@@ -1082,7 +1104,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
         size_t pix = (size_t)ip;
         pn_pixel_estimate *o = &pixels[pix];
         vec3 sum = v3(0, 0, 0), approx = v3(0, 0, 0);
-        double wsum = 0.0, lux = 0.0;
+        double wsum = 0.0, lux = 0.0, mel = 0.0;
         float bounds = 0.0f, pr = 0.0f;
         int pts = 0;
         for (uint32_t s = 0; s < ir.spp; s++) {
@@ -1094,6 +1116,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
                 a = v3_add(a, v3_mul(smp->throughput, p->approx));
                 o->shadow_rays += p->shadow_rays;
                 if (isfinite(p->lux)) lux += p->lux * (double)smp->weight;
+                if (isfinite(p->mel)) mel += p->mel * (double)smp->weight;
                 bounds += p->bounds;
                 pr += p->pairs;
                 pts++;
@@ -1111,6 +1134,7 @@ static pn_status illumcut_render_pixels(const pn_render_job *job, pn_threadpool 
             o->radiance = v3_scale(sum, (float)(1.0 / wsum));
             o->phase1 = v3_scale(approx, (float)(1.0 / wsum));
             o->illuminance = (float)(lux / wsum);
+            o->melanopic_edi = (float)(mel / wsum);
         }
         o->bound_evaluations = bounds;
         o->cut_size = pts ? pr / (float)pts : 0.0f;

@@ -14,6 +14,7 @@
 #include "core/photometry.h"
 
 #include "shade/bsdf.h"
+#include "spectral/melanopic.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -219,6 +220,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
     pn_lightcut_context cx = {job->lights,      job->accel,   &d->set,           &d->tree,
                               job->error_bound, job->max_cut, !job->opaque_glass};
     const uint32_t spp = pn_vpl_spp(job);
+    const bool mel = (job->aovs & PN_AOV_MELANOPIC_EDI) != 0 && job->spectral;
     uint64_t bounds_total = 0, cut_total = 0, points = 0;
     for (int pi = 0; pi < batch->count; pi++) {
         if (atomic_load(job->cancel)) break;
@@ -226,7 +228,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
         memset(o, 0, sizeof *o);
         o->depth = INFINITY;
         vec3 sum = v3(0, 0, 0);
-        double wsum = 0.0, lux_sum = 0.0;
+        double wsum = 0.0, lux_sum = 0.0, mel_sum = 0.0;
         uint64_t bounds = 0, cut = 0, pts = 0;
         for (uint32_t smp = 0; smp < spp; smp++) {
             pn_shading_point sp;
@@ -249,6 +251,18 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
                     float lx = pn_photometric(E);
                     if (isfinite(lx)) lux_sum += (double)lx * (double)sp.weight;
                 }
+                if (mel && sp.r.wl.on) {
+                    /* Melanopic EDI: the white receiver's lightcut at the eye sample's wavelengths
+                     * (its cut is the RGB one's: the stopping test uses RGB mode's total). */
+                    pn_vpl_receiver white_wl = pn_vpl_irradiance_receiver(&sp.r);
+                    white_wl.wl = sp.r.wl;
+                    vec3 E_wl;
+                    uint64_t b2 = 0, c2 = 0;
+                    if (!lightcut_point(&cx, s, &white_wl, &E_wl, &o->shadow_rays, &b2, &c2, NULL))
+                        return PN_ERROR_OUT_OF_MEMORY;
+                    float m = pn_swl_melanopic_edi_on(&sp.r.wl, E_wl);
+                    if (isfinite(m)) mel_sum += (double)m * (double)sp.weight;
+                }
             }
             value = pn_swl_rgb(&sp.r.wl, value); /* spectral mode: the sample's wavelengths to sRGB */
             if (!v3_is_finite(value)) {
@@ -260,6 +274,7 @@ static pn_status lc_render_batch(const pn_render_job *job, const pn_batch *batch
         }
         if (wsum != 0.0) o->radiance = v3_scale(sum, (float)(1.0 / wsum));
         if (wsum != 0.0) o->illuminance = (float)(lux_sum / wsum);
+        if (wsum != 0.0) o->melanopic_edi = (float)(mel_sum / wsum);
         o->bound_evaluations = (float)bounds;
         o->cut_size = pts ? (float)cut / (float)pts : 0.0f;
         bounds_total += bounds;

@@ -13,10 +13,13 @@
  * The VPL set is the render's (its clamp included: a VPL closer than the clamp distance is
  * counted at that distance, as in the image). Illuminance = Y of the irradiance (core/photometry.h, docs/units.md).
  *
- * Melanopic EDI (spectral mode, reference only): each of the spp samples draws 3 wavelengths
- * (pn_eye_wavelengths of the point's sequence) and its light samples' radiance at them
- * (pn_reference_direct_irradiance_wl); the EDI is pn_swl_melanopic_edi_on of that irradiance,
- * averaged as the illuminance is. The illuminance itself stays the RGB estimate, as in RGB mode. */
+ * Melanopic EDI (spectral mode): each of the spp samples (64 when spp is 0) draws 3 wavelengths
+ * (pn_eye_wavelengths of the point's sequence); reference: its light samples' radiance at them
+ * (pn_reference_direct_irradiance_wl); vpl: every VPL's irradiance at each sample's wavelengths,
+ * with the VPL's one shadow ray; lightcuts: a lightcut of the white receiver at each sample's
+ * wavelengths (the cut is the RGB receiver's, so the same for every sample). The EDI is the mean
+ * of pn_swl_melanopic_edi_on of those irradiances. The illuminance itself stays the RGB estimate,
+ * as in RGB mode. */
 #include "integrators/point_eval.h"
 
 #include "core/photometry.h"
@@ -35,7 +38,16 @@
 #define PN_POINT_SALT UINT64_C(0x6c75782d67726964)
 
 bool pn_point_melanopic_supported(const pn_integrator *integrator) {
-    return integrator == &pn_integrator_reference;
+    return pn_point_supported(integrator);
+}
+
+/* The melanopic EDI at points of the VPL integrators: the number of wavelength samples and the
+ * i-th sample's wavelengths (the reference's convention: the point's Sobol sequence). */
+static uint32_t point_wavelength_samples(const pn_render_job *job) {
+    return job->spp > 0 ? job->spp : 64u;
+}
+static uint32_t point_scramble(const pn_render_job *job, uint32_t index) {
+    return (uint32_t)pn_hash3(job->seed ^ PN_POINT_SALT, (uint64_t)index, 0u);
 }
 
 bool pn_point_supported(const pn_integrator *integrator) {
@@ -76,8 +88,8 @@ static bool reference_point(const pn_render_job *job, pn_reference_direct_scratc
     b.kd = v3(1, 1, 1);
     b.ng = b.ns = n;
     b.entering = true;
-    const uint32_t scramble = (uint32_t)pn_hash3(job->seed ^ PN_POINT_SALT, (uint64_t)index, 0u);
-    const uint32_t spp = job->spp > 0 ? job->spp : 64u;
+    const uint32_t scramble = point_scramble(job, index);
+    const uint32_t spp = point_wavelength_samples(job);
     double sum = 0.0, sum_mel = 0.0;
     for (uint32_t i = 0; i < spp; i++) {
         vec3 direct, irradiance = v3(0, 0, 0), irradiance_wl = v3(0, 0, 0);
@@ -99,10 +111,28 @@ static bool reference_point(const pn_render_job *job, pn_reference_direct_scratc
     return true;
 }
 
-static void vpl_point(const pn_render_job *job, vec3 p, vec3 n, double *lux) {
+/* The wavelength samples of point `index` as receivers: r with sample i's wavelengths in out[i]
+ * (NULL when out of memory). */
+static pn_vpl_receiver *wavelength_receivers(const pn_render_job *job, const pn_vpl_receiver *r, uint32_t index,
+                                             uint32_t count) {
+    pn_vpl_receiver *out = malloc((size_t)count * sizeof *out);
+    if (!out) return NULL;
+    const uint32_t scramble = point_scramble(job, index);
+    for (uint32_t i = 0; i < count; i++) {
+        out[i] = *r;
+        pn_eye_wavelengths(job, scramble, i, &out[i].wl);
+    }
+    return out;
+}
+
+static bool vpl_point(const pn_render_job *job, vec3 p, vec3 n, uint32_t index, double *lux, double *edi) {
     const pn_vpl_data *d = job->integrator_data;
     pn_vpl_receiver r = point_receiver(p, n);
+    const uint32_t nw = edi ? point_wavelength_samples(job) : 0u;
+    pn_vpl_receiver *rw = edi ? wavelength_receivers(job, &r, index, nw) : NULL;
+    if (edi && !rw) return false;
     vec3 e = v3(0, 0, 0);
+    double mel = 0.0;
     for (uint32_t k = 0; k < d->set.count; k++) {
         vec3 wi;
         float dist;
@@ -110,11 +140,18 @@ static void vpl_point(const pn_render_job *job, vec3 p, vec3 n, double *lux) {
         if (v3_is_zero(c)) continue;
         float t = pn_vpl_transmittance(job->accel, &r, wi, dist, !job->opaque_glass);
         if (t > 0.0f) e = v3_madd(e, c, t);
+        for (uint32_t i = 0; i < nw && t > 0.0f; i++) {
+            vec3 cw = pn_vpl_contribution(job->lights, &d->set.vpls[k], &rw[i], d->set.min_dist2, &wi, &dist);
+            mel += (double)t * (double)pn_swl_melanopic_edi_on(&rw[i].wl, cw);
+        }
     }
     *lux = (double)pn_photometric(e);
+    if (edi) *edi = mel / (double)nw;
+    free(rw);
+    return true;
 }
 
-static bool lightcuts_point(const pn_render_job *job, vec3 p, vec3 n, double *lux) {
+static bool lightcuts_point(const pn_render_job *job, vec3 p, vec3 n, uint32_t index, double *lux, double *edi) {
     const pn_vpl_data *d = job->integrator_data;
     pn_lightcut_context cx = {job->lights,      job->accel,   &d->set,           &d->tree,
                               job->error_bound, job->max_cut, !job->opaque_glass};
@@ -122,7 +159,21 @@ static bool lightcuts_point(const pn_render_job *job, vec3 p, vec3 n, double *lu
     vec3 e;
     if (!pn_lightcut_eval(&cx, &r, &e, NULL, NULL, NULL)) return false;
     *lux = (double)pn_photometric(e);
-    return true;
+    if (!edi) return true;
+    const uint32_t nw = point_wavelength_samples(job);
+    pn_vpl_receiver *rw = wavelength_receivers(job, &r, index, nw);
+    if (!rw) return false;
+    double mel = 0.0;
+    bool ok = true;
+    for (uint32_t i = 0; i < nw && ok; i++) {
+        vec3 ew;
+        ok = pn_lightcut_eval(&cx, &rw[i], &ew, NULL, NULL, NULL);
+        float m = ok ? pn_swl_melanopic_edi_on(&rw[i].wl, ew) : 0.0f;
+        if (isfinite(m)) mel += (double)m;
+    }
+    free(rw);
+    *edi = mel / (double)nw;
+    return ok;
 }
 
 bool pn_point_illuminance(const pn_render_job *job, const pn_integrator *integrator, void *scratch, vec3 p, vec3 n,
@@ -131,10 +182,8 @@ bool pn_point_illuminance(const pn_render_job *job, const pn_integrator *integra
     if (edi) *edi = 0.0;
     if (integrator == &pn_integrator_reference)
         return reference_point(job, scratch, p, n, index, lux, job->spectral ? edi : NULL);
-    if (integrator == &pn_integrator_vpl) {
-        vpl_point(job, p, n, lux);
-        return true;
-    }
-    if (integrator == &pn_integrator_lightcuts) return lightcuts_point(job, p, n, lux);
+    if (integrator == &pn_integrator_vpl) return vpl_point(job, p, n, index, lux, job->spectral ? edi : NULL);
+    if (integrator == &pn_integrator_lightcuts)
+        return lightcuts_point(job, p, n, index, lux, job->spectral ? edi : NULL);
     return false;
 }

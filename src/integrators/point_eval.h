@@ -12,9 +12,9 @@ void pn_point_scratch_free(const pn_integrator *integrator, void *scratch);
 
 /* The illuminance (lux) at point p on the side of unit normal n, point number `index` (which
  * seeds its samples). The integrator must be reference, vpl or lightcuts, prepared
- * (job->integrator_data). With edi not NULL (reference in spectral mode only,
- * pn_point_melanopic_supported) also the melanopic EDI (lux, CIE S 026) from the same light
- * samples, each sample at wavelengths of its own. False when out of memory. */
+ * (job->integrator_data). With edi not NULL (spectral mode) also the melanopic EDI (lux, CIE
+ * S 026) from the same light samples (reference) or VPLs and cuts (vpl, lightcuts) at spp
+ * (default 64) sets of wavelengths of the point's own. False when out of memory. */
 bool pn_point_illuminance(const pn_render_job *job, const pn_integrator *integrator, void *scratch, vec3 p, vec3 n,
                           uint32_t index, double *lux, double *edi);
 

@@ -9,6 +9,7 @@
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "shade/bsdf.h"
+#include "spectral/melanopic.h"
 #include "spectral/transport.h"
 
 #include <assert.h>
@@ -26,7 +27,7 @@ const pn_swl *pn_eye_wavelengths(const pn_render_job *job, uint32_t scramble, ui
 }
 
 vec3 pn_spectral_sample_value(const pn_render_job *job, const pn_bsdf *b, vec3 wo, vec3 wi, vec3 radiance,
-                              vec3 throughput, int light, uint32_t index, uint32_t scramble) {
+                              vec3 throughput, int light, uint32_t index, uint32_t scramble, float *edi) {
     pn_swl wl;
     pn_swl_sample(pn_sobol_sample(index, PN_SOBOL_DIMS - 1, scramble ^ 0x9b05688cu), &wl);
     pn_bsdf bw = *b;
@@ -35,6 +36,7 @@ vec3 pn_spectral_sample_value(const pn_render_job *job, const pn_bsdf *b, vec3 w
     vec3 f = pn_bsdf_eval(&bw, wo, wi);
     vec3 le = light >= 0 ? pn_light_radiance_spectral(job->lights, &job->lights->lights[light], radiance, &wl)
                          : pn_swl_illuminant(&wl, radiance);
+    if (edi) *edi = pn_swl_melanopic_edi_on(&wl, le);
     return pn_swl_rgb(&wl, v3_mul(v3_mul(f, le), pn_swl_albedo(&wl, throughput)));
 }
 

@@ -168,10 +168,12 @@ const struct pn_swl *pn_eye_wavelengths(const pn_render_job *job, uint32_t scram
  * Sobol dimension PN_SOBOL_DIMS - 1 of sample `index` in the sequence `scramble`, salted apart from
  * pn_eye_wavelengths). b is the RGB BSDF (pn_bsdf_at), radiance the light sample's RGB radiance
  * from scene light `light` (-1: an environment region), throughput the RGB specular tints (as one
- * albedo spectrum: exact for one tint). */
+ * albedo spectrum: exact for one tint). With edi non-NULL, *edi receives the melanopic EDI (lux,
+ * spectral/melanopic.h) of the light's radiance at those wavelengths (PN_AOV_MELANOPIC_EDI: the
+ * same sample's term on a white receiver, as pn_photometric(radiance) is its illuminance term). */
 struct pn_bsdf;
 vec3 pn_spectral_sample_value(const pn_render_job *job, const struct pn_bsdf *b, vec3 wo, vec3 wi, vec3 radiance,
-                              vec3 throughput, int light, uint32_t index, uint32_t scramble);
+                              vec3 throughput, int light, uint32_t index, uint32_t scramble, float *edi);
 
 /* Eye sample i of full-image pixel (px, py) in the per-pixel convention of the `reference`
  * integrator: one scrambled Sobol sequence per pixel (the scramble a hash of the seed and the

@@ -35,21 +35,39 @@ double pn_swl_d65(double lambda) {
     return g_d65_scale * pn_cie_table_eval(pn_cie_d65_5nm, lambda);
 }
 
-void pn_swl_sample(float u, pn_swl *out) {
-    for (int i = 0; i < PN_SWL_COUNT; i++) {
-        double ui = (double)u + (double)i / PN_SWL_COUNT;
-        if (ui >= 1.0) ui -= 1.0;
-        double lambda = pn_visible_wavelength_sample(ui);
-        out->lambda[i] = (float)lambda;
-        out->inv_pdf[i] = (float)(1.0 / pn_visible_wavelength_pdf(lambda));
-        out->illum[i] = (float)pn_swl_d65(lambda);
+/* pn_cie_xyz_bar with one index computation for the three tables: pn_cie_table_eval's formula, so
+ * the same numbers. */
+static void cie_xyz_bar_at(double lambda, double xyz_bar[3]) {
+    const double *tab[3] = {pn_cie_x_5nm, pn_cie_y_5nm, pn_cie_z_5nm};
+    if (!(lambda >= PN_LAMBDA_MIN && lambda <= PN_LAMBDA_MAX)) {
+        xyz_bar[0] = xyz_bar[1] = xyz_bar[2] = 0.0;
+        return;
     }
+    double x = (lambda - PN_LAMBDA_MIN) / 5.0;
+    int i = (int)x;
+    if (i >= PN_CIE_TABLE_COUNT - 1) {
+        for (int k = 0; k < 3; k++) xyz_bar[k] = tab[k][PN_CIE_TABLE_COUNT - 1];
+        return;
+    }
+    double t = x - i;
+    for (int k = 0; k < 3; k++) xyz_bar[k] = tab[k][i] * (1.0 - t) + tab[k][i + 1] * t;
+}
+
+void pn_swl_sample(float u, pn_swl *out) {
+    pthread_once(&g_once, transport_init);
     /* The film's maps (transport.h): the CIE lookups once per set of wavelengths, not per value
      * converted (illumcut converts one value per cluster pair of Phase I). */
     const double k = g_inv_y_integral / PN_SWL_COUNT;
     for (int i = 0; i < PN_SWL_COUNT; i++) {
+        double ui = (double)u + (double)i / PN_SWL_COUNT;
+        if (ui >= 1.0) ui -= 1.0;
+        double lambda, inv_pdf;
+        pn_visible_wavelength_sample_inv_pdf(ui, &lambda, &inv_pdf);
+        out->lambda[i] = (float)lambda;
+        out->inv_pdf[i] = (float)inv_pdf;
+        out->illum[i] = (float)(g_d65_scale * pn_cie_table_eval(pn_cie_d65_5nm, lambda));
         double bar[3], xyz[3], rgb[3];
-        pn_cie_xyz_bar(out->lambda[i], bar);
+        cie_xyz_bar_at(out->lambda[i], bar);
         for (int c = 0; c < 3; c++) xyz[c] = bar[c] * (double)out->inv_pdf[i] * k;
         pn_xyz_to_linear_srgb(xyz, rgb);
         for (int c = 0; c < 3; c++) {
@@ -67,56 +85,103 @@ static float sigmoid_at(const float c[3], float lambda) {
     return 0.5f + x / (2.0f * sqrtf(1.0f + x * x));
 }
 
-static vec3 spectrum_at(const pn_swl *w, const float rgb[3]) {
-    float c[3];
-    pn_rgb2spec_lookup(pn_rgb2spec_srgb(), rgb, c);
-    return v3(sigmoid_at(c, w->lambda[0]), sigmoid_at(c, w->lambda[1]), sigmoid_at(c, w->lambda[2]));
+/* Comparisons rather than fmaxf and fminf, which this build calls in libm: the same result for
+ * every input (NaN gives 0 as fmaxf(NaN, 0) does; -0 gives +0, which compares equal). */
+static inline float clamp_nonneg(float x) {
+    return x > 0.0f ? x : 0.0f;
+}
+static inline float clamp01(float x) {
+    return x > 0.0f ? (x < 1.0f ? x : 1.0f) : 0.0f;
 }
 
-vec3 pn_swl_albedo_on(const pn_swl *w, vec3 rgb) {
-    float r = fminf(fmaxf(rgb.x, 0.0f), 1.0f), g = fminf(fmaxf(rgb.y, 0.0f), 1.0f), b = fminf(fmaxf(rgb.z, 0.0f), 1.0f);
-    if (r == g && g == b) return v3(r, r, r);
-    const float c[3] = {r, g, b};
-    return spectrum_at(w, c);
+static inline uint32_t float_bits(float x) {
+    union {
+        float f;
+        uint32_t u;
+    } b = {x};
+    return b.u;
 }
 
-/* The spectrum of an unbounded colour, rgb / (2 max), is looked up with its components rounded to
- * multiples of 2^-16 (a change of at most 8e-6 in the table's input, far below its 1e-3
- * interpolation error), so that the VPLs and light samples of one light, whose RGB differ only by
- * a scalar (and so in the last bits of rgb / (2 max)), share one key. A per-thread table
- * (direct-mapped by the key) remembers the sigmoid coefficients of the last keys: the VPL
- * integrators upsample thousands of intensities of a few colours per eye sample (illumcut in an
- * order where the wavelengths change from one to the next), and a hit costs three sigmoids instead
- * of a table lookup. The coefficients are a function of the key only, whether they come from the
- * table or not, so images do not depend on the thread count. */
-#define PN_UNBOUNDED_QUANTUM 65536.0f
-#define PN_UNBOUNDED_CACHE 256
+static inline uint32_t key_hash(const uint32_t key[3]) {
+    uint32_t h = (key[0] * 73856093u) ^ (key[1] * 19349663u) ^ (key[2] * 83492791u);
+    return h ^ (h >> 11);
+}
 
-typedef struct unbounded_entry {
+/* Reflectances: a per-thread table (direct-mapped by the clamped rgb's bits) of the last sigmoid
+ * coefficients looked up. ias evaluates each shading point's kd and ks once per light sample, at
+ * that sample's own wavelengths, so the lookup (the trilinear interpolation of 24 table values and
+ * the binary search for z) would otherwise repeat for every sample of a point. The coefficients
+ * are the table's for exactly that rgb, so the result does not depend on the table's state. */
+#define PN_ALBEDO_CACHE 64
+
+typedef struct albedo_entry {
     uint32_t key[3];
     float c[3];
     bool used;
-} unbounded_entry;
+} albedo_entry;
 
-static _Thread_local unbounded_entry g_unbounded_cache[PN_UNBOUNDED_CACHE];
+static _Thread_local albedo_entry g_albedo_cache[PN_ALBEDO_CACHE];
 
-static vec3 unbounded_unit(const pn_swl *w, const uint32_t key[3]) {
-    uint32_t h = (key[0] * 73856093u) ^ (key[1] * 19349663u) ^ (key[2] * 83492791u);
-    unbounded_entry *e = &g_unbounded_cache[(h ^ (h >> 9)) % PN_UNBOUNDED_CACHE];
+vec3 pn_swl_albedo_on(const pn_swl *w, vec3 rgb) {
+    float r = clamp01(rgb.x), g = clamp01(rgb.y), b = clamp01(rgb.z);
+    if (r == g && g == b) return v3(r, r, r);
+    const uint32_t key[3] = {float_bits(r), float_bits(g), float_bits(b)};
+    albedo_entry *e = &g_albedo_cache[key_hash(key) % PN_ALBEDO_CACHE];
     if (!(e->used && e->key[0] == key[0] && e->key[1] == key[1] && e->key[2] == key[2])) {
-        const float rgb[3] = {(float)key[0] / PN_UNBOUNDED_QUANTUM, (float)key[1] / PN_UNBOUNDED_QUANTUM,
-                              (float)key[2] / PN_UNBOUNDED_QUANTUM};
-        pn_rgb2spec_lookup(pn_rgb2spec_srgb(), rgb, e->c);
+        const float c[3] = {r, g, b};
+        pn_rgb2spec_lookup(pn_rgb2spec_srgb(), c, e->c);
         for (int i = 0; i < 3; i++) e->key[i] = key[i];
         e->used = true;
     }
     return v3(sigmoid_at(e->c, w->lambda[0]), sigmoid_at(e->c, w->lambda[1]), sigmoid_at(e->c, w->lambda[2]));
 }
 
-/* Comparisons rather than fmaxf and lrintf, which this build calls in libm (no NaN reaches the
- * rounding: the components are >= 0 and finite there). */
-static inline float clamp_nonneg(float x) {
-    return x > 0.0f ? x : 0.0f;
+/* The spectrum of an unbounded colour, rgb / (2 max), is looked up with its components rounded to
+ * multiples of 2^-16 (a change of at most 8e-6 in the table's input, far below its 1e-3
+ * interpolation error), so that the VPLs and light samples of one light, whose RGB differ only by
+ * a scalar (and so in the last bits of rgb / (2 max)), share one key. A per-thread table
+ * (two-way set-associative by the key) remembers the sigmoid coefficients of the last keys, and
+ * with them the spectrum's values at the last wavelengths they were evaluated at: the VPL
+ * integrators upsample thousands of intensities of a few hundred colours at one receiver's
+ * wavelengths, so most evaluations are a comparison (illumcut, whose order changes the
+ * wavelengths from one evaluation to the next, still saves the table lookup). Coefficients and
+ * values are functions of the key and the wavelengths only, whether they come from the table or
+ * not, so images do not depend on the thread count or the order of evaluation. */
+#define PN_UNBOUNDED_QUANTUM 65536.0f
+#define PN_UNBOUNDED_SETS 512
+
+typedef struct unbounded_entry {
+    uint32_t key[3];
+    float c[3];
+    float lambda[PN_SWL_COUNT], value[PN_SWL_COUNT]; /* the spectrum at lambda (lambda[0] 0: none) */
+    bool used, recent;                               /* recent: the set's last entry used */
+} unbounded_entry;
+
+static _Thread_local unbounded_entry g_unbounded_cache[PN_UNBOUNDED_SETS][2];
+
+static vec3 unbounded_unit(const pn_swl *w, const uint32_t key[3]) {
+    unbounded_entry *set = g_unbounded_cache[key_hash(key) % PN_UNBOUNDED_SETS];
+    unbounded_entry *e = NULL;
+    for (int k = 0; k < 2; k++)
+        if (set[k].used && set[k].key[0] == key[0] && set[k].key[1] == key[1] && set[k].key[2] == key[2]) e = &set[k];
+    if (!e) {
+        e = set[0].recent ? &set[1] : &set[0]; /* replace the less recently used */
+        const float rgb[3] = {(float)key[0] / PN_UNBOUNDED_QUANTUM, (float)key[1] / PN_UNBOUNDED_QUANTUM,
+                              (float)key[2] / PN_UNBOUNDED_QUANTUM};
+        pn_rgb2spec_lookup(pn_rgb2spec_srgb(), rgb, e->c);
+        for (int i = 0; i < 3; i++) e->key[i] = key[i];
+        e->lambda[0] = 0.0f;
+        e->used = true;
+    }
+    set[0].recent = e == &set[0];
+    set[1].recent = e == &set[1];
+    if (!(e->lambda[0] == w->lambda[0] && e->lambda[1] == w->lambda[1] && e->lambda[2] == w->lambda[2])) {
+        for (int i = 0; i < PN_SWL_COUNT; i++) {
+            e->lambda[i] = w->lambda[i];
+            e->value[i] = sigmoid_at(e->c, w->lambda[i]);
+        }
+    }
+    return v3(e->value[0], e->value[1], e->value[2]);
 }
 
 vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb) {

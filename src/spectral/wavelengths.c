@@ -25,8 +25,17 @@ double pn_visible_wavelength_pdf(double lambda) {
 double pn_visible_wavelength_sample(double u) {
     double t0 = cdf_lo(), t1 = cdf_hi();
     double lambda = PN_WL_MU + atanh(t0 + u * (t1 - t0)) / PN_WL_A;
-    /* Rounding may step just outside the range at u = 0 or near 1. */
-    return fmin(fmax(lambda, PN_LAMBDA_MIN), PN_LAMBDA_MAX);
+    /* Rounding may step just outside the range at u = 0 or near 1. Comparisons, not fmin and fmax
+     * (library calls in this build; the same result for the finite lambda here). */
+    lambda = lambda > PN_LAMBDA_MIN ? lambda : PN_LAMBDA_MIN;
+    return lambda < PN_LAMBDA_MAX ? lambda : PN_LAMBDA_MAX;
+}
+
+void pn_visible_wavelength_sample_inv_pdf(double u, double *lambda, double *inv_pdf) {
+    double l = pn_visible_wavelength_sample(u);
+    double c = cosh(PN_WL_A * (l - PN_WL_MU));
+    *lambda = l;
+    *inv_pdf = 1.0 / (PN_WL_A / (c * c * (cdf_hi() - cdf_lo())));
 }
 
 void pn_wavelengths_sample(double u, pn_wavelengths *out) {

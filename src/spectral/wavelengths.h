@@ -23,6 +23,9 @@ double pn_visible_wavelength_pdf(double lambda);
 /* The wavelength of CDF value u in [0, 1). */
 double pn_visible_wavelength_sample(double u);
 
+/* Both at once: the wavelength of u and 1 / its density (the values of the two functions above). */
+void pn_visible_wavelength_sample_inv_pdf(double u, double *lambda, double *inv_pdf);
+
 /* PN_WAVELENGTHS wavelengths from one uniform u in [0, 1): the hero at u, its companions at
  * u + i / PN_WAVELENGTHS (mod 1). */
 void pn_wavelengths_sample(double u, pn_wavelengths *out);
