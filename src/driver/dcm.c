@@ -137,12 +137,14 @@
  *    between two pixels leaves half its range at their midpoint). Why: the corners' range is a
  *    guess made before any boundary pixel is known, and it stays the key of all of a block's steps;
  *    after a step, the loop's interpolation error there is measured, so blocks whose boundary turned
- *    out linear give way to those where it was wrong. Effect at 6%: quarter staircase rel L1 / L2
- *    0.0269 / 0.0232 -> 0.0253 / 0.0223 (bench/progressive/README.md, "Stop 17", with the other
- *    scenes and the variants measured). Measured and dropped (quarter staircase): the mean instead
- *    of the largest difference (0.0252 / 0.0228), differences less 1 or 2 sigma of noise (0.0251 /
- *    0.0226, 0.0254 / 0.0227), keeping the line-crossed blocks' half-brightest-corner floor in the
- *    later keys (0.0266 / 0.0227), no floor at all (0.0259 / 0.0228), spacing^2 or spacing^0.5 in
+ *    out linear give way to those where it was wrong. Effect at 6% (rel L1 / L2): quarter
+ *    staircase 0.0269 / 0.0232 -> 0.0253 / 0.0223, bathroom 0.0292 / 0.0203 -> 0.0266 / 0.0176;
+ *    full prog-hr64 staircase 0.0163 / 0.0155 -> 0.0156 / 0.0153, bathroom 0.0138 / 0.0071 ->
+ *    0.0136 / 0.0071; no measurable CPU cost (bench/progressive/README.md, "Stop 17"). Measured
+ *    and dropped (quarter staircase): the mean instead of the largest difference (0.0252 /
+ *    0.0228), differences less 1 or 2 sigma of noise (0.0251 / 0.0226, 0.0254 / 0.0227), the
+ *    first key's range as a floor of the later keys (0.0266 / 0.0227), no visible-line floor in
+ *    the first key (0.0259 / 0.0228), spacing^2 or spacing^0.5 in
  *    the key (0.0252 / 0.0229, 0.0259 / 0.0223), factors 1 or 4 for 2 (0.0251 / 0.0224, 0.0262 /
  *    0.0225). Also dropped: a wide guided fill (samples within 8 pixels of the block with the same
  *    object tag, weights by normal and by depth against the pixel's depth plane, instead of its
@@ -152,7 +154,8 @@
  * Switches (--dcm-off, dcm.h PN_DCM_OFF_*): edge-first (order of work), order (order of boundary
  * evaluation), discrepancy, noise (the Monte Carlo tests: contrast and lazy noise terms, the
  * zero-order flat-boundary rule), lattice-mean, segments, demod (the quotient of progressive.c,
- * as --raw-radiance), guided, albedo-rays, linear, residuals (needs order). --dcm-variant paper switches all of them off.
+ * as --raw-radiance), guided, albedo-rays, linear, residuals (needs order). --dcm-variant paper
+ * switches all of them off.
  * What stays in the paper variant, as the paper has no counterpart to choose instead: visible
  * lines from the primary buffer (the paper's Z-buffer visible lines), Fig. 9 (e)-(h) by the next
  * iteration, elements on RGB, and the first-order test's rule for an exhausted inner layer. */
