@@ -140,7 +140,7 @@
  *    out linear give way to those where it was wrong. Effect at 6% (rel L1 / L2): quarter
  *    staircase 0.0269 / 0.0232 -> 0.0253 / 0.0223, bathroom 0.0292 / 0.0203 -> 0.0266 / 0.0176;
  *    full prog-hr64 staircase 0.0163 / 0.0155 -> 0.0156 / 0.0153, bathroom 0.0138 / 0.0071 ->
- *    0.0136 / 0.0071; no measurable CPU cost (bench/progressive/README.md, "Stop 17"). Measured
+ *    0.0136 / 0.0071, glossy bathroom-72 0.0125 / 0.0194 -> 0.0123 / 0.0184; no measurable CPU cost (bench/progressive/README.md, "Stop 17"). Measured
  *    and dropped (quarter staircase): the mean instead of the largest difference (0.0252 /
  *    0.0228), differences less 1 or 2 sigma of noise (0.0251 / 0.0226, 0.0254 / 0.0227), the
  *    first key's range as a floor of the later keys (0.0266 / 0.0227), no visible-line floor in
