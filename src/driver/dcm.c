@@ -129,11 +129,33 @@
  *    0.0162 -> 0.0163 / 0.0155, bathroom 0.0146 / 0.0079 -> 0.0138 / 0.0071, hall-many 0.0077 /
  *    0.0108 -> 0.0076 / 0.0106, glossy bathroom-72 0.0134 / 0.0197 -> 0.0125 / 0.0194
  *    (bench/progressive/README.md, "Stop 16").
+ *  - Residual order (issue 18, stop 17; boundary_rounds): the boundary steps are queued in chunks
+ *    of 0.25% of the work pixels and evaluated chunk by chunk; a block's first step is keyed by
+ *    its range x spacing as above, each later step by what the block's previous step found x the
+ *    new spacing: twice the largest difference, in the image's radiance, between a pixel of that
+ *    step and the mean of its two loop neighbours of the step before (step_residual; a step edge
+ *    between two pixels leaves half its range at their midpoint). Why: the corners' range is a
+ *    guess made before any boundary pixel is known, and it stays the key of all of a block's steps;
+ *    after a step, the loop's interpolation error there is measured, so blocks whose boundary turned
+ *    out linear give way to those where it was wrong. Effect at 6% (rel L1 / L2): quarter
+ *    staircase 0.0269 / 0.0232 -> 0.0253 / 0.0223, bathroom 0.0292 / 0.0203 -> 0.0266 / 0.0176;
+ *    full prog-hr64 staircase 0.0163 / 0.0155 -> 0.0156 / 0.0153, bathroom 0.0138 / 0.0071 ->
+ *    0.0136 / 0.0071, glossy bathroom-72 0.0125 / 0.0194 -> 0.0123 / 0.0184; no measurable CPU cost (bench/progressive/README.md, "Stop 17"). Measured
+ *    and dropped (quarter staircase): the mean instead of the largest difference (0.0252 /
+ *    0.0228), differences less 1 or 2 sigma of noise (0.0251 / 0.0226, 0.0254 / 0.0227), the
+ *    first key's range as a floor of the later keys (0.0266 / 0.0227), no visible-line floor in
+ *    the first key (0.0259 / 0.0228), spacing^2 or spacing^0.5 in
+ *    the key (0.0252 / 0.0229, 0.0259 / 0.0223), factors 1 or 4 for 2 (0.0251 / 0.0224, 0.0262 /
+ *    0.0225). Also dropped: a wide guided fill (samples within 8 pixels of the block with the same
+ *    object tag, weights by normal and by depth against the pixel's depth plane, instead of its
+ *    segment within 1 pixel): 0.0287 / 0.0269, with segments inside the 1-pixel margin 0.0286 /
+ *    0.0267, within 4 pixels 0.0284 / 0.0281.
  *
  * Switches (--dcm-off, dcm.h PN_DCM_OFF_*): edge-first (order of work), order (order of boundary
  * evaluation), discrepancy, noise (the Monte Carlo tests: contrast and lazy noise terms, the
  * zero-order flat-boundary rule), lattice-mean, segments, demod (the quotient of progressive.c,
- * as --raw-radiance), guided, albedo-rays, linear. --dcm-variant paper switches all of them off.
+ * as --raw-radiance), guided, albedo-rays, linear, residuals (needs order). --dcm-variant paper
+ * switches all of them off.
  * What stays in the paper variant, as the paper has no counterpart to choose instead: visible
  * lines from the primary buffer (the paper's Z-buffer visible lines), Fig. 9 (e)-(h) by the next
  * iteration, elements on RGB, and the first-order test's rule for an exhausted inner layer. */
@@ -673,16 +695,66 @@ static double guide_weight(const pn_prog *p, size_t i, size_t j, int dx, int dy)
     return w * (double)(c4 * c4) * fz + 1e-12 * w;
 }
 
+/* The guided fill's sums for one pixel: weighted mean and, for the linear fill, the normal
+ * equations of the weighted plane fit v ~ a + g_x dx + g_y dy (dx, dy from the pixel). */
+typedef struct fill_sums {
+    double acc[3], wsum;
+    double sx, sy, sxx, syy, sxy, svx[3], svy[3];
+    float vmin[3], vmax[3];
+    int used;
+} fill_sums;
+
+static void fill_begin(fill_sums *s) {
+    memset(s, 0, sizeof *s);
+    for (int c = 0; c < 3; c++) {
+        s->vmin[c] = INFINITY;
+        s->vmax[c] = -INFINITY;
+    }
+}
+
+static void fill_add(fill_sums *s, double wt, int dx, int dy, const float *v) {
+    for (int c = 0; c < 3; c++) {
+        s->acc[c] += wt * (double)v[c];
+        s->svx[c] += wt * dx * (double)v[c];
+        s->svy[c] += wt * dy * (double)v[c];
+        s->vmin[c] = fminf(s->vmin[c], v[c]);
+        s->vmax[c] = fmaxf(s->vmax[c], v[c]);
+    }
+    s->sx += wt * dx, s->sy += wt * dy, s->sxx += wt * dx * dx, s->syy += wt * dy * dy, s->sxy += wt * dx * dy;
+    s->wsum += wt;
+    s->used++;
+}
+
+/* Writes the fill (the mean; with `linear` the plane's value where it is well posed) to o. */
+static void fill_end(const fill_sums *s, bool linear, float *o) {
+    for (int c = 0; c < 3; c++) o[c] = (float)(s->acc[c] / s->wsum);
+    /* Linear fill (issue 18, see the header): a from the normal equations by Cramer's rule,
+     * clamped to the samples' range. A fit whose samples lie nearly on a line (det small against
+     * wsum sxx syy) keeps the mean. */
+    if (!linear || s->used < 3) return;
+    double A[3][3] = {{s->wsum, s->sx, s->sy}, {s->sx, s->sxx, s->sxy}, {s->sy, s->sxy, s->syy}};
+    double det = A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) - A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
+                 A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
+    double scale = s->wsum * s->sxx * s->syy;
+    if (scale > 0.0 && fabs(det) > 1e-3 * scale) {
+        double c00 = A[1][1] * A[2][2] - A[1][2] * A[2][1], c01 = -(A[1][0] * A[2][2] - A[1][2] * A[2][0]),
+               c02 = A[1][0] * A[2][1] - A[1][1] * A[2][0];
+        for (int c = 0; c < 3; c++) {
+            double a = (c00 * s->acc[c] + c01 * s->svx[c] + c02 * s->svy[c]) / det;
+            o[c] = clampf((float)a, s->vmin[c], s->vmax[c]);
+        }
+    }
+}
+
 /* Segment-aware drawing of an edge block (a departure, see the header). The visible lines of the
- * primary buffer cut the block, widened by `margin` pixels on each side, into segments. When a
- * visible line crosses the block, a pixel keeps its element value where both ends of the
+ * primary buffer cut the block, widened by DCM_SEG_MARGIN pixels on each side, into segments.
+ * When a visible line crosses the block, a pixel keeps its element value where both ends of the
  * element's line are evaluated pixels of its own segment, and otherwise takes the
  * inverse-squared-distance mean of the evaluated pixels of its segment, preferring those that
  * are, like it, next to a visible line or not; a pixel whose segment holds none keeps the
- * element. Guided (issue 18), the margin is DCM_GUIDE_MARGIN, so that the neighbours' evaluated
- * pixels count, and the weights also ask for agreeing normals and depths (guide_weight).
- * With `linear` (issue 18), that fill is the weighted plane fit's value instead of the mean.
- * Returns false (nothing drawn) for blocks without a visible line or too large. */
+ * element. Guided (issue 18), the weights also ask for agreeing normals and depths
+ * (guide_weight). With `linear` (issue 18), that fill is the weighted plane fit's value instead
+ * of the mean. Returns false (nothing drawn) for blocks without a visible line or too large. */
 static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, const float *loop, int dir, bool guided,
                            bool linear) {
     int x1, y1, margin = DCM_SEG_MARGIN;
@@ -731,52 +803,21 @@ static bool draw_segmented(const pn_prog *p, float *img, const dcm_block *b, con
             }
             /* First from pixels as near to a visible line as this one (pixels next to a line
              * mix both sides under the pixel filter), then from any of its segment. */
-            double acc[3] = {0, 0, 0}, wsum = 0;
-            double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, svx[3] = {0, 0, 0}, svy[3] = {0, 0, 0};
-            float vmin[3] = {INFINITY, INFINITY, INFINITY}, vmax[3] = {-INFINITY, -INFINITY, -INFINITY};
-            int used = 0;
-            for (int pass = 0; pass < 2 && wsum <= 0.0; pass++)
+            fill_sums s;
+            fill_begin(&s);
+            for (int pass = 0; pass < 2 && s.wsum <= 0.0; pass++)
                 for (int m = 0; m < nk; m++) {
                     int j = known[m];
                     if (label[j] != label[i] || (pass == 0 && near[j] != near[i])) continue;
                     int dx = wx0 + j % ww - x, dy = wy0 + j / ww - y;
                     size_t gj = pn_prog_index(p, wx0 + j % ww, wy0 + j / ww);
                     double wt = guided ? guide_weight(p, gi, gj, dx, dy) : 1.0 / (double)(dx * dx + dy * dy);
-                    const float *v = p->rad + 3 * gj;
-                    for (int c = 0; c < 3; c++) {
-                        acc[c] += wt * (double)v[c];
-                        svx[c] += wt * dx * (double)v[c];
-                        svy[c] += wt * dy * (double)v[c];
-                        vmin[c] = fminf(vmin[c], v[c]);
-                        vmax[c] = fmaxf(vmax[c], v[c]);
-                    }
-                    sx += wt * dx, sy += wt * dy, sxx += wt * dx * dx, syy += wt * dy * dy, sxy += wt * dx * dy;
-                    wsum += wt;
-                    used++;
+                    fill_add(&s, wt, dx, dy, p->rad + 3 * gj);
                 }
-            if (wsum > 0.0)
-                for (int c = 0; c < 3; c++) o[c] = (float)(acc[c] / wsum);
+            if (s.wsum > 0.0)
+                fill_end(&s, linear, o);
             else
                 pn_dcm_element_value(loop, 3, w, h, dir, fx, fy, o);
-            /* Linear fill (issue 18, see the header): v ~ a + g_x dx + g_y dy fitted to the same
-             * samples by weighted least squares (dx, dy from this pixel, so a is the value here),
-             * a from the normal equations by Cramer's rule, clamped to the samples' range. A fit
-             * whose samples lie nearly on a line (det small against wsum sxx syy) keeps the mean. */
-            if (linear && used >= 3) {
-                double A[3][3] = {{wsum, sx, sy}, {sx, sxx, sxy}, {sy, sxy, syy}};
-                double det = A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) -
-                             A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0]) +
-                             A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
-                double scale = wsum * sxx * syy;
-                if (scale > 0.0 && fabs(det) > 1e-3 * scale) {
-                    double c00 = A[1][1] * A[2][2] - A[1][2] * A[2][1], c01 = -(A[1][0] * A[2][2] - A[1][2] * A[2][0]),
-                           c02 = A[1][0] * A[2][1] - A[1][1] * A[2][0];
-                    for (int c = 0; c < 3; c++) {
-                        double a = (c00 * acc[c] + c01 * svx[c] + c02 * svy[c]) / det;
-                        o[c] = clampf((float)a, vmin[c], vmax[c]);
-                    }
-                }
-            }
         }
     return true;
 }
@@ -998,6 +1039,43 @@ static float corner_radiance(const pn_prog *p, int x, int y) {
     return v3_luminance(v3(r[0] * f[0], r[1] * f[1], r[2] * f[2]));
 }
 
+/* The expected error of an edge block before its boundary evaluation: the range of its corners'
+ * radiance; with the guided order at least half the brightest corner's where a visible line
+ * crosses it; 1 for the paper's order (spacing by spacing, blocks in turn). */
+static float block_range(const pn_prog *p, const dcm_block *b, bool by_error, bool guided) {
+    if (!by_error) return 1.0f;
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    int cx[4] = {b->x0, x1, b->x0, x1}, cy[4] = {b->y0, b->y0, y1, y1};
+    float g[4];
+    for (int c = 0; c < 4; c++) g[c] = corner_radiance(p, cx[c], cy[c]);
+    float range = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3])) - fminf(fminf(g[0], g[1]), fminf(g[2], g[3]));
+    if (!(range >= 0.0f)) range = 0.0f;
+    if (guided && pn_prog_visible_line(p, b->x0, b->y0, x1, y1)) {
+        /* Guided order: behind a visible line lies a segment no corner may have seen, whose
+         * radiance is unknown; its expected error is taken as half the brightest corner's. */
+        float top = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3]));
+        range = fmaxf(range, 0.5f * top);
+    }
+    return range;
+}
+
+/* Queues the boundary pixels of block b at spacing sp; returns the number newly queued, or -1
+ * when out of memory. */
+static long queue_spacing(pn_prog *p, const dcm_block *b, int sp) {
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    int w = x1 - b->x0, h = y1 - b->y0, n = pn_dcm_loop_length(w, h);
+    size_t before = p->queue_len;
+    for (int i = 0; i < n; i++) {
+        int x, y;
+        pn_dcm_loop_pixel(w, h, i, &x, &y);
+        if ((x % sp == 0 || x == w) && (y % sp == 0 || y == h))
+            if (!pn_prog_request(p, b->x0 + x, b->y0 + y)) return -1;
+    }
+    return (long)(p->queue_len - before);
+}
+
 /* Queues the boundary pixels of the edge blocks in task order (see process()). */
 static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k,
                                 bool by_error, bool guided) {
@@ -1008,22 +1086,7 @@ static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_
     if (!t) return PN_ERROR_OUT_OF_MEMORY;
     size_t nt = 0;
     for (size_t j = 0; j < np; j++) {
-        const dcm_block *b = &blocks[pending[j]];
-        int x1, y1;
-        block_extent(p, b, &x1, &y1);
-        int cx[4] = {b->x0, x1, b->x0, x1}, cy[4] = {b->y0, b->y0, y1, y1};
-        float g[4];
-        for (int c = 0; c < 4; c++) g[c] = corner_radiance(p, cx[c], cy[c]);
-        float range = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3])) - fminf(fminf(g[0], g[1]), fminf(g[2], g[3]));
-        if (!(range >= 0.0f)) range = 0.0f;
-        if (!by_error)
-            range = 1.0f; /* the paper's order: spacing by spacing, blocks in turn */
-        else if (guided && pn_prog_visible_line(p, b->x0, b->y0, x1, y1)) {
-            /* Guided order: behind a visible line lies a segment no corner may have seen, whose
-             * radiance is unknown; its expected error is taken as half the brightest corner's. */
-            float top = fmaxf(fmaxf(g[0], g[1]), fmaxf(g[2], g[3]));
-            range = fmaxf(range, 0.5f * top);
-        }
+        float range = block_range(p, &blocks[pending[j]], by_error, guided);
         for (int sp = k / 2; sp >= 1; sp /= 2) {
             t[nt].key = range * (float)sp;
             t[nt].spacing = sp;
@@ -1032,23 +1095,128 @@ static pn_status boundary_tasks(pn_prog *p, const dcm_block *blocks, const size_
         }
     }
     qsort(t, nt, sizeof *t, cmp_task);
-    for (size_t m = 0; m < nt; m++) {
-        const dcm_block *b = &blocks[t[m].block];
-        int sp = t[m].spacing, x1, y1;
-        block_extent(p, b, &x1, &y1);
-        int w = x1 - b->x0, h = y1 - b->y0, n = pn_dcm_loop_length(w, h);
-        for (int i = 0; i < n; i++) {
-            int x, y;
-            pn_dcm_loop_pixel(w, h, i, &x, &y);
-            if ((x % sp == 0 || x == w) && (y % sp == 0 || y == h))
-                if (!pn_prog_request(p, b->x0 + x, b->y0 + y)) {
-                    free(t);
-                    return PN_ERROR_OUT_OF_MEMORY;
-                }
+    for (size_t m = 0; m < nt; m++)
+        if (queue_spacing(p, &blocks[t[m].block], t[m].spacing) < 0) {
+            free(t);
+            return PN_ERROR_OUT_OF_MEMORY;
         }
-    }
     free(t);
     return PN_OK;
+}
+
+/* What block b's boundary step at spacing sp (just evaluated) found: the largest difference, in
+ * the image's radiance, between a pixel of that step and the mean of its two loop neighbours of
+ * the step before, i.e. the error that interpolation along the loop made there. Negative when the
+ * loop does not divide into steps of 2 sp (clipped blocks) or nothing was evaluated. */
+static float step_residual(const pn_prog *p, const dcm_block *b, int sp) {
+    int x1, y1;
+    block_extent(p, b, &x1, &y1);
+    int w = x1 - b->x0, h = y1 - b->y0, n = pn_dcm_loop_length(w, h);
+    if (n == 0 || w % (2 * sp) || h % (2 * sp)) return -1.0f;
+    float worst = -1.0f;
+    for (int i = sp; i < n; i += 2 * sp) {
+        int x, y, xa, ya, xb, yb;
+        pn_dcm_loop_pixel(w, h, i, &x, &y);
+        pn_dcm_loop_pixel(w, h, i - sp, &xa, &ya);
+        pn_dcm_loop_pixel(w, h, (i + sp) % n, &xb, &yb);
+        x += b->x0, y += b->y0, xa += b->x0, ya += b->y0, xb += b->x0, yb += b->y0;
+        if (!pn_prog_known(p, x, y) || !pn_prog_known(p, xa, ya) || !pn_prog_known(p, xb, yb)) continue;
+        size_t ki = pn_prog_index(p, x, y), ka = pn_prog_index(p, xa, ya), kb = pn_prog_index(p, xb, yb);
+        const float *f = p->demod ? p->demod + 3 * ki : NULL;
+        float d[3];
+        for (int c = 0; c < 3; c++) {
+            d[c] = p->rad[3 * ki + c] - 0.5f * (p->rad[3 * ka + c] + p->rad[3 * kb + c]);
+            if (f) d[c] *= f[c];
+        }
+        float r = fabsf(v3_luminance(v3(d[0], d[1], d[2])));
+        worst = fmaxf(worst, r);
+    }
+    return worst;
+}
+
+/* The residual order's chunk: the share of the work pixels queued between two looks at what the
+ * steps found (0.1% gave the same 6% image on quarter staircase as 0.25%). */
+#define DCM_RESIDUAL_CHUNK 0.0025
+
+/* A max-heap of boundary tasks (cmp_task's order: the first is the largest key). */
+static void heap_push(boundary_task *h, size_t *n, boundary_task t) {
+    size_t i = (*n)++;
+    while (i > 0) {
+        size_t up = (i - 1) / 2;
+        if (cmp_task(&h[up], &t) <= 0) break;
+        h[i] = h[up];
+        i = up;
+    }
+    h[i] = t;
+}
+
+static boundary_task heap_pop(boundary_task *h, size_t *n) {
+    boundary_task top = h[0], last = h[--*n];
+    size_t i = 0;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= *n) break;
+        if (c + 1 < *n && cmp_task(&h[c + 1], &h[c]) < 0) c++;
+        if (cmp_task(&last, &h[c]) <= 0) break;
+        h[i] = h[c];
+        i = c;
+    }
+    if (*n) h[i] = last;
+    return top;
+}
+
+/* Residual order (issue 18, see the header): boundary steps in chunks of DCM_RESIDUAL_CHUNK of
+ * the work pixels; a block's first step goes by block_range x spacing, each later one by what the
+ * step before it found (step_residual, doubled: a step edge between two pixels leaves half its
+ * range at their midpoint) x spacing, so that blocks whose loop turned out smooth give way to
+ * those where the interpolation was wrong. Evaluates as it goes (flushes). */
+static pn_status boundary_rounds(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k,
+                                 bool guided) {
+    if (np == 0 || k < 2) return PN_OK;
+    boundary_task *h = malloc(np * sizeof *h), *done = malloc(np * sizeof *done);
+    float *range = malloc(np * sizeof *range);
+    if (!h || !done || !range) {
+        free(h);
+        free(done);
+        free(range);
+        return PN_ERROR_OUT_OF_MEMORY;
+    }
+    size_t nh = 0;
+    for (size_t j = 0; j < np; j++) {
+        range[j] = block_range(p, &blocks[pending[j]], true, guided);
+        boundary_task t = {range[j] * (float)(k / 2), k / 2, j};
+        heap_push(h, &nh, t);
+    }
+    size_t chunk = (size_t)((double)p->W * (double)p->H * DCM_RESIDUAL_CHUNK);
+    if (chunk < 64) chunk = 64;
+    pn_status st = PN_OK;
+    while (nh > 0 && st == PN_OK && !p->stopped) {
+        size_t nd = 0, queued = 0;
+        while (nh > 0 && queued < chunk) {
+            boundary_task t = heap_pop(h, &nh);
+            long q = queue_spacing(p, &blocks[pending[t.block]], t.spacing);
+            if (q < 0) {
+                st = PN_ERROR_OUT_OF_MEMORY;
+                break;
+            }
+            queued += (size_t)q;
+            done[nd++] = t;
+        }
+        if (st != PN_OK || (st = pn_prog_flush(p)) != PN_OK || p->stopped) break;
+        for (size_t m = 0; m < nd; m++) {
+            boundary_task t = done[m];
+            if (t.spacing <= 1) continue;
+            float r = step_residual(p, &blocks[pending[t.block]], t.spacing);
+            float e = r >= 0.0f ? 2.0f * r : range[t.block];
+            t.spacing /= 2;
+            t.key = e * (float)t.spacing;
+            heap_push(h, &nh, t);
+        }
+    }
+    free(h);
+    free(done);
+    free(range);
+    return st;
 }
 
 typedef struct test_run {
@@ -1157,8 +1325,11 @@ static pn_status process(dcm_state *d, int l, size_t start, size_t end) {
                 free(pending);
                 return PN_ERROR_OUT_OF_MEMORY;
             }
-    st = boundary_tasks(p, L->b, pending, np, k, !(d->off & PN_DCM_OFF_ORDER),
-                        !(d->off & (PN_DCM_OFF_GUIDED | PN_DCM_OFF_SEGMENTS)));
+    bool guided_order = !(d->off & (PN_DCM_OFF_GUIDED | PN_DCM_OFF_SEGMENTS));
+    if (!(d->off & (PN_DCM_OFF_ORDER | PN_DCM_OFF_RESIDUALS)))
+        st = boundary_rounds(p, L->b, pending, np, k, guided_order);
+    else
+        st = boundary_tasks(p, L->b, pending, np, k, !(d->off & PN_DCM_OFF_ORDER), guided_order);
     if (st != PN_OK || p->stopped) {
         free(pending);
         return st;
