@@ -4,14 +4,19 @@
  *   PN_TESTS(TEST(test_name), TEST(other))
  * which expands to main(). Each test binary prints "N passed, N failed" and exits non-zero on
  * failure. Tests that need ../shared call pn_test_skip("why") and count as skipped.
+ * A scratch folder handed to pn_test_remove_at_end is removed with its contents when every case
+ * passed (kept after a failure, for inspection).
  */
 #ifndef PN_TEST_HARNESS_H
 #define PN_TEST_HARNESS_H
 
+#include <dirent.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 typedef struct pn_test_case {
     const char *name;
@@ -64,6 +69,38 @@ static inline void pn_test_skip(const char *why) {
     pn_test_skipped_case = 1;
 }
 
+/* Removes path and, for a folder, everything below it; symbolic links are removed, not followed. */
+static inline void pn_test_remove_tree(const char *path) {
+    struct stat st;
+    if (lstat(path, &st) != 0) return;
+    if (S_ISDIR(st.st_mode)) {
+        DIR *d = opendir(path);
+        if (d) {
+            struct dirent *e;
+            while ((e = readdir(d)) != NULL) {
+                if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+                char child[1024];
+                if ((size_t)snprintf(child, sizeof child, "%s/%s", path, e->d_name) < sizeof child)
+                    pn_test_remove_tree(child);
+            }
+            closedir(d);
+        }
+        rmdir(path);
+    } else {
+        unlink(path);
+    }
+}
+
+static char pn_test_scratch[8][256];
+static int pn_test_scratch_count;
+
+/* Registers a scratch folder (made by the test, under /tmp) for removal at the end. */
+static inline void pn_test_remove_at_end(const char *dir) {
+    if (dir && dir[0] && strncmp(dir, "/tmp/", 5) == 0 && pn_test_scratch_count < 8 &&
+        strlen(dir) < sizeof pn_test_scratch[0])
+        strcpy(pn_test_scratch[pn_test_scratch_count++], dir);
+}
+
 #define TEST(fn)                                                                                                       \
     { #fn, fn }
 
@@ -88,6 +125,8 @@ static inline void pn_test_skip(const char *why) {
             }                                                                                                          \
         }                                                                                                              \
         printf("%d passed, %d failed, %d skipped\n", passed, failed, skipped);                                         \
+        if (!failed)                                                                                                   \
+            for (int d = 0; d < pn_test_scratch_count; d++) pn_test_remove_tree(pn_test_scratch[d]);                   \
         /* 77: CTest reports the test as skipped (SKIP_RETURN_CODE) when nothing ran. */                               \
         return failed ? 1 : (passed == 0 && skipped > 0 ? 77 : 0);                                                     \
     }

@@ -40,6 +40,7 @@ static inline const char *temp_dir(void) {
             fprintf(stderr, "mkdtemp failed: %s\n", strerror(errno));
             exit(1);
         }
+        pn_test_remove_at_end(dir);
     }
     return dir;
 }

@@ -982,6 +982,7 @@ static void test_spans_end_at_creases(void) {
 static void setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_contour_XXXXXX");
     if (!mkdtemp(tmpdir)) tmpdir[0] = 0;
+    pn_test_remove_at_end(tmpdir);
 }
 
 static void test_setup(void) {

@@ -85,6 +85,7 @@ static void test_good_run(void) {
 static void test_setup(void) {
     snprintf(dir, sizeof dir, "/tmp/pn_test_contour_cli_XXXXXX");
     CHECK(mkdtemp(dir) != NULL);
+    pn_test_remove_at_end(dir);
 }
 
 PN_TESTS(TEST(test_setup), TEST(test_bad_options), TEST(test_good_run))

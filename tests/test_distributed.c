@@ -30,6 +30,7 @@ static const char *tmp_path(const char *name) {
     if (!tmpdir[0]) {
         snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_distributed.XXXXXX");
         if (!mkdtemp(tmpdir)) tmpdir[0] = '\0';
+        pn_test_remove_at_end(tmpdir);
     }
     snprintf(buf[k], sizeof buf[k], "%s/%s", tmpdir, name);
     return buf[k];

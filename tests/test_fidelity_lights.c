@@ -458,6 +458,7 @@ static void setup(void) {
         fprintf(stderr, "mkdtemp failed\n");
         exit(1);
     }
+    pn_test_remove_at_end(tmpdir);
 }
 
 static void test_setup(void) {

@@ -358,6 +358,7 @@ static void test_setup(void) {
         fprintf(stderr, "mkdtemp failed\n");
         exit(1);
     }
+    pn_test_remove_at_end(tmpdir);
 }
 
 PN_TESTS(TEST(test_setup), TEST(test_melanopic_table), TEST(test_xyz_aov), TEST(test_melanopic_aov),

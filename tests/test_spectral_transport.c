@@ -257,6 +257,7 @@ static void test_setup(void) {
         fprintf(stderr, "mkdtemp failed\n");
         exit(1);
     }
+    pn_test_remove_at_end(tmpdir);
 }
 
 PN_TESTS(TEST(test_setup), TEST(test_white_furnace_every_integrator), TEST(test_saturated_product),
