@@ -77,9 +77,6 @@ pn_status pn_illuminance_melanopic(pn_context ctx, pn_scene scene, const pn_rend
                                "integrator %s does not compute illuminance at points (reference: direct; vpl, "
                                "lightcuts: total)",
                                ientry->info.name);
-    if (edi && !pn_point_melanopic_supported(integ))
-        return pn_context_fail(ctx, PN_ERROR_INVALID_ARGUMENT,
-                               "integrator %s does not compute the melanopic EDI at points", ientry->info.name);
     for (int i = 0; i < count; i++) {
         const float *v = points[i].p, *n = points[i].n;
         bool finite = true;

@@ -1811,8 +1811,9 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         double lux = 0.0, mel = 0.0; /* PN_AOV_MELANOPIC_EDI: the same pooling */
         for (int k = 0; k < px->region_count; k++) {
             const ias_region *g = &s->regions[px->first_region + k];
-            if (g->lux_n > 0) lux += g->weight * g->lux_sum / (double)g->lux_n;
-            if (g->lux_n > 0) mel += g->weight * g->mel_sum / (double)g->lux_n;
+            if (g->lux_n == 0) continue;
+            lux += g->weight * g->lux_sum / (double)g->lux_n;
+            mel += g->weight * g->mel_sum / (double)g->lux_n;
         }
         if (isfinite(lux)) out[pi].illuminance = (float)lux;
         if (isfinite(mel)) out[pi].melanopic_edi = (float)mel;

@@ -37,10 +37,6 @@
 /* Salt of the points' scrambles (no pixel has this hash input). */
 #define PN_POINT_SALT UINT64_C(0x6c75782d67726964)
 
-bool pn_point_melanopic_supported(const pn_integrator *integrator) {
-    return pn_point_supported(integrator);
-}
-
 /* The melanopic EDI at points of the VPL integrators: the number of wavelength samples and the
  * i-th sample's wavelengths (the reference's convention: the point's Sobol sequence). */
 static uint32_t point_wavelength_samples(const pn_render_job *job) {

@@ -18,10 +18,8 @@ void pn_point_scratch_free(const pn_integrator *integrator, void *scratch);
 bool pn_point_illuminance(const pn_render_job *job, const pn_integrator *integrator, void *scratch, vec3 p, vec3 n,
                           uint32_t index, double *lux, double *edi);
 
-/* Whether the integrator evaluates the melanopic EDI at points (in spectral mode). */
-bool pn_point_melanopic_supported(const pn_integrator *integrator);
-
-/* Whether the integrator can evaluate points. */
+/* Whether the integrator can evaluate points (illuminance, and the melanopic EDI in spectral
+ * mode). */
 bool pn_point_supported(const pn_integrator *integrator);
 
 #endif

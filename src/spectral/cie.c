@@ -12,10 +12,22 @@ double pn_cie_table_eval(const double table[PN_CIE_TABLE_COUNT], double lambda) 
     return table[i] * (1.0 - t) + table[i + 1] * t;
 }
 
+/* pn_cie_table_eval's formula for the three tables with one index computation (the same
+ * numbers; pn_swl_sample calls it for every wavelength drawn). */
 void pn_cie_xyz_bar(double lambda, double xyz_bar[3]) {
-    xyz_bar[0] = pn_cie_table_eval(pn_cie_x_5nm, lambda);
-    xyz_bar[1] = pn_cie_table_eval(pn_cie_y_5nm, lambda);
-    xyz_bar[2] = pn_cie_table_eval(pn_cie_z_5nm, lambda);
+    const double *tab[3] = {pn_cie_x_5nm, pn_cie_y_5nm, pn_cie_z_5nm};
+    if (!(lambda >= PN_LAMBDA_MIN && lambda <= PN_LAMBDA_MAX)) {
+        xyz_bar[0] = xyz_bar[1] = xyz_bar[2] = 0.0;
+        return;
+    }
+    double x = (lambda - PN_LAMBDA_MIN) / 5.0;
+    int i = (int)x;
+    if (i >= PN_CIE_TABLE_COUNT - 1) {
+        for (int k = 0; k < 3; k++) xyz_bar[k] = tab[k][PN_CIE_TABLE_COUNT - 1];
+        return;
+    }
+    double t = x - i;
+    for (int k = 0; k < 3; k++) xyz_bar[k] = tab[k][i] * (1.0 - t) + tab[k][i + 1] * t;
 }
 
 double pn_cie_y_integral(void) {

@@ -35,24 +35,6 @@ double pn_swl_d65(double lambda) {
     return g_d65_scale * pn_cie_table_eval(pn_cie_d65_5nm, lambda);
 }
 
-/* pn_cie_xyz_bar with one index computation for the three tables: pn_cie_table_eval's formula, so
- * the same numbers. */
-static void cie_xyz_bar_at(double lambda, double xyz_bar[3]) {
-    const double *tab[3] = {pn_cie_x_5nm, pn_cie_y_5nm, pn_cie_z_5nm};
-    if (!(lambda >= PN_LAMBDA_MIN && lambda <= PN_LAMBDA_MAX)) {
-        xyz_bar[0] = xyz_bar[1] = xyz_bar[2] = 0.0;
-        return;
-    }
-    double x = (lambda - PN_LAMBDA_MIN) / 5.0;
-    int i = (int)x;
-    if (i >= PN_CIE_TABLE_COUNT - 1) {
-        for (int k = 0; k < 3; k++) xyz_bar[k] = tab[k][PN_CIE_TABLE_COUNT - 1];
-        return;
-    }
-    double t = x - i;
-    for (int k = 0; k < 3; k++) xyz_bar[k] = tab[k][i] * (1.0 - t) + tab[k][i + 1] * t;
-}
-
 void pn_swl_sample(float u, pn_swl *out) {
     pthread_once(&g_once, transport_init);
     /* The film's maps (transport.h): the CIE lookups once per set of wavelengths, not per value
@@ -67,7 +49,7 @@ void pn_swl_sample(float u, pn_swl *out) {
         out->inv_pdf[i] = (float)inv_pdf;
         out->illum[i] = (float)(g_d65_scale * pn_cie_table_eval(pn_cie_d65_5nm, lambda));
         double bar[3], xyz[3], rgb[3];
-        cie_xyz_bar_at(out->lambda[i], bar);
+        pn_cie_xyz_bar(out->lambda[i], bar);
         for (int c = 0; c < 3; c++) xyz[c] = bar[c] * (double)out->inv_pdf[i] * k;
         pn_xyz_to_linear_srgb(xyz, rgb);
         for (int c = 0; c < 3; c++) {
