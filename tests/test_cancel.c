@@ -4,7 +4,7 @@
  * leaves the context usable; progress is monotone, reaches 1 and comes in more than two steps for
  * the tiled driver, illumcut's whole-image phases, contour's scanlines and the progressive drivers; every
  * driver reports its peak memory; `penumbra render` interrupted during VPL tracing exits 130
- * and writes no image at all. */
+ * and writes no image at all; contour's trace file is written whole after a finished render only. */
 #include "harness.h"
 
 #include "penumbra/penumbra.h"
@@ -287,6 +287,64 @@ static void test_cli_interrupt_during_preparation(void) {
     CHECK(access(partial_path, F_OK) != 0);
 }
 
+/* contour-trace is written once the render has finished, in one atomic write: a cancelled render
+ * leaves no trace file, a finished one leaves every counted pixel's line, and a trace that cannot
+ * be written fails the render with its path (no image). */
+static void test_contour_trace_written_whole(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = vpl_test_load(ctx, "room_c.pbrt", pn_test_room_scene(0, 24, 18));
+    if (!scene) {
+        pn_context_free(ctx);
+        return;
+    }
+    char trace[512], bad[512];
+    snprintf(trace, sizeof trace, "%s/trace.txt", tmpdir);
+    snprintf(bad, sizeof bad, "%s/no-such-folder/trace.txt", tmpdir);
+    pn_options o = pn_options_new();
+    CHECK(pn_options_set(NULL, o, "contour-trace", trace) == PN_OK);
+    progress_log log;
+    log_init(&log);
+    log.cancel_ctx = ctx; /* cancelled at the first row's report */
+    pn_render_settings rs = settings(PN_INTEGRATOR_CONTOUR, 0, &log);
+    rs.options = o;
+    pn_image img = NULL;
+    pn_status st = pn_render(ctx, scene, &rs, &img, NULL);
+    CHECK(st == PN_OK || st == PN_ERROR_CANCELLED);
+    pn_image_free(img);
+    pn_context_clear_error(ctx);
+    CHECK_MSG(access(trace, F_OK) != 0, "a cancelled render left %s", trace);
+
+    log_init(&log);
+    img = NULL;
+    CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_OK && img != NULL);
+    pn_image_free(img);
+    FILE *f = fopen(trace, "r");
+    CHECK(f != NULL);
+    int lines = 0, bad_lines = 0;
+    char line[256];
+    while (f && fgets(line, sizeof line, f)) {
+        int x, y, cls;
+        unsigned why;
+        if (sscanf(line, "%d %d %d %u", &x, &y, &cls, &why) != 4 || x < 0 || x >= 24 || y < 0 || y >= 18 || cls < 0 ||
+            cls > 3)
+            bad_lines++;
+        lines++;
+    }
+    if (f) fclose(f);
+    CHECK_MSG(lines > 0 && lines <= 24 * 18 && bad_lines == 0, "%d lines, %d malformed", lines, bad_lines);
+
+    CHECK(pn_options_set(NULL, o, "contour-trace", bad) == PN_OK);
+    log_init(&log);
+    img = NULL;
+    CHECK(pn_render(ctx, scene, &rs, &img, NULL) == PN_ERROR_IO);
+    CHECK(img == NULL);
+    CHECK_STR_CONTAINS(pn_context_error_message(ctx), "no-such-folder/trace.txt");
+    pn_context_clear_error(ctx);
+    pn_options_free(o);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 static void setup(void) {
     vpl_test_setup("cancel");
 }
@@ -299,4 +357,4 @@ static void teardown(void) {
 
 PN_TESTS(TEST(setup), TEST(test_cancel_before_render), TEST(test_cancel_during_vpl_tracing),
          TEST(test_progress_by_phase), TEST(test_progressive_drivers), TEST(test_cli_interrupt_during_preparation),
-         TEST(teardown))
+         TEST(test_contour_trace_written_whole), TEST(teardown))

@@ -468,6 +468,16 @@ pn_status pn_render(pn_context ctx, pn_scene scene, const pn_render_settings *ca
     if (st == PN_OK && *out_image)
         pn_camera_film_apply(&job.camera, *out_image); /* iso, shutter, white balance, clamp */
     pn_image_set_crop_window(*out_image, &job.camera);
+    if (st == PN_OK && integ->finish && !atomic_load(&ctx->cancel)) {
+        pn_err ferr;
+        pn_err_init(&ferr);
+        st = integ->finish(&job, &ferr);
+        if (st != PN_OK) {
+            pn_context_fail_from(ctx, &ferr);
+            pn_image_free(*out_image);
+            *out_image = NULL;
+        }
+    }
     if (integ->release) integ->release(&job);
     pn_progress_destroy(&progress);
     atomic_store(&ctx->cancel, 0);

@@ -5,7 +5,9 @@
  * carried along the row, spans ending at creases, the dichotomy hints of a nearby pixel; and the
  * `contour` / `contour-mc` integrators that shade with it. See contour.c's header for the paper's
  * parts and our departures. With the option contour-trace FILE, the rays of every
- * counted pixel are written to FILE by phase (bench/contour/breakdown.sh).
+ * counted pixel are written to FILE by phase (bench/contour/breakdown.sh): kept in memory while
+ * rendering and written atomically (io/write.c) by the finish hook once the render has finished,
+ * so a failed or cancelled render leaves no file, and never half of one.
  *
  * Eye rays: a fixed number per pixel (--spp, default 1 as in the paper; the adaptive --threshold
  * mode of the reference does not apply), drawn from the pixel's scrambled Sobol sequence exactly
@@ -21,11 +23,13 @@
 #include "core/photometry.h"
 #include "core/rng.h"
 #include "core/threadpool.h"
+#include "io/image.h"
 #include "render/progress.h"
 #include "shade/bsdf.h"
 #include "spectral/melanopic.h"
 #include "spectral/transport.h"
 
+#include <errno.h>
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -65,7 +69,9 @@ typedef struct contour_data {
     int obstacle_count;
     float tol;
     int N, p0;
-    FILE *trace;       /* option contour-trace: one line per counted pixel (bench/contour/ray_breakdown.c) */
+    FILE *trace;      /* option contour-trace: one line per counted pixel (bench/contour/ray_breakdown.c) */
+    char *trace_text; /* the trace's memory stream (open_memstream) */
+    size_t trace_size;
     int scout;         /* option contour-scout: the scout lattice, 0-3 (contour.c) */
     int penumbra_part; /* option contour-part: runs with a contour check 1/part of their samples */
     double linear_tol; /* option contour-linear-tol */
@@ -234,11 +240,12 @@ static pn_status contour_prepare_common(pn_render_job *job, pn_err *err, bool mc
     atomic_init(&cd->culled, 0);
     /* Bench instrumentation (option contour-trace): where the shadow rays go, per pixel. */
     if (job->contour_trace && *job->contour_trace) {
-        cd->trace = fopen(job->contour_trace, "w");
+        cd->trace = open_memstream(&cd->trace_text, &cd->trace_size);
         if (!cd->trace) {
             job->integrator_data = cd;
             contour_release(job);
-            return pn_err_set(err, PN_ERROR_IO, "%s: cannot write the contour trace", job->contour_trace);
+            return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory for the contour trace",
+                              job->contour_trace);
         }
     }
     /* Our departures are switched off by contour_flags (contour-off islands,half,scouts,linear).
@@ -270,11 +277,27 @@ static void contour_release(pn_render_job *job) {
     contour_data *cd = job->integrator_data;
     if (!cd) return;
     if (cd->trace) fclose(cd->trace);
+    free(cd->trace_text);
     free(cd->lights);
     free(cd->skip);
     free(cd->obstacles);
     free(cd);
     job->integrator_data = NULL;
+}
+
+static pn_status write_trace_to(void *user, FILE *file, const char *path, pn_err *err) {
+    const contour_data *cd = user;
+    if (cd->trace_size > 0 && fwrite(cd->trace_text, 1, cd->trace_size, file) != cd->trace_size)
+        return pn_err_set(err, PN_ERROR_IO, "%s: %s", path, strerror(errno));
+    return PN_OK;
+}
+
+/* After a finished render: the trace, whole, in one atomic write. */
+static pn_status contour_finish(pn_render_job *job, pn_err *err) {
+    contour_data *cd = job->integrator_data;
+    if (!cd || !cd->trace) return PN_OK;
+    if (fflush(cd->trace) != 0) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "%s: out of memory", job->contour_trace);
+    return pn_write_atomic(job->contour_trace, write_trace_to, cd, err);
 }
 
 static void contour_report(const pn_render_job *job, pn_render_stats *stats) {
@@ -1153,6 +1176,7 @@ const pn_integrator pn_integrator_contour = {
     .prepare = contour_prepare,
     .release = contour_release,
     .report = contour_report,
+    .finish = contour_finish,
     .scratch_create = contour_scratch_create,
     .scratch_free = contour_scratch_free,
     .render_batch = contour_render_batch,
@@ -1165,6 +1189,7 @@ const pn_integrator pn_integrator_contour_mc = {
     .prepare = contour_mc_prepare,
     .release = contour_release,
     .report = contour_report,
+    .finish = contour_finish,
     .scratch_create = contour_scratch_create,
     .scratch_free = contour_scratch_free,
     .render_batch = contour_render_batch,

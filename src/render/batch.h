@@ -177,6 +177,10 @@ typedef struct pn_integrator {
     void (*release)(pn_render_job *job);
     /* Optional: adds what only the integrator knows to the statistics (before release). */
     void (*report)(const pn_render_job *job, pn_render_stats *stats);
+    /* Optional: called once after a render that finished (not cancelled, no failure), before
+     * release: writes the files the integrator's own options ask for, atomically (contour-trace).
+     * A failure here fails the render. */
+    pn_status (*finish)(pn_render_job *job, pn_err *err);
     /* Per-worker scratch: created once per thread, freed at the end of the render. */
     void *(*scratch_create)(const pn_render_job *job);
     void (*scratch_free)(void *scratch);
