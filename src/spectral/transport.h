@@ -128,7 +128,7 @@ vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb)
 double pn_blackbody_unit_scale(double kelvin);
 
 /* A tabulated emission spectrum kept as a spectrum in spectral mode (a "spectrum" value given as
- * numbers, an .spd file, or the named stdillum-D65 / stdillum-A, whose CIE tables cie.h has):
+ * numbers, an .spd file, or a named illuminant, whose CIE tables cie.h has):
  * piecewise linear between its wavelengths and held at its end values outside them, as
  * scene/spectrum.c reads the same values for RGB mode. scale is 1 / the function's luminance
  * (∫ ȳ S dλ / ∫ ȳ dλ with cie.h's tables, trapezoid rule at 0.1 nm; 0 without luminance). */
