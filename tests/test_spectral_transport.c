@@ -3,7 +3,8 @@
  * the wavelength sampling); a saturated light on a saturated surface gives the spectral product
  * of pbrt-v4's model (sigmoid-polynomial reflectance times the light's illuminant spectrum,
  * integrated here at 1 nm) where RGB mode gives the product of the RGBs; a blackbody light gives
- * its colour on a white diffuser; images are bit-identical for any thread count. */
+ * its colour on a white diffuser; images are bit-identical for any thread count; illumcut's memo
+ * of illuminant spectra returns the conversion's own values. */
 #include "harness.h"
 
 #include "penumbra/penumbra.h"
@@ -251,6 +252,52 @@ static void test_thread_determinism(void) {
     pn_context_free(ctx);
 }
 
+/* The illuminant memo (pn_swl_memo, used by illumcut) returns, bit for bit, what the conversion
+ * gives without it: 300 colours converted at 8 receivers' wavelengths in illumcut's order (each
+ * colour at every receiver, then the next), twice (the second pass reads the memo), through a memo
+ * with room for every colour and one of 16 rows (the others converted without it); copies of a
+ * receiver share its slot; pn_swl_sample detaches. */
+static void test_illuminant_memo(void) {
+    enum { N = 8, COLOURS = 300 };
+    pn_swl w[N];
+    for (int i = 0; i < N; i++) pn_swl_sample(0.013f + (float)i / N, &w[i]);
+    vec3 colour[COLOURS];
+    uint32_t state = 12345u;
+    for (int c = 0; c < COLOURS; c++) {
+        float v[3];
+        for (int k = 0; k < 3; k++) {
+            state = state * 1664525u + 1013904223u;
+            v[k] = (float)(state >> 8) / 16777216.0f * 50.0f;
+        }
+        colour[c] = v3(v[0], v[1], v[2]);
+    }
+    const size_t sizes[2] = {(size_t)1 << 20, 1};
+    for (int m = 0; m < 2; m++) {
+        pn_swl_memo *memo = pn_swl_memo_new(N, sizes[m]);
+        CHECK(memo != NULL);
+        if (!memo) return;
+        pn_swl with[N];
+        for (int i = 0; i < N; i++) {
+            with[i] = w[i];
+            pn_swl_memo_attach(&with[i], memo, i);
+        }
+        size_t differ = 0;
+        for (int pass = 0; pass < 2; pass++)
+            for (int c = 0; c < COLOURS; c++)
+                for (int i = 0; i < N; i++) {
+                    pn_swl copy = with[i];
+                    vec3 a = pn_swl_illuminant_on(pass ? &copy : &with[i], colour[c]);
+                    vec3 b = pn_swl_illuminant_on(&w[i], colour[c]);
+                    differ += memcmp(&a, &b, sizeof a) != 0;
+                }
+        CHECK_MSG(differ == 0, "memo of %zu bytes: %zu conversions differ", sizes[m], differ);
+        pn_swl_sample(0.5f, &with[0]);
+        CHECK(with[0].memo == NULL);
+        pn_swl_memo_free(memo);
+    }
+    CHECK(pn_swl_memo_new(0, 1024) == NULL);
+}
+
 static void test_setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_spectral_transport_XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -261,4 +308,4 @@ static void test_setup(void) {
 }
 
 PN_TESTS(TEST(test_setup), TEST(test_white_furnace_every_integrator), TEST(test_saturated_product),
-         TEST(test_blackbody_chromaticity), TEST(test_thread_determinism))
+         TEST(test_blackbody_chromaticity), TEST(test_thread_determinism), TEST(test_illuminant_memo))
