@@ -20,6 +20,17 @@
 
 static char tmpdir[256];
 
+/* The scene `text`, written to `file` in tmpdir and loaded (NULL on failure, with the message). */
+static pn_scene load_text(pn_context ctx, const char *file, const char *text) {
+    const char *path = pn_test_write_file(tmpdir, file, text);
+    pn_scene scene = NULL;
+    if (!path || pn_scene_load(ctx, path, &scene) != PN_OK) {
+        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+        return NULL;
+    }
+    return scene;
+}
+
 /* A 10 x 10 diffuser of reflectance `kd` at z = 0 under a 1 x 1 square light `light` at height 1
  * facing down, seen from the side; 24 x 24 pixels around the light's foot. */
 static pn_scene load_plane(pn_context ctx, const char *light, const char *kd) {
@@ -38,13 +49,7 @@ static pn_scene load_plane(pn_context ctx, const char *light, const char *kd) {
              "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
              "AttributeEnd\n",
              kd, light);
-    const char *path = pn_test_write_file(tmpdir, "plane.pbrt", text);
-    pn_scene scene = NULL;
-    if (!path || pn_scene_load(ctx, path, &scene) != PN_OK) {
-        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
-        return NULL;
-    }
-    return scene;
+    return load_text(ctx, "plane.pbrt", text);
 }
 
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind integrator, bool spectral, uint32_t spp,
@@ -304,7 +309,8 @@ static void test_illuminant_memo(void) {
  * the closed form; the tables at 630, 532 and 465 nm are RGB mode's values of the names; a rough
  * copper plane under a white (D65) light has, in spectral mode, the chromaticity of D65 times
  * copper's F0(lambda) (within 1e-3; measured 9e-5; the sigmoid upsampling of its RGB F0, what
- * spectral mode used before, gives x 0.3499 y 0.3360, 9e-3 away); a rough silver plane (nearly grey) has RGB mode's luminance within 1 %. */
+ * spectral mode used before, gives x 0.3499 y 0.3360, 9e-3 away); a rough silver plane (nearly
+ * grey) has RGB mode's luminance within 1 %. */
 static void conductor_xy(const char *metal, double xy[2]) {
     char en[32], kn[32];
     snprintf(en, sizeof en, "metal-%s-eta", metal);
@@ -338,13 +344,7 @@ static pn_scene load_conductor(pn_context ctx, const char *metal) {
              "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
              "AttributeEnd\n",
              metal, metal);
-    const char *path = pn_test_write_file(tmpdir, "conductor.pbrt", text);
-    pn_scene scene = NULL;
-    if (!path || pn_scene_load(ctx, path, &scene) != PN_OK) {
-        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
-        return NULL;
-    }
-    return scene;
+    return load_text(ctx, "conductor.pbrt", text);
 }
 
 /* The image's summed XYZ. */

@@ -25,7 +25,7 @@ extern const pn_metal_table pn_metal_tables[PN_METAL_TABLE_COUNT];
 /* The table of named spectrum `name`, or NULL. */
 const pn_metal_table *pn_metal_table_named(const char *name);
 
-/* Table t at lambda (nm): linear interpolation, end values held outside. */
+/* Table t at lambda (nm): linear interpolation, end values held outside (pn_table_eval). */
 double pn_metal_eval(const pn_metal_table *t, double lambda);
 
 /* The Fresnel reflectance at normal incidence of a conductor of index eta and extinction k. */

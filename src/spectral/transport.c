@@ -309,20 +309,23 @@ vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb)
 
 /* ---- tabulated emission spectra ---------------------------------------------------------- */
 
-double pn_spd_eval(const pn_spd *s, double lambda) {
-    const int n = s->count;
-    if (lambda <= s->lambda[0]) return s->value[0];
-    if (lambda >= s->lambda[n - 1]) return s->value[n - 1];
-    int lo = 0, hi = n - 1; /* lambda[lo] <= lambda < lambda[hi] */
+double pn_table_eval(const double *lambda_nm, const double *value, int n, double lambda) {
+    if (lambda <= lambda_nm[0]) return value[0];
+    if (lambda >= lambda_nm[n - 1]) return value[n - 1];
+    int lo = 0, hi = n - 1; /* lambda_nm[lo] <= lambda < lambda_nm[hi] */
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;
-        if (s->lambda[mid] <= lambda)
+        if (lambda_nm[mid] <= lambda)
             lo = mid;
         else
             hi = mid;
     }
-    double t = (lambda - s->lambda[lo]) / (s->lambda[hi] - s->lambda[lo]);
-    return s->value[lo] * (1.0 - t) + s->value[hi] * t;
+    double t = (lambda - lambda_nm[lo]) / (lambda_nm[hi] - lambda_nm[lo]);
+    return value[lo] * (1.0 - t) + value[hi] * t;
+}
+
+double pn_spd_eval(const pn_spd *s, double lambda) {
+    return pn_table_eval(s->lambda, s->value, s->count, lambda);
 }
 
 void pn_spd_free(pn_spd *s) {

@@ -144,6 +144,9 @@ pn_spd *pn_spd_new(const double *pairs, int count);
 void pn_spd_free(pn_spd *s);
 /* The function at lambda (nm). */
 double pn_spd_eval(const pn_spd *s, double lambda);
+/* The piecewise linear function of n knots (lambda_nm increasing, value) at lambda, end values
+ * held outside (pn_spd_eval's rule). */
+double pn_table_eval(const double *lambda_nm, const double *value, int n, double lambda);
 /* A tabulated emission at the wavelengths, scaled so that its luminance equals that of rgb (the
  * value RGB mode uses for it, as pn_swl_blackbody): Y(rgb) * scale * S(lambda). RGB mode: rgb. */
 vec3 pn_swl_tabulated(const pn_swl *w, const pn_spd *s, vec3 rgb);
