@@ -192,8 +192,8 @@ static const named_spectrum named_spectra[] = {
  * with x = y = 0) is exactly (1, 1, 1): pbrt-v4 derives its sRGB white point from the D65
  * spectrum itself, so stdillum-D65 is the colour space's white. F10's y is 0.35896, the value its
  * CIE table integrates to (0.3588 with the CIE's 5 nm sums, 0.3592 with interpolated tables; an
- * earlier 0.35986 here, 7e-4 off, had two digits swapped). Spectral mode emits the CIE tables
- * themselves (pn_params_light_spectrum). */
+ * earlier 0.35986 here, 7e-4 off, apparently had two digits swapped). Spectral mode emits the
+ * CIE tables themselves (pn_params_light_spectrum). */
 typedef struct named_illuminant {
     const char *name;
     double x, y;
