@@ -3,7 +3,8 @@
  * melanopic action spectrum (K_mel,v of D65 from the shipped table), the melanopic_edi AOV and the
  * melanopic EDI at calculation points against closed forms (D65, a black body, a narrow band),
  * the refusals of RGB mode, and tabulated emission spectra kept as spectra in spectral mode (a
- * narrow band's chromaticity and EDI, far from those of its RGB projection). */
+ * narrow band's chromaticity and EDI, far from those of its RGB projection), and the named
+ * illuminants' CIE tables (their published chromaticities; a stdillum-F2 light). */
 #include "harness.h"
 
 #include "penumbra/penumbra.h"
@@ -352,6 +353,94 @@ static void test_tabulated_spectrum(void) {
     pn_context_free(ctx);
 }
 
+/* A named illuminant's CIE table, 0 outside it (as pbrt-v4's piecewise linear spectra). */
+static double named_table(double l, const void *u) {
+    const pn_cie_illuminant *il = u;
+    double x = (l - il->lambda_min) / 5.0;
+    if (x < 0.0 || x > il->count - 1) return 0.0;
+    int i = (int)x;
+    if (i >= il->count - 1) return il->value[il->count - 1];
+    double t = x - i;
+    return il->value[i] * (1.0 - t) + il->value[i + 1] * t;
+}
+
+/* The CIE 1931 chromaticities of pbrt-v4's named illuminants (CIE 015's, 5 decimals; F10's y is
+ * 0.35896, see scene/spectrum.c; ACES D60: SMPTE ST 2065-1). */
+static const struct {
+    const char *name;
+    double x, y;
+} published_xy[] = {
+    {"stdillum-D65", 0.31271, 0.32902},  {"stdillum-A", 0.44757, 0.40745},   {"stdillum-D50", 0.34567, 0.35850},
+    {"stdillum-F1", 0.31310, 0.33727},   {"stdillum-F2", 0.37208, 0.37529},  {"stdillum-F3", 0.40910, 0.39430},
+    {"stdillum-F4", 0.44018, 0.40329},   {"stdillum-F5", 0.31379, 0.34531},  {"stdillum-F6", 0.37790, 0.38835},
+    {"stdillum-F7", 0.31292, 0.32933},   {"stdillum-F8", 0.34588, 0.35875},  {"stdillum-F9", 0.37417, 0.37281},
+    {"stdillum-F10", 0.34609, 0.35896},  {"stdillum-F11", 0.38052, 0.37713}, {"stdillum-F12", 0.43695, 0.40441},
+    {"illum-acesD60", 0.32168, 0.33767},
+};
+
+/* Every named illuminant's table integrates (interpolated, trapezoid rule at 0.1 nm) to its
+ * published chromaticity: within 1e-4 for the CIE's D50, D65 and A; within 3e-4 for the line
+ * spectra F1 ... F12 (the CIE's 5 nm sums give y about 1.6e-4 lower, interpolated tables 1.8e-4
+ * higher; measured: at most 2.3e-4) and for ACES D60 (CIE daylight at the ACES white, derived from
+ * tables rounded to 0.1: y 1.0e-4 low). A wrong entry that moves the chromaticity more fails. */
+static void test_named_illuminant_tables(void) {
+    int checked = 0;
+    for (size_t k = 0; k < sizeof published_xy / sizeof published_xy[0]; k++) {
+        const pn_cie_illuminant *il = pn_cie_illuminant_named(published_xy[k].name);
+        CHECK_MSG(il != NULL, "%s has no table", published_xy[k].name);
+        if (!il) continue;
+        double xy[2], der;
+        closed_form(named_table, il, xy, &der);
+        const bool lines = strncmp(il->name, "stdillum-F", 10) == 0, aces = strcmp(il->name, "illum-acesD60") == 0;
+        const double tol = lines || aces ? 3e-4 : 1e-4;
+        fprintf(stderr, "  %-13s x %.5f y %.5f (published %.5f %.5f)\n", il->name, xy[0], xy[1], published_xy[k].x,
+                published_xy[k].y);
+        CHECK_NEAR(xy[0], published_xy[k].x, tol);
+        CHECK_NEAR(xy[1], published_xy[k].y, tol);
+        checked++;
+    }
+    CHECK(checked == PN_CIE_ILLUMINANT_COUNT);
+    CHECK(pn_cie_illuminant_named("stdillum-F13") == NULL);
+}
+
+/* A light of stdillum-F2 in spectral mode emits the CIE F2 table: the XYZ layer gives F2's CIE
+ * chromaticity within 1e-3, and the melanopic EDI per lux the table's own (within 1e-2), where the
+ * sigmoid upsampling of F2's RGB (what spectral mode emitted before the tables) gives 0.739, 30 % more.
+ * RGB mode's XYZ layer gives the chromaticity too (its colour is F2's chromaticity). */
+static void test_named_illuminant_light(void) {
+    pn_context ctx = pn_context_new();
+    pn_scene scene = load_plane(ctx, "\"spectrum L\" \"stdillum-F2\" \"float scale\" [ 3 ]");
+    CHECK(scene != NULL);
+    if (!scene) return;
+    const pn_cie_illuminant *f2 = pn_cie_illuminant_named("stdillum-F2");
+    double xy[2], der;
+    closed_form(named_table, f2, xy, &der);
+    for (int spectral = 0; spectral < 2; spectral++) {
+        pn_image img = NULL;
+        uint32_t aovs = PN_AOV_XYZ | (spectral ? PN_AOV_MELANOPIC_EDI | PN_AOV_ILLUMINANCE : 0);
+        CHECK(render(ctx, scene, spectral, spectral ? 256 : 4, aovs, PN_INTEGRATOR_REFERENCE, &img) == PN_OK);
+        double xyz[3], mel[3], lux[3];
+        if (img && layer_sum(img, "XYZ", xyz)) {
+            double s = xyz[0] + xyz[1] + xyz[2];
+            fprintf(stderr, "  stdillum-F2, %s mode: x %.5f y %.5f (CIE 0.37208 0.37529)\n",
+                    spectral ? "spectral" : "RGB", xyz[0] / s, xyz[1] / s);
+            CHECK_NEAR(xyz[0] / s, 0.37208, 1e-3);
+            CHECK_NEAR(xyz[1] / s, 0.37529, 1e-3);
+        } else {
+            CHECK_MSG(false, "no XYZ layer");
+        }
+        if (spectral && img && layer_sum(img, "melanopic_edi", mel) && layer_sum(img, "illuminance", lux)) {
+            fprintf(stderr, "  stdillum-F2: EDI / E %.5f (its table %.5f)\n", mel[0] / lux[0], der);
+            CHECK_NEAR(mel[0] / lux[0] / der, 1.0, 1e-2);
+        } else if (spectral) {
+            CHECK_MSG(false, "no melanopic_edi or illuminance layer");
+        }
+        pn_image_free(img);
+    }
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
 static void test_setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_spectral_outputs_XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -362,4 +451,4 @@ static void test_setup(void) {
 }
 
 PN_TESTS(TEST(test_setup), TEST(test_melanopic_table), TEST(test_xyz_aov), TEST(test_melanopic_aov),
-         TEST(test_tabulated_spectrum))
+         TEST(test_tabulated_spectrum), TEST(test_named_illuminant_tables), TEST(test_named_illuminant_light))

@@ -3,11 +3,14 @@
  * the wavelength sampling); a saturated light on a saturated surface gives the spectral product
  * of pbrt-v4's model (sigmoid-polynomial reflectance times the light's illuminant spectrum,
  * integrated here at 1 nm) where RGB mode gives the product of the RGBs; a blackbody light gives
- * its colour on a white diffuser; images are bit-identical for any thread count. */
+ * its colour on a white diffuser; images are bit-identical for any thread count; illumcut's memo
+ * of illuminant spectra returns the conversion's own values. */
 #include "harness.h"
 
 #include "penumbra/penumbra.h"
+#include "scene/build.h"
 #include "spectral/cie.h"
+#include "spectral/metals.h"
 #include "spectral/rgb2spec.h"
 #include "spectral/transport.h"
 
@@ -16,6 +19,17 @@
 #include <unistd.h>
 
 static char tmpdir[256];
+
+/* The scene `text`, written to `file` in tmpdir and loaded (NULL on failure, with the message). */
+static pn_scene load_text(pn_context ctx, const char *file, const char *text) {
+    const char *path = pn_test_write_file(tmpdir, file, text);
+    pn_scene scene = NULL;
+    if (!path || pn_scene_load(ctx, path, &scene) != PN_OK) {
+        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
+        return NULL;
+    }
+    return scene;
+}
 
 /* A 10 x 10 diffuser of reflectance `kd` at z = 0 under a 1 x 1 square light `light` at height 1
  * facing down, seen from the side; 24 x 24 pixels around the light's foot. */
@@ -35,13 +49,7 @@ static pn_scene load_plane(pn_context ctx, const char *light, const char *kd) {
              "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
              "AttributeEnd\n",
              kd, light);
-    const char *path = pn_test_write_file(tmpdir, "plane.pbrt", text);
-    pn_scene scene = NULL;
-    if (!path || pn_scene_load(ctx, path, &scene) != PN_OK) {
-        fprintf(stderr, "  %s\n", pn_context_error_message(ctx));
-        return NULL;
-    }
-    return scene;
+    return load_text(ctx, "plane.pbrt", text);
 }
 
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind integrator, bool spectral, uint32_t spp,
@@ -251,6 +259,152 @@ static void test_thread_determinism(void) {
     pn_context_free(ctx);
 }
 
+/* The illuminant memo (pn_swl_memo, used by illumcut) returns, bit for bit, what the conversion
+ * gives without it: 300 colours converted at 8 receivers' wavelengths in illumcut's order (each
+ * colour at every receiver, then the next), twice (the second pass reads the memo), through a memo
+ * with room for every colour and one of 16 rows (the others converted without it); copies of a
+ * receiver share its slot; pn_swl_sample detaches. */
+static void test_illuminant_memo(void) {
+    enum { N = 8, COLOURS = 300 };
+    pn_swl w[N];
+    for (int i = 0; i < N; i++) pn_swl_sample(0.013f + (float)i / N, &w[i]);
+    vec3 colour[COLOURS];
+    uint32_t state = 12345u;
+    for (int c = 0; c < COLOURS; c++) {
+        float v[3];
+        for (int k = 0; k < 3; k++) {
+            state = state * 1664525u + 1013904223u;
+            v[k] = (float)(state >> 8) / 16777216.0f * 50.0f;
+        }
+        colour[c] = v3(v[0], v[1], v[2]);
+    }
+    const size_t sizes[2] = {(size_t)1 << 20, 1};
+    for (int m = 0; m < 2; m++) {
+        pn_swl_memo *memo = pn_swl_memo_new(N, sizes[m]);
+        CHECK(memo != NULL);
+        if (!memo) return;
+        pn_swl with[N];
+        for (int i = 0; i < N; i++) {
+            with[i] = w[i];
+            pn_swl_memo_attach(&with[i], memo, i);
+        }
+        size_t differ = 0;
+        for (int pass = 0; pass < 2; pass++)
+            for (int c = 0; c < COLOURS; c++)
+                for (int i = 0; i < N; i++) {
+                    pn_swl copy = with[i];
+                    vec3 a = pn_swl_illuminant_on(pass ? &copy : &with[i], colour[c]);
+                    vec3 b = pn_swl_illuminant_on(&w[i], colour[c]);
+                    differ += memcmp(&a, &b, sizeof a) != 0;
+                }
+        CHECK_MSG(differ == 0, "memo of %zu bytes: %zu conversions differ", sizes[m], differ);
+        pn_swl_sample(0.5f, &with[0]);
+        CHECK(with[0].memo == NULL);
+        pn_swl_memo_free(memo);
+    }
+    CHECK(pn_swl_memo_new(0, 1024) == NULL);
+}
+
+/* Conductors with tabulated eta and k (spectral/metals.h): the tables at a knot and their F0 by
+ * the closed form; the tables at 630, 532 and 465 nm are RGB mode's values of the names; a rough
+ * copper plane under a white (D65) light has, in spectral mode, the chromaticity of D65 times
+ * copper's F0(lambda) (within 1e-3; measured 9e-5; the sigmoid upsampling of its RGB F0, what
+ * spectral mode used before, gives x 0.3499 y 0.3360, 9e-3 away); a rough silver plane (nearly
+ * grey) has RGB mode's luminance within 1 %. */
+static void conductor_xy(const char *metal, double xy[2]) {
+    char en[32], kn[32];
+    snprintf(en, sizeof en, "metal-%s-eta", metal);
+    snprintf(kn, sizeof kn, "metal-%s-k", metal);
+    const pn_metal_table *e = pn_metal_table_named(en), *k = pn_metal_table_named(kn);
+    double xyz[3] = {0, 0, 0};
+    for (double l = PN_LAMBDA_MIN; l <= PN_LAMBDA_MAX; l += 1.0) {
+        double bar[3], f = pn_conductor_f0(pn_metal_eval(e, l), pn_metal_eval(k, l));
+        pn_cie_xyz_bar(l, bar);
+        for (int j = 0; j < 3; j++) xyz[j] += bar[j] * pn_swl_d65(l) * f;
+    }
+    double sum = xyz[0] + xyz[1] + xyz[2];
+    xy[0] = xyz[0] / sum;
+    xy[1] = xyz[1] / sum;
+}
+
+static pn_scene load_conductor(pn_context ctx, const char *metal) {
+    char text[2048];
+    snprintf(text, sizeof text,
+             "LookAt 3 0 0.5  0 0 0  0 0 1\n"
+             "Camera \"perspective\" \"float fov\" [ 20 ]\n"
+             "Film \"rgb\" \"integer xresolution\" [ 24 ] \"integer yresolution\" [ 24 ]\n"
+             "WorldBegin\n"
+             "Material \"conductor\" \"float roughness\" [ 0.5 ] \"spectrum eta\" [ \"metal-%s-eta\" ]\n"
+             "   \"spectrum k\" [ \"metal-%s-k\" ]\n"
+             "Shape \"trianglemesh\" \"point3 P\" [ -5 -5 0  5 -5 0  5 5 0  -5 5 0 ]\n"
+             "   \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+             "AttributeBegin\n"
+             "  AreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ]\n"
+             "  Shape \"trianglemesh\" \"point3 P\" [ -0.5 -0.5 1  -0.5 0.5 1  0.5 0.5 1  0.5 -0.5 1 ]\n"
+             "     \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+             "AttributeEnd\n",
+             metal, metal);
+    return load_text(ctx, "conductor.pbrt", text);
+}
+
+/* The image's summed XYZ. */
+static void image_xyz(pn_image img, double xyz[3]) {
+    const float *p = pn_image_layer_data(img, 0);
+    size_t n = (size_t)pn_image_width(img) * (size_t)pn_image_height(img);
+    double rgb[3] = {0, 0, 0};
+    for (size_t i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++) rgb[c] += (double)p[3 * i + (size_t)c];
+    pn_linear_srgb_to_xyz(rgb, xyz);
+}
+
+static void test_conductor_spectra(void) {
+    const pn_metal_table *cu_eta = pn_metal_table_named("metal-Cu-eta"), *cu_k = pn_metal_table_named("metal-Cu-k");
+    CHECK(cu_eta && cu_k && pn_metal_table_named("metal-Ag-k") && !pn_metal_table_named("metal-Zz-k"));
+    if (!cu_eta || !cu_k) return;
+    /* A knot of the copper tables (551.04 nm: eta 0.950375, k 2.5765): F0 = 6.6408149 / 10.4423149. */
+    const double l0 = 551.040771, e0 = pn_metal_eval(cu_eta, l0), k0 = pn_metal_eval(cu_k, l0);
+    CHECK_NEAR(e0, 0.950375, 1e-9);
+    CHECK_NEAR(k0, 2.5765, 1e-9);
+    CHECK_NEAR(pn_conductor_f0(e0, k0), 0.6359524, 1e-6);
+    const char *names[] = {"metal-Ag-eta", "metal-Ag-k", "metal-Cu-eta", "metal-Cu-k"};
+    for (int i = 0; i < 4; i++) {
+        vec3 rgb;
+        CHECK(pn_named_spectrum_rgb(names[i], &rgb));
+        const pn_metal_table *t = pn_metal_table_named(names[i]);
+        CHECK_NEAR(pn_metal_eval(t, 630.0), rgb.x, 1e-4);
+        CHECK_NEAR(pn_metal_eval(t, 532.0), rgb.y, 1e-4);
+        CHECK_NEAR(pn_metal_eval(t, 465.0), rgb.z, 1e-4);
+    }
+    pn_context ctx = pn_context_new();
+    const char *metals[2] = {"Cu", "Ag"};
+    for (int m = 0; m < 2; m++) {
+        pn_scene scene = load_conductor(ctx, metals[m]);
+        CHECK(scene != NULL);
+        if (!scene) continue;
+        pn_image a = render(ctx, scene, PN_INTEGRATOR_REFERENCE, true, 64, 2);
+        pn_image b = render(ctx, scene, PN_INTEGRATOR_REFERENCE, false, 16, 2);
+        CHECK(a && b);
+        if (a && b) {
+            double xa[3], xb[3], xy[2];
+            image_xyz(a, xa);
+            image_xyz(b, xb);
+            conductor_xy(metals[m], xy);
+            double sa = xa[0] + xa[1] + xa[2], sb = xb[0] + xb[1] + xb[2];
+            fprintf(stderr,
+                    "  %s: spectral x %.5f y %.5f (D65 x F0: %.5f %.5f), RGB mode x %.5f y %.5f; Y spectral / RGB "
+                    "%.4f\n",
+                    metals[m], xa[0] / sa, xa[1] / sa, xy[0], xy[1], xb[0] / sb, xb[1] / sb, xa[1] / xb[1]);
+            CHECK_NEAR(xa[0] / sa, xy[0], 1e-3);
+            CHECK_NEAR(xa[1] / sa, xy[1], 1e-3);
+            if (m == 1) CHECK_NEAR(xa[1] / xb[1], 1.0, 1e-2);
+        }
+        pn_image_free(a);
+        pn_image_free(b);
+        pn_scene_free(scene);
+    }
+    pn_context_free(ctx);
+}
+
 static void test_setup(void) {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/pn_test_spectral_transport_XXXXXX");
     if (!mkdtemp(tmpdir)) {
@@ -261,4 +415,5 @@ static void test_setup(void) {
 }
 
 PN_TESTS(TEST(test_setup), TEST(test_white_furnace_every_integrator), TEST(test_saturated_product),
-         TEST(test_blackbody_chromaticity), TEST(test_thread_determinism))
+         TEST(test_blackbody_chromaticity), TEST(test_thread_determinism), TEST(test_illuminant_memo),
+         TEST(test_conductor_spectra))

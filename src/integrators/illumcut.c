@@ -857,6 +857,9 @@ typedef struct ic_phase2_job {
     ic_worker_totals *per_group;
 } ic_phase2_job;
 
+/* Spectral mode: the most memory of one group's memo of illuminant spectra (pn_swl_memo). */
+#define IC_MEMO_BYTES ((size_t)8 << 20)
+
 static void phase2_group(void *user, size_t gi, int worker) {
     (void)worker;
     ic_phase2_job *pj = user;
@@ -869,6 +872,14 @@ static void phase2_group(void *user, size_t gi, int worker) {
         return;
     }
     rb->n = rb->nr = 0;
+    /* Spectral mode: a memo of illuminant spectra for each point of the group (transport.h's
+     * pn_swl_memo), detached below; without memory the conversions take the slower path (the
+     * same values). */
+    const ic_node *root = &ir->tree.nodes[g->root];
+    ic_point *gp = ir->tree.points + root->first;
+    pn_swl_memo *memo = ir->job->spectral ? pn_swl_memo_new(root->count, IC_MEMO_BYTES) : NULL;
+    if (memo)
+        for (int32_t i = 0; i < root->count; i++) pn_swl_memo_attach(&gp[i].r.wl, memo, i);
     /* First the pairs shaded above the group (in Algorithm 1's order), then the group's own
      * descent. */
     for (size_t i = 0; i < g->n; i++) {
@@ -882,6 +893,10 @@ static void phase2_group(void *user, size_t gi, int worker) {
         atomic_store(&ir->failed, PN_ERROR_OUT_OF_MEMORY);
     rays_flush(ir, rb);
     free(rb);
+    if (memo) {
+        for (int32_t i = 0; i < root->count; i++) pn_swl_memo_detach(&gp[i].r.wl);
+        pn_swl_memo_free(memo);
+    }
     ic_step(ir);
 }
 

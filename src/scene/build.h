@@ -37,8 +37,8 @@ bool pn_named_spectrum_rgb(const char *name, vec3 *out);
 float pn_params_blackbody_kelvin(const pn_params *ps, const char *name);
 
 /* The tabulated spectrum of emission parameter `name` for spectral mode, when it is a "spectrum"
- * value given as numbers, an .spd file, or stdillum-D65 / stdillum-A (the illuminants whose CIE
- * tables spectral/cie.h has): a pn_spd owned by the scene (scene->spds), else NULL (*out; absent,
+ * value given as numbers, an .spd file, or a named illuminant (stdillum-A, -D50, -D65, -F1 ... -F12,
+ * illum-acesD60: the CIE tables of spectral/cie.h): a pn_spd owned by the scene (scene->spds), else NULL (*out; absent,
  * rgb, blackbody, other names). Call after pn_params_rgb accepted the parameter. */
 struct pn_spd;
 pn_status pn_params_light_spectrum(struct pn_scene_s *scene, const pn_params *ps, const char *name,

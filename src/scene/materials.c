@@ -89,6 +89,7 @@
 #include "scene/build.h"
 
 #include "core/optics.h"
+#include "spectral/metals.h"
 
 #include "scene/parser_internal.h"
 
@@ -341,6 +342,15 @@ static pn_status map_coateddiffuse(builder *b, pn_err *err) {
     return PN_OK;
 }
 
+/* The metal table of parameter `name` (def when absent), or NULL (not a named spectrum with a
+ * table). */
+static const pn_metal_table *metal_table(const pn_params *ps, const char *name, const char *def) {
+    const pn_param *p = find_param(ps, name);
+    if (!p) return pn_metal_table_named(def);
+    if (p->type != PN_PT_SPECTRUM || p->str_count != 1 || p->num_count != 0) return NULL;
+    return pn_metal_table_named(p->strs[0]);
+}
+
 /* F0 of a conductor from `reflectance` (when the type has one) or eta / k under `prefix`. */
 static pn_status conductor_reflectance(builder *b, const char *prefix, bool has_reflectance, pn_texref *f0, char *what,
                                        size_t what_size, pn_err *err) {
@@ -371,6 +381,13 @@ static pn_status conductor_reflectance(builder *b, const char *prefix, bool has_
         pn_warn_at(b->scene, b->ps->loc,
                    "%s: textured \"%s\" / \"%s\" are not supported; copper is used where they vary", b->label, en, kn);
     *f0 = constant_ref(v3(conductor_f0(eta.x, k.x), conductor_f0(eta.y, k.y), conductor_f0(eta.z, k.z)));
+    /* Spectral mode's tables (spectral/metals.h) when both are named spectra that have one
+     * (absent: copper). */
+    const pn_metal_table *et = metal_table(b->ps, en, "metal-Cu-eta"), *kt = metal_table(b->ps, kn, "metal-Cu-k");
+    if (et && kt && !varies) {
+        b->m.eta_table = et;
+        b->m.k_table = kt;
+    }
     const pn_param *pe = find_param(b->ps, en);
     const char *ename = pe && pe->type == PN_PT_SPECTRUM && pe->str_count == 1 ? pe->strs[0] : NULL;
     if (!pe)

@@ -102,6 +102,10 @@ typedef struct pn_material {
     pn_texref mix_amount; /* MIX: probability of mix[1] (channel average of the value) */
     char *name;           /* pbrt name ("" for anonymous Material directives) */
     char *description;    /* one line: "NAME: pbrt TYPE -> penumbra model (parameters)" */
+    /* Conductors whose eta and k are named spectra with tables (spectral/metals.h): the tables,
+     * from which spectral mode evaluates F0 (ks, or specular when a mirror) at each wavelength;
+     * NULL otherwise (RGB mode always uses the RGB F0 in ks / specular). */
+    const struct pn_metal_table *eta_table, *k_table;
 } pn_material;
 
 /* ---- geometry ---------------------------------------------------------------------------- */

@@ -32,7 +32,8 @@
  * Spectral mode (--spectral, spectral/transport.h) upsamples these RGB values where they are used,
  * except for light emission that has a spectrum of its own: a "blackbody" value is also kept as
  * its temperature (pn_params_blackbody_kelvin, pn_light_def.kelvin, pn_emission.kelvin), and a
- * "spectrum" given as numbers, an .spd file, stdillum-D65 or stdillum-A as the tabulated function
+ * "spectrum" given as numbers, an .spd file or a named illuminant (stdillum-*, illum-acesD60: the CIE
+ * tables of spectral/cie.h) as the tabulated function
  * (pn_params_light_spectrum: a pn_spd owned by the scene, pn_light_def.spd, pn_emission.spd), and
  * spectral mode emits those (Planck's law, the table) scaled to the luminance of the RGB value
  * read here. Negative tabulated values are dropped there as negative channels are here.
@@ -189,7 +190,10 @@ static const named_spectrum named_spectra[] = {
  * 1 and, with the default sensor, shows its colour without white balancing; penumbra does the
  * same with the exact chromaticity: XYZ = (x / y, 1, (1 - x - y) / y) in linear sRGB. D65 (listed
  * with x = y = 0) is exactly (1, 1, 1): pbrt-v4 derives its sRGB white point from the D65
- * spectrum itself, so stdillum-D65 is the colour space's white. */
+ * spectrum itself, so stdillum-D65 is the colour space's white. F10's y is 0.35896, the value its
+ * CIE table integrates to (0.3588 with the CIE's 5 nm sums, 0.3592 with interpolated tables; an
+ * earlier 0.35986 here, 7e-4 off, apparently had two digits swapped). Spectral mode emits the
+ * CIE tables themselves (pn_params_light_spectrum). */
 typedef struct named_illuminant {
     const char *name;
     double x, y;
@@ -200,7 +204,7 @@ static const named_illuminant named_illuminants[] = {
     {"stdillum-F1", 0.31310, 0.33727},   {"stdillum-F2", 0.37208, 0.37529},  {"stdillum-F3", 0.40910, 0.39430},
     {"stdillum-F4", 0.44018, 0.40329},   {"stdillum-F5", 0.31379, 0.34531},  {"stdillum-F6", 0.37790, 0.38835},
     {"stdillum-F7", 0.31292, 0.32933},   {"stdillum-F8", 0.34588, 0.35875},  {"stdillum-F9", 0.37417, 0.37281},
-    {"stdillum-F10", 0.34609, 0.35986},  {"stdillum-F11", 0.38052, 0.37713}, {"stdillum-F12", 0.43695, 0.40441},
+    {"stdillum-F10", 0.34609, 0.35896},  {"stdillum-F11", 0.38052, 0.37713}, {"stdillum-F12", 0.43695, 0.40441},
     {"illum-acesD60", 0.32168, 0.33767},
 };
 
@@ -426,14 +430,26 @@ static pn_status add_spd(struct pn_scene_s *scene, const double *pairs, int coun
     return PN_OK;
 }
 
-/* CIE table of 5 nm from PN_LAMBDA_MIN as pairs. */
-static pn_status add_cie_spd(struct pn_scene_s *scene, const double *table, const pn_spd **out, pn_err *err) {
-    double pairs[2 * PN_CIE_TABLE_COUNT];
-    for (int i = 0; i < PN_CIE_TABLE_COUNT; i++) {
-        pairs[2 * i] = PN_LAMBDA_MIN + 5.0 * i;
-        pairs[2 * i + 1] = table[i];
+/* A named illuminant's CIE table (5 nm steps) as pairs. A table that ends inside the range of the
+ * matching functions (the CIE's 380-780 nm tables) is 0 beyond its ends, as pbrt-v4's piecewise
+ * linear spectra are: a zero 1e-3 nm outside each end (pn_spd holds its end values). */
+static pn_status add_cie_spd(struct pn_scene_s *scene, const pn_cie_illuminant *il, const pn_spd **out, pn_err *err) {
+    double pairs[2 * (PN_CIE_TABLE_COUNT + 2)];
+    int n = 0;
+    const double last = il->lambda_min + 5.0 * (il->count - 1);
+    if (il->lambda_min > PN_LAMBDA_MIN) {
+        pairs[2 * n] = il->lambda_min - 1e-3;
+        pairs[2 * n++ + 1] = 0.0;
     }
-    return add_spd(scene, pairs, PN_CIE_TABLE_COUNT, out, err);
+    for (int i = 0; i < il->count; i++) {
+        pairs[2 * n] = il->lambda_min + 5.0 * i;
+        pairs[2 * n++ + 1] = il->value[i];
+    }
+    if (last < PN_LAMBDA_MAX) {
+        pairs[2 * n] = last + 1e-3;
+        pairs[2 * n++ + 1] = 0.0;
+    }
+    return add_spd(scene, pairs, n, out, err);
 }
 
 pn_status pn_params_light_spectrum(struct pn_scene_s *scene, const pn_params *ps, const char *name, const pn_spd **out,
@@ -455,8 +471,8 @@ pn_status pn_params_light_spectrum(struct pn_scene_s *scene, const pn_params *ps
     }
     if (p->str_count != 1) return PN_OK;
     const char *s = p->strs[0];
-    if (strcmp(s, "stdillum-D65") == 0) return add_cie_spd(scene, pn_cie_d65_5nm, out, err);
-    if (strcmp(s, "stdillum-A") == 0) return add_cie_spd(scene, pn_cie_a_5nm, out, err);
+    const pn_cie_illuminant *il = pn_cie_illuminant_named(s);
+    if (il) return add_cie_spd(scene, il, out, err);
     vec3 unused;
     if (pn_named_spectrum_rgb(s, &unused)) return PN_OK; /* other named spectra: their RGB, upsampled */
     double *vals = NULL;

@@ -2,6 +2,7 @@
  * oriented, Lambert + Blinn–Phong. */
 #include "shade/bsdf.h"
 
+#include "spectral/metals.h"
 #include "spectral/transport.h"
 
 #include <string.h>
@@ -59,10 +60,11 @@ void pn_bsdf_at(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_b
 /* The material's RGB values (kd, ks, specular) looked up at the hit; *base_kd the diffuse
  * texture's value before a coating, *coat the material when it is coated (else NULL). */
 static void bsdf_at_rgb(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, pn_bsdf *out, vec3 *base_kd,
-                        const pn_material **coat) {
+                        const pn_material **coat, const pn_material **mat) {
     *coat = NULL;
     int mi = pn_material_resolve(scene, hit->material, hit->p, wo, hit->u, hit->v);
     const pn_material *m = (mi >= 0 && mi < scene->material_count) ? &scene->materials[mi] : NULL;
+    *mat = m;
     out->ng = hit->ng;
     out->ns = hit->ns;
     out->entering = v3_dot(hit->ng, wo) >= 0.0f;
@@ -95,8 +97,8 @@ static void bsdf_at_rgb(const struct pn_scene_s *scene, const pn_hit *hit, vec3 
 void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, const struct pn_swl *wl,
                          pn_bsdf *out) {
     vec3 base_kd = v3(0, 0, 0);
-    const pn_material *coat;
-    bsdf_at_rgb(scene, hit, wo, out, &base_kd, &coat);
+    const pn_material *coat, *m;
+    bsdf_at_rgb(scene, hit, wo, out, &base_kd, &coat, &m);
     out->rgb_kd = out->kd;
     out->rgb_ks = out->ks;
     out->rgb_specular = out->specular;
@@ -108,6 +110,23 @@ void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3
         out->kd = pn_coated_diffuse(pn_swl_albedo(wl, base_kd), coat->coat_transmission, coat->coat_internal);
     } else {
         out->kd = pn_swl_albedo(wl, out->kd);
+    }
+    if (m && m->eta_table && m->k_table) {
+        /* A conductor with tabulated eta and k: its F0 at each wavelength (metals.h), where RGB
+         * mode has F0 at 630, 532 and 465 nm in ks (a Blinn lobe) or specular (a mirror). */
+        float f[PN_SWL_COUNT];
+        for (int i = 0; i < PN_SWL_COUNT; i++)
+            f[i] = (float)pn_conductor_f0(pn_metal_eval(m->eta_table, wl->lambda[i]),
+                                          pn_metal_eval(m->k_table, wl->lambda[i]));
+        const vec3 f0 = v3(f[0], f[1], f[2]);
+        if (m->kind == PN_MATERIAL_MIRROR) {
+            out->ks = pn_swl_albedo(wl, out->ks);
+            out->specular = f0;
+        } else {
+            out->ks = f0;
+            out->specular = pn_swl_albedo(wl, out->specular);
+        }
+        return;
     }
     out->ks = pn_swl_albedo(wl, out->ks);
     out->specular = pn_swl_albedo(wl, out->specular);

@@ -2,6 +2,13 @@
 #include "spectral/cie.h"
 
 #include <math.h>
+#include <string.h>
+
+const pn_cie_illuminant *pn_cie_illuminant_named(const char *name) {
+    for (int i = 0; i < PN_CIE_ILLUMINANT_COUNT; i++)
+        if (strcmp(pn_cie_illuminants[i].name, name) == 0) return &pn_cie_illuminants[i];
+    return NULL;
+}
 
 double pn_cie_table_eval(const double table[PN_CIE_TABLE_COUNT], double lambda) {
     if (!(lambda >= PN_LAMBDA_MIN && lambda <= PN_LAMBDA_MAX)) return 0.0;

@@ -19,6 +19,25 @@ extern const double pn_cie_z_5nm[PN_CIE_TABLE_COUNT];
 extern const double pn_cie_d65_5nm[PN_CIE_TABLE_COUNT];
 extern const double pn_cie_a_5nm[PN_CIE_TABLE_COUNT];
 
+/* The named illuminants of pbrt-v4 (stdillum-A, -D50, -D65, -F1 ... -F12, illum-acesD60) as the
+ * CIE tabulates them: `count` values every 5 nm from `lambda_min` (360 nm for D65 and A, 380 nm
+ * for the others, whose CIE tables cover 380–780 nm), relative power (any scale: uses normalise).
+ * ACES D60 is CIE daylight at the ACES white (x 0.32168, y 0.33767, SMPTE ST 2065-1), computed by
+ * scripts/gen_cie_tables.py from the CIE's D50, D55 and D65 tables. */
+#define PN_CIE_ILLUMINANT_COUNT 16
+
+typedef struct pn_cie_illuminant {
+    const char *name; /* pbrt-v4's name */
+    double lambda_min;
+    int count;
+    const double *value;
+} pn_cie_illuminant;
+
+extern const pn_cie_illuminant pn_cie_illuminants[PN_CIE_ILLUMINANT_COUNT];
+
+/* The named illuminant `name`, or NULL. */
+const pn_cie_illuminant *pn_cie_illuminant_named(const char *name);
+
 /* A tabulated 5 nm function at lambda (nm): linear interpolation, 0 outside the table. */
 double pn_cie_table_eval(const double table[PN_CIE_TABLE_COUNT], double lambda);
 

@@ -5,6 +5,8 @@ list(APPEND PN_SOURCES
   src/spectral/cie_data.c
   src/spectral/melanopic.c
   src/spectral/melanopic_data.c
+  src/spectral/metals.c
+  src/spectral/metals_data.c
   src/spectral/rgb2spec.c
   src/spectral/transport.c
   src/spectral/wavelengths.c

@@ -57,6 +57,7 @@ void pn_swl_sample(float u, pn_swl *out) {
             out->rgb_w[c][i] = (float)rgb[c];
         }
     }
+    out->memo = NULL;
     out->on = true;
 }
 
@@ -166,6 +167,96 @@ static vec3 unbounded_unit(const pn_swl *w, const uint32_t key[3]) {
     return v3(e->value[0], e->value[1], e->value[2]);
 }
 
+/* ---- the memo (transport.h) --------------------------------------------------------------- */
+
+/* Rows by colour key in an open-addressing table of twice the row limit (a power of two), and
+ * the last row used, since consecutive conversions are mostly of one colour. A row holds
+ * PN_SWL_COUNT values per receiver, -1 (no sigmoid value) until computed. */
+struct pn_swl_memo {
+    int32_t receivers, rows, max_rows;
+    uint32_t mask;
+    uint32_t (*key)[3]; /* mask + 1 */
+    int32_t *row_of;    /* mask + 1: row index, -1 empty */
+    float **row;        /* max_rows */
+    int32_t last;       /* last row used, -1 none */
+};
+
+pn_swl_memo *pn_swl_memo_new(int32_t receivers, size_t max_bytes) {
+    if (receivers < 1) return NULL;
+    pn_swl_memo *m = calloc(1, sizeof *m);
+    if (!m) return NULL;
+    size_t row_bytes = (size_t)receivers * PN_SWL_COUNT * sizeof(float);
+    size_t rows = max_bytes / row_bytes;
+    if (rows < 16) rows = 16;
+    if (rows > 4096) rows = 4096;
+    uint32_t size = 32;
+    while (size < 2 * rows) size *= 2;
+    m->receivers = receivers;
+    m->max_rows = (int32_t)rows;
+    m->mask = size - 1;
+    m->last = -1;
+    m->key = malloc(size * sizeof *m->key);
+    m->row_of = malloc(size * sizeof *m->row_of);
+    m->row = calloc(rows, sizeof *m->row);
+    if (!m->key || !m->row_of || !m->row) {
+        pn_swl_memo_free(m);
+        return NULL;
+    }
+    for (uint32_t i = 0; i < size; i++) m->row_of[i] = -1;
+    return m;
+}
+
+void pn_swl_memo_free(pn_swl_memo *m) {
+    if (!m) return;
+    if (m->row)
+        for (int32_t i = 0; i < m->rows; i++) free(m->row[i]);
+    free(m->row);
+    free(m->key);
+    free(m->row_of);
+    free(m);
+}
+
+/* The row of key (made if new); NULL when the memo is full or out of memory. */
+static float *memo_row(pn_swl_memo *m, const uint32_t key[3]) {
+    if (m->last >= 0) {
+        const uint32_t *k = m->key[m->last];
+        if (k[0] == key[0] && k[1] == key[1] && k[2] == key[2]) return m->row[m->row_of[m->last]];
+    }
+    uint32_t h = key_hash(key) & m->mask;
+    while (m->row_of[h] >= 0) {
+        const uint32_t *k = m->key[h];
+        if (k[0] == key[0] && k[1] == key[1] && k[2] == key[2]) {
+            m->last = (int32_t)h;
+            return m->row[m->row_of[h]];
+        }
+        h = (h + 1) & m->mask;
+    }
+    if (m->rows == m->max_rows) return NULL;
+    size_t n = (size_t)m->receivers * PN_SWL_COUNT;
+    float *r = malloc(n * sizeof *r);
+    if (!r) return NULL;
+    for (size_t i = 0; i < n; i++) r[i] = -1.0f;
+    m->row[m->rows] = r;
+    m->row_of[h] = m->rows++;
+    for (int i = 0; i < 3; i++) m->key[h][i] = key[i];
+    m->last = (int32_t)h;
+    return r;
+}
+
+/* unbounded_unit through w's memo. */
+static vec3 memo_unit(const pn_swl *w, const uint32_t key[3]) {
+    float *row = memo_row(w->memo, key);
+    if (!row) return unbounded_unit(w, key);
+    float *v = row + (size_t)w->memo_index * PN_SWL_COUNT;
+    if (v[0] < 0.0f) {
+        vec3 u = unbounded_unit(w, key);
+        v[0] = u.x;
+        v[1] = u.y;
+        v[2] = u.z;
+    }
+    return v3(v[0], v[1], v[2]);
+}
+
 vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb) {
     float r = clamp_nonneg(rgb.x), g = clamp_nonneg(rgb.y), b = clamp_nonneg(rgb.z);
     float m = r > g ? r : g;
@@ -174,7 +265,7 @@ vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb) {
     if (r == g && g == b) return v3(r, r, r);
     float scale = 2.0f * m, inv = PN_UNBOUNDED_QUANTUM / scale;
     const uint32_t key[3] = {(uint32_t)(r * inv + 0.5f), (uint32_t)(g * inv + 0.5f), (uint32_t)(b * inv + 0.5f)};
-    return v3_scale(unbounded_unit(w, key), scale);
+    return v3_scale(w->memo ? memo_unit(w, key) : unbounded_unit(w, key), scale);
 }
 
 vec3 pn_swl_illuminant_on(const pn_swl *w, vec3 rgb) {
@@ -218,20 +309,23 @@ vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb)
 
 /* ---- tabulated emission spectra ---------------------------------------------------------- */
 
-double pn_spd_eval(const pn_spd *s, double lambda) {
-    const int n = s->count;
-    if (lambda <= s->lambda[0]) return s->value[0];
-    if (lambda >= s->lambda[n - 1]) return s->value[n - 1];
-    int lo = 0, hi = n - 1; /* lambda[lo] <= lambda < lambda[hi] */
+double pn_table_eval(const double *lambda_nm, const double *value, int n, double lambda) {
+    if (lambda <= lambda_nm[0]) return value[0];
+    if (lambda >= lambda_nm[n - 1]) return value[n - 1];
+    int lo = 0, hi = n - 1; /* lambda_nm[lo] <= lambda < lambda_nm[hi] */
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;
-        if (s->lambda[mid] <= lambda)
+        if (lambda_nm[mid] <= lambda)
             lo = mid;
         else
             hi = mid;
     }
-    double t = (lambda - s->lambda[lo]) / (s->lambda[hi] - s->lambda[lo]);
-    return s->value[lo] * (1.0 - t) + s->value[hi] * t;
+    double t = (lambda - lambda_nm[lo]) / (lambda_nm[hi] - lambda_nm[lo]);
+    return value[lo] * (1.0 - t) + value[hi] * t;
+}
+
+double pn_spd_eval(const pn_spd *s, double lambda) {
+    return pn_table_eval(s->lambda, s->value, s->count, lambda);
 }
 
 void pn_spd_free(pn_spd *s) {

@@ -31,8 +31,12 @@
 #include "core/vecmath.h"
 
 #include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
 
 #define PN_SWL_COUNT 3
+
+struct pn_swl_memo;
 
 typedef struct pn_swl {
     float lambda[PN_SWL_COUNT];  /* nm */
@@ -44,6 +48,10 @@ typedef struct pn_swl {
      * XYZ -> linear sRGB matrix times xyz_w. */
     float xyz_w[3][PN_SWL_COUNT];
     float rgb_w[3][PN_SWL_COUNT];
+    /* Optional: a memo of unbounded spectra with a slot for these wavelengths
+     * (pn_swl_memo_attach); NULL after pn_swl_sample. */
+    struct pn_swl_memo *memo;
+    int32_t memo_index;
     bool on;
 } pn_swl;
 
@@ -61,6 +69,32 @@ vec3 pn_swl_unbounded_on(const pn_swl *w, vec3 rgb);
 vec3 pn_swl_illuminant_on(const pn_swl *w, vec3 rgb);
 vec3 pn_swl_rgb_on(const pn_swl *w, vec3 v);
 vec3 pn_swl_xyz_on(const pn_swl *w, vec3 v);
+
+/* A memo of unbounded spectra (rgb / (2 max), the key of pn_swl_unbounded_on) for a set of
+ * receivers, each with its own wavelengths: one row per colour converted, one slot per receiver
+ * in the row (a row is made when its colour is first converted). The VPL integrators convert the
+ * intensities of a few hundred colours at each receiver's wavelengths, and illumcut's pair order
+ * (a light cluster with every point of a point cluster, then the next pair) changes the
+ * wavelengths from one conversion to the next, so the per-thread table of transport.c, which
+ * keeps one set of wavelengths per colour, misses there; with the memo a colour's spectrum is
+ * evaluated once per receiver, and the receivers of one pair read one row in order. The values
+ * are the ones the conversion computes without a memo, bit for bit. A memo is used by one thread
+ * at a time. */
+typedef struct pn_swl_memo pn_swl_memo;
+
+/* A memo for `receivers` receivers (at most `max_bytes` of rows; a colour beyond that is converted
+ * without it); NULL when out of memory. */
+pn_swl_memo *pn_swl_memo_new(int32_t receivers, size_t max_bytes);
+void pn_swl_memo_free(pn_swl_memo *m);
+/* Makes w, receiver `index` of memo, use it; w's wavelengths must not change while it is attached
+ * (pn_swl_sample detaches). Copies of w share the slot, as they share the wavelengths. */
+static inline void pn_swl_memo_attach(pn_swl *w, pn_swl_memo *memo, int32_t index) {
+    w->memo = memo;
+    w->memo_index = index;
+}
+static inline void pn_swl_memo_detach(pn_swl *w) {
+    w->memo = NULL;
+}
 
 /* A reflectance at the wavelengths (rgb itself in RGB mode). */
 static inline vec3 pn_swl_albedo(const pn_swl *w, vec3 rgb) {
@@ -94,7 +128,7 @@ vec3 pn_swl_blackbody(const pn_swl *w, float kelvin, float unit_scale, vec3 rgb)
 double pn_blackbody_unit_scale(double kelvin);
 
 /* A tabulated emission spectrum kept as a spectrum in spectral mode (a "spectrum" value given as
- * numbers, an .spd file, or the named stdillum-D65 / stdillum-A, whose CIE tables cie.h has):
+ * numbers, an .spd file, or a named illuminant, whose CIE tables cie.h has):
  * piecewise linear between its wavelengths and held at its end values outside them, as
  * scene/spectrum.c reads the same values for RGB mode. scale is 1 / the function's luminance
  * (∫ ȳ S dλ / ∫ ȳ dλ with cie.h's tables, trapezoid rule at 0.1 nm; 0 without luminance). */
@@ -110,6 +144,9 @@ pn_spd *pn_spd_new(const double *pairs, int count);
 void pn_spd_free(pn_spd *s);
 /* The function at lambda (nm). */
 double pn_spd_eval(const pn_spd *s, double lambda);
+/* The piecewise linear function of n knots (lambda_nm increasing, value) at lambda, end values
+ * held outside (pn_spd_eval's rule). */
+double pn_table_eval(const double *lambda_nm, const double *value, int n, double lambda);
 /* A tabulated emission at the wavelengths, scaled so that its luminance equals that of rgb (the
  * value RGB mode uses for it, as pn_swl_blackbody): Y(rgb) * scale * S(lambda). RGB mode: rgb. */
 vec3 pn_swl_tabulated(const pn_swl *w, const pn_spd *s, vec3 rgb);
