@@ -47,8 +47,8 @@ static void test_pyramid(void) {
     }
     /* Level 1 the pair averages, the top their mean. */
     CHECK_NEAR(m.level[1].rgb[0], 0.5f * (m.level[0].rgb[0] + m.level[0].rgb[3]), 1e-7);
-    CHECK_NEAR(m.level[2].rgb[0], 0.25f * (m.level[0].rgb[0] + m.level[0].rgb[3] + m.level[0].rgb[6] + m.level[0].rgb[9]),
-               1e-6);
+    CHECK_NEAR(m.level[2].rgb[0],
+               0.25f * (m.level[0].rgb[0] + m.level[0].rgb[3] + m.level[0].rgb[6] + m.level[0].rgb[9]), 1e-6);
     pn_mipmap_free(&m);
 
     /* A constant 5 x 3 image stays constant at every level (normalised weights). */
@@ -57,8 +57,7 @@ static void test_pyramid(void) {
     CHECK(pn_mipmap_build(c, 5, 3, PN_WRAP_CLAMP, &m, &err) == PN_OK);
     CHECK(m.levels == 4 && m.level[0].width == 8 && m.level[0].height == 4);
     for (int l = 0; l < m.levels; l++)
-        for (int i = 0; i < 3 * m.level[l].width * m.level[l].height; i++)
-            CHECK_NEAR(m.level[l].rgb[i], 0.3, 1e-6);
+        for (int i = 0; i < 3 * m.level[l].width * m.level[l].height; i++) CHECK_NEAR(m.level[l].rgb[i], 0.3, 1e-6);
     CHECK(m.level[3].width == 1 && m.level[3].height == 1);
     pn_mipmap_free(&m);
 

@@ -41,8 +41,7 @@ typedef struct pn_camera {
  * make them: the rays through the raster points one pixel to the right (x) and down (y), with
  * the same lens point, then scaled about the ray by `scale` (pbrt: max(1/8, 1/sqrt(spp))).
  * Perspective and orthographic cameras; false (no differentials) for the spherical ones. */
-bool pn_camera_differentials(const pn_camera *cam, vec3 o, vec3 d, float scale, vec3 *ox, vec3 *dx, vec3 *oy,
-                             vec3 *dy);
+bool pn_camera_differentials(const pn_camera *cam, vec3 o, vec3 d, float scale, vec3 *ox, vec3 *dx, vec3 *oy, vec3 *dy);
 
 /* Sets up the camera for an image of full_width x full_height and a crop window in fractions
  * (pbrt's rounding: pixel bounds are ceil(res * crop)). When the scene gave Film "pixelbounds"

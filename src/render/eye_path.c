@@ -373,4 +373,3 @@ void pn_eye_hit_bsdf(const pn_render_job *job, const pn_eye_hit *hit, pn_bsdf *o
     *out = hit->bsdf;
     out->wl = pn_eye_hit_wavelengths(job, hit);
 }
-

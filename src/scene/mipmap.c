@@ -27,7 +27,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-static bool is_pow2(int n) { return n > 0 && (n & (n - 1)) == 0; }
+static bool is_pow2(int n) {
+    return n > 0 && (n & (n - 1)) == 0;
+}
 
 static int round_up_pow2(int n) {
     int p = 1;
@@ -114,8 +116,7 @@ static float *resize_up(const float *rgb, int w, int h, int nw, int nh, pn_wrap_
                 const float *p = xbuf + 3 * ((size_t)sy * (size_t)nw + (size_t)x);
                 for (int c = 0; c < 3; c++) acc[c] += ty[y].w[j] * p[c];
             }
-            for (int c = 0; c < 3; c++)
-                out[3 * ((size_t)y * (size_t)nw + (size_t)x) + (size_t)c] = fmaxf(0.0f, acc[c]);
+            for (int c = 0; c < 3; c++) out[3 * ((size_t)y * (size_t)nw + (size_t)x) + (size_t)c] = fmaxf(0.0f, acc[c]);
         }
     free(tx);
     free(ty);

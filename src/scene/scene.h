@@ -73,7 +73,7 @@ typedef struct pn_texture {
     pn_wrap_mode wrap;
     pn_texture_filter filter; /* IMAGE */
     int mipmap;               /* IMAGE: index into pn_scene_s.mipmaps */
-    pn_texref a, b, amount; /* SCALE: a*b; MIX: a, b, amount; CHECKERBOARD: a=tex1, b=tex2 */
+    pn_texref a, b, amount;   /* SCALE: a*b; MIX: a, b, amount; CHECKERBOARD: a=tex1, b=tex2 */
     char *name;
 } pn_texture;
 

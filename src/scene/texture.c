@@ -485,7 +485,8 @@ vec3 pn_texture_eval_footprint(const struct pn_scene_s *scene, pn_texref ref, fl
         break;
     }
     case PN_TEXTURE_SCALE:
-        r = v3_mul(pn_texture_eval_footprint(scene, t->a, u, v, duv), pn_texture_eval_footprint(scene, t->b, u, v, duv));
+        r = v3_mul(pn_texture_eval_footprint(scene, t->a, u, v, duv),
+                   pn_texture_eval_footprint(scene, t->b, u, v, duv));
         break;
     case PN_TEXTURE_MIX: {
         float amt = pn_texture_eval_footprint(scene, t->amount, u, v, duv).x;
