@@ -84,40 +84,41 @@ static resample_tap *resample_taps(int n_old, int n_new) {
     return taps;
 }
 
-/* Resizes rgb (w x h) up to (nw x nh) with the taps above; NULL when out of memory. */
+/* One separable pass: `lines` lines of n_in texels become lines of n_out by the taps; texel k of
+ * line l is at index l * line + k * along (in units of RGB texels) of its buffer. */
+typedef struct axis_layout {
+    size_t in_line, in_along, out_line, out_along;
+} axis_layout;
+
+static void resample_axis(const float *in, float *out, int lines, int n_in, int n_out, const resample_tap *taps,
+                          axis_layout a, pn_wrap_mode wrap, bool clamp_zero) {
+    for (int l = 0; l < lines; l++)
+        for (int k = 0; k < n_out; k++) {
+            float acc[3] = {0, 0, 0};
+            for (int j = 0; j < 4; j++) {
+                int src = taps[k].first + j;
+                if (!wrap_coord(&src, n_in, wrap)) continue;
+                const float *p = in + 3 * ((size_t)l * a.in_line + (size_t)src * a.in_along);
+                for (int c = 0; c < 3; c++) acc[c] += taps[k].w[j] * p[c];
+            }
+            float *q = out + 3 * ((size_t)l * a.out_line + (size_t)k * a.out_along);
+            for (int c = 0; c < 3; c++) q[c] = clamp_zero ? fmaxf(0.0f, acc[c]) : acc[c];
+        }
+}
+
+/* Resizes rgb (w x h) up to (nw x nh) with the taps above, x first (every input row), then y,
+ * clamped at 0 after the second pass (as FloatResizeUp); NULL when out of memory. */
 static float *resize_up(const float *rgb, int w, int h, int nw, int nh, pn_wrap_mode wrap) {
     resample_tap *tx = resample_taps(w, nw), *ty = resample_taps(h, nh);
     float *xbuf = malloc(3 * (size_t)nw * (size_t)h * sizeof *xbuf);
     float *out = malloc(3 * (size_t)nw * (size_t)nh * sizeof *out);
-    if (!tx || !ty || !xbuf || !out) {
-        free(tx);
-        free(ty);
-        free(xbuf);
+    if (tx && ty && xbuf && out) {
+        resample_axis(rgb, xbuf, h, w, nw, tx, (axis_layout){(size_t)w, 1, (size_t)nw, 1}, wrap, false);
+        resample_axis(xbuf, out, nw, h, nh, ty, (axis_layout){1, (size_t)nw, 1, (size_t)nw}, wrap, true);
+    } else {
         free(out);
-        return NULL;
+        out = NULL;
     }
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < nw; x++) {
-            float acc[3] = {0, 0, 0};
-            for (int j = 0; j < 4; j++) {
-                int sx = tx[x].first + j;
-                if (!wrap_coord(&sx, w, wrap)) continue;
-                const float *p = rgb + 3 * ((size_t)y * (size_t)w + (size_t)sx);
-                for (int c = 0; c < 3; c++) acc[c] += tx[x].w[j] * p[c];
-            }
-            for (int c = 0; c < 3; c++) xbuf[3 * ((size_t)y * (size_t)nw + (size_t)x) + (size_t)c] = acc[c];
-        }
-    for (int y = 0; y < nh; y++)
-        for (int x = 0; x < nw; x++) {
-            float acc[3] = {0, 0, 0};
-            for (int j = 0; j < 4; j++) {
-                int sy = ty[y].first + j;
-                if (!wrap_coord(&sy, h, wrap)) continue;
-                const float *p = xbuf + 3 * ((size_t)sy * (size_t)nw + (size_t)x);
-                for (int c = 0; c < 3; c++) acc[c] += ty[y].w[j] * p[c];
-            }
-            for (int c = 0; c < 3; c++) out[3 * ((size_t)y * (size_t)nw + (size_t)x) + (size_t)c] = fmaxf(0.0f, acc[c]);
-        }
     free(tx);
     free(ty);
     free(xbuf);
