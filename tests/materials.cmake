@@ -1,1 +1,2 @@
 pn_add_test(test_materials)
+pn_add_test(test_texture_mipmap)

@@ -389,6 +389,7 @@ static bool intersect_mask(const pn_accel *acc, vec3 o, vec3 d, float tmin, floa
     const geom_ref *r = &tab->refs[rh.hit.geomID];
     h->t = rh.ray.tfar;
     h->p = v3_madd(o, d, rh.ray.tfar);
+    h->duv[0] = h->duv[1] = h->duv[2] = h->duv[3] = 0.0f;
     h->prim = rh.hit.primID;
     if (r->kind == 0) {
         h->mesh = r->index;
@@ -548,4 +549,72 @@ static void occluded_packet_mask(const pn_accel *acc, int count, const vec3 *o, 
     else
         rtcOccluded16(valid, acc->world.rtc, &ictx, &ray);
     for (int i = 0; i < count; i++) occluded[i] = f[8 * width + i] < 0.0f;
+}
+
+/* pbrt-v4 CoordinateSystem: two unit vectors completing unit n to an orthonormal frame. */
+static void coordinate_system(vec3 n, vec3 *a, vec3 *b) {
+    float sign = copysignf(1.0f, n.z);
+    float k = -1.0f / (sign + n.z);
+    float c = n.x * n.y * k;
+    *a = v3(1.0f + sign * n.x * n.x * k, sign * c, -sign * n.x);
+    *b = v3(c, sign + n.y * n.y * k, -n.y);
+}
+
+bool pn_accel_hit_uv_partials(const pn_accel *acc, const pn_hit *h, vec3 *dpdu, vec3 *dpdv) {
+    const struct pn_scene_s *scene = acc->scene;
+    if (h->mesh < 0 || h->mesh >= scene->mesh_count) return false;
+    const pn_mesh *m = &scene->meshes[h->mesh];
+    const uint32_t *idx = m->indices + 3 * (size_t)h->prim;
+    vec3 p[3];
+    float uv[3][2] = {{0, 0}, {1, 0}, {1, 1}};
+    for (int k = 0; k < 3; k++) {
+        const float *q = m->positions + 3 * (size_t)idx[k];
+        p[k] = v3(q[0], q[1], q[2]);
+        if (m->uvs) {
+            uv[k][0] = m->uvs[2 * (size_t)idx[k]];
+            uv[k][1] = m->uvs[2 * (size_t)idx[k] + 1];
+        }
+    }
+    float duv02[2] = {uv[0][0] - uv[2][0], uv[0][1] - uv[2][1]}, duv12[2] = {uv[1][0] - uv[2][0], uv[1][1] - uv[2][1]};
+    vec3 dp02 = v3_sub(p[0], p[2]), dp12 = v3_sub(p[1], p[2]);
+    float det = duv02[0] * duv12[1] - duv02[1] * duv12[0];
+    bool degenerate = fabsf(det) < 1e-9f;
+    vec3 a = v3(0, 0, 0), b = v3(0, 0, 0);
+    if (!degenerate) {
+        float inv = 1.0f / det;
+        a = v3_scale(v3_sub(v3_scale(dp02, duv12[1]), v3_scale(dp12, duv02[1])), inv);
+        b = v3_scale(v3_sub(v3_scale(dp12, duv02[0]), v3_scale(dp02, duv12[0])), inv);
+    }
+    if (degenerate || v3_length2(v3_cross(a, b)) == 0.0f) {
+        vec3 n = v3_cross(v3_sub(p[2], p[0]), v3_sub(p[1], p[0]));
+        if (!(v3_length2(n) > 0.0f)) return false;
+        coordinate_system(v3_normalize(n), &a, &b);
+    }
+    if (h->instance >= 0) {
+        const mat4 *xf = &scene->instances[h->instance].world_from_object;
+        a = mat4_apply_vector(xf, a);
+        b = mat4_apply_vector(xf, b);
+    }
+    *dpdu = a;
+    *dpdv = b;
+    return true;
+}
+
+void pn_hit_uv_footprint(const pn_accel *acc, pn_hit *h, vec3 ox, vec3 dx, vec3 oy, vec3 dy) {
+    vec3 dpdu, dpdv;
+    h->duv[0] = h->duv[1] = h->duv[2] = h->duv[3] = 0.0f;
+    if (!pn_accel_hit_uv_partials(acc, h, &dpdu, &dpdv)) return;
+    vec3 n = h->ng;
+    float ndx = v3_dot(n, dx), ndy = v3_dot(n, dy);
+    if (ndx == 0.0f || ndy == 0.0f) return;
+    float pd = v3_dot(n, h->p);
+    vec3 px = v3_madd(ox, dx, (pd - v3_dot(n, ox)) / ndx), py = v3_madd(oy, dy, (pd - v3_dot(n, oy)) / ndy);
+    vec3 dpdx = v3_sub(px, h->p), dpdy = v3_sub(py, h->p);
+    float a00 = v3_dot(dpdu, dpdu), a01 = v3_dot(dpdu, dpdv), a11 = v3_dot(dpdv, dpdv);
+    float inv = 1.0f / (a00 * a11 - a01 * a01);
+    if (!isfinite(inv)) inv = 0.0f;
+    float b0x = v3_dot(dpdu, dpdx), b1x = v3_dot(dpdv, dpdx), b0y = v3_dot(dpdu, dpdy), b1y = v3_dot(dpdv, dpdy);
+    float r[4] = {(a11 * b0x - a01 * b1x) * inv, (a00 * b1x - a01 * b0x) * inv, (a11 * b0y - a01 * b1y) * inv,
+                  (a00 * b1y - a01 * b0y) * inv};
+    for (int i = 0; i < 4; i++) h->duv[i] = isfinite(r[i]) ? fminf(1e8f, fmaxf(-1e8f, r[i])) : 0.0f;
 }

@@ -23,6 +23,9 @@ typedef struct pn_hit {
     int sphere;    /* index into scene spheres, or -1 */
     unsigned prim; /* triangle index within the mesh */
     int instance;  /* -1 for world geometry */
+    /* Screen-space derivatives of (u, v): du/dx, dv/dx, du/dy, dv/dy (pn_hit_uv_footprint);
+     * zero (the finest texture level) unless the eye path set them. */
+    float duv[4];
 } pn_hit;
 
 /* Builds the BVH over the scene's meshes, spheres and instances. */
@@ -32,6 +35,18 @@ void pn_accel_free(pn_accel *accel);
 /* Closest hit along o + t d for t in (tmin, tmax); d need not be unit length (t is in units of
  * |d|). Returns false on a miss. */
 bool pn_accel_intersect(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax, pn_hit *hit);
+
+/* pbrt-v4's dp/du and dp/dv of a triangle hit (world space), from its vertices' (u, v) (the
+ * default (0,0), (1,0), (1,1) without them); an arbitrary orthonormal pair in the triangle's
+ * plane when the (u, v) are degenerate (Triangle::InteractionFromIntersection). False for
+ * spheres. */
+bool pn_accel_hit_uv_partials(const pn_accel *accel, const pn_hit *hit, vec3 *dpdu, vec3 *dpdv);
+
+/* Sets hit->duv from ray differentials (origins ox, oy, directions dx, dy) as pbrt-v4's
+ * SurfaceInteraction::ComputeDifferentials: the offset rays meet the hit's tangent plane
+ * (geometric normal) at p + dp/dx, p + dp/dy, and (du, dv) solve dp = du dp/du + dv dp/dv in the
+ * least-squares sense; non-finite values become 0, the rest is clamped to [-1e8, 1e8]. */
+void pn_hit_uv_footprint(const pn_accel *accel, pn_hit *hit, vec3 ox, vec3 dx, vec3 oy, vec3 dy);
 
 /* True if anything blocks o + t d for t in (tmin, tmax). */
 bool pn_accel_occluded(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax);

@@ -217,6 +217,7 @@ void pn_camera_film_apply(const pn_camera *cam, pn_image image) {
 bool pn_camera_setup(const pn_camera_def *def, int full_width, int full_height, const float crop[4], pn_camera *cam) {
     memset(cam, 0, sizeof *cam);
     cam->world_from_camera = def->world_from_camera;
+    if (!mat4_inverse(cam->world_from_camera, &cam->camera_from_world)) cam->camera_from_world = mat4_identity();
     cam->projection = def->projection;
     float fov = def->fov_deg > 0.0f ? def->fov_deg : 90.0f;
     cam->tan_half_fov = tanf(0.5f * fov * PN_PI / 180.0f);
@@ -339,4 +340,39 @@ void pn_camera_ray(const pn_camera *cam, float rx, float ry, float l1, float l2,
     }
     *origin = mat4_apply_point(&cam->world_from_camera, o);
     *dir = v3_normalize(mat4_apply_vector(&cam->world_from_camera, d));
+}
+
+bool pn_camera_differentials(const pn_camera *cam, vec3 o, vec3 d, float scale, vec3 *ox, vec3 *dx, vec3 *oy,
+                             vec3 *dy) {
+    if (cam->projection == PN_PROJECTION_EQUAL_AREA || cam->projection == PN_PROJECTION_EQUIRECTANGULAR) return false;
+    const bool ortho = cam->projection == PN_PROJECTION_ORTHOGRAPHIC;
+    vec3 oc = mat4_apply_point(&cam->camera_from_world, o), dc = mat4_apply_vector(&cam->camera_from_world, d);
+    if (!(dc.z > 0.0f)) return false;
+    /* One raster pixel in camera units: on the plane z = 1 (perspective) or of the screen
+     * (orthographic); raster y grows down. */
+    float k = ortho ? 1.0f : cam->tan_half_fov;
+    vec3 step[2] = {v3(k * (cam->screen[1] - cam->screen[0]) / (float)cam->full_width, 0.0f, 0.0f),
+                    v3(0.0f, -k * (cam->screen[3] - cam->screen[2]) / (float)cam->full_height, 0.0f)};
+    vec3 *out_o[2] = {ox, oy}, *out_d[2] = {dx, dy};
+    vec3 dn = v3_normalize(dc);
+    for (int a = 0; a < 2; a++) {
+        vec3 ro = oc, rd;
+        if (cam->lens_radius > 0.0f) {
+            /* The same lens point, towards the shifted pixel's point on the plane of focus. */
+            vec3 focus = v3_madd(oc, dc, (cam->focal_distance - oc.z) / dc.z);
+            vec3 shifted = ortho ? v3_add(focus, step[a]) : v3_add(focus, v3_scale(step[a], cam->focal_distance));
+            rd = v3_normalize(v3_sub(shifted, oc));
+        } else if (ortho) {
+            ro = v3_add(oc, step[a]);
+            rd = dn;
+        } else {
+            rd = v3_normalize(v3_add(v3_scale(dc, 1.0f / dc.z), step[a]));
+        }
+        /* pbrt-v4 RayDifferential::ScaleDifferentials */
+        ro = v3_add(oc, v3_scale(v3_sub(ro, oc), scale));
+        rd = v3_add(dn, v3_scale(v3_sub(rd, dn), scale));
+        *out_o[a] = mat4_apply_point(&cam->world_from_camera, ro);
+        *out_d[a] = mat4_apply_vector(&cam->world_from_camera, rd);
+    }
+    return true;
 }

@@ -20,6 +20,7 @@ typedef struct pn_filter_axis {
 
 typedef struct pn_camera {
     mat4 world_from_camera;
+    mat4 camera_from_world;
     pn_camera_projection projection;
     float tan_half_fov; /* perspective; for the others the value that makes 2 tan / min(w, h)
                                    the angle of a pixel (ias's heuristics read it) */
@@ -35,6 +36,12 @@ typedef struct pn_camera {
     float film_max_component; /* 0 = no clamp */
     double xyz_from_rgb[3][3], rgb_from_xyz[3][3], white_balance[3][3];
 } pn_camera;
+
+/* The ray differentials of camera ray (o, d) (as pn_camera_ray made it) as pbrt-v4's cameras
+ * make them: the rays through the raster points one pixel to the right (x) and down (y), with
+ * the same lens point, then scaled about the ray by `scale` (pbrt: max(1/8, 1/sqrt(spp))).
+ * Perspective and orthographic cameras; false (no differentials) for the spherical ones. */
+bool pn_camera_differentials(const pn_camera *cam, vec3 o, vec3 d, float scale, vec3 *ox, vec3 *dx, vec3 *oy, vec3 *dy);
 
 /* Sets up the camera for an image of full_width x full_height and a crop window in fractions
  * (pbrt's rounding: pixel bounds are ceil(res * crop)). When the scene gave Film "pixelbounds"

@@ -40,6 +40,17 @@ vec3 pn_spectral_sample_value(const pn_render_job *job, const pn_bsdf *b, vec3 w
     return pn_swl_rgb(&wl, v3_mul(v3_mul(f, le), pn_swl_albedo(&wl, throughput)));
 }
 
+/* The texture footprint of a camera ray's hit (image textures' pyramid level): pbrt-v4 scales
+ * camera ray differentials by max(1/8, 1/sqrt(spp)) (cameras.h GenerateRayDifferential's
+ * caller); an adaptive job (spp 0) takes 1/8. Later hits of a specular chain keep a zero
+ * footprint (difference: pbrt carries the differentials through specular bounces). */
+static void camera_footprint(const pn_render_job *job, vec3 o, vec3 d, pn_hit *hit) {
+    float scale = job->spp > 0 ? fmaxf(0.125f, 1.0f / sqrtf((float)job->spp)) : 0.125f;
+    vec3 ox, dx, oy, dy;
+    if (pn_camera_differentials(&job->camera, o, d, scale, &ox, &dx, &oy, &dy))
+        pn_hit_uv_footprint(job->accel, hit, ox, dx, oy, dy);
+}
+
 void pn_trace_eye_path_spectral(const pn_render_job *job, vec3 o, vec3 d, float u_specular, const pn_swl *wl,
                                 pn_eye_path *path) {
     memset(path, 0, sizeof *path);
@@ -57,6 +68,7 @@ void pn_trace_eye_path_spectral(const pn_render_job *job, vec3 o, vec3 d, float 
             path->emitted = v3_add(path->emitted, v3_mul(path->throughput, le));
             return;
         }
+        if (depth == 0 && scene->mipmap_count > 0) camera_footprint(job, o, d, &hit);
         vec3 wo = v3_neg(d);
         if (hit.emission >= 0)
             path->emitted =

@@ -55,6 +55,8 @@ vec3 pn_spectrum_pairs_rgb(const double *pairs, int value_count, pn_spectrum_use
  * pn_image_read_file takes it, or returns the index of the same file decoded with the same gamma
  * earlier. On failure err holds the image reader's message (without a location). */
 pn_status pn_scene_image(struct pn_scene_s *scene, const char *path, float gamma, int *out_index, pn_err *err);
+/* The pyramid of image `image` under `wrap` (scene->mipmaps), built on first use. */
+pn_status pn_scene_mipmap(struct pn_scene_s *scene, int image, pn_wrap_mode wrap, int *out_index, pn_err *err);
 
 /* A material input that is a constant or a named texture ("texture name" "tex"): float (is_float,
  * value in .x of the texref) or RGB/spectrum. Undefined texture names are an error at the

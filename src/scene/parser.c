@@ -2050,6 +2050,8 @@ void pn_scene_parse_free(struct pn_scene_s *scene) {
     }
     free(scene->materials);
     for (int i = 0; i < scene->texture_count; i++) free(scene->textures[i].name);
+    for (int i = 0; i < scene->mipmap_count; i++) pn_mipmap_free(&scene->mipmaps[i]);
+    free(scene->mipmaps);
     free(scene->textures);
     for (int i = 0; i < scene->image_count; i++) {
         free(scene->images[i].rgb);

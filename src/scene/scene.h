@@ -38,6 +38,28 @@ typedef enum pn_texture_kind {
 
 typedef enum pn_wrap_mode { PN_WRAP_REPEAT = 0, PN_WRAP_CLAMP = 1, PN_WRAP_BLACK = 2 } pn_wrap_mode;
 
+/* An image texture's "filter" (pbrt-v4 MIPMap; scene/mipmap.c): all pick a pyramid level from the
+ * footprint; EWA is read as trilinear. */
+typedef enum pn_texture_filter {
+    PN_TEXTURE_FILTER_BILINEAR = 0, /* pbrt-v4's default */
+    PN_TEXTURE_FILTER_POINT = 1,
+    PN_TEXTURE_FILTER_TRILINEAR = 2
+} pn_texture_filter;
+
+/* One level of a texture pyramid: linear RGB floats, top row first. */
+typedef struct pn_mip_level {
+    int width, height;
+    float *rgb;
+} pn_mip_level;
+
+/* A texture pyramid (scene/mipmap.c): level 0 is the image, resized up to powers of two. */
+typedef struct pn_mipmap {
+    int image; /* the pn_texture_image it was built from */
+    pn_wrap_mode wrap;
+    int levels;
+    pn_mip_level *level;
+} pn_mipmap;
+
 typedef struct pn_texture {
     pn_texture_kind kind;
     bool is_float;            /* "float" texture (single channel, stored in .x of results) */
@@ -49,7 +71,9 @@ typedef struct pn_texture {
     bool float_first_channel; /* IMAGE, float: the first channel of an RGB image instead of the
                                  channel average (pbrt-v4's point / EWA filters; texture.c) */
     pn_wrap_mode wrap;
-    pn_texref a, b, amount; /* SCALE: a*b; MIX: a, b, amount; CHECKERBOARD: a=tex1, b=tex2 */
+    pn_texture_filter filter; /* IMAGE */
+    int mipmap;               /* IMAGE: index into pn_scene_s.mipmaps */
+    pn_texref a, b, amount;   /* SCALE: a*b; MIX: a, b, amount; CHECKERBOARD: a=tex1, b=tex2 */
     char *name;
 } pn_texture;
 
@@ -292,6 +316,8 @@ struct pn_scene_s {
     int texture_count;
     pn_texture_image *images;
     int image_count;
+    pn_mipmap *mipmaps; /* pyramids of the images image textures read (per image and wrap mode) */
+    int mipmap_count;
     pn_emission *emissions;
     int emission_count;
     pn_light_def *light_defs;
@@ -329,7 +355,22 @@ void pn_scene_warn(struct pn_scene_s *scene, const char *fmt, ...) __attribute__
 uint32_t pn_scene_vpl_depth(const struct pn_scene_s *scene, uint32_t fallback);
 
 /* Texture evaluation at surface coordinates (u, v); returns RGB (float textures: all three
- * channels equal). Implemented in scene/texture.c. */
+ * channels equal). Implemented in scene/texture.c. Image textures are read from their pyramid's
+ * finest level (a zero footprint). */
 vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, float v);
+
+/* The same with the screen-space footprint of the lookup, duv = (du/dx, dv/dx, du/dy, dv/dy)
+ * (pn_hit's uv derivatives; NULL: zero), which chooses the pyramid level of image textures. */
+vec3 pn_texture_eval_footprint(const struct pn_scene_s *scene, pn_texref ref, float u, float v, const float duv[4]);
+
+/* ---- texture pyramids (scene/mipmap.c) ---- */
+/* Builds the pyramid of an rgb image (w x h, linear) for a wrap mode; free with pn_mipmap_free. */
+pn_status pn_mipmap_build(const float *rgb, int width, int height, pn_wrap_mode wrap, pn_mipmap *out, pn_err *err);
+void pn_mipmap_free(pn_mipmap *m);
+/* The filtered value at (s, t) (t down from the top row) with the footprint
+ * dst = (ds/dx, dt/dx, ds/dy, dt/dy), as pbrt-v4's MIPMap::Filter. */
+vec3 pn_mipmap_lookup(const pn_mipmap *m, pn_texture_filter filter, float s, float t, const float dst[4]);
+/* Bilinear lookup in one level, texel centres at (i + 0.5) / size. */
+vec3 pn_mip_level_bilerp(const pn_mip_level *lv, float s, float t, pn_wrap_mode wrap);
 
 #endif

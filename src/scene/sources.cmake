@@ -8,6 +8,7 @@ list(APPEND PN_SOURCES
   src/scene/shapes.c
   src/scene/materials.c
   src/scene/texture.c
+  src/scene/mipmap.c
   src/scene/spectrum.c
   src/scene/lightdefs.c
   src/scene/photometry.c

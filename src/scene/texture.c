@@ -7,8 +7,10 @@
  *    "uscale" "vscale" "udelta" "vdelta". As in pbrt-v4 the encoding applies to PNG files (8 and
  *    16 bit) only: other 8-bit formats (TGA, JPEG, BMP, ...) are always decoded with the sRGB
  *    curve (a different "encoding" is reported as ignored), EXR / PFM / HDR are linear.
- *    "filter" only chooses the float lookup below and "maxanisotropy" is ignored: lookups are
- *    bilinear. Files are decoded once per (path, encoding) into scene->images.
+ *    "filter" (point, bilinear (default), trilinear; ewa read as trilinear) picks how the
+ *    image's pyramid is read (scene/mipmap.c) and the float lookup below; "maxanisotropy" is
+ *    ignored. Files are decoded once per (path, encoding) into scene->images, pyramids built
+ *    once per (image, wrap mode) into scene->mipmaps.
  *  - constant ("value"), scale ("tex" * "scale"), mix ((1 - "amount") "tex1" + "amount" "tex2"),
  *    checkerboard (2D; "tex1" on cells where floor(s) + floor(t) is even, else "tex2").
  *  - directionmix and dots become a mix with amount 0.5 of their two inputs; bilerp the
@@ -17,8 +19,9 @@
  * Mappings other than "uv" (spherical, cylindrical, planar) are replaced by uv with a warning.
  *
  * Evaluation follows pbrt-v4: s = su * u + du, t = sv * v + dv; an image is looked up at
- * (s, 1 - t) because its row 0 is the top; the value is bilinearly interpolated between the four
- * nearest texel centres, multiplied by "scale", inverted (1 - x) if asked, and clamped at 0.
+ * (s, 1 - t) because its row 0 is the top, in the pyramid level the lookup's footprint (the
+ * hit's uv derivatives times su, sv) selects (pn_mipmap_lookup); the value is multiplied by
+ * "scale", inverted (1 - x) if asked, and clamped at 0.
  * Float textures read from RGB images as pbrt-v4's MIPMap does: the average of the three
  * channels for the "bilinear" (default) and "trilinear" filters, the first channel for "point"
  * and "ewa" (its Texel lookup); the value is then scaled, inverted (1 - x, clamped at 0). Float
@@ -304,6 +307,15 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     const char *filter = NULL;
     if ((st = pn_params_string(ps, "filter", "bilinear", &filter, err)) != PN_OK) return st;
     t->float_first_channel = strcmp(filter, "point") == 0 || strcmp(filter, "ewa") == 0 || strcmp(filter, "EWA") == 0;
+    if (strcmp(filter, "bilinear") == 0)
+        t->filter = PN_TEXTURE_FILTER_BILINEAR;
+    else if (strcmp(filter, "point") == 0)
+        t->filter = PN_TEXTURE_FILTER_POINT;
+    else if (strcmp(filter, "trilinear") == 0 || strcmp(filter, "ewa") == 0 || strcmp(filter, "EWA") == 0)
+        t->filter = PN_TEXTURE_FILTER_TRILINEAR; /* EWA read as trilinear (scene/mipmap.c) */
+    else
+        return pn_param_error(pn_params_find(ps, "filter"), err,
+                              "unknown texture filter \"%s\" (expected point, bilinear, trilinear or ewa)", filter);
     double aniso = 8.0;
     if ((st = pn_params_float(ps, "maxanisotropy", 8.0, &aniso, err)) != PN_OK) return st;
 
@@ -317,6 +329,7 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     if (st == PN_ERROR_OUT_OF_MEMORY) return pn_err_set(err, st, "%s", ierr.message);
     if (st != PN_OK)
         return pn_param_error(pn_params_find(ps, "filename"), err, "cannot read texture image: %s", ierr.message);
+    if ((st = pn_scene_mipmap(scene, index, t->wrap, &t->mipmap, err)) != PN_OK) return st;
     t->kind = PN_TEXTURE_IMAGE;
     t->image = index;
     t->scale = (float)scale;
@@ -341,6 +354,7 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
     }
     const bool f = t.is_float;
     t.image = -1;
+    t.mipmap = -1;
     t.su = t.sv = 1.0f;
     t.scale = 1.0f;
     t.wrap = PN_WRAP_REPEAT;
@@ -437,49 +451,11 @@ pn_status pn_texture_from_pbrt(struct pn_scene_s *scene, const char *name, const
 
 /* ---- evaluation --------------------------------------------------------------------------------- */
 
-/* Texel (x, y) of an image under a wrap mode; black outside for PN_WRAP_BLACK. */
-static vec3 texel(const pn_texture_image *img, int x, int y, pn_wrap_mode wrap) {
-    int w = img->width, h = img->height;
-    if (x < 0 || x >= w || y < 0 || y >= h) {
-        switch (wrap) {
-        case PN_WRAP_BLACK: return v3(0, 0, 0);
-        case PN_WRAP_CLAMP:
-            x = x < 0 ? 0 : (x >= w ? w - 1 : x);
-            y = y < 0 ? 0 : (y >= h ? h - 1 : y);
-            break;
-        case PN_WRAP_REPEAT:
-        default:
-            x %= w;
-            if (x < 0) x += w;
-            y %= h;
-            if (y < 0) y += h;
-            break;
-        }
-    }
-    const float *p = img->rgb + 3 * ((size_t)y * (size_t)w + (size_t)x);
-    return v3(p[0], p[1], p[2]);
-}
-
-/* Bilinear lookup at image coordinates (s, t) in [0, 1]^2 (t down from the top row). */
-static vec3 image_bilerp(const pn_texture_image *img, float s, float t, pn_wrap_mode wrap) {
-    double x = (double)s * img->width - 0.5, y = (double)t * img->height - 0.5;
-    if (!isfinite(x) || !isfinite(y)) return v3(0, 0, 0);
-    /* Keep the integer coordinates in range of int for huge s, t (repeat wraps them anyway). */
-    if (fabs(x) > 1e8 || fabs(y) > 1e8) {
-        x = fmod(x, (double)img->width);
-        y = fmod(y, (double)img->height);
-    }
-    double fx0 = floor(x), fy0 = floor(y);
-    float dx = (float)(x - fx0), dy = (float)(y - fy0);
-    int x0 = (int)fx0, y0 = (int)fy0;
-    vec3 a = texel(img, x0, y0, wrap), b = texel(img, x0 + 1, y0, wrap);
-    vec3 c = texel(img, x0, y0 + 1, wrap), d = texel(img, x0 + 1, y0 + 1, wrap);
-    vec3 top = v3_add(v3_scale(a, 1.0f - dx), v3_scale(b, dx));
-    vec3 bottom = v3_add(v3_scale(c, 1.0f - dx), v3_scale(d, dx));
-    return v3_add(v3_scale(top, 1.0f - dy), v3_scale(bottom, dy));
-}
-
 vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, float v) {
+    return pn_texture_eval_footprint(scene, ref, u, v, NULL);
+}
+
+vec3 pn_texture_eval_footprint(const struct pn_scene_s *scene, pn_texref ref, float u, float v, const float duv[4]) {
     if (ref.texture < 0 || ref.texture >= scene->texture_count) return ref.value;
     const pn_texture *t = &scene->textures[ref.texture];
     float s = t->su * u + t->du, tt = t->sv * v + t->dv;
@@ -487,8 +463,16 @@ vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, flo
     switch (t->kind) {
     case PN_TEXTURE_CONSTANT: r = t->value; break;
     case PN_TEXTURE_IMAGE: {
-        if (t->image < 0 || t->image >= scene->image_count) return v3(0, 0, 0);
-        r = image_bilerp(&scene->images[t->image], s, 1.0f - tt, t->wrap);
+        if (t->mipmap < 0 || t->mipmap >= scene->mipmap_count) return v3(0, 0, 0);
+        /* The uv mapping's derivatives: (ds/dx, dt/dx, ds/dy, dt/dy); the flip of t keeps them. */
+        float dst[4] = {0, 0, 0, 0};
+        if (duv) {
+            dst[0] = t->su * duv[0];
+            dst[1] = t->sv * duv[1];
+            dst[2] = t->su * duv[2];
+            dst[3] = t->sv * duv[3];
+        }
+        r = pn_mipmap_lookup(&scene->mipmaps[t->mipmap], t->filter, s, 1.0f - tt, dst);
         if (t->is_float) {
             /* pbrt-v4 MIPMap: the channel average for bilinear / trilinear lookups, the first
              * channel for point and EWA lookups; the one value is then scaled and inverted. */
@@ -500,18 +484,21 @@ vec3 pn_texture_eval(const struct pn_scene_s *scene, pn_texref ref, float u, flo
         r = v3_max(r, v3(0, 0, 0));
         break;
     }
-    case PN_TEXTURE_SCALE: r = v3_mul(pn_texture_eval(scene, t->a, u, v), pn_texture_eval(scene, t->b, u, v)); break;
+    case PN_TEXTURE_SCALE:
+        r = v3_mul(pn_texture_eval_footprint(scene, t->a, u, v, duv),
+                   pn_texture_eval_footprint(scene, t->b, u, v, duv));
+        break;
     case PN_TEXTURE_MIX: {
-        float amt = pn_texture_eval(scene, t->amount, u, v).x;
-        vec3 a = amt != 1.0f ? pn_texture_eval(scene, t->a, u, v) : v3(0, 0, 0);
-        vec3 b = amt != 0.0f ? pn_texture_eval(scene, t->b, u, v) : v3(0, 0, 0);
+        float amt = pn_texture_eval_footprint(scene, t->amount, u, v, duv).x;
+        vec3 a = amt != 1.0f ? pn_texture_eval_footprint(scene, t->a, u, v, duv) : v3(0, 0, 0);
+        vec3 b = amt != 0.0f ? pn_texture_eval_footprint(scene, t->b, u, v, duv) : v3(0, 0, 0);
         r = v3_add(v3_scale(a, 1.0f - amt), v3_scale(b, amt));
         break;
     }
     case PN_TEXTURE_CHECKERBOARD: {
         double cell = floor((double)s) + floor((double)tt);
         bool even = fmod(fabs(cell), 2.0) < 0.5;
-        r = pn_texture_eval(scene, even ? t->a : t->b, u, v);
+        r = pn_texture_eval_footprint(scene, even ? t->a : t->b, u, v, duv);
         break;
     }
     default: r = v3(0, 0, 0); break;

@@ -82,13 +82,13 @@ static void bsdf_at_rgb(const struct pn_scene_s *scene, const pn_hit *hit, vec3 
         return;
     }
     out->kind = m->kind;
-    out->kd = pn_texture_eval(scene, m->kd, hit->u, hit->v);
+    out->kd = pn_texture_eval_footprint(scene, m->kd, hit->u, hit->v, hit->duv);
     *base_kd = out->kd;
     if (m->coated) {
         *coat = m;
         out->kd = pn_coated_diffuse(out->kd, m->coat_transmission, m->coat_internal);
     }
-    out->ks = pn_texture_eval(scene, m->ks, hit->u, hit->v);
+    out->ks = pn_texture_eval_footprint(scene, m->ks, hit->u, hit->v, hit->duv);
     out->exponent = m->exponent;
     out->specular = m->specular;
     out->eta = m->eta > 0.0f ? m->eta : 1.5f;
