@@ -5,7 +5,8 @@
  * REF0; one render's own noise, |REF1 - REF0| / sqrt 2; the floor of a reconstruction that hits
  * the expectation at every unevaluated work pixel, that noise times sqrt(1 - f) per output pixel
  * (f: the evaluated share of its work pixels); and with block_map the split by block class (0
- * smooth, 3 edge block under boundary evaluation). Built as build/pn_noise_floor (public API only).
+ * smooth, 3 edge block under boundary evaluation). Also IMAGE against REF1 (whose noise is independent of
+ * IMAGE's), and from it IMAGE's L2 against the expectation (a converged render). Built as build/pn_noise_floor (public API only).
  * usage: pn_noise_floor REF0.exr REF1.exr IMAGE.exr [IMAGE_WITH_AOVS.exr] */
 #include <penumbra/penumbra.h>
 #include <math.h>
@@ -33,7 +34,7 @@ int main(int argc, char **argv) {
     int n = pn_image_width(r0) * pn_image_height(r0);
     const float *a = pn_image_layer_data(r0, 0), *b = pn_image_layer_data(r1, 0), *x = pn_image_layer_data(im, 0);
     const float *pat = aov ? layer(aov, "sampling_pattern") : NULL, *map = aov ? layer(aov, "block_map") : NULL;
-    double s1 = 0, s2 = 0, e1 = 0, e2 = 0, n1 = 0, n2 = 0, f1 = 0, f2 = 0;
+    double s1 = 0, s2 = 0, e1 = 0, e2 = 0, n1 = 0, n2 = 0, f1 = 0, f2 = 0, g1 = 0, g2 = 0;
     double ce2[8] = {0}, cn2[8] = {0}, ce1[8] = {0}, cf1[8] = {0}, cnt[8] = {0};
     for (int i = 0; i < n; i++) {
         double f = pat ? (double)pat[i] : 0.0, u = 1.0 - f;
@@ -44,6 +45,9 @@ int main(int argc, char **argv) {
             s2 += r * r;
             e1 += fabs(d);
             e2 += d * d;
+            double g = (double)x[3 * i + ch] - (double)b[3 * i + ch]; /* against REF1, independent of IMAGE */
+            g1 += fabs(g);
+            g2 += g * g;
             n1 += fabs(nd);
             n2 += nd * nd;
             f1 += sqrt(u) * fabs(nd);
@@ -56,6 +60,10 @@ int main(int argc, char **argv) {
         cnt[k] += 1;
     }
     printf("image vs ref0: relL1 %.4f relL2 %.4f\n", e1 / s1, sqrt(e2 / s2));
+    printf("image vs ref1: relL1 %.4f relL2 %.4f\n", g1 / s1, sqrt(g2 / s2));
+    /* REF1's noise is independent of IMAGE, so |IMAGE - REF1|^2 = |IMAGE - E|^2 + |REF1 - E|^2 on
+     * average: IMAGE's L2 against the expectation E (a converged render) is estimated exactly. */
+    printf("image vs expectation (|x-ref1|^2 - noise^2): relL2 %.4f\n", sqrt(fmax(0.0, g2 - n2) / s2));
     printf("one render's noise (|ref1-ref0|/sqrt2): relL1 %.4f relL2 %.4f\n", n1 / s1, sqrt(n2 / s2));
     if (pat)
         printf("floor at this pattern (expectation at unevaluated work pixels): relL1 %.4f relL2 %.4f\n", f1 / s1,

@@ -150,6 +150,16 @@
  *    object tag, weights by normal and by depth against the pixel's depth plane, instead of its
  *    segment within 1 pixel): 0.0287 / 0.0269, with segments inside the 1-pixel margin 0.0286 /
  *    0.0267, within 4 pixels 0.0284 / 0.0281.
+ *  - Measured in stop 18 and dropped (quarter size at 6%, staircase / bathroom rel L1; main
+ *    0.0253 / 0.0266; bench/progressive/README.md "Stop 18", stop18-experiments.patch): the
+ *    leave-one-out residual of the guided linear fill as a boundary-order key (0.0253 / 0.0267);
+ *    interior pixels chosen by distance and that residual as tasks of the residual heap (0.0245 /
+ *    0.0293, L2 -15% on staircase); the guided fill instead of elements everywhere in partly
+ *    evaluated line-crossed blocks (0.0247 / 0.0297); a cross-validated choice between the two
+ *    per block (0.0251 / 0.0270); visible lines at a 26 degree bend (0.0250 / 0.0270). Interior
+ *    pixels and the fill pay on staircase's thin oblique segments and cost bathroom's straight
+ *    tile lines, where elements interpolate between exact boundary pixels; no selector tried kept
+ *    both.
  *
  * Switches (--dcm-off, dcm.h PN_DCM_OFF_*): edge-first (order of work), order (order of boundary
  * evaluation), discrepancy, noise (the Monte Carlo tests: contrast and lazy noise terms, the
