@@ -190,11 +190,11 @@ typedef struct ias_shared {
     pn_light_bvh bvh;
     int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
     int distant_count;
-    bool irradiance_prior; /* trees cut: c_U's PDF by each cluster's unoccluded irradiance (ias_speed.h) */
-    uint32_t emitter_rays; /* eye rays for the emitted term next to emitter edges; 0: aa_rays only */
-    int ratio;             /* PN_IAS_RATIO_*: the ratio estimator (ias_ratio.h); 0: off */
-    int ratio_members;     /* largest cluster given its closed form */
-    bool sparse_stats;     /* trees cut: statistics in hash tables, not dense arrays (sparse_add) */
+    bool irradiance_prior;    /* trees cut: c_U's PDF by each cluster's unoccluded irradiance (ias_speed.h) */
+    uint32_t emitter_rays;    /* eye rays for the emitted term next to emitter edges; 0: aa_rays only */
+    int ratio;                /* PN_IAS_RATIO_*: the ratio estimator (ias_ratio.h); 0: off */
+    int ratio_members;        /* largest cluster given its closed form */
+    bool sparse_stats;        /* trees cut: statistics in hash tables, not dense arrays (sparse_add) */
     struct ias_tnode *tnodes; /* sparse_stats: the forest's links and power ratios, compact */
 } ias_shared;
 
@@ -300,6 +300,17 @@ void pn_ias_set_dense_limit(int ids) {
     dense_limit = ids > 0 ? ids : PN_IAS_DENSE_IDS;
 }
 
+/* pn_ias_stats_work's counter: statistics entries walked, set or cleared (see ias_speed.h). */
+static _Atomic uint64_t stats_work;
+
+static void add_work(uint64_t n) {
+    atomic_fetch_add_explicit(&stats_work, n, memory_order_relaxed);
+}
+
+uint64_t pn_ias_stats_work(void) {
+    return atomic_load_explicit(&stats_work, memory_order_relaxed);
+}
+
 static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     ias_shared *sh = calloc(1, sizeof *sh);
     if (!sh) return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
@@ -379,7 +390,8 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
             ias_tnode *t = &sh->tnodes[m];
             *t = (ias_tnode){nd->left, nd->right, nd->parent, 0, 1.0, 1.0};
             if (nd->left < 0) continue;
-            double pm = (double)nd->power, pa = (double)f->nodes[nd->left].power, pb = (double)f->nodes[nd->right].power;
+            double pm = (double)nd->power, pa = (double)f->nodes[nd->left].power,
+                   pb = (double)f->nodes[nd->right].power;
             t->ra = pa > 0.0 ? pm / pa : 1.0;
             t->rb = pb > 0.0 ? pm / pb : 1.0;
         }
@@ -596,7 +608,7 @@ typedef struct ias_scratch {
     int pending_count, pending_cap, pending_pixel;
     /* The trees cut with sparse_stats (see sparse_add): the block's and the pixels' statistics,
      * the pixel's feedback weights per cut entry when its pass began, a walk's stack. */
-    ias_table btable, *ptables; /* ptables: one per pixel of the batch (max_pixels) */
+    ias_table btable, *ptables;  /* ptables: one per pixel of the batch (max_pixels) */
     struct ias_log blog, *plogs; /* the samples not yet in btable / ptables[pixel] */
     double *fp_snap;
     int *stack;
@@ -910,6 +922,7 @@ static void record(const ias_shared *sh, pn_ias_stats *block, pn_ias_stats *pixe
  * of a path walk per sample. */
 static void aggregate_stats(const ias_shared *sh, pn_ias_stats *stats) {
     const pn_cluster_node *nodes = sh->forest.nodes;
+    add_work((uint64_t)sh->post_count);
     for (int k = 0; k < sh->post_count; k++) {
         int m = sh->post_order[k];
         const pn_cluster_node *nd = &nodes[m];
@@ -1016,6 +1029,7 @@ static void finish_entry(ias_entry *e, bool snap) {
  * also keeps its feedback weight. */
 static void sparse_aggregate(const ias_shared *sh, ias_scratch *s, ias_table *t, int scope, bool snap) {
     const ias_tnode *nodes = sh->tnodes;
+    uint64_t work = 0;
     for (int k = 0; k < t->top_count; k++) {
         const uint64_t key = t->tops[k];
         const unsigned cls = (unsigned)(key >> 36) & 15u;
@@ -1042,7 +1056,8 @@ static void sparse_aggregate(const ias_shared *sh, ias_scratch *s, ias_table *t,
             top--;
             ias_entry *o = table_entry(t, table_key(scope, cls, m >= 0 ? m : ~m), false, NULL);
             if (m < 0) {
-                const pn_ias_stats *a = sparse_find(t, scope, cls, nd->left), *b = sparse_find(t, scope, cls, nd->right);
+                const pn_ias_stats *a = sparse_find(t, scope, cls, nd->left),
+                                   *b = sparse_find(t, scope, cls, nd->right);
                 if (!a) a = &zero_stats;
                 if (!b) b = &zero_stats;
                 o->st.sum = a->sum * nd->ra + b->sum * nd->rb;
@@ -1050,9 +1065,11 @@ static void sparse_aggregate(const ias_shared *sh, ias_scratch *s, ias_table *t,
                 o->st.visible = a->visible + b->visible;
             }
             finish_entry(o, snap);
+            work++;
         }
     }
     t->top_count = 0;
+    add_work(work);
 }
 
 static void push_log(ias_scratch *s, ias_log *l, unsigned cls, int id, double value, bool visible) {
@@ -1082,6 +1099,7 @@ static void sparse_record(const ias_shared *sh, ias_scratch *s, int pixel, unsig
 static void replay_log(const ias_shared *sh, ias_scratch *s, ias_log *l, ias_table *t, int scope) {
     for (int i = l->done; i < l->count; i++)
         sparse_add(sh, s, t, scope, l->r[i].cls, l->r[i].id, l->r[i].value, l->r[i].visible != 0);
+    add_work((uint64_t)(l->count - l->done));
     l->done = l->count;
 }
 
@@ -1271,6 +1289,7 @@ static void refresh_block_feedback(const ias_shared *sh, ias_scratch *s) {
         pn_ias_stats *b = s->block_stats + (size_t)c * (size_t)s->id_count;
         aggregate_stats(sh, b);
         for (int i = 0; i < s->id_count; i++) f[i] = pn_ias_feedback(&b[i]);
+        add_work((uint64_t)s->id_count);
     }
 }
 
@@ -1842,7 +1861,8 @@ static void control_betas(const ias_shared *sh, ias_scratch *s, const ias_pixel 
         const pn_ias_stats *block = sh->sparse_stats ? NULL : s->block_stats + (size_t)r->cls * (size_t)s->id_count;
         for (int i = r->cut_first; i < r->cut_first + r->cut_count; i++) {
             if (s->cut_unshadowed[i].x < 0.0f) continue;
-            const pn_ias_stats *st = block ? &block[s->cut[i]] : sparse_find(&s->btable, -1, (unsigned)r->cls, s->cut[i]);
+            const pn_ias_stats *st =
+                block ? &block[s->cut[i]] : sparse_find(&s->btable, -1, (unsigned)r->cls, s->cut[i]);
             if (!st) st = &zero_stats;
             s->cut_beta[i] = ((double)st->visible + 0.5) / ((double)st->count + 1.0);
         }
@@ -2155,8 +2175,10 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     }
     /* Block and pixel data are cleared when the block ends (§3.2). */
     if (sh->sparse_stats) {
+        add_work(s->btable.used);
         table_clear(&s->btable);
         for (int pi = 0; pi < np; pi++) {
+            add_work(s->ptables[pi].used);
             table_clear(&s->ptables[pi]);
             s->plogs[pi].count = s->plogs[pi].done = 0;
         }
@@ -2165,9 +2187,12 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         return PN_OK;
     }
     for (int c = 0; c < IAS_CLASSES; c++)
-        if (s->block_class_used[c])
+        if (s->block_class_used[c]) {
             memset(s->block_stats + (size_t)c * (size_t)s->id_count, 0, (size_t)s->id_count * sizeof *s->block_stats);
+            if (!sh->bvh_cut) add_work((uint64_t)s->id_count);
+        }
     memset(s->pixel_pool, 0, (size_t)s->pool_used * (size_t)s->id_count * sizeof *s->pixel_pool);
+    if (!sh->bvh_cut) add_work((uint64_t)s->pool_used * (uint64_t)s->id_count);
     if (sh->bvh_cut)
         table_clear(&s->table);
     else

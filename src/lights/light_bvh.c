@@ -279,7 +279,9 @@ pn_status pn_light_bvh_build(const pn_lights *lights, pn_light_bvh *out, pn_err 
     out->node_of_light = malloc((size_t)(n > 0 ? n : 1) * sizeof *out->node_of_light);
     out->infinite = malloc((size_t)(n > 0 ? n : 1) * sizeof *out->infinite);
     bvh_item *items = malloc((size_t)(n > 0 ? n : 1) * sizeof *items);
-    out->nodes = malloc((size_t)(n > 0 ? 2 * n : 1) * sizeof *out->nodes);
+    /* One node per 64-byte cache line (a node is 64 bytes): a descent reads one line per node
+     * instead of two for the nodes that malloc's 16-byte alignment made straddle lines. */
+    out->nodes = aligned_alloc(64, (size_t)(n > 0 ? 2 * n : 1) * sizeof *out->nodes);
     if (!out->node_of_light || !out->infinite || !items || !out->nodes) {
         free(items);
         pn_light_bvh_free(out);
