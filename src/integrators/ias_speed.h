@@ -46,7 +46,7 @@ uint32_t pn_ias_emitter_rays(const pn_render_job *job, const pn_batch *batch, in
 /* The trees cut's statistics (ias.c, sparse_stats): dense arrays over the cluster ids below
  * PN_IAS_DENSE_IDS ids, hash tables from there on; the images are the same. Tests set another
  * limit (ids <= 0: back to the default) to compare the two. */
-#define PN_IAS_DENSE_IDS 16384
+#define PN_IAS_DENSE_IDS 65536
 void pn_ias_set_dense_limit(int ids);
 
 /* For the tests: a process-wide count of the trees cut's statistics entries aggregated, set from

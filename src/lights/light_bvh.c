@@ -23,7 +23,15 @@ static pn_light_bvh_bounds bounds_union(const pn_light_bvh_bounds *a, const pn_l
     pn_light_bvh_bounds u;
     u.bmin = v3_min(a->bmin, b->bmin);
     u.bmax = v3_max(a->bmax, b->bmax);
-    pn_cluster_merge_cones(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
+    if (a->cos_o == b->cos_o && a->cos_o > -1.0f && a->w.x == b->w.x && a->w.y == b->w.y && a->w.z == b->w.z) {
+        /* Equal cones (the emitters of one flat mesh): what pn_cluster_merge_cones returns for
+         * them (its first test, the angle between the axes being exactly 0), without its acos
+         * and atan2; 2/3 of the build's time at 10^6 coplanar emitters was that call. */
+        u.w = a->w;
+        u.cos_o = a->cos_o;
+    } else {
+        pn_cluster_merge_cones(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
+    }
     u.cos_e = fminf(a->cos_e, b->cos_e);
     u.phi = a->phi + b->phi;
     u.two_sided = a->two_sided || b->two_sided;
