@@ -26,7 +26,8 @@ static pn_light_bvh_bounds bounds_union(const pn_light_bvh_bounds *a, const pn_l
     if (a->cos_o == b->cos_o && a->cos_o > -1.0f && a->w.x == b->w.x && a->w.y == b->w.y && a->w.z == b->w.z) {
         /* Equal cones (the emitters of one flat mesh): what pn_cluster_merge_cones returns for
          * them (its first test, the angle between the axes being exactly 0), without its acos
-         * and atan2; 2/3 of the build's time at 10^6 coplanar emitters was that call. */
+         * and atan2. At 10^6 coplanar emitters (bench/ias/scaling.sh) that call was 26% of the
+         * process CPU of reference --light-sampler bvh: 7.0 -> 5.5 s, images the same. */
         u.w = a->w;
         u.cos_o = a->cos_o;
     } else {
