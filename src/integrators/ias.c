@@ -123,7 +123,15 @@
  *    mode is slower at equal relMSE (control by 20-30%, pixel by 65%; the light there is 30%
  *    occluded, the noise left is which lights are visible, and the floor is glossy); on
  *    bathroom-72-matte's control is 1.18-1.25x faster, pixel 2.6x slower; cluster is 0.25% dark
- *    after one pass on hall-many (pixel and control within noise; docs/methods/ias.md). */
+ *    after one pass on hall-many (pixel and control within noise; docs/methods/ias.md).
+ *
+ * Not a departure (the images are the same bit for bit, both variants): with the trees cut and at
+ * least PN_IAS_DENSE_IDS cluster ids (ias_speed.h; some 30,000 emitters) the block's and the
+ * pixels' statistics live in hash tables instead of arrays over all ids (sparse_stats, see
+ * sparse_add): the arrays were aggregated and cleared in full per pass and pixel pass, O(lights)
+ * per pixel. At 10^6 emitters (bench/ias/scaling.sh) process CPU 115 -> 23 s, render time per
+ * eye ray 12x less, peak memory 3.77 GB -> 0.93 GB; the work per shadow ray grows with the depth
+ * below the cut, not with N (tests/test_ias_scale.c). */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
@@ -190,11 +198,20 @@ typedef struct ias_shared {
     pn_light_bvh bvh;
     int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
     int distant_count;
-    bool irradiance_prior; /* trees cut: c_U's PDF by each cluster's unoccluded irradiance (ias_speed.h) */
-    uint32_t emitter_rays; /* eye rays for the emitted term next to emitter edges; 0: aa_rays only */
-    int ratio;             /* PN_IAS_RATIO_*: the ratio estimator (ias_ratio.h); 0: off */
-    int ratio_members;     /* largest cluster given its closed form */
+    bool irradiance_prior;    /* trees cut: c_U's PDF by each cluster's unoccluded irradiance (ias_speed.h) */
+    uint32_t emitter_rays;    /* eye rays for the emitted term next to emitter edges; 0: aa_rays only */
+    int ratio;                /* PN_IAS_RATIO_*: the ratio estimator (ias_ratio.h); 0: off */
+    int ratio_members;        /* largest cluster given its closed form */
+    bool sparse_stats;        /* trees cut: statistics in hash tables, not dense arrays (sparse_add) */
+    struct ias_tnode *tnodes; /* sparse_stats: the forest's links and power ratios, compact */
 } ias_shared;
+
+/* A cluster node as sparse_add and sparse_aggregate read it (32 bytes instead of the node's 140):
+ * ra, rb are aggregate_stats' factors power(node) / power(child), 1 for a child without power. */
+typedef struct ias_tnode {
+    int left, right, parent, pad;
+    double ra, rb;
+} ias_tnode;
 
 /* The smallest of many empty intervals: the cost a timed interval carries for its own clock
  * reads, which the sampled timings (scaled by IAS_TIMING_STRIDE) would otherwise multiply. */
@@ -225,6 +242,7 @@ static void ias_release(pn_render_job *job) {
     free(sh->post_order);
     pn_light_bvh_free(&sh->bvh);
     free(sh->distant);
+    free(sh->tnodes);
     free(sh);
     job->integrator_data = NULL;
 }
@@ -280,6 +298,25 @@ static uint32_t ias_eye_rays(const pn_render_job *job, bool paper) {
     double t0 = paper ? 0.0 : job->ias_aa_threshold, n = (double)job->aa_rays;
     if (t0 > 0.0 && job->threshold > 0.0 && job->threshold < t0) n = ceil(n * t0 / job->threshold);
     return (uint32_t)fmin(n, 4096.0); /* aa-rays' own largest value */
+}
+
+/* The trees cut keeps its statistics in hash tables (sparse_stats) from this many cluster ids on;
+ * below, in dense arrays, which are faster there. Either way the images are the same. */
+static int dense_limit = PN_IAS_DENSE_IDS;
+
+void pn_ias_set_dense_limit(int ids) {
+    dense_limit = ids > 0 ? ids : PN_IAS_DENSE_IDS;
+}
+
+/* pn_ias_stats_work's counter: statistics entries walked, set or cleared (see ias_speed.h). */
+static _Atomic uint64_t stats_work;
+
+static void add_work(uint64_t n) {
+    atomic_fetch_add_explicit(&stats_work, n, memory_order_relaxed);
+}
+
+uint64_t pn_ias_stats_work(void) {
+    return atomic_load_explicit(&stats_work, memory_order_relaxed);
 }
 
 static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
@@ -348,6 +385,25 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
         }
     }
     sh->id_count = next;
+    sh->sparse_stats = !sh->bvh_cut && next >= dense_limit;
+    if (sh->sparse_stats) {
+        const pn_cluster_forest *f = &sh->forest;
+        sh->tnodes = malloc((size_t)(f->node_count > 0 ? f->node_count : 1) * sizeof *sh->tnodes);
+        if (!sh->tnodes) {
+            ias_release(job);
+            return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        }
+        for (int m = 0; m < f->node_count; m++) {
+            const pn_cluster_node *nd = &f->nodes[m];
+            ias_tnode *t = &sh->tnodes[m];
+            *t = (ias_tnode){nd->left, nd->right, nd->parent, 0, 1.0, 1.0};
+            if (nd->left < 0) continue;
+            double pm = (double)nd->power, pa = (double)f->nodes[nd->left].power,
+                   pb = (double)f->nodes[nd->right].power;
+            t->ra = pa > 0.0 ? pm / pa : 1.0;
+            t->rb = pb > 0.0 ? pm / pb : 1.0;
+        }
+    }
     sh->max_cut = next > 0 ? next : 1;
     if (sh->bvh_cut) sh->max_cut = sh->cut_size + (next - sh->bvh.node_count);
     sh->light_count = L->count;
@@ -421,6 +477,7 @@ typedef struct ias_pixel {
                               lights, recording samples (the per-sample part sampled) */
     uint32_t visible_lights;          /* distinct lights / environment regions seen unoccluded */
     uint32_t emit_hits;               /* eye rays that saw emission (ias-emitter-rays) */
+    unsigned classes;                 /* sparse_stats: bit c set when the pixel sampled class c */
     pn_ias_stats *stats[IAS_CLASSES]; /* pixel statistics per normal class, or NULL */
 } ias_pixel;
 
@@ -436,11 +493,15 @@ typedef struct ias_pixel {
 typedef struct ias_entry {
     uint64_t key; /* 0: empty */
     pn_ias_stats st;
+    double snap;    /* sparse trees statistics: the block's feedback weight when its pass began */
+    unsigned dirty; /* sparse trees statistics: set since the last aggregation (sparse_add) */
 } ias_entry;
 
 typedef struct ias_table {
     ias_entry *e;
     uint32_t cap, used; /* cap a power of two */
+    uint64_t *tops;     /* sparse trees statistics: keys of dirty entries without a parent */
+    int top_count, top_cap;
 } ias_table;
 
 /* pixel -1: the block's entry. */
@@ -449,7 +510,9 @@ static uint64_t table_key(int pixel, unsigned cls, int id) {
 }
 
 static uint32_t table_slot(uint64_t key, uint32_t cap) {
-    return (uint32_t)(pn_hash3(key, 0x1a5ull, 0) & (uint64_t)(cap - 1u));
+    /* Fibonacci hashing: the slots only place entries, nothing computed depends on them. */
+    uint64_t h = (key ^ (key >> 29)) * UINT64_C(0x9e3779b97f4a7c15);
+    return (uint32_t)((h ^ (h >> 32)) & (uint64_t)(cap - 1u));
 }
 
 static bool table_grow(ias_table *t) {
@@ -468,25 +531,47 @@ static bool table_grow(ias_table *t) {
     return true;
 }
 
-/* The entry of `key`; created (zero) when `create`, else NULL when absent (or out of memory). */
-static pn_ias_stats *table_get(ias_table *t, uint64_t key, bool create) {
+/* The entry of `key`; created (zero) when `create` (then *created says whether it is new), else
+ * NULL when absent (or out of memory). */
+static ias_entry *table_entry(ias_table *t, uint64_t key, bool create, bool *created) {
+    if (created) *created = false;
     if (create && 2u * (t->used + 1u) > t->cap && !table_grow(t)) return NULL;
     if (!t->cap) return NULL;
     uint32_t k = table_slot(key, t->cap);
     while (t->e[k].key) {
-        if (t->e[k].key == key) return &t->e[k].st;
+        if (t->e[k].key == key) return &t->e[k];
         k = (k + 1u) & (t->cap - 1u);
     }
     if (!create) return NULL;
     t->e[k].key = key;
     t->used++;
-    return &t->e[k].st;
+    if (created) *created = true;
+    return &t->e[k];
+}
+
+static pn_ias_stats *table_get(ias_table *t, uint64_t key, bool create) {
+    ias_entry *e = table_entry(t, key, create, NULL);
+    return e ? &e->st : NULL;
 }
 
 static void table_clear(ias_table *t) {
     if (t->used) memset(t->e, 0, (size_t)t->cap * sizeof *t->e);
     t->used = 0;
+    t->top_count = 0;
 }
+
+/* Samples of the trees cut with sparse_stats, in the order they were taken, until they are added
+ * to a table (replay_log): a pixel's only when its next pass needs its feedback weights. */
+typedef struct ias_log_rec {
+    int id;
+    unsigned cls, visible;
+    double value;
+} ias_log_rec;
+
+typedef struct ias_log {
+    ias_log_rec *r;
+    int count, cap, done; /* r[done .. count) are not in the table yet */
+} ias_log;
 
 /* A light evaluation of the current pixel pass, added to the table when the pass ends so that the
  * pixel's PDFs stay fixed during its pass (as the paper's are). */
@@ -529,6 +614,14 @@ typedef struct ias_scratch {
     ias_table table;
     ias_pending *pending;
     int pending_count, pending_cap, pending_pixel;
+    /* The trees cut with sparse_stats (see sparse_add): the block's and the pixels' statistics,
+     * the pixel's feedback weights per cut entry when its pass began, a walk's stack. */
+    ias_table btable, *ptables;  /* ptables: one per pixel of the batch (max_pixels) */
+    struct ias_log blog, *plogs; /* the samples not yet in btable / ptables[pixel] */
+    double *fp_snap;
+    int *stack;
+    int stack_cap;
+    bool oom;
     ias_point *points, *points_tmp; /* member points, by region; the pixel's, in ray order */
     int point_count, point_cap, tmp_cap, tmp_used;
     double *fprior;      /* per cut entry of the PDF being built */
@@ -563,6 +656,18 @@ static void ias_scratch_free(void *p) {
     free(s->pixels);
     free(s->cut_prior);
     free(s->table.e);
+    free(s->btable.e);
+    free(s->btable.tops);
+    for (int i = 0; s->ptables && i < s->max_pixels; i++) {
+        free(s->ptables[i].e);
+        free(s->ptables[i].tops);
+    }
+    free(s->ptables);
+    free(s->blog.r);
+    for (int i = 0; s->plogs && i < s->max_pixels; i++) free(s->plogs[i].r);
+    free(s->plogs);
+    free(s->fp_snap);
+    free(s->stack);
     free(s->pending);
     free(s->fprior);
     free(s->emit_hits);
@@ -582,9 +687,10 @@ static void *ias_scratch_create(const pn_render_job *job) {
     if (!s) return NULL;
     size_t ids = (size_t)(sh->id_count > 0 ? sh->id_count : 1);
     /* With the BVH cut the statistics live in the table: the per-id arrays are not used, and
-     * the per-cut ones are sized by the largest cut. */
-    if (sh->bvh_cut) ids = 1;
+     * the per-cut ones are sized by the largest cut. With sparse_stats the trees' statistics
+     * live in hash tables too. */
     const size_t per_cut = sh->bvh_cut ? (size_t)sh->max_cut : ids;
+    if (sh->bvh_cut || sh->sparse_stats) ids = 1;
     s->id_count = (int)ids;
     s->max_pixels = (int)(job->block_size * job->block_size);
     if (s->max_pixels < IAS_MAX_PIXELS) s->max_pixels = IAS_MAX_PIXELS;
@@ -606,7 +712,19 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->fp_stamp = calloc(IAS_CLASSES * ids, sizeof *s->fp_stamp);
     s->n_of = malloc(((size_t)sh->aa_rays + 1) * sizeof *s->n_of);
     s->visible_slots = sh->visible_slots;
-    s->pixel_seen = calloc(sh->bvh_cut ? 1 : (size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
+    const bool seen_table = sh->bvh_cut || sh->sparse_stats;
+    s->pixel_seen = calloc(seen_table ? 1 : (size_t)s->max_pixels * (size_t)(sh->visible_slots + 1), 1);
+    if (sh->sparse_stats) {
+        s->fp_snap = malloc((size_t)s->cut_cap * sizeof *s->fp_snap);
+        s->ptables = calloc((size_t)s->max_pixels, sizeof *s->ptables);
+        s->plogs = calloc((size_t)s->max_pixels, sizeof *s->plogs);
+        bool ok = s->fp_snap && s->ptables && s->plogs && table_grow(&s->btable);
+        for (int i = 0; ok && i < s->max_pixels; i++) ok = table_grow(&s->ptables[i]);
+        if (!ok) {
+            ias_scratch_free(s);
+            return NULL;
+        }
+    }
     s->ratio_mode = sh->ratio;
     if (sh->ratio) {
         s->cut_unshadowed = malloc((size_t)s->cut_cap * sizeof *s->cut_unshadowed);
@@ -614,7 +732,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
         s->ratio_region_cap = (int)sh->aa_rays + 1;
         s->ratio_regions = malloc((size_t)s->ratio_region_cap * sizeof *s->ratio_regions);
         if (!s->cut_unshadowed || !s->cut_beta || !s->ratio_regions ||
-            !pn_ias_ratio_scratch_init(&s->ratio, (int)ids, (int)sh->aa_rays + 1)) {
+            !pn_ias_ratio_scratch_init(&s->ratio, (int)per_cut, (int)sh->aa_rays + 1)) {
             ias_scratch_free(s);
             return NULL;
         }
@@ -668,6 +786,11 @@ static bool reserve_cut(ias_scratch *s, int more) {
     double *q = realloc(s->cut_prior, (size_t)cap * sizeof *q);
     if (!q) return false;
     s->cut_prior = q;
+    if (s->fp_snap) {
+        double *f = realloc(s->fp_snap, (size_t)cap * sizeof *f);
+        if (!f) return false;
+        s->fp_snap = f;
+    }
     if (s->ratio_mode) {
         vec3 *e = realloc(s->cut_unshadowed, (size_t)cap * sizeof *e);
         if (!e) return false;
@@ -807,6 +930,7 @@ static void record(const ias_shared *sh, pn_ias_stats *block, pn_ias_stats *pixe
  * of a path walk per sample. */
 static void aggregate_stats(const ias_shared *sh, pn_ias_stats *stats) {
     const pn_cluster_node *nodes = sh->forest.nodes;
+    add_work((uint64_t)sh->post_count);
     for (int k = 0; k < sh->post_count; k++) {
         int m = sh->post_order[k];
         const pn_cluster_node *nd = &nodes[m];
@@ -816,6 +940,203 @@ static void aggregate_stats(const ias_shared *sh, pn_ias_stats *stats) {
         o->sum = a->sum * (pa > 0.0 ? pm / pa : 1.0) + b->sum * (pb > 0.0 ? pm / pb : 1.0);
         o->count = a->count + b->count;
         o->visible = a->visible + b->visible;
+    }
+}
+
+/* ---- the trees cut's statistics in hash tables (sparse_stats) --------------------------------
+ *
+ * The dense arrays above hold IAS_CLASSES x id_count statistics for the block and for every
+ * pixel, and aggregate_stats and refresh_block_feedback walk all of them once per pass and pixel
+ * pass: O(lights) per pixel, 181 of 205 s render and 3.8 GB at 10^6 emitters (issue 15,
+ * bench/RESULTS.md "Light count"). With many cluster ids (sparse_stats) the statistics are kept
+ * instead in hash tables (s->btable for the block, s->ptables[pixel] for each pixel) keyed by (pixel or
+ * block, class, id), holding the numbers the dense arrays would hold, computed in the same order:
+ *  - a sample recorded at a node creates the node's entry and those of its ancestors that have
+ *    none, so that every entry's ancestors have entries;
+ *  - aggregation walks down from the roots through the nodes that have entries only and sets each
+ *    interior one from its two children as aggregate_stats does (a child without an entry counts
+ *    as zero: the value the dense array holds there, exactly, since 0 x ratio + y = y);
+ *  - the block's feedback weights at the start of a pass are kept in each entry (snap; entries
+ *    made later had none then, snap 0), the pixel's per cut entry (s->fp_snap).
+ * The images are the dense path's bit for bit (tests/test_ias_scale.c); the cost per sample is
+ * O(1) amortised plus the new ancestors' entries, per aggregation the entries, not the lights. */
+static const pn_ias_stats zero_stats;
+
+static bool same_cut(const ias_scratch *s, const ias_region *a, const ias_region *b);
+
+static void push_top(ias_scratch *s, ias_table *t, uint64_t key) {
+    if (t->top_count == t->top_cap) {
+        int cap = t->top_cap ? 2 * t->top_cap : 64;
+        uint64_t *n = realloc(t->tops, (size_t)cap * sizeof *n);
+        if (!n) {
+            s->oom = true;
+            return;
+        }
+        t->tops = n;
+        t->top_cap = cap;
+    }
+    t->tops[t->top_count++] = key;
+}
+
+/* Adds a sample at node (or distant light, or environment region) `id` and marks it and its
+ * ancestors dirty up to the first one that already is (every dirty entry's ancestors are dirty,
+ * and have entries); the dirty entries without a parent are listed in t->tops. */
+static void sparse_add(const ias_shared *sh, ias_scratch *s, ias_table *t, int scope, unsigned cls, int id,
+                       double value, bool visible) {
+    ias_entry *e = table_entry(t, table_key(scope, cls, id), true, NULL);
+    if (!e) {
+        s->oom = true;
+        return;
+    }
+    pn_ias_stats_add(&e->st, value, visible);
+    for (int m = id; !e->dirty;) {
+        e->dirty = 1u;
+        const int up = m < sh->forest.node_count ? sh->tnodes[m].parent : -1;
+        if (up < 0) {
+            push_top(s, t, table_key(scope, cls, m));
+            return;
+        }
+        m = up;
+        e = table_entry(t, table_key(scope, cls, m), true, NULL);
+        if (!e) {
+            s->oom = true;
+            return;
+        }
+    }
+}
+
+static const pn_ias_stats *sparse_find(ias_table *t, int scope, unsigned cls, int id) {
+    const ias_entry *e = table_entry(t, table_key(scope, cls, id), false, NULL);
+    return e ? &e->st : NULL;
+}
+
+static bool push_stack(ias_scratch *s, int *top, int v) {
+    if (*top == s->stack_cap) {
+        int cap = s->stack_cap ? 2 * s->stack_cap : 256;
+        int *n = realloc(s->stack, (size_t)cap * sizeof *n);
+        if (!n) {
+            s->oom = true;
+            return false;
+        }
+        s->stack = n;
+        s->stack_cap = cap;
+    }
+    s->stack[(*top)++] = v;
+    return true;
+}
+
+/* An entry brought up to date: clean, and (snap) its feedback weight kept. */
+static void finish_entry(ias_entry *e, bool snap) {
+    e->dirty = 0u;
+    if (snap) e->snap = pn_ias_feedback(&e->st);
+}
+
+/* aggregate_stats over the table's dirty entries, from each dirty top down through the dirty
+ * nodes, each interior one set from its two children after them (a clean child keeps the value
+ * it was last set to, which is what aggregate_stats would set again); with `snap` each entry set
+ * also keeps its feedback weight. */
+static void sparse_aggregate(const ias_shared *sh, ias_scratch *s, ias_table *t, int scope, bool snap) {
+    const ias_tnode *nodes = sh->tnodes;
+    uint64_t work = 0;
+    for (int k = 0; k < t->top_count; k++) {
+        const uint64_t key = t->tops[k];
+        const unsigned cls = (unsigned)(key >> 36) & 15u;
+        const int root = (int)(key & ((UINT64_C(1) << 36) - 1u));
+        ias_entry *re = table_entry(t, key, false, NULL);
+        if (!re || !re->dirty) continue;
+        if (root >= sh->forest.node_count || nodes[root].left < 0) { /* a leaf, single or region */
+            finish_entry(re, snap);
+            continue;
+        }
+        int top = 0;
+        if (!push_stack(s, &top, root)) return;
+        while (top > 0) {
+            int m = s->stack[top - 1];
+            const ias_tnode *nd = &nodes[m >= 0 ? m : ~m];
+            if (m >= 0 && nd->left >= 0) {
+                s->stack[top - 1] = ~m; /* its dirty children first */
+                const ias_entry *b = table_entry(t, table_key(scope, cls, nd->right), false, NULL);
+                if (b && b->dirty && !push_stack(s, &top, nd->right)) return;
+                const ias_entry *a = table_entry(t, table_key(scope, cls, nd->left), false, NULL);
+                if (a && a->dirty && !push_stack(s, &top, nd->left)) return;
+                continue;
+            }
+            top--;
+            ias_entry *o = table_entry(t, table_key(scope, cls, m >= 0 ? m : ~m), false, NULL);
+            if (m < 0) {
+                const pn_ias_stats *a = sparse_find(t, scope, cls, nd->left),
+                                   *b = sparse_find(t, scope, cls, nd->right);
+                if (!a) a = &zero_stats;
+                if (!b) b = &zero_stats;
+                o->st.sum = a->sum * nd->ra + b->sum * nd->rb;
+                o->st.count = a->count + b->count;
+                o->st.visible = a->visible + b->visible;
+            }
+            finish_entry(o, snap);
+            work++;
+        }
+    }
+    t->top_count = 0;
+    add_work(work);
+}
+
+static void push_log(ias_scratch *s, ias_log *l, unsigned cls, int id, double value, bool visible) {
+    if (l->count == l->cap) {
+        int cap = l->cap ? 2 * l->cap : 1024;
+        ias_log_rec *r = realloc(l->r, (size_t)cap * sizeof *r);
+        if (!r) {
+            s->oom = true;
+            return;
+        }
+        l->r = r;
+        l->cap = cap;
+    }
+    l->r[l->count++] = (ias_log_rec){id, cls, visible ? 1u : 0u, value};
+}
+
+/* A sample through cluster id `id` (record()'s rule: a tree node's at its light's leaf), for the
+ * block and for the pixel. */
+static void sparse_record(const ias_shared *sh, ias_scratch *s, int pixel, unsigned cls, int id, int light,
+                          double value, bool visible) {
+    if (id < sh->forest.node_count && light >= 0) id = sh->forest.leaf_of_light[light];
+    push_log(s, &s->blog, cls, id, value, visible);
+    push_log(s, &s->plogs[pixel], cls, id, value, visible);
+}
+
+/* The log's samples not yet in the table, added in the order they were taken. */
+static void replay_log(const ias_shared *sh, ias_scratch *s, ias_log *l, ias_table *t, int scope) {
+    for (int i = l->done; i < l->count; i++)
+        sparse_add(sh, s, t, scope, l->r[i].cls, l->r[i].id, l->r[i].value, l->r[i].visible != 0);
+    add_work((uint64_t)(l->count - l->done));
+    l->done = l->count;
+}
+
+/* refresh_block_feedback with sparse_stats. */
+static void sparse_refresh_block(const ias_shared *sh, ias_scratch *s) {
+    replay_log(sh, s, &s->blog, &s->btable, -1);
+    sparse_aggregate(sh, s, &s->btable, -1, true);
+}
+
+/* begin_pixel_feedback with sparse_stats: the feedback weights of the pixel's cut entries. */
+static void sparse_begin_pixel(const ias_shared *sh, ias_scratch *s, ias_pixel *px) {
+    const int pixel = (int)(px - s->pixels);
+    replay_log(sh, s, &s->plogs[pixel], &s->ptables[pixel], pixel);
+    sparse_aggregate(sh, s, &s->ptables[pixel], pixel, false);
+    const ias_region *prev = NULL;
+    for (int k = 0; k < px->region_count; k++) {
+        const ias_region *r = &s->regions[px->first_region + k];
+        double *f = s->fp_snap + r->cut_first;
+        if (same_cut(s, prev, r)) {
+            memcpy(f, s->fp_snap + prev->cut_first, (size_t)r->cut_count * sizeof *f);
+        } else {
+            const int *cut = s->cut + r->cut_first;
+            const bool any = px->classes & (1u << r->cls); /* none: no data yet, F = 0 */
+            for (int i = 0; i < r->cut_count; i++) {
+                const pn_ias_stats *q = any ? sparse_find(&s->ptables[pixel], pixel, (unsigned)r->cls, cut[i]) : NULL;
+                f[i] = q ? pn_ias_feedback(q) : 0.0;
+            }
+        }
+        prev = r;
     }
 }
 
@@ -835,12 +1156,20 @@ static void build_pdf(const ias_shared *sh, ias_scratch *s, const ias_region *r,
     pn_ias_blend_weights(pass, &cu, &cb, &cp);
     int nc = r->cut_count;
     const int *cut = s->cut + r->cut_first;
-    const double *fb_class = s->fb_cache + (size_t)r->cls * (size_t)s->id_count;
+    const double *fb_class = sh->sparse_stats ? NULL : s->fb_cache + (size_t)r->cls * (size_t)s->id_count;
     double *fblock = s->pdf, *fpixel = s->fpix; /* feedback weights of the cut's clusters */
     double fb = 0.0, fp = 0.0;
-    if (cb > 0.0)
+    if (cb > 0.0 && sh->sparse_stats) {
+        for (int i = 0; i < nc; i++) {
+            const ias_entry *e = table_entry(&s->btable, table_key(-1, (unsigned)r->cls, cut[i]), false, NULL);
+            fb += (fblock[i] = e ? e->snap : 0.0);
+        }
+    } else if (cb > 0.0) {
         for (int i = 0; i < nc; i++) fb += (fblock[i] = fb_class[cut[i]]);
-    if (cp > 0.0 && pixel)
+    }
+    if (cp > 0.0 && sh->sparse_stats)
+        for (int i = 0; i < nc; i++) fp += (fpixel[i] = s->fp_snap[r->cut_first + i]);
+    else if (cp > 0.0 && pixel)
         for (int i = 0; i < nc; i++) fp += (fpixel[i] = pixel_feedback(s, pixel, r->cls, cut[i]));
     /* A feedback PDF without data gives its weight to the uniform PDF. */
     if (!(fb > 0.0)) {
@@ -968,6 +1297,7 @@ static void refresh_block_feedback(const ias_shared *sh, ias_scratch *s) {
         pn_ias_stats *b = s->block_stats + (size_t)c * (size_t)s->id_count;
         aggregate_stats(sh, b);
         for (int i = 0; i < s->id_count; i++) f[i] = pn_ias_feedback(&b[i]);
+        add_work((uint64_t)s->id_count);
     }
 }
 
@@ -1208,9 +1538,10 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
     for (int k = 0; k < rc; k++) {
         if (n_of[k] == 0) continue;
         ias_region *r = &s->regions[px->first_region + k];
-        pn_ias_stats *block = s->block_stats + (size_t)r->cls * (size_t)s->id_count;
+        pn_ias_stats *block = sh->sparse_stats ? NULL : s->block_stats + (size_t)r->cls * (size_t)s->id_count;
         s->block_class_used[r->cls] = true;
-        pn_ias_stats *pix = sh->bvh_cut ? NULL : pixel_stats(s, px, r->cls);
+        pn_ias_stats *pix = sh->bvh_cut || sh->sparse_stats ? NULL : pixel_stats(s, px, r->cls);
+        px->classes |= 1u << r->cls;
         double t_pdf = pn_clock_seconds();
         /* Regions of one pixel on one surface usually have the same cut; their PDFs are then
          * the same numbers (the feedback weights are fixed for the pixel's pass), built once. */
@@ -1314,9 +1645,9 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                         px->visible++;
                         /* Table 5: this light (or environment region) is visible here. */
                         int slot = id < sh->light_ids ? light : sh->light_count + (id - sh->light_ids);
-                        if (sh->bvh_cut && slot >= 0 && slot < s->visible_slots) {
-                            pn_ias_stats *e =
-                                table_get(&s->table, table_key((int)(px - s->pixels), IAS_SEEN_CLASS, slot), true);
+                        if ((sh->bvh_cut || sh->sparse_stats) && slot >= 0 && slot < s->visible_slots) {
+                            pn_ias_stats *e = table_get(sh->bvh_cut ? &s->table : &s->ptables[px - s->pixels],
+                                                        table_key((int)(px - s->pixels), IAS_SEEN_CLASS, slot), true);
                             if (e && !e->count) {
                                 e->count = 1;
                                 px->visible_lights++;
@@ -1364,6 +1695,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             if (timed_upkeep) t_upkeep = pn_clock_seconds();
             if (sh->bvh_cut) /* the node's own contribution estimate: the sample over P(light | node) */
                 push_pending(s, (int)(px - s->pixels), r->cls, id, p_light > 0.0 ? lum_v / p_light : 0.0, visible);
+            else if (sh->sparse_stats)
+                sparse_record(sh, s, (int)(px - s->pixels), (unsigned)r->cls, id, light, lum_v, visible);
             else
                 record(sh, block, pix, id, light, lum_v, visible);
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
@@ -1529,13 +1862,16 @@ static void ratio_closed_forms(const pn_render_job *job, const ias_shared *sh, i
 /* The control variate's coefficients for the pixel's next pass: each entry's visible fraction in
  * the block so far, (visible + 0.5) / (count + 1), fixed before the pass so that the estimate stays
  * unbiased (leaves' statistics are current; interior nodes' as aggregated at the pass's start). */
-static void control_betas(ias_scratch *s, const ias_pixel *px) {
+static void control_betas(const ias_shared *sh, ias_scratch *s, const ias_pixel *px) {
+    if (sh->sparse_stats) replay_log(sh, s, &s->blog, &s->btable, -1); /* the leaves' current data */
     for (int k = 0; k < px->region_count; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
-        const pn_ias_stats *block = s->block_stats + (size_t)r->cls * (size_t)s->id_count;
+        const pn_ias_stats *block = sh->sparse_stats ? NULL : s->block_stats + (size_t)r->cls * (size_t)s->id_count;
         for (int i = r->cut_first; i < r->cut_first + r->cut_count; i++) {
             if (s->cut_unshadowed[i].x < 0.0f) continue;
-            const pn_ias_stats *st = &block[s->cut[i]];
+            const pn_ias_stats *st =
+                block ? &block[s->cut[i]] : sparse_find(&s->btable, -1, (unsigned)r->cls, s->cut[i]);
+            if (!st) st = &zero_stats;
             s->cut_beta[i] = ((double)st->visible + 0.5) / ((double)st->count + 1.0);
         }
     }
@@ -1592,6 +1928,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     s->region_count = 0;
     s->point_count = 0;
     s->cut_used = 0;
+    s->oom = false;
     s->pool_used = 0;
     memset(s->block_class_used, 0, sizeof s->block_class_used);
     if (batch->count > s->max_pixels) return PN_ERROR_INTERNAL; /* larger than any block */
@@ -1740,7 +2077,10 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         bool any = false;
         if (pass > 0 && !sh->bvh_cut) {
             double t_pdf = pn_clock_seconds();
-            refresh_block_feedback(sh, s);
+            if (sh->sparse_stats)
+                sparse_refresh_block(sh, s);
+            else
+                refresh_block_feedback(sh, s);
             s->pixels[0].pdf_seconds += elapsed_since(sh, t_pdf); /* the block's share, on its first pixel */
         }
         for (int pi = 0; pi < np; pi++) {
@@ -1750,8 +2090,11 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             reset_regions(s, px);
             double t_pdf = pn_clock_seconds();
             flush_pending(s); /* the previous pixel pass's evaluations (default variant) */
-            if (!sh->bvh_cut) begin_pixel_feedback(sh, s, px);
-            if (sh->ratio == PN_IAS_RATIO_CONTROL) control_betas(s, px);
+            if (sh->sparse_stats)
+                sparse_begin_pixel(sh, s, px);
+            else if (!sh->bvh_cut)
+                begin_pixel_feedback(sh, s, px);
+            if (sh->ratio == PN_IAS_RATIO_CONTROL) control_betas(sh, s, px);
             px->pdf_seconds += elapsed_since(sh, t_pdf);
             /* 1.5 N_C samples, at least 50 (§5.8); the default variant: (j + 1) pass_rays. */
             unsigned count = (unsigned)ceil(1.5 * px->clusters);
@@ -1839,10 +2182,25 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         out[pi].relative_variance = Lt > 0.0 && isfinite(s2) ? (float)(s2 / (Lt * Lt)) : 0.0f;
     }
     /* Block and pixel data are cleared when the block ends (§3.2). */
+    if (sh->sparse_stats) {
+        add_work(s->btable.used);
+        table_clear(&s->btable);
+        for (int pi = 0; pi < np; pi++) {
+            add_work(s->ptables[pi].used);
+            table_clear(&s->ptables[pi]);
+            s->plogs[pi].count = s->plogs[pi].done = 0;
+        }
+        s->blog.count = s->blog.done = 0;
+        if (s->oom) return PN_ERROR_OUT_OF_MEMORY;
+        return PN_OK;
+    }
     for (int c = 0; c < IAS_CLASSES; c++)
-        if (s->block_class_used[c])
+        if (s->block_class_used[c]) {
             memset(s->block_stats + (size_t)c * (size_t)s->id_count, 0, (size_t)s->id_count * sizeof *s->block_stats);
+            if (!sh->bvh_cut) add_work((uint64_t)s->id_count);
+        }
     memset(s->pixel_pool, 0, (size_t)s->pool_used * (size_t)s->id_count * sizeof *s->pixel_pool);
+    if (!sh->bvh_cut) add_work((uint64_t)s->pool_used * (uint64_t)s->id_count);
     if (sh->bvh_cut)
         table_clear(&s->table);
     else

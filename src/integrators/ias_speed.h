@@ -43,4 +43,15 @@ bool pn_ias_emitter_edge(const int32_t (*xy)[2], const uint32_t *hits, uint32_t 
 uint32_t pn_ias_emitter_rays(const pn_render_job *job, const pn_batch *batch, int pi, uint32_t count, vec3 *emitted,
                              double *weight_sum);
 
+/* The trees cut's statistics (ias.c, sparse_stats): dense arrays over the cluster ids below
+ * PN_IAS_DENSE_IDS ids, hash tables from there on; the images are the same. Tests set another
+ * limit (ids <= 0: back to the default) to compare the two. */
+#define PN_IAS_DENSE_IDS 65536
+void pn_ias_set_dense_limit(int ids);
+
+/* For the tests: a process-wide count of the trees cut's statistics entries aggregated, set from
+ * the block's or a pixel's samples, or cleared, in every ias render so far. Per shadow ray it
+ * grows as the cluster ids do with dense arrays, as the depth below the cut with hash tables. */
+uint64_t pn_ias_stats_work(void);
+
 #endif

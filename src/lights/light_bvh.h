@@ -32,6 +32,7 @@ typedef struct pn_light_bvh_node {
     int parent; /* -1 at the root */
     bool leaf;
 } pn_light_bvh_node;
+_Static_assert(sizeof(pn_light_bvh_node) == 64, "a light BVH node fills one cache line (light_bvh.c)");
 
 typedef struct pn_light_bvh {
     pn_light_bvh_node *nodes; /* depth first; the root is node 0 */
