@@ -8,6 +8,7 @@
 #include "io/image.h"
 #include "shade/bsdf.h"
 #include "scene/build.h"
+#include "spectral/transport.h"
 
 #include <unistd.h>
 
@@ -102,6 +103,10 @@ static void free_scene(struct pn_scene_s *s) {
         free(s->images[i].path);
     }
     for (int i = 0; i < s->light_def_count; i++) free(s->light_defs[i].source);
+    for (int i = 0; i < s->mipmap_count; i++) pn_mipmap_free(&s->mipmaps[i]);
+    for (int i = 0; i < s->spd_count; i++) pn_spd_free(s->spds[i]);
+    free(s->mipmaps);
+    free(s->spds);
     free(s->materials);
     free(s->textures);
     free(s->images);

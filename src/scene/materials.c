@@ -381,12 +381,19 @@ static pn_status conductor_reflectance(builder *b, const char *prefix, bool has_
         pn_warn_at(b->scene, b->ps->loc,
                    "%s: textured \"%s\" / \"%s\" are not supported; copper is used where they vary", b->label, en, kn);
     *f0 = constant_ref(v3(conductor_f0(eta.x, k.x), conductor_f0(eta.y, k.y), conductor_f0(eta.z, k.z)));
-    /* Spectral mode's tables (spectral/metals.h) when both are named spectra that have one
-     * (absent: copper). */
+    /* Spectral mode's tables when both eta and k have one: a named spectrum with a table
+     * (spectral/metals.h; absent: copper), or a tabulated spectrum given as numbers or an .spd
+     * file (kept as a pn_spd, as emission spectra are). */
     const pn_metal_table *et = metal_table(b->ps, en, "metal-Cu-eta"), *kt = metal_table(b->ps, kn, "metal-Cu-k");
-    if (et && kt && !varies) {
+    const struct pn_spd *es = NULL, *ks = NULL;
+    if (!et) st = pn_params_light_spectrum(b->scene, b->ps, en, &es, err);
+    if (st == PN_OK && !kt) st = pn_params_light_spectrum(b->scene, b->ps, kn, &ks, err);
+    if (st != PN_OK) return st;
+    if ((et || es) && (kt || ks) && !varies) {
         b->m.eta_table = et;
         b->m.k_table = kt;
+        b->m.eta_spd = es;
+        b->m.k_spd = ks;
     }
     const pn_param *pe = find_param(b->ps, en);
     const char *ename = pe && pe->type == PN_PT_SPECTRUM && pe->str_count == 1 ? pe->strs[0] : NULL;

@@ -130,6 +130,9 @@ typedef struct pn_material {
      * from which spectral mode evaluates F0 (ks, or specular when a mirror) at each wavelength;
      * NULL otherwise (RGB mode always uses the RGB F0 in ks / specular). */
     const struct pn_metal_table *eta_table, *k_table;
+    /* The same for eta or k given as a tabulated spectrum (numbers or an .spd file; owned by the
+     * scene, scene->spds), where the named table above is NULL. */
+    const struct pn_spd *eta_spd, *k_spd;
 } pn_material;
 
 /* ---- geometry ---------------------------------------------------------------------------- */

@@ -102,6 +102,7 @@ void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3
     out->rgb_kd = out->kd;
     out->rgb_ks = out->ks;
     out->rgb_specular = out->specular;
+    out->metal = m && (m->eta_table || m->eta_spd) && (m->k_table || m->k_spd) ? m : NULL;
     out->wl = pn_swl_active(wl) ? wl : NULL;
     if (!out->wl) return;
     /* The coating's series is per wavelength, so the base's reflectance is upsampled before it:
@@ -111,14 +112,10 @@ void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3
     } else {
         out->kd = pn_swl_albedo(wl, out->kd);
     }
-    if (m && m->eta_table && m->k_table) {
+    if (out->metal) {
         /* A conductor with tabulated eta and k: its F0 at each wavelength (metals.h), where RGB
          * mode has F0 at 630, 532 and 465 nm in ks (a Blinn lobe) or specular (a mirror). */
-        float f[PN_SWL_COUNT];
-        for (int i = 0; i < PN_SWL_COUNT; i++)
-            f[i] = (float)pn_conductor_f0(pn_metal_eval(m->eta_table, wl->lambda[i]),
-                                          pn_metal_eval(m->k_table, wl->lambda[i]));
-        const vec3 f0 = v3(f[0], f[1], f[2]);
+        const vec3 f0 = pn_bsdf_metal_f0(out, wl);
         if (m->kind == PN_MATERIAL_MIRROR) {
             out->ks = pn_swl_albedo(wl, out->ks);
             out->specular = f0;
@@ -130,6 +127,20 @@ void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3
     }
     out->ks = pn_swl_albedo(wl, out->ks);
     out->specular = pn_swl_albedo(wl, out->specular);
+}
+
+/* eta or k of a conductor at lambda: its named table, else its tabulated spectrum. */
+static double metal_constant(const pn_metal_table *table, const pn_spd *spd, double lambda) {
+    return table ? pn_metal_eval(table, lambda) : pn_spd_eval(spd, lambda);
+}
+
+vec3 pn_bsdf_metal_f0(const pn_bsdf *b, const struct pn_swl *wl) {
+    const pn_material *m = b->metal;
+    float f[PN_SWL_COUNT];
+    for (int i = 0; i < PN_SWL_COUNT; i++)
+        f[i] = (float)pn_conductor_f0(metal_constant(m->eta_table, m->eta_spd, wl->lambda[i]),
+                                      metal_constant(m->k_table, m->k_spd, wl->lambda[i]));
+    return v3(f[0], f[1], f[2]);
 }
 
 vec3 pn_bsdf_eval(const pn_bsdf *b, vec3 wo, vec3 wi) {

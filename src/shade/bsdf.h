@@ -22,6 +22,9 @@ typedef struct pn_bsdf {
      * and these equal kd, ks, specular. */
     const struct pn_swl *wl;
     vec3 rgb_kd, rgb_ks, rgb_specular;
+    /* A conductor whose eta and k are spectra (pn_material's eta/k tables or spds), else NULL:
+     * spectral mode evaluates its F0 at each wavelength (pn_bsdf_metal_f0). */
+    const pn_material *metal;
 } pn_bsdf;
 
 /* Evaluates the material at a hit, seen from direction wo (unit, pointing away from the
@@ -43,6 +46,10 @@ float pn_mix_hash(vec3 p, vec3 wo, int a, int b);
 
 /* f(wo, wi) for the non-specular part (Lambert + Blinn); zero below either normal's horizon. */
 vec3 pn_bsdf_eval(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
+
+/* The normal-incidence reflectance of bsdf->metal (not NULL) at the wavelengths wl, from its
+ * tabulated eta and k (spectral/metals.h's pn_conductor_f0). */
+vec3 pn_bsdf_metal_f0(const pn_bsdf *bsdf, const struct pn_swl *wl);
 
 /* True when the BSDF has a non-specular lobe (so light sampling applies). */
 static inline bool pn_bsdf_is_shadable(const pn_bsdf *b) {
