@@ -31,7 +31,7 @@ vec3 pn_spectral_sample_value(const pn_render_job *job, const pn_bsdf *b, vec3 w
     pn_swl wl;
     pn_swl_sample(pn_sobol_sample(index, PN_SOBOL_DIMS - 1, scramble ^ 0x9b05688cu), &wl);
     pn_bsdf bw = *b;
-    bw.kd = pn_swl_albedo(&wl, b->rgb_kd);
+    bw.kd = pn_bsdf_kd_at(b, &wl);
     /* A conductor's lobe: F0 from its eta and k at the sample's wavelengths, as
      * pn_bsdf_at_spectral gives the other integrators. */
     bw.ks = b->metal && b->kind != PN_MATERIAL_MIRROR ? pn_bsdf_metal_f0(b, &wl) : pn_swl_albedo(&wl, b->rgb_ks);

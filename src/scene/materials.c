@@ -89,6 +89,7 @@
 #include "scene/build.h"
 
 #include "core/optics.h"
+#include "spectral/cie.h"
 #include "spectral/metals.h"
 
 #include "scene/parser_internal.h"
@@ -288,9 +289,19 @@ static void set_lambert(builder *b, pn_texref kd) {
     snprintf(b->model, sizeof b->model, "Lambert kd=%s", s);
 }
 
+/* Spectral mode's reflectance spectrum: "reflectance" given as numbers or an .spd file (kept as
+ * the scene's pn_spd; RGB mode reads the same parameter's RGB). */
+static pn_status reflectance_spectrum(builder *b, pn_err *err) {
+    const pn_param *p = find_param(b->ps, "reflectance");
+    if (!p || p->type != PN_PT_SPECTRUM) return PN_OK;
+    if (p->str_count == 1 && pn_cie_illuminant_named(p->strs[0])) return PN_OK; /* not a reflectance */
+    return pn_params_light_spectrum(b->scene, b->ps, "reflectance", &b->m.kd_spd, err);
+}
+
 static pn_status map_diffuse(builder *b, pn_err *err) {
     pn_texref kd;
     pn_status st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
+    if (st == PN_OK) st = reflectance_spectrum(b, err);
     if (st != PN_OK) return st;
     set_lambert(b, kd);
     warn_bump(b);
@@ -313,6 +324,7 @@ static pn_status map_coateddiffuse(builder *b, pn_err *err) {
     pn_texref kd;
     pn_status st = pn_params_texref(b->scene, b->ps, "reflectance", false, v3(0.5f, 0.5f, 0.5f), &kd, err);
     double roughness = 0, alpha = 0, eta = 1.5;
+    if (st == PN_OK) st = reflectance_spectrum(b, err);
     if (st == PN_OK) st = read_roughness(b, "", &roughness, &alpha, err);
     if (st == PN_OK) st = pn_params_spectrum_value(b->ps, "eta", 550.0, 1.5, &eta, NULL, err);
     if (st != PN_OK) return st;

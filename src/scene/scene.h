@@ -133,6 +133,10 @@ typedef struct pn_material {
     /* The same for eta or k given as a tabulated spectrum (numbers or an .spd file; owned by the
      * scene, scene->spds), where the named table above is NULL. */
     const struct pn_spd *eta_spd, *k_spd;
+    /* diffuse and coateddiffuse: "reflectance" given as a tabulated spectrum (numbers or an .spd
+     * file; owned by the scene), which spectral mode evaluates at each wavelength instead of
+     * upsampling kd's RGB; NULL otherwise (RGB, textures, named spectra). */
+    const struct pn_spd *kd_spd;
 } pn_material;
 
 /* ---- geometry ---------------------------------------------------------------------------- */

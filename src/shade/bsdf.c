@@ -94,6 +94,13 @@ static void bsdf_at_rgb(const struct pn_scene_s *scene, const pn_hit *hit, vec3 
     out->eta = m->eta > 0.0f ? m->eta : 1.5f;
 }
 
+/* A tabulated reflectance at the wavelengths. */
+static vec3 spd_at(const pn_spd *s, const struct pn_swl *wl) {
+    float f[PN_SWL_COUNT];
+    for (int i = 0; i < PN_SWL_COUNT; i++) f[i] = (float)pn_spd_eval(s, wl->lambda[i]);
+    return v3(f[0], f[1], f[2]);
+}
+
 void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3 wo, const struct pn_swl *wl,
                          pn_bsdf *out) {
     vec3 base_kd = v3(0, 0, 0);
@@ -103,15 +110,13 @@ void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3
     out->rgb_ks = out->ks;
     out->rgb_specular = out->specular;
     out->metal = m && (m->eta_table || m->eta_spd) && (m->k_table || m->k_spd) ? m : NULL;
+    out->kd_spd = m && !coat ? m->kd_spd : NULL;
     out->wl = pn_swl_active(wl) ? wl : NULL;
     if (!out->wl) return;
     /* The coating's series is per wavelength, so the base's reflectance is upsampled before it:
      * the texture's RGB is what pbrt-v4 upsamples too. */
-    if (coat) {
-        out->kd = pn_coated_diffuse(pn_swl_albedo(wl, base_kd), coat->coat_transmission, coat->coat_internal);
-    } else {
-        out->kd = pn_swl_albedo(wl, out->kd);
-    }
+    const vec3 base = m && m->kd_spd ? spd_at(m->kd_spd, wl) : pn_swl_albedo(wl, coat ? base_kd : out->kd);
+    out->kd = coat ? pn_coated_diffuse(base, coat->coat_transmission, coat->coat_internal) : base;
     if (out->metal) {
         /* A conductor with tabulated eta and k: its F0 at each wavelength (metals.h), where RGB
          * mode has F0 at 630, 532 and 465 nm in ks (a Blinn lobe) or specular (a mirror). */
@@ -132,6 +137,10 @@ void pn_bsdf_at_spectral(const struct pn_scene_s *scene, const pn_hit *hit, vec3
 /* eta or k of a conductor at lambda: its named table, else its tabulated spectrum. */
 static double metal_constant(const pn_metal_table *table, const pn_spd *spd, double lambda) {
     return table ? pn_metal_eval(table, lambda) : pn_spd_eval(spd, lambda);
+}
+
+vec3 pn_bsdf_kd_at(const pn_bsdf *b, const struct pn_swl *wl) {
+    return b->kd_spd ? spd_at(b->kd_spd, wl) : pn_swl_albedo(wl, b->rgb_kd);
 }
 
 vec3 pn_bsdf_metal_f0(const pn_bsdf *b, const struct pn_swl *wl) {

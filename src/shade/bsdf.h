@@ -25,6 +25,8 @@ typedef struct pn_bsdf {
     /* A conductor whose eta and k are spectra (pn_material's eta/k tables or spds), else NULL:
      * spectral mode evaluates its F0 at each wavelength (pn_bsdf_metal_f0). */
     const pn_material *metal;
+    /* An uncoated material's tabulated reflectance spectrum (pn_material.kd_spd), else NULL. */
+    const struct pn_spd *kd_spd;
 } pn_bsdf;
 
 /* Evaluates the material at a hit, seen from direction wo (unit, pointing away from the
@@ -46,6 +48,10 @@ float pn_mix_hash(vec3 p, vec3 wo, int a, int b);
 
 /* f(wo, wi) for the non-specular part (Lambert + Blinn); zero below either normal's horizon. */
 vec3 pn_bsdf_eval(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
+
+/* The diffuse reflectance at the wavelengths wl of a bsdf evaluated in RGB (its rgb_kd upsampled
+ * as an albedo, or its tabulated spectrum): for light samples that draw their own wavelengths. */
+vec3 pn_bsdf_kd_at(const pn_bsdf *bsdf, const struct pn_swl *wl);
 
 /* The normal-incidence reflectance of bsdf->metal (not NULL) at the wavelengths wl, from its
  * tabulated eta and k (spectral/metals.h's pn_conductor_f0). */
