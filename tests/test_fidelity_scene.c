@@ -622,7 +622,52 @@ static void test_spherical_camera_rays(void) {
     CHECK_STR_CONTAINS(err.message, "use Camera \"perspective\" with \"lensradius\" and \"focaldistance\"");
 }
 
+/* Sphere (u, v) are pbrt-v4's, in object space: v = 1 - theta / pi (0 at the object's -z pole),
+ * so a checkerboard of one cell in u and two in v (0.2 below the object's equator, 0.8 above),
+ * lit from the camera, is four times brighter in the image's upper half than in its lower; the
+ * sphere rotated 90 degrees about x carries the boundary with it (left and right halves differ,
+ * upper and lower do not). Before: v = theta / pi in world space (the halves swapped, and the
+ * rotated sphere's boundary stayed horizontal). */
+static void sphere_halves(const char *rel, const char *rotate, double *top_bottom, double *left_right) {
+    char text[2048];
+    snprintf(text, sizeof text,
+             "LookAt 6 0 0  0 0 0  0 0 1\n"
+             "Camera \"orthographic\" \"float screenwindow\" [ -1.2 1.2 -1.2 1.2 ]\n"
+             "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 32 ]\n"
+             "WorldBegin\n"
+             "LightSource \"distant\" \"point3 from\" [ 1 0 0 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 1 1 1 ]\n"
+             "Texture \"c\" \"spectrum\" \"checkerboard\" \"float uscale\" 1 \"float vscale\" 2\n"
+             "   \"rgb tex1\" [ 0.2 0.2 0.2 ] \"rgb tex2\" [ 0.8 0.8 0.8 ]\n"
+             "Material \"diffuse\" \"texture reflectance\" \"c\"\n"
+             "AttributeBegin\n%s\nShape \"sphere\" \"float radius\" 1\nAttributeEnd\n",
+             rotate);
+    pn_scene sc = load_text(rel, text);
+    pn_image img = sc ? render(sc, 4) : NULL;
+    *top_bottom = *left_right = 0.0;
+    if (img) {
+        double half[4] = {0, 0, 0, 0}; /* top, bottom, left, right */
+        for (int y = 0; y < 32; y++)
+            for (int x = 0; x < 32; x++) {
+                double v = pixel(img, x, y)[1];
+                half[y < 16 ? 0 : 1] += v;
+                half[x < 16 ? 2 : 3] += v;
+            }
+        *top_bottom = half[0] / half[1];
+        *left_right = half[2] > half[3] ? half[2] / half[3] : half[3] / half[2];
+    }
+    pn_image_free(img);
+    pn_scene_free(sc);
+}
+
+static void test_sphere_uv_object_space(void) {
+    double tb, lr;
+    sphere_halves("sphere_uv.pbrt", "", &tb, &lr);
+    CHECK_MSG(fabs(tb - 4.0) < 0.4 && fabs(lr - 1.0) < 0.05, "upright: top / bottom %.3f, left / right %.3f", tb, lr);
+    sphere_halves("sphere_uv_rot.pbrt", "Rotate 90 1 0 0", &tb, &lr);
+    CHECK_MSG(fabs(tb - 1.0) < 0.05 && fabs(lr - 4.0) < 0.4, "rotated: top / bottom %.3f, left / right %.3f", tb, lr);
+}
+
 PN_TESTS(TEST(test_paths_resolve_against_top_level_file), TEST(test_maxdepth_sets_vpl_depth),
          TEST(test_every_warning_has_a_location), TEST(test_iso_and_shutter_scale_the_image),
          TEST(test_white_balance_and_max_component), TEST(test_pixelbounds_and_reversed_cropwindow),
-         TEST(test_orthographic_camera_rays), TEST(test_spherical_camera_rays))
+         TEST(test_orthographic_camera_rays), TEST(test_spherical_camera_rays), TEST(test_sphere_uv_object_space))

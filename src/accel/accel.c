@@ -412,12 +412,17 @@ static bool intersect_mask(const pn_accel *acc, vec3 o, vec3 d, float tmin, floa
         if (flip) n = v3_neg(n);
         h->ng = n;
         h->ns = n;
-        /* pbrt sphere (u, v) = (phi / 2pi, (theta - theta_min) / (theta_max - theta_min)). */
-        vec3 ln = v3_normalize(v3_sub(h->p, c));
-        float phi = atan2f(ln.y, ln.x);
+        /* pbrt-v4's sphere (u, v) in object space: u = phi / 2pi, v = (theta - theta_zmin) /
+         * (theta_zmax - theta_zmin) with theta_zmin = acos(zmin / r) = pi and theta_zmax = 0 for
+         * the full sphere: v = 1 - theta / pi (v = 0 at the object's -z pole). */
+        vec3 ln = v3_sub(h->p, c);
+        if (xf) ln = mat4_apply_vector(&inv, ln);
+        ln = v3_normalize(ln);
+        vec3 lo = v3(v3_dot(ln, s->axis[0]), v3_dot(ln, s->axis[1]), v3_dot(ln, s->axis[2]));
+        float phi = atan2f(lo.y, lo.x);
         if (phi < 0.0f) phi += 2.0f * PN_PI;
         h->u = phi / (2.0f * PN_PI);
-        h->v = acosf(fminf(1.0f, fmaxf(-1.0f, ln.z))) / PN_PI;
+        h->v = 1.0f - acosf(fminf(1.0f, fmaxf(-1.0f, lo.z))) / PN_PI;
         h->material = s->material;
         h->emission = s->emission;
     }

@@ -1507,6 +1507,9 @@ static pn_status shape_sphere(pn_parser *p, pn_shape_ctx *sc, pn_params *ps) {
     pn_sphere sp;
     memset(&sp, 0, sizeof sp);
     sp.center = mat4_apply_point(M, v3(0, 0, 0));
+    sp.axis[0] = v3_normalize(mat4_apply_vector(M, v3(1, 0, 0)));
+    sp.axis[1] = v3_normalize(mat4_apply_vector(M, v3(0, 1, 0)));
+    sp.axis[2] = v3_normalize(mat4_apply_vector(M, v3(0, 0, 1)));
     sp.radius = (float)(radius * cbrt(fabs(det)));
     sp.material = sc->material;
     sp.flip_normals = sc->reverse != sc->swaps;

@@ -189,6 +189,9 @@ typedef struct pn_sphere {
     bool flip_normals; /* normals point inward */
     int object;
     char *source; /* "file:line:column" of the Shape directive, for messages */
+    /* The object frame's x, y, z axes in the space of `center` (unit): (u, v) are pbrt-v4's,
+     * taken in object space, so they turn with the sphere's transform. */
+    vec3 axis[3];
 } pn_sphere;
 
 /* An analytic disk as a light source; its geometry is also tessellated into a pn_mesh. */
