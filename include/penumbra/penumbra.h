@@ -101,7 +101,8 @@ typedef struct pn_scene_info {
     double parse_seconds;       /* time spent parsing (PLY included) */
     double bvh_seconds;         /* time spent building the Embree BVH */
     uint32_t lights_projection; /* pbrt-v4 "projection" lights */
-    uint64_t texture_bytes;     /* memory of the decoded texture and environment images */
+    uint64_t texture_bytes;     /* memory of the decoded texture and environment images and of the
+                                   image textures' MIP pyramids */
     uint32_t texture_images;    /* distinct image files decoded (one per file and encoding) */
 } pn_scene_info;
 

@@ -82,6 +82,10 @@ pn_status pn_scene_get_info(pn_scene scene, pn_scene_info *info) {
     info->texture_images = (uint32_t)scene->image_count;
     for (int i = 0; i < scene->image_count; i++) /* issue 19: what the decoded images cost */
         info->texture_bytes += (uint64_t)scene->images[i].width * (uint64_t)scene->images[i].height * 3 * sizeof(float);
+    for (int i = 0; i < scene->mipmap_count; i++) /* and the image textures' pyramids (scene/mipmap.c) */
+        for (int l = 0; l < scene->mipmaps[i].levels; l++)
+            info->texture_bytes += (uint64_t)scene->mipmaps[i].level[l].width *
+                                   (uint64_t)scene->mipmaps[i].level[l].height * 3 * sizeof(float);
     info->warnings = (uint32_t)scene->warnings.count;
     info->bounds_min[0] = scene->bounds_min.x;
     info->bounds_min[1] = scene->bounds_min.y;
