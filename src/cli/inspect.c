@@ -213,7 +213,7 @@ int command_info(int argc, char **argv) {
         const char *line = pn_scene_material_description(scene, i);
         printf("  %s\n", line ? line : "");
     }
-    printf("textures       %u (%u images decoded, %.1f MiB)\n", info.textures, info.texture_images,
+    printf("textures       %u (%u images decoded, %.1f MiB with the pyramids)\n", info.textures, info.texture_images,
            (double)info.texture_bytes / (1024.0 * 1024.0));
     printf("bounds         (%g, %g, %g) to (%g, %g, %g)\n", (double)info.bounds_min[0], (double)info.bounds_min[1],
            (double)info.bounds_min[2], (double)info.bounds_max[0], (double)info.bounds_max[1],
