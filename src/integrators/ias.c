@@ -554,6 +554,18 @@ static pn_ias_stats *table_get(ias_table *t, uint64_t key, bool create) {
     return e ? &e->st : NULL;
 }
 
+/* Room for element `count` of *array (capacity *cap): the capacity doubles, from `first`;
+ * false (array unchanged) when out of memory. */
+static bool room_for_one(void **array, int *cap, int count, int first, size_t elem) {
+    if (count < *cap) return true;
+    int n = *cap ? 2 * *cap : first;
+    void *p = realloc(*array, (size_t)n * elem);
+    if (!p) return false;
+    *array = p;
+    *cap = n;
+    return true;
+}
+
 static void table_clear(ias_table *t) {
     if (t->used) memset(t->e, 0, (size_t)t->cap * sizeof *t->e);
     t->used = 0;
@@ -965,15 +977,9 @@ static const pn_ias_stats zero_stats;
 static bool same_cut(const ias_scratch *s, const ias_region *a, const ias_region *b);
 
 static void push_top(ias_scratch *s, ias_table *t, uint64_t key) {
-    if (t->top_count == t->top_cap) {
-        int cap = t->top_cap ? 2 * t->top_cap : 64;
-        uint64_t *n = realloc(t->tops, (size_t)cap * sizeof *n);
-        if (!n) {
-            s->oom = true;
-            return;
-        }
-        t->tops = n;
-        t->top_cap = cap;
+    if (!room_for_one((void **)&t->tops, &t->top_cap, t->top_count, 64, sizeof *t->tops)) {
+        s->oom = true;
+        return;
     }
     t->tops[t->top_count++] = key;
 }
@@ -1011,15 +1017,9 @@ static const pn_ias_stats *sparse_find(ias_table *t, int scope, unsigned cls, in
 }
 
 static bool push_stack(ias_scratch *s, int *top, int v) {
-    if (*top == s->stack_cap) {
-        int cap = s->stack_cap ? 2 * s->stack_cap : 256;
-        int *n = realloc(s->stack, (size_t)cap * sizeof *n);
-        if (!n) {
-            s->oom = true;
-            return false;
-        }
-        s->stack = n;
-        s->stack_cap = cap;
+    if (!room_for_one((void **)&s->stack, &s->stack_cap, *top, 256, sizeof *s->stack)) {
+        s->oom = true;
+        return false;
     }
     s->stack[(*top)++] = v;
     return true;
@@ -1081,15 +1081,9 @@ static void sparse_aggregate(const ias_shared *sh, ias_scratch *s, ias_table *t,
 }
 
 static void push_log(ias_scratch *s, ias_log *l, unsigned cls, int id, double value, bool visible) {
-    if (l->count == l->cap) {
-        int cap = l->cap ? 2 * l->cap : 1024;
-        ias_log_rec *r = realloc(l->r, (size_t)cap * sizeof *r);
-        if (!r) {
-            s->oom = true;
-            return;
-        }
-        l->r = r;
-        l->cap = cap;
+    if (!room_for_one((void **)&l->r, &l->cap, l->count, 1024, sizeof *l->r)) {
+        s->oom = true;
+        return;
     }
     l->r[l->count++] = (ias_log_rec){id, cls, visible ? 1u : 0u, value};
 }
@@ -1268,13 +1262,8 @@ static void flush_pending(ias_scratch *s) {
 }
 
 static void push_pending(ias_scratch *s, int pixel, int cls, int id, double value, bool visible) {
-    if (s->pending_count == s->pending_cap) {
-        int cap = s->pending_cap ? 2 * s->pending_cap : 256;
-        ias_pending *e = realloc(s->pending, (size_t)cap * sizeof *e);
-        if (!e) return; /* out of memory: the evaluation is left out of the feedback only */
-        s->pending = e;
-        s->pending_cap = cap;
-    }
+    /* Out of memory: the evaluation is left out of the feedback only. */
+    if (!room_for_one((void **)&s->pending, &s->pending_cap, s->pending_count, 256, sizeof *s->pending)) return;
     s->pending_pixel = pixel;
     s->pending[s->pending_count++] = (ias_pending){id, cls, value, visible};
 }

@@ -187,14 +187,22 @@ static vec3 level_texel(const pn_mip_level *lv, int x, int y, pn_wrap_mode wrap)
     return v3(p[0], p[1], p[2]);
 }
 
-vec3 pn_mip_level_bilerp(const pn_mip_level *lv, float s, float t, pn_wrap_mode wrap) {
-    double x = (double)s * lv->width - 0.5, y = (double)t * lv->height - 0.5;
-    if (!isfinite(x) || !isfinite(y)) return v3(0, 0, 0);
+/* (s, t) in texel units of the level, texel centres at integers; false when not finite. */
+static bool level_coords(const pn_mip_level *lv, float s, float t, double *x, double *y) {
+    *x = (double)s * lv->width - 0.5;
+    *y = (double)t * lv->height - 0.5;
+    if (!isfinite(*x) || !isfinite(*y)) return false;
     /* Keep the integer coordinates in range of int for huge s, t (repeat wraps them anyway). */
-    if (fabs(x) > 1e8 || fabs(y) > 1e8) {
-        x = fmod(x, (double)lv->width);
-        y = fmod(y, (double)lv->height);
+    if (fabs(*x) > 1e8 || fabs(*y) > 1e8) {
+        *x = fmod(*x, (double)lv->width);
+        *y = fmod(*y, (double)lv->height);
     }
+    return true;
+}
+
+vec3 pn_mip_level_bilerp(const pn_mip_level *lv, float s, float t, pn_wrap_mode wrap) {
+    double x, y;
+    if (!level_coords(lv, s, t, &x, &y)) return v3(0, 0, 0);
     double fx0 = floor(x), fy0 = floor(y);
     float dx = (float)(x - fx0), dy = (float)(y - fy0);
     int x0 = (int)fx0, y0 = (int)fy0;
@@ -215,12 +223,8 @@ vec3 pn_mipmap_lookup(const pn_mipmap *m, pn_texture_filter filter, float s, flo
     const pn_mip_level *lv = &m->level[il];
     switch (filter) {
     case PN_TEXTURE_FILTER_POINT: {
-        double x = (double)s * lv->width - 0.5, y = (double)t * lv->height - 0.5;
-        if (!isfinite(x) || !isfinite(y)) return v3(0, 0, 0);
-        if (fabs(x) > 1e8 || fabs(y) > 1e8) {
-            x = fmod(x, (double)lv->width);
-            y = fmod(y, (double)lv->height);
-        }
+        double x, y;
+        if (!level_coords(lv, s, t, &x, &y)) return v3(0, 0, 0);
         return level_texel(lv, (int)round(x), (int)round(y), m->wrap);
     }
     case PN_TEXTURE_FILTER_BILINEAR: return pn_mip_level_bilerp(lv, s, t, m->wrap);

@@ -306,16 +306,17 @@ static pn_status texture_imagemap(struct pn_scene_s *scene, const pn_params *ps,
     if ((st = read_wrap(ps, &t->wrap, err)) != PN_OK) return st;
     const char *filter = NULL;
     if ((st = pn_params_string(ps, "filter", "bilinear", &filter, err)) != PN_OK) return st;
-    t->float_first_channel = strcmp(filter, "point") == 0 || strcmp(filter, "ewa") == 0 || strcmp(filter, "EWA") == 0;
+    const bool ewa = strcmp(filter, "ewa") == 0 || strcmp(filter, "EWA") == 0;
     if (strcmp(filter, "bilinear") == 0)
         t->filter = PN_TEXTURE_FILTER_BILINEAR;
     else if (strcmp(filter, "point") == 0)
         t->filter = PN_TEXTURE_FILTER_POINT;
-    else if (strcmp(filter, "trilinear") == 0 || strcmp(filter, "ewa") == 0 || strcmp(filter, "EWA") == 0)
+    else if (strcmp(filter, "trilinear") == 0 || ewa)
         t->filter = PN_TEXTURE_FILTER_TRILINEAR; /* EWA read as trilinear (scene/mipmap.c) */
     else
         return pn_param_error(pn_params_find(ps, "filter"), err,
                               "unknown texture filter \"%s\" (expected point, bilinear, trilinear or ewa)", filter);
+    t->float_first_channel = t->filter == PN_TEXTURE_FILTER_POINT || ewa;
     double aniso = 8.0;
     if ((st = pn_params_float(ps, "maxanisotropy", 8.0, &aniso, err)) != PN_OK) return st;
 
