@@ -13,7 +13,7 @@
 #
 # Environment: GEN ("1000 10000 100000 1000000"), GEN_DIR (OUT_DIR/gen: generated scenes, kept and
 # reused), GEN_CROP (0.3,0.7,0.55,0.95), T (0.01), SPP (16), RUNS (3), BASE (a second penumbra
-# binary, e.g. /work/base/build/penumbra), METHODS ("ias bvh").
+# binary, e.g. a build of the base commit, BASE_BUILD/penumbra), METHODS ("ias bvh").
 set -eu
 BUILD=${1:-build}
 OUT=${2:-bench/out/scaling}
