@@ -5,6 +5,7 @@
  * eye-ray count is exactly pixels x the law's count; and the image must agree with a converged
  * reference render within the error of the eye rays it took. */
 #include "harness.h"
+#include "image_metrics.h"
 
 #include "penumbra/penumbra.h"
 
@@ -48,17 +49,6 @@ static pn_image render_ias(pn_context ctx, pn_scene scene, double t, const char 
     return st == PN_OK ? img : NULL;
 }
 
-static double relmse(pn_image ref, pn_image img) {
-    int n = 3 * pn_image_width(ref) * pn_image_height(ref);
-    const float *a = pn_image_layer_data(ref, 0), *b = pn_image_layer_data(img, 0);
-    double sum = 0.0;
-    for (int i = 0; i < n; i++) {
-        double d = (double)b[i] - (double)a[i];
-        sum += d * d / ((double)a[i] * (double)a[i] + 0.01);
-    }
-    return sum / n;
-}
-
 /* T = 0.0025 below T0 = 0.04: (T0 / T) = 16, so 8 x 16 = 128 eye rays per pixel with P = 1 (also
  * the default) and 8 x 4 = 32 with P = 0.5; above T0 both laws keep aa-rays. The P = 0.5 image is
  * within 2x the relMSE of the P = 1 one plus a margin against the reference (measured 3.8e-5 and
@@ -93,7 +83,7 @@ static void test_ias_eye_power_law(void) {
     pn_image ref = NULL;
     CHECK(pn_render(ctx, scene, &r, &ref, NULL) == PN_OK);
     if (ref && lin && sq) {
-        double a = relmse(ref, lin), b = relmse(ref, sq);
+        double a = pn_test_relmse(ref, lin), b = pn_test_relmse(ref, sq);
         printf("  relMSE against 1024 spp: P = 1 %.3g, P = 0.5 %.3g\n", a, b);
         CHECK(b < 2.0 * a + 2e-4);
     }
