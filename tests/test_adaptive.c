@@ -5,6 +5,7 @@
  * out at the converged value; the rule is deterministic across thread counts; the paper's rule
  * stays selectable and keeps its measured bias; and the reference's default is a fixed spp. */
 #include "harness.h"
+#include "image_metrics.h"
 #include "render_fields.h"
 
 #include "penumbra/penumbra.h"
@@ -48,17 +49,6 @@ static pn_image render(pn_context ctx, pn_scene scene, uint32_t spp, double thre
 
 /* relMSE as `penumbra diff` reports it: the mean over pixels and channels of
  * (b - a)^2 / (a^2 + 0.01), a the reference. */
-static double relmse(pn_image ref, pn_image img) {
-    int n = pn_image_width(ref) * pn_image_height(ref);
-    const float *a = pn_image_layer_data(ref, 0), *b = pn_image_layer_data(img, 0);
-    double sum = 0.0;
-    for (int i = 0; i < 3 * n; i++) {
-        double d = (double)b[i] - (double)a[i];
-        sum += d * d / ((double)a[i] * (double)a[i] + 0.01);
-    }
-    return sum / (3.0 * n);
-}
-
 static double mean_green(pn_image img) {
     int n = pn_image_width(img) * pn_image_height(img);
     const float *a = pn_image_layer_data(img, 0);
@@ -115,13 +105,13 @@ static void test_error_proportional_to_threshold(void) {
     if (ref && ref2) {
         const double t[3] = {0.02, 0.005, 0.00125};
         double e[3], paper[3];
-        double ref_noise = relmse(ref, ref2); /* twice the reference's own relMSE */
+        double ref_noise = pn_test_relmse(ref, ref2); /* twice the reference's own relMSE */
         for (int k = 0; k < 3; k++) {
             pn_image img = render(ctx, scene, 0, t[k], NULL, 0, 0);
             pn_image imp = render(ctx, scene, 0, t[k], "paper", 0, 0);
             CHECK(img && imp);
-            e[k] = img ? relmse(ref, img) : (double)NAN;
-            paper[k] = imp ? relmse(ref, imp) : (double)NAN;
+            e[k] = img ? pn_test_relmse(ref, img) : (double)NAN;
+            paper[k] = imp ? pn_test_relmse(ref, imp) : (double)NAN;
             pn_image_free(img);
             pn_image_free(imp);
         }

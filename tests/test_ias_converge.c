@@ -6,6 +6,7 @@
  * one. The default (the paper's own-variance test with the paper's fixed 32 eye rays) levels off
  * and must show it here, or the scene would test nothing. */
 #include "harness.h"
+#include "image_metrics.h"
 
 #include "penumbra/penumbra.h"
 
@@ -62,18 +63,6 @@ static pn_image render(pn_context ctx, pn_scene scene, uint32_t spp, double t, c
     pn_options_free(s.options);
     if (st != PN_OK) fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
     return st == PN_OK ? img : NULL;
-}
-
-/* relMSE as `penumbra diff` reports it, (b - a)^2 / (a^2 + 0.01) over pixels and channels. */
-static double relmse(pn_image ref, pn_image img) {
-    int n = 3 * pn_image_width(ref) * pn_image_height(ref);
-    const float *a = pn_image_layer_data(ref, 0), *b = pn_image_layer_data(img, 0);
-    double sum = 0.0;
-    for (int i = 0; i < n; i++) {
-        double d = (double)b[i] - (double)a[i];
-        sum += d * d / ((double)a[i] * (double)a[i] + 0.01);
-    }
-    return sum / n;
 }
 
 /* The sum of the pixels' luminances (Rec. 709 weights). */
@@ -139,12 +128,13 @@ static void test_ias_error_proportional_to_threshold(void) {
         static const char *const rule[] = {"adaptive-rule", "cross", "ias-aa-threshold", "0.01", "ias-cut",
                                            "bvh",           NULL};
         static const char *const former[] = {"adaptive-rule", "paper", "ias-aa-threshold", "0", "ias-cut", "bvh", NULL};
-        const double floor = 0.5 * relmse(ref, ref2); /* the converged render's own relMSE */
+        const double floor = 0.5 * pn_test_relmse(ref, ref2); /* the converged render's own relMSE */
         double e[3], old[3] = {0, 0, 0}, lum[2] = {0, 0}, diff2 = 0.0;
         for (int k = 0; k < 3; k++) {
             pn_image img[2] = {render(ctx, scene, 0, t[k], rule, 1), render(ctx, scene, 0, t[k], rule, 2)};
             CHECK(img[0] && img[1]);
-            e[k] = img[0] && img[1] ? 0.5 * (relmse(ref, img[0]) + relmse(ref, img[1])) - floor : (double)NAN;
+            e[k] = img[0] && img[1] ? 0.5 * (pn_test_relmse(ref, img[0]) + pn_test_relmse(ref, img[1])) - floor
+                                    : (double)NAN;
             if (k == 2 && img[0] && img[1]) {
                 lum[0] = luminance_sum(img[0]);
                 lum[1] = luminance_sum(img[1]);
@@ -155,7 +145,7 @@ static void test_ias_error_proportional_to_threshold(void) {
             if (k == 1) continue; /* the default rule at the two ends only */
             pn_image imo = render(ctx, scene, 0, t[k], former, 1);
             CHECK(imo != NULL);
-            old[k] = imo ? relmse(ref, imo) - floor : (double)NAN;
+            old[k] = imo ? pn_test_relmse(ref, imo) - floor : (double)NAN;
             pn_image_free(imo);
         }
         double slope = fit_slope(t, e, 3);

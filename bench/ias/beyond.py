@@ -47,6 +47,10 @@ METHOD_ARGS = {
     # the default variant with the paper's fixed eye rays (issue 21's growing eye rays off)
     "ias-aa32": [["--integrator", "ias", "--ias-aa-threshold", "0", "--threshold", t]
                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # the default variant with eye rays growing as 1 / sqrt(T) below T0 = 0.1 (ias-aa-power; the
+    # balance of eye and shadow rays measured on hall-many, docs/methods/ias.md)
+    "ias-eyesqrt": [["--integrator", "ias", "--ias-aa-threshold", "0.1", "--ias-aa-power", "0.5", "--threshold", t]
+                    for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
     # the default variant with each cluster cut named (issue 15: which one is the default)
     "ias-bvh": [["--integrator", "ias", "--ias-cut", "bvh", "--threshold", t]
                 for t in os.environ.get("IAS_T", "0.01 0.0025").split()],

@@ -73,6 +73,14 @@
  *    default test's eq. 7-8 weights include the pixel's own samples and bias the image by about
  *    -0.1% (-0.07% to -0.15% on the bench crops), a firefly suppression that cross's weights give
  *    up for 1.4-42x the relMSE at fixed passes (docs/adaptive-sampling.md, "ias");
+ *  - ias-aa-power P (session 19; 1 by default, the 1 / T law above): below T0 the eye rays grow as
+ *    (T0 / T)^P. Reason: on hall-many the eye rays' part of the error (E / n_eye, the glossy
+ *    lobes' view dependence over the pixel; on hall-many-matte 32 -> 128 eye rays changes nothing)
+ *    is 60% of relMSE at T = 0.01, and the CPU-optimal split there is n_eye ~ 0.28 n_shadow, which
+ *    P = 0.5 with T0 = 0.1 approximates. Effect (bench crop, one thread): relMSE x CPU 0.0084 /
+ *    0.0073 at T = 0.04 / 0.01 against 0.0097 / 0.0108 for P = 1, T0 = 0.01 (reference 64 spp
+ *    0.0096). Not the default: measured on hall-many only; docs/methods/ias.md also gives the bound
+ *    that puts the 3x goal out of reach there;
  *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
  *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md;
  *  - ias-prior importance with the trees cut (stop 16; ias_speed.c): c_U's PDF, all of pass 0's,
@@ -296,7 +304,8 @@ static bool build_post_order(ias_shared *sh) {
  * with 32, 128, 512 eye rays: 8.6e-5, 3.8e-5, 9.3e-6, slope 0.80; tests/test_ias_converge.c). */
 static uint32_t ias_eye_rays(const pn_render_job *job, bool paper) {
     double t0 = paper ? 0.0 : job->ias_aa_threshold, n = (double)job->aa_rays;
-    if (t0 > 0.0 && job->threshold > 0.0 && job->threshold < t0) n = ceil(n * t0 / job->threshold);
+    if (t0 > 0.0 && job->threshold > 0.0 && job->threshold < t0)
+        n = ceil(job->ias_aa_power == 1.0 ? n * t0 / job->threshold : n * pow(t0 / job->threshold, job->ias_aa_power));
     return (uint32_t)fmin(n, 4096.0); /* aa-rays' own largest value */
 }
 

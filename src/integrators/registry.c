@@ -255,6 +255,14 @@ static const pn_option_decl options[] = {
      F(ias_aa_threshold),
      PN_FIELD_F64,
      0},
+    {{"ias-aa-power", PN_OPTION_DOUBLE, "1", 0.05, 1, 0, 0, "", "",
+      "default variant: below ias-aa-threshold T0 a pixel takes aa-rays x (T0 / threshold)^this eye rays (1: in "
+      "proportion to 1 / threshold; 0.5: to its square root, the balance of eye and shadow rays measured on "
+      "hall-many, docs/methods/ias.md)"},
+     BIT(M_IAS),
+     F(ias_aa_power),
+     PN_FIELD_F64,
+     0},
     {{"ias-prior-share", PN_OPTION_DOUBLE, "0", 0, 1, 0, 0, "", "",
       "default variant with ias-cut bvh: the least weight the prior (ias-prior) keeps in every pass's PDF, a "
       "defensive mixture with the learned PDFs (0: the paper's Fig. 2 weights)"},

@@ -84,6 +84,7 @@ typedef struct pn_render_job {
     uint32_t ias_cut_size;      /* nodes of a light-BVH cut */
     uint32_t ias_pass_rays;     /* pass j takes (j + 1) times this; 0: the paper's 1.5 N_C >= 50 */
     double ias_aa_threshold;    /* below this threshold the eye rays grow as 1 / threshold; 0: off */
+    double ias_aa_power;        /* ias-aa-power: the eye rays grow as (ias_aa_threshold / threshold)^this */
     double ias_prior_share;     /* least weight of the prior in eq. 6's blend; 0: Fig. 2's weights */
     double ias_env_floor;       /* environment regions keep this times their pass-0 probability; 0: off */
     uint32_t ias_edge_rays;     /* ias-emitter-rays: eye rays next to emitter edges; 0: off */
