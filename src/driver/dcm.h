@@ -39,7 +39,8 @@ enum {
     PN_DCM_OFF_ALBEDO_RAYS = 1u << 8,  /* the integrator's own eye rays for the albedo at texture borders */
     PN_DCM_OFF_LINEAR = 1u << 9,       /* the guided fill as a weighted plane fit, not a weighted mean */
     PN_DCM_OFF_RESIDUALS = 1u << 10,   /* boundary steps re-ordered by the residuals of the last step */
-    PN_DCM_OFF_ALL = (1u << 11) - 1u
+    PN_DCM_OFF_SMOOTH_FIT = 1u << 11,  /* smooth blocks' corners as a plane fit over the lattice */
+    PN_DCM_OFF_ALL = (1u << 12) - 1u
 };
 /* The departures switched off for a variant and a --dcm-off set. */
 static inline uint32_t pn_dcm_off_flags(int variant, uint32_t off) {

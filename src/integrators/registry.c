@@ -503,12 +503,13 @@ static const pn_option_decl options[] = {
      PN_FIELD_INT,
      0},
     {{"dcm-off", PN_OPTION_SET, "", 0, 0, 0, 0, "",
-      "edge-first,order,discrepancy,noise,lattice-mean,segments,demod,guided,albedo-rays,linear,residuals",
+      "edge-first,order,discrepancy,noise,lattice-mean,segments,demod,guided,albedo-rays,linear,residuals,smooth-fit",
       "departures from Guo 1998 switched off for comparisons: edge quads before smooth ones, boundary steps by "
       "expected error, the discrepancy as a mean, the Monte Carlo noise tests, noise-filtered smooth corners, "
       "segment-wise edge blocks, demodulation (as --raw-radiance), the guided reconstruction of edge blocks, "
       "the integrator's own eye rays for the albedo at texture borders, the guided fill as a weighted plane fit, "
-      "boundary steps re-ordered by what the last step of the block found"},
+      "boundary steps re-ordered by what the last step of the block found, smooth blocks' corners as a plane "
+      "fitted over the block lattice"},
      BIT(M_DCM),
      F(dcm_off),
      PN_FIELD_U32,
