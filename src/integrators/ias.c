@@ -215,6 +215,7 @@ typedef struct ias_shared {
     struct ias_tnode *tnodes; /* sparse_stats: the forest's links and power ratios, compact */
     int mis;                  /* PN_IAS_MIS_*: BSDF samples paired with the light samples (ias_mis.h) */
     pn_ias_mis_map mis_map;   /* mis: emitting surfaces -> lights */
+    double mis_share;         /* mis: the expected BSDF rays per light sample, in (0, 1] */
 } ias_shared;
 
 /* A cluster node as sparse_add and sparse_aggregate read it (32 bytes instead of the node's 140):
@@ -356,6 +357,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     /* MIS needs the trees cut's ids (a light's cut entry by its ancestors) and RGB samples, and
      * does not combine with the ratio estimator's residuals. */
     sh->mis = !paper && !sh->bvh_cut && !job->spectral && sh->ratio == PN_IAS_RATIO_OFF ? job->ias_mis : PN_IAS_MIS_OFF;
+    sh->mis_share = job->ias_mis_share > 0.0 && job->ias_mis_share < 1.0 ? job->ias_mis_share : 1.0;
     pn_status st;
     int next;
     if (sh->bvh_cut) {
@@ -1557,14 +1559,28 @@ static int mis_entry_of_light(const ias_shared *sh, const ias_scratch *s, int li
     return -1;
 }
 
+/* The BSDF strategy at a point: its glossy lobe alone where it has one (a coated surface's lobe
+ * has a weight of about 0.04 against the base's 0.5, so sampling the whole BSDF would spend some
+ * 93% of the rays on directions light sampling already covers), else the whole BSDF. */
+static bool mis_strategy_sample(const pn_bsdf *bsdf, vec3 wo, float u0, float u1, float u2, vec3 *wi, float *pdf) {
+    if (!v3_is_zero(bsdf->ks)) return pn_bsdf_sample_glossy(bsdf, wo, u1, u2, wi, pdf);
+    return pn_bsdf_sample(bsdf, wo, u0, u1, u2, wi, pdf);
+}
+
+static float mis_strategy_pdf(const pn_bsdf *bsdf, vec3 wo, vec3 wi) {
+    return v3_is_zero(bsdf->ks) ? pn_bsdf_pdf(bsdf, wo, wi) : pn_bsdf_pdf_glossy(bsdf, wo, wi);
+}
+
 /* One BSDF-sampled ray from a shadow ray's point (region r's PDF in s->pdf): the MIS-weighted
  * f L cos / p_B of what it reaches, an area light or the environment, before the eye path's
- * throughput. *rays counts the rays traced. */
+ * throughput. With ias-mis-share b < 1 a light sample takes a BSDF ray with probability b: the
+ * BSDF strategy's density counts as b p_B in both weights and its value is divided by b. *rays
+ * counts the rays traced. */
 static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, const ias_scratch *s, const ias_region *r,
                             const pn_bsdf *bsdf, vec3 origin, vec3 wo, float u0, float u1, float u2, uint32_t *rays) {
     vec3 wi, sum = v3(0, 0, 0);
     float pb;
-    if (!pn_bsdf_sample(bsdf, wo, u0, u1, u2, &wi, &pb)) return sum;
+    if (!mis_strategy_sample(bsdf, wo, u0, u1, u2, &wi, &pb)) return sum;
     const vec3 f = pn_bsdf_eval(bsdf, wo, wi);
     const float cos_i = v3_dot(bsdf->ns, wi);
     if (v3_is_zero(f) || !(cos_i > 0.0f)) return sum;
@@ -1573,7 +1589,7 @@ static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, cons
     float tr;
     const bool surface = pn_ias_mis_trace(job, origin, wi, &hit, &tr);
     if (!(tr > 0.0f)) return sum;
-    const double k = (double)cos_i / (double)pb * (double)tr;
+    const double b = sh->mis_share, k = (double)cos_i / ((double)pb * b) * (double)tr, pbb = (double)pb * b;
     if (surface) {
         const int light = pn_ias_mis_light_of_hit(&sh->mis_map, &hit);
         if (light < 0) return sum;
@@ -1584,7 +1600,7 @@ static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, cons
         if (e >= 0)
             pl = s->pdf[e] * (double)pn_cluster_pick_pdf(&sh->forest, job->lights, s->cut[r->cut_first + e], light) *
                  (double)pn_ias_mis_light_pdf(l, origin, wi, hit.t);
-        return v3_scale(v3_mul(f, l->emit), (float)(k * pn_ias_mis_weight((double)pb, pl)));
+        return v3_scale(v3_mul(f, l->emit), (float)(k * pn_ias_mis_weight(pbb, pl)));
     }
     for (int m = 0; m < sh->env_count; m++) {
         const pn_env *env = &job->lights->envs[job->lights->lights[sh->env_light[m]].env];
@@ -1595,7 +1611,7 @@ static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, cons
         double pl = 0.0;
         if (id >= 0 && id < sh->id_count && s->mis_stamp[id] == s->mis_now)
             pl = s->pdf[s->mis_slot[id]] * (double)pn_env_region_pdf(&sh->env[m], env, q, wi);
-        sum = v3_add(sum, v3_scale(v3_mul(f, L), (float)(k * pn_ias_mis_weight((double)pb, pl))));
+        sum = v3_add(sum, v3_scale(v3_mul(f, L), (float)(k * pn_ias_mis_weight(pbb, pl))));
     }
     return sum;
 }
@@ -1817,10 +1833,13 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                  * light sample's unweighted value. */
                 double wl = 1.0;
                 if (!delta && !v3_is_zero(v) && w > 0.0)
-                    wl = pn_ias_mis_weight(p_cluster * p_light * (double)pdf, (double)pn_bsdf_pdf(bsdf, wo, wi));
-                vec3 vb = mis_bsdf_sample(job, sh, s, r, bsdf, origin, wo, pn_sobol_sample(q, 10, scramble),
-                                          pn_sobol_sample(q, 11, scramble), pn_sobol_sample(q, 12, scramble),
-                                          &s->mis_rays);
+                    wl = pn_ias_mis_weight(p_cluster * p_light * (double)pdf,
+                                           sh->mis_share * (double)mis_strategy_pdf(bsdf, wo, wi));
+                vec3 vb = v3(0, 0, 0);
+                if (sh->mis_share >= 1.0 || (double)pn_sobol_sample(q, 13, scramble) < sh->mis_share)
+                    vb = mis_bsdf_sample(job, sh, s, r, bsdf, origin, wo, pn_sobol_sample(q, 10, scramble),
+                                         pn_sobol_sample(q, 11, scramble), pn_sobol_sample(q, 12, scramble),
+                                         &s->mis_rays);
                 vb = v3_mul(vb, throughput);
                 if (pt) vb = v3_scale(vb, pt->share);
                 const vec3 ve = v3_add(v3_scale(v, (float)(w * wl)), vb);

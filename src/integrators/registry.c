@@ -310,6 +310,13 @@ static const pn_option_decl options[] = {
      F(ias_mis),
      PN_FIELD_INT,
      0},
+    {{"ias-mis-share", PN_OPTION_DOUBLE, "1", 0, 1, 1, 0, "", "",
+      "default variant with ias-mis: the expected BSDF rays per light sample (each light sample takes one with this "
+      "probability; the MIS weights count the BSDF strategy's density times it)"},
+     BIT(M_IAS),
+     F(ias_mis_share),
+     PN_FIELD_F64,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},

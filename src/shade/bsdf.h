@@ -60,6 +60,11 @@ vec3 pn_bsdf_eval(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
 bool pn_bsdf_sample(const pn_bsdf *bsdf, vec3 wo, float u1, float u2, float u3, vec3 *wi, float *pdf);
 /* The solid-angle density with which pn_bsdf_sample draws wi (0 where f is 0 by the horizons). */
 float pn_bsdf_pdf(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
+/* The glossy lobe alone (wo, u1, u2 as the glossy branch of pn_bsdf_sample): a strategy for MIS
+ * with light sampling where light sampling misses narrow highlights; *pdf its own density
+ * (pn_bsdf_pdf_glossy). False without a glossy lobe or when the sample carries nothing. */
+bool pn_bsdf_sample_glossy(const pn_bsdf *bsdf, vec3 wo, float u1, float u2, vec3 *wi, float *pdf);
+float pn_bsdf_pdf_glossy(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
 /* The probability pn_bsdf_sample gives the diffuse lobe (1 - that the glossy one). */
 float pn_bsdf_diffuse_share(const pn_bsdf *bsdf);
 
