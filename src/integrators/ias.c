@@ -1814,6 +1814,12 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             }
             /* Statistics: the cluster's contribution estimate (eq. 3), visibility. */
             double lum_v = (double)v3_luminance(v);
+            /* ias-mis: the light sample's weight against the BSDF strategy's density of its
+             * direction (delta lights: 1, no BSDF sample reaches them). */
+            double wl = 1.0;
+            if (mis && !delta && !v3_is_zero(v) && p_cluster > 0.0 && p_light > 0.0)
+                wl = pn_ias_mis_weight(p_cluster * p_light * (double)pdf,
+                                       sh->mis_share * (double)mis_strategy_pdf(bsdf, wo, wi));
             if (timed_upkeep) t_upkeep = pn_clock_seconds();
             if (sh->bvh_cut) /* the node's own contribution estimate: the sample over P(light | node) */
                 push_pending(s, (int)(px - s->pixels), r->cls, id, p_light > 0.0 ? lum_v / p_light : 0.0, visible);
@@ -1831,10 +1837,6 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 /* The light sample weighted against the BSDF's density of its direction, plus the
                  * paired BSDF sample (its own dimensions 10-12); the statistics above keep the
                  * light sample's unweighted value. */
-                double wl = 1.0;
-                if (!delta && !v3_is_zero(v) && w > 0.0)
-                    wl = pn_ias_mis_weight(p_cluster * p_light * (double)pdf,
-                                           sh->mis_share * (double)mis_strategy_pdf(bsdf, wo, wi));
                 vec3 vb = v3(0, 0, 0);
                 if (sh->mis_share >= 1.0 || (double)pn_sobol_sample(q, 13, scramble) < sh->mis_share)
                     vb = mis_bsdf_sample(job, sh, s, r, bsdf, origin, wo, pn_sobol_sample(q, 10, scramble),
