@@ -93,9 +93,9 @@ static void test_bsdf_sampling(void) {
         float kd, ks, n;
         bool glossy_only;
     } cases[] = {
-        {0.6f, 0.0f, 1.0f, false},   /* Lambert alone: closed form kd */
-        {0.0f, 0.5f, 10.0f, false},  /* Blinn alone, broad */
-        {0.0f, 0.5f, 200.0f, false}, /* Blinn alone, narrow */
+        {0.6f, 0.0f, 1.0f, false},    /* Lambert alone: closed form kd */
+        {0.0f, 0.5f, 10.0f, false},   /* Blinn alone, broad */
+        {0.0f, 0.5f, 200.0f, false},  /* Blinn alone, narrow */
         {0.5f, 0.04f, 200.0f, false}, /* coated: mixed, glossy weight 0.07 */
         {0.5f, 0.04f, 200.0f, true},  /* the glossy lobe's own strategy on the same BSDF */
         {0.3f, 0.3f, 10.0f, true},
@@ -107,11 +107,11 @@ static void test_bsdf_sampling(void) {
             double pint, quad, se, acc;
             quadrature(&b, wo, cases[c].glossy_only, &pint, &quad);
             const double mc = sampled_albedo(&b, wo, cases[c].glossy_only, &se, &acc);
-            fprintf(stderr, "  kd %.2f ks %.2f n %4.0f%s view %.2f: integral of pdf %.5f, accepted %.5f; albedo %.5f, "
-                            "sampled %.5f +- %.5f\n",
+            fprintf(stderr,
+                    "  kd %.2f ks %.2f n %4.0f%s view %.2f: integral of pdf %.5f, accepted %.5f; albedo %.5f, "
+                    "sampled %.5f +- %.5f\n",
                     (double)cases[c].kd, (double)cases[c].ks, (double)cases[c].n, cases[c].glossy_only ? " glossy" : "",
-                    (double)views[v], pint, acc,
-                    quad, mc, se);
+                    (double)views[v], pint, acc, quad, mc, se);
             /* The density integrates to the probability that a sample is returned (1 unless a
              * half vector faces away from wo or wi falls below the horizon). */
             CHECK_MSG(fabs(pint - acc) < 2e-3 + 4.0 * sqrt(acc * (1.0 - acc) / 400000.0),
@@ -229,20 +229,21 @@ static char tmpdir[256];
  * without remapping: Blinn exponent 2220 under the coating's ~0.04), else diffuse. */
 static const char *scene_text(bool glossy) {
     static char text[4096];
-    snprintf(text, sizeof text,
-             "LookAt 0 2 4  0 0 0.8  0 1 0\n"
-             "Camera \"perspective\" \"float fov\" [ 40 ]\n"
-             "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 32 ]\n"
-             "WorldBegin\n"
-             "AttributeBegin\n"
-             "  AreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ]\n"
-             "  Shape \"bilinearmesh\" \"point3 P\" [ -0.5 1.5 -0.5  0.5 1.5 -0.5  -0.5 1.5 0.5  0.5 1.5 0.5 ]\n"
-             "AttributeEnd\n"
-             "%s"
-             "Shape \"trianglemesh\" \"point3 P\" [ -4 0 -4  4 0 -4  4 0 4  -4 0 4 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n",
-             glossy ? "Material \"coateddiffuse\" \"rgb reflectance\" [ 0.3 0.3 0.3 ] \"float roughness\" [ 0.03 ] "
-                      "\"bool remaproughness\" false\n"
-                    : "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n");
+    snprintf(
+        text, sizeof text,
+        "LookAt 0 2 4  0 0 0.8  0 1 0\n"
+        "Camera \"perspective\" \"float fov\" [ 40 ]\n"
+        "Film \"rgb\" \"integer xresolution\" [ 32 ] \"integer yresolution\" [ 32 ]\n"
+        "WorldBegin\n"
+        "AttributeBegin\n"
+        "  AreaLightSource \"diffuse\" \"rgb L\" [ 4 4 4 ]\n"
+        "  Shape \"bilinearmesh\" \"point3 P\" [ -0.5 1.5 -0.5  0.5 1.5 -0.5  -0.5 1.5 0.5  0.5 1.5 0.5 ]\n"
+        "AttributeEnd\n"
+        "%s"
+        "Shape \"trianglemesh\" \"point3 P\" [ -4 0 -4  4 0 -4  4 0 4  -4 0 4 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n",
+        glossy ? "Material \"coateddiffuse\" \"rgb reflectance\" [ 0.3 0.3 0.3 ] \"float roughness\" [ 0.03 ] "
+                 "\"bool remaproughness\" false\n"
+               : "Material \"diffuse\" \"rgb reflectance\" [ 0.5 0.5 0.5 ]\n");
     return text;
 }
 
@@ -395,5 +396,5 @@ static void test_teardown(void) {
     CHECK(rmdir(tmpdir) == 0);
 }
 
-PN_TESTS(TEST(test_bsdf_sampling), TEST(test_light_pdf), TEST(test_setup), TEST(test_renders),
-         TEST(test_bit_identical), TEST(test_teardown))
+PN_TESTS(TEST(test_bsdf_sampling), TEST(test_light_pdf), TEST(test_setup), TEST(test_renders), TEST(test_bit_identical),
+         TEST(test_teardown))

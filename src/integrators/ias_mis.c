@@ -99,8 +99,8 @@ float pn_ias_mis_light_pdf(const pn_light *l, vec3 p, vec3 wi, float dist) {
         float d2c = v3_length2(to_centre);
         float approx_solid_angle = l->area * fabsf(side) / (d2c * sqrtf(d2c));
         pn_spherical_rectangle sr;
-        if (approx_solid_angle >= MIS_MIN_SPHERICAL_SOLID_ANGLE && pn_spherical_rectangle_init(&sr, p, l->p, l->e1, l->e2) &&
-            sr.solid_angle > 1e-6f)
+        if (approx_solid_angle >= MIS_MIN_SPHERICAL_SOLID_ANGLE &&
+            pn_spherical_rectangle_init(&sr, p, l->p, l->e1, l->e2) && sr.solid_angle > 1e-6f)
             return 1.0f / sr.solid_angle;
         return area_to_solid_angle(l, wi, dist);
     }

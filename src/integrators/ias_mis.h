@@ -14,8 +14,8 @@ enum { PN_IAS_MIS_OFF = 0, PN_IAS_MIS_ON = 1, PN_IAS_MIS_GLOSSY = 2 };
 
 /* Emitting surface -> light index, built once per render. */
 typedef struct pn_ias_mis_map {
-    int *mesh_base;   /* per scene mesh: first slot in tri_light, -1 when it emits nothing */
-    int *tri_light;   /* per emitting triangle: its light, or -1 (dropped, zero area) */
+    int *mesh_base;    /* per scene mesh: first slot in tri_light, -1 when it emits nothing */
+    int *tri_light;    /* per emitting triangle: its light, or -1 (dropped, zero area) */
     int *sphere_light; /* per scene sphere: its light, or -1 */
 } pn_ias_mis_map;
 
