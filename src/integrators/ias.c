@@ -42,7 +42,9 @@
  * instead of testing after each step. Emitters seen directly are averaged over the eye rays and added to the
  * pixel (they count in L_p for the threshold test). Quasi-random numbers: one scrambled Sobol
  * sequence per block (as the reference integrator), eye ray dimensions 0-4, shadow ray dimensions
- * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light).
+ * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light); the default variant's 9
+ * (member point) and, with ias-mis (off by default; ias_mis.h, mis_bsdf_sample), 10-12 (the
+ * paired BSDF sample) and 13 (whether it is taken, ias-mis-share < 1).
  *
  * Two variants (issue 15; --ias-variant). `paper` is everything above, unchanged. `default`
  * departs where the bench (bench/ias/beyond.sh) showed the paper losing, each departure its own
