@@ -60,6 +60,14 @@ METHOD_ARGS = {
     **{f"ias-ratio-{mode}": [["--integrator", "ias", "--ias-ratio", mode, "--threshold", t]
                              for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
        for mode in ("off", "pixel", "cluster", "control")},
+    # the default variant with MIS of its light samples and BSDF samples (ias_mis.h): 'glossy' (BSDF rays
+    # at points with a glossy lobe only) and 'on' (at every shaded point)
+    "ias-mis": [["--integrator", "ias", "--ias-mis", "glossy", "--threshold", t]
+                for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-mis-on": [["--integrator", "ias", "--ias-mis", "on", "--threshold", t]
+                   for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-nomis": [["--integrator", "ias", "--ias-mis", "off", "--threshold", t]
+                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):

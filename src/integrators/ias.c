@@ -42,7 +42,9 @@
  * instead of testing after each step. Emitters seen directly are averaged over the eye rays and added to the
  * pixel (they count in L_p for the threshold test). Quasi-random numbers: one scrambled Sobol
  * sequence per block (as the reference integrator), eye ray dimensions 0-4, shadow ray dimensions
- * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light).
+ * 5 (stratum jitter), 6 (light in cluster), 7-8 (point on the light); the default variant's 9
+ * (member point) and, with ias-mis (off by default; ias_mis.h, mis_bsdf_sample), 10-12 (the
+ * paired BSDF sample) and 13 (whether it is taken, ias-mis-share < 1).
  *
  * Two variants (issue 15; --ias-variant). `paper` is everything above, unchanged. `default`
  * departs where the bench (bench/ias/beyond.sh) showed the paper losing, each departure its own
@@ -147,6 +149,7 @@
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "integrators/ias_math.h"
+#include "integrators/ias_mis.h"
 #include "integrators/ias_ratio.h"
 #include "integrators/ias_speed.h"
 #include "lights/cluster_tree.h"
@@ -212,6 +215,9 @@ typedef struct ias_shared {
     int ratio_members;        /* largest cluster given its closed form */
     bool sparse_stats;        /* trees cut: statistics in hash tables, not dense arrays (sparse_add) */
     struct ias_tnode *tnodes; /* sparse_stats: the forest's links and power ratios, compact */
+    int mis;                  /* PN_IAS_MIS_*: BSDF samples paired with the light samples (ias_mis.h) */
+    pn_ias_mis_map mis_map;   /* mis: emitting surfaces -> lights */
+    double mis_share;         /* mis: the expected BSDF rays per light sample, in (0, 1] */
 } ias_shared;
 
 /* A cluster node as sparse_add and sparse_aggregate read it (32 bytes instead of the node's 140):
@@ -251,6 +257,7 @@ static void ias_release(pn_render_job *job) {
     pn_light_bvh_free(&sh->bvh);
     free(sh->distant);
     free(sh->tnodes);
+    pn_ias_mis_map_free(&sh->mis_map);
     free(sh);
     job->integrator_data = NULL;
 }
@@ -349,6 +356,10 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     /* The ratio estimator needs the trees cut's ids and RGB samples (spectral samples are not). */
     sh->ratio = !paper && !sh->bvh_cut && !job->spectral ? job->ias_ratio : PN_IAS_RATIO_OFF;
     sh->ratio_members = job->ias_ratio_members > 0 ? (int)job->ias_ratio_members : 1;
+    /* MIS needs the trees cut's ids (a light's cut entry by its ancestors) and RGB samples, and
+     * does not combine with the ratio estimator's residuals. */
+    sh->mis = !paper && !sh->bvh_cut && !job->spectral && sh->ratio == PN_IAS_RATIO_OFF ? job->ias_mis : PN_IAS_MIS_OFF;
+    sh->mis_share = job->ias_mis_share > 0.0 && job->ias_mis_share < 1.0 ? job->ias_mis_share : 1.0;
     pn_status st;
     int next;
     if (sh->bvh_cut) {
@@ -421,6 +432,10 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     if (!sh->seen || (!sh->bvh_cut && !build_post_order(sh))) {
         ias_release(job);
         return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+    }
+    if (sh->mis && (st = pn_ias_mis_map_build(job, &sh->mis_map, err)) != PN_OK) {
+        ias_release(job);
+        return st;
     }
     return PN_OK;
 }
@@ -657,6 +672,12 @@ typedef struct ias_scratch {
     pn_ias_ratio_region *ratio_regions;
     int ratio_region_cap;
     pn_ias_ratio_scratch ratio;
+    /* ias-mis: the cut entry of each cluster id in the cut whose PDF s->pdf holds (valid where
+     * mis_stamp == mis_now), sh->id_count entries. */
+    int *mis_slot;
+    uint32_t *mis_stamp;
+    uint32_t mis_now;
+    uint32_t mis_rays; /* BSDF rays traced (all of the worker's pixels) */
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -699,6 +720,8 @@ static void ias_scratch_free(void *p) {
     free(s->ratio_smp);
     free(s->ratio_regions);
     pn_ias_ratio_scratch_free(&s->ratio);
+    free(s->mis_slot);
+    free(s->mis_stamp);
     free(s);
 }
 
@@ -754,6 +777,15 @@ static void *ias_scratch_create(const pn_render_job *job) {
         s->ratio_regions = malloc((size_t)s->ratio_region_cap * sizeof *s->ratio_regions);
         if (!s->cut_unshadowed || !s->cut_beta || !s->ratio_regions ||
             !pn_ias_ratio_scratch_init(&s->ratio, (int)per_cut, (int)sh->aa_rays + 1)) {
+            ias_scratch_free(s);
+            return NULL;
+        }
+    }
+    if (sh->mis) {
+        const size_t all = (size_t)(sh->id_count > 0 ? sh->id_count : 1);
+        s->mis_slot = malloc(all * sizeof *s->mis_slot);
+        s->mis_stamp = calloc(all, sizeof *s->mis_stamp);
+        if (!s->mis_slot || !s->mis_stamp) {
             ias_scratch_free(s);
             return NULL;
         }
@@ -1496,6 +1528,96 @@ static bool push_ratio_sample(ias_scratch *s, int region, int entry, vec3 v, vec
     return true;
 }
 
+/* ---- ias-mis: BSDF samples weighted against ias's own light sampling (ias_mis.h) -----------
+ *
+ * A light sample of cut entry c, light l in it and direction w has the density
+ * p_L(w) = P_pass(c) P(l | c) p_l(w) (s->pdf, pn_cluster_pick_pdf, the light's solid-angle
+ * density); a BSDF sample has p_B(w) (pn_bsdf_pdf). Each shadow ray's light sample is paired
+ * with one BSDF sample from the same point, and each is weighted by the power heuristic,
+ * p_X^2 / (p_L^2 + p_B^2): the pair's sum is one sample of the same integral, so the region's
+ * mean and its variance (store_pass) stay those of what is averaged. A BSDF ray that reaches a
+ * light no cut entry holds (p_L = 0) keeps its full value: the estimate is unbiased over the
+ * union of the two strategies. */
+
+/* Fills s->mis_slot for region r's cut (the cut s->pdf is built for). */
+static void mis_map_cut(const ias_shared *sh, ias_scratch *s, const ias_region *r) {
+    if (++s->mis_now == 0) {
+        memset(s->mis_stamp, 0, (size_t)(sh->id_count > 0 ? sh->id_count : 1) * sizeof *s->mis_stamp);
+        s->mis_now = 1;
+    }
+    const int *cut = s->cut + r->cut_first;
+    for (int i = 0; i < r->cut_count; i++) {
+        s->mis_stamp[cut[i]] = s->mis_now;
+        s->mis_slot[cut[i]] = i;
+    }
+}
+
+/* The cut entry holding cluster-tree light `light` (its leaf or the first ancestor in the cut), -1
+ * when none does. */
+static int mis_entry_of_light(const ias_shared *sh, const ias_scratch *s, int light) {
+    if (light < 0 || light >= sh->forest.light_count) return -1;
+    for (int node = sh->forest.leaf_of_light[light]; node >= 0; node = sh->forest.nodes[node].parent)
+        if (s->mis_stamp[node] == s->mis_now) return s->mis_slot[node];
+    return -1;
+}
+
+/* The BSDF strategy at a point: its glossy lobe alone where it has one (a coated surface's lobe
+ * has a weight of about 0.04 against the base's 0.5, so sampling the whole BSDF would spend some
+ * 93% of the rays on directions light sampling already covers), else the whole BSDF. */
+static bool mis_strategy_sample(const pn_bsdf *bsdf, vec3 wo, float u0, float u1, float u2, vec3 *wi, float *pdf) {
+    if (!v3_is_zero(bsdf->ks)) return pn_bsdf_sample_glossy(bsdf, wo, u1, u2, wi, pdf);
+    return pn_bsdf_sample(bsdf, wo, u0, u1, u2, wi, pdf);
+}
+
+static float mis_strategy_pdf(const pn_bsdf *bsdf, vec3 wo, vec3 wi) {
+    return v3_is_zero(bsdf->ks) ? pn_bsdf_pdf(bsdf, wo, wi) : pn_bsdf_pdf_glossy(bsdf, wo, wi);
+}
+
+/* One BSDF-sampled ray from a shadow ray's point (region r's PDF in s->pdf): the MIS-weighted
+ * f L cos / p_B of what it reaches, an area light or the environment, before the eye path's
+ * throughput. With ias-mis-share b < 1 a light sample takes a BSDF ray with probability b: the
+ * BSDF strategy's density counts as b p_B in both weights and its value is divided by b. *rays
+ * counts the rays traced. */
+static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, const ias_scratch *s, const ias_region *r,
+                            const pn_bsdf *bsdf, vec3 origin, vec3 wo, float u0, float u1, float u2, uint32_t *rays) {
+    vec3 wi, sum = v3(0, 0, 0);
+    float pb;
+    if (!mis_strategy_sample(bsdf, wo, u0, u1, u2, &wi, &pb)) return sum;
+    const vec3 f = pn_bsdf_eval(bsdf, wo, wi);
+    const float cos_i = v3_dot(bsdf->ns, wi);
+    if (v3_is_zero(f) || !(cos_i > 0.0f)) return sum;
+    (*rays)++;
+    pn_hit hit;
+    float tr;
+    const bool surface = pn_ias_mis_trace(job, origin, wi, &hit, &tr);
+    if (!(tr > 0.0f)) return sum;
+    const double b = sh->mis_share, k = (double)cos_i / ((double)pb * b) * (double)tr, pbb = (double)pb * b;
+    if (surface) {
+        const int light = pn_ias_mis_light_of_hit(&sh->mis_map, &hit);
+        if (light < 0) return sum;
+        const pn_light *l = &job->lights->lights[light];
+        if (l->kind != PN_LIGHT_SPHERE && !l->two_sided && !(-v3_dot(wi, l->n) > 0.0f)) return sum;
+        double pl = 0.0;
+        const int e = mis_entry_of_light(sh, s, light);
+        if (e >= 0)
+            pl = s->pdf[e] * (double)pn_cluster_pick_pdf(&sh->forest, job->lights, s->cut[r->cut_first + e], light) *
+                 (double)pn_ias_mis_light_pdf(l, origin, wi, hit.t);
+        return v3_scale(v3_mul(f, l->emit), (float)(k * pn_ias_mis_weight(pbb, pl)));
+    }
+    for (int m = 0; m < sh->env_count; m++) {
+        const pn_env *env = &job->lights->envs[job->lights->lights[sh->env_light[m]].env];
+        const vec3 L = pn_env_radiance(env, wi);
+        if (v3_is_zero(L)) continue;
+        const int q = pn_env_region_of(&sh->env[m], env, wi);
+        const int id = q >= 0 ? sh->env_base[m] + q : -1;
+        double pl = 0.0;
+        if (id >= 0 && id < sh->id_count && s->mis_stamp[id] == s->mis_now)
+            pl = s->pdf[s->mis_slot[id]] * (double)pn_env_region_pdf(&sh->env[m], env, q, wi);
+        sum = v3_add(sum, v3_scale(v3_mul(f, L), (float)(k * pn_ias_mis_weight(pbb, pl))));
+    }
+    return sum;
+}
+
 /* Takes `count` shadow rays for pixel px with its regions' current PDFs (pass `pass`), adding
  * the samples to the regions' sums and the light evaluations to the statistics. Every region that
  * has clusters gets at least two per pass (for a variance) when count > 0. */
@@ -1548,6 +1670,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 build_pdf_table(sh, s, r, pass);
             else
                 build_pdf(sh, s, r, pix, pass);
+            if (sh->mis) mis_map_cut(sh, s, r);
             built = r;
         }
         px->pdf_seconds += elapsed_since(sh, t_pdf);
@@ -1579,6 +1702,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             const vec3 throughput = pt ? pt->throughput : r->throughput;
             const pn_bsdf *bsdf = pt ? &pt->bsdf : &r->bsdf;
             const float eps = pt ? pt->eps : r->eps;
+            /* ias-mis: BSDF samples at this point ('glossy': only where it has a glossy lobe). */
+            const bool mis = sh->mis == PN_IAS_MIS_ON || (sh->mis == PN_IAS_MIS_GLOSSY && !v3_is_zero(bsdf->ks));
             int c = choose(s->cdf, r->cut_count, u);
             int id = cut[c];
             double p_cluster = s->pdf[c];
@@ -1586,7 +1711,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             double p_light = 1.0;
             vec3 wi, radiance;
             float pdf, dist;
-            bool ok;
+            bool ok, delta = false;
             float pl = 1.0f;
             if (!sh->bvh_cut) {
                 if (id < sh->forest.node_count) light = pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
@@ -1617,6 +1742,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 radiance = ls.radiance;
                 pdf = ls.pdf;
                 dist = ls.dist;
+                delta = ok && ls.delta;
             } else {
                 int e = 0;
                 while (e + 1 < sh->env_count && id >= sh->env_base[e + 1]) e++;
@@ -1690,6 +1816,12 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             }
             /* Statistics: the cluster's contribution estimate (eq. 3), visibility. */
             double lum_v = (double)v3_luminance(v);
+            /* ias-mis: the light sample's weight against the BSDF strategy's density of its
+             * direction (delta lights: 1, no BSDF sample reaches them). */
+            double wl = 1.0;
+            if (mis && !delta && !v3_is_zero(v) && p_cluster > 0.0 && p_light > 0.0)
+                wl = pn_ias_mis_weight(p_cluster * p_light * (double)pdf,
+                                       sh->mis_share * (double)mis_strategy_pdf(bsdf, wo, wi));
             if (timed_upkeep) t_upkeep = pn_clock_seconds();
             if (sh->bvh_cut) /* the node's own contribution estimate: the sample over P(light | node) */
                 push_pending(s, (int)(px - s->pixels), r->cls, id, p_light > 0.0 ? lum_v / p_light : 0.0, visible);
@@ -1703,11 +1835,30 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
              * of value 0, not 0 / 0: the NaN it made used to zero the whole pixel at output (the
              * default variant's BVH cut came out 45% dark on scenes/office's spots). */
             double w = p_cluster > 0.0 && p_light > 0.0 ? 1.0 / (p_cluster * p_light) : 0.0;
-            double ly = lum_v * w;
-            r->sum += ly;
-            r->sum2 += ly * ly;
-            r->rgb = v3_add(r->rgb, v3_scale(v, (float)w));
-            r->n++;
+            if (mis) {
+                /* The light sample weighted against the BSDF's density of its direction, plus the
+                 * paired BSDF sample (its own dimensions 10-12); the statistics above keep the
+                 * light sample's unweighted value. */
+                vec3 vb = v3(0, 0, 0);
+                if (sh->mis_share >= 1.0 || (double)pn_sobol_sample(q, 13, scramble) < sh->mis_share)
+                    vb = mis_bsdf_sample(job, sh, s, r, bsdf, origin, wo, pn_sobol_sample(q, 10, scramble),
+                                         pn_sobol_sample(q, 11, scramble), pn_sobol_sample(q, 12, scramble),
+                                         &s->mis_rays);
+                vb = v3_mul(vb, throughput);
+                if (pt) vb = v3_scale(vb, pt->share);
+                const vec3 ve = v3_add(v3_scale(v, (float)(w * wl)), vb);
+                const double ly = (double)v3_luminance(ve);
+                r->sum += ly;
+                r->sum2 += ly * ly;
+                r->rgb = v3_add(r->rgb, ve);
+                r->n++;
+            } else {
+                double ly = lum_v * w;
+                r->sum += ly;
+                r->sum2 += ly * ly;
+                r->rgb = v3_add(r->rgb, v3_scale(v, (float)w));
+                r->n++;
+            }
             if (lux) {
                 r->lux_sum += lux_v * w;
                 r->mel_sum += (double)edi * w;

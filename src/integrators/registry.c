@@ -301,6 +301,22 @@ static const pn_option_decl options[] = {
      F(ias_ratio_members),
      PN_FIELD_U32,
      0},
+    {{"ias-mis", PN_OPTION_CHOICE, "off", 0, 0, 0, 0, "", "off,on,glossy",
+      "default variant, trees cut, RGB: each shadow ray's light sample is paired with a BSDF-sampled ray whose hits "
+      "on area lights and the environment are weighted against ias's own light-sampling PDF by the power "
+      "heuristic (multiple importance sampling), 'on' at every shaded point, 'glossy' only at points with a glossy "
+      "lobe, 'off' light samples only"},
+     BIT(M_IAS),
+     F(ias_mis),
+     PN_FIELD_INT,
+     0},
+    {{"ias-mis-share", PN_OPTION_DOUBLE, "1", 0, 1, 1, 0, "", "",
+      "default variant with ias-mis: the expected BSDF rays per light sample (each light sample takes one with this "
+      "probability; the MIS weights count the BSDF strategy's density times it)"},
+     BIT(M_IAS),
+     F(ias_mis_share),
+     PN_FIELD_F64,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},

@@ -90,6 +90,8 @@ typedef struct pn_render_job {
     uint32_t ias_edge_rays;     /* ias-emitter-rays: eye rays next to emitter edges; 0: off */
     int ias_ratio;              /* ias-ratio: PN_IAS_RATIO_* (integrators/ias_ratio.h) */
     uint32_t ias_ratio_members; /* ias-ratio-members: largest cluster given its closed form */
+    int ias_mis;                /* ias-mis: PN_IAS_MIS_* (integrators/ias_mis.h) */
+    double ias_mis_share;       /* ias-mis-share: expected BSDF rays per light sample, (0, 1] */
     /* reference */
     int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
     /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is

@@ -2,6 +2,7 @@
  * oriented, Lambert + Blinn–Phong. */
 #include "shade/bsdf.h"
 
+#include "core/sampling.h"
 #include "spectral/metals.h"
 #include "spectral/transport.h"
 
@@ -166,6 +167,86 @@ vec3 pn_bsdf_eval(const pn_bsdf *b, vec3 wo, vec3 wi) {
         }
     }
     return f;
+}
+
+float pn_bsdf_diffuse_share(const pn_bsdf *b) {
+    const float wd = fmaxf(0.0f, v3_luminance(b->kd)), ws = fmaxf(0.0f, v3_luminance(b->ks));
+    return wd + ws > 0.0f ? wd / (wd + ws) : 0.0f;
+}
+
+/* The glossy lobe's density of wi: the half vector's (n + 1) / (2 pi) cos^n over 4 wo.h. */
+static float blinn_pdf(const pn_bsdf *b, vec3 wo, vec3 wi) {
+    vec3 h = v3_add(wo, wi);
+    float hl = v3_length(h);
+    if (!(hl > 0.0f)) return 0.0f;
+    h = v3_scale(h, 1.0f / hl);
+    float cos_h = v3_dot(b->ns, h), wo_h = v3_dot(wo, h);
+    if (cos_h <= 0.0f || wo_h <= 0.0f) return 0.0f;
+    return (b->exponent + 1.0f) * (0.5f * PN_INV_PI) * powf(cos_h, b->exponent) / (4.0f * wo_h);
+}
+
+/* A direction from the glossy lobe: h with density (n + 1) / (2 pi) cos^n(theta_h) about ns
+ * (cos(theta_h) = u^(1 / (n + 1))), wo reflected about it. */
+static bool blinn_direction(const pn_bsdf *b, vec3 wo, float u2, float u3, vec3 *d) {
+    vec3 t, bt;
+    v3_basis(b->ns, &t, &bt);
+    float cos_h = powf(u2, 1.0f / (b->exponent + 1.0f));
+    float sin_h = sqrtf(fmaxf(0.0f, 1.0f - cos_h * cos_h));
+    float phi = 2.0f * PN_PI * u3;
+    vec3 h = v3_add(v3_add(v3_scale(t, sin_h * cosf(phi)), v3_scale(bt, sin_h * sinf(phi))), v3_scale(b->ns, cos_h));
+    float wo_h = v3_dot(wo, h);
+    if (wo_h <= 0.0f) return false;
+    *d = v3_sub(v3_scale(h, 2.0f * wo_h), wo);
+    return true;
+}
+
+float pn_bsdf_pdf_glossy(const pn_bsdf *b, vec3 wo, vec3 wi) {
+    if (v3_is_zero(b->ks) || v3_dot(b->ns, wi) <= 0.0f || v3_dot(b->ng, wi) <= 0.0f) return 0.0f;
+    return blinn_pdf(b, wo, wi);
+}
+
+bool pn_bsdf_sample_glossy(const pn_bsdf *b, vec3 wo, float u1, float u2, vec3 *wi, float *pdf) {
+    vec3 d;
+    if (v3_is_zero(b->ks) || !blinn_direction(b, wo, u1, u2, &d)) return false;
+    float len = v3_length(d);
+    if (!(len > 0.0f)) return false;
+    d = v3_scale(d, 1.0f / len);
+    float p = pn_bsdf_pdf_glossy(b, wo, d);
+    if (!(p > 0.0f) || !isfinite(p)) return false;
+    *wi = d;
+    *pdf = p;
+    return true;
+}
+
+float pn_bsdf_pdf(const pn_bsdf *b, vec3 wo, vec3 wi) {
+    float cos_i = v3_dot(b->ns, wi);
+    if (cos_i <= 0.0f || v3_dot(b->ng, wi) <= 0.0f) return 0.0f;
+    const float pd = pn_bsdf_diffuse_share(b);
+    float p = pd * cos_i * PN_INV_PI;
+    if (pd < 1.0f) p += (1.0f - pd) * blinn_pdf(b, wo, wi);
+    return p;
+}
+
+bool pn_bsdf_sample(const pn_bsdf *b, vec3 wo, float u1, float u2, float u3, vec3 *wi, float *pdf) {
+    const float wd = fmaxf(0.0f, v3_luminance(b->kd)), ws = fmaxf(0.0f, v3_luminance(b->ks));
+    if (!(wd + ws > 0.0f)) return false;
+    vec3 d;
+    if (u1 * (wd + ws) < wd) {
+        vec3 t, bt;
+        v3_basis(b->ns, &t, &bt);
+        vec3 l = pn_sample_cosine_hemisphere(u2, u3);
+        d = v3_add(v3_add(v3_scale(t, l.x), v3_scale(bt, l.y)), v3_scale(b->ns, l.z));
+    } else if (!blinn_direction(b, wo, u2, u3, &d)) {
+        return false;
+    }
+    float len = v3_length(d);
+    if (!(len > 0.0f)) return false;
+    d = v3_scale(d, 1.0f / len);
+    float p = pn_bsdf_pdf(b, wo, d);
+    if (!(p > 0.0f) || !isfinite(p)) return false;
+    *wi = d;
+    *pdf = p;
+    return true;
 }
 
 vec3 pn_coated_diffuse(vec3 kd, float transmission, float internal) {

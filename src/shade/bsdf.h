@@ -49,6 +49,25 @@ float pn_mix_hash(vec3 p, vec3 wo, int a, int b);
 /* f(wo, wi) for the non-specular part (Lambert + Blinn); zero below either normal's horizon. */
 vec3 pn_bsdf_eval(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
 
+/* BSDF sampling of the non-specular part (Lambert + normalised Blinn-Phong), for MIS with light
+ * sampling. A lobe is chosen by its weight (the luminance of kd for the diffuse lobe, of ks for the
+ * glossy one: their albedos at normal incidence, up to the Blinn lobe's loss below the horizon);
+ * the diffuse lobe samples cos(theta_i) / pi about ns, the glossy one the half vector h with
+ * density (n + 1) / (2 pi) cos^n(theta_h) about ns, wi = wo reflected about h, whose density is
+ * that over 4 wo.h. u1 picks the lobe, (u2, u3) the direction. *pdf is the mixture's solid-angle
+ * density at wi (pn_bsdf_pdf). False when the sample carries nothing (no lobe, h facing away from
+ * wo, or wi below either normal's horizon). */
+bool pn_bsdf_sample(const pn_bsdf *bsdf, vec3 wo, float u1, float u2, float u3, vec3 *wi, float *pdf);
+/* The solid-angle density with which pn_bsdf_sample draws wi (0 where f is 0 by the horizons). */
+float pn_bsdf_pdf(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
+/* The glossy lobe alone (wo, u1, u2 as the glossy branch of pn_bsdf_sample): a strategy for MIS
+ * with light sampling where light sampling misses narrow highlights; *pdf its own density
+ * (pn_bsdf_pdf_glossy). False without a glossy lobe or when the sample carries nothing. */
+bool pn_bsdf_sample_glossy(const pn_bsdf *bsdf, vec3 wo, float u1, float u2, vec3 *wi, float *pdf);
+float pn_bsdf_pdf_glossy(const pn_bsdf *bsdf, vec3 wo, vec3 wi);
+/* The probability pn_bsdf_sample gives the diffuse lobe (1 - that the glossy one). */
+float pn_bsdf_diffuse_share(const pn_bsdf *bsdf);
+
 /* The diffuse reflectance at the wavelengths wl of a bsdf evaluated in RGB (its rgb_kd upsampled
  * as an albedo, or its tabulated spectrum): for light samples that draw their own wavelengths. */
 vec3 pn_bsdf_kd_at(const pn_bsdf *bsdf, const struct pn_swl *wl);
