@@ -147,6 +147,7 @@
 #include "core/rng.h"
 #include "core/sobol.h"
 #include "integrators/ias_math.h"
+#include "integrators/ias_guide.h"
 #include "integrators/ias_ratio.h"
 #include "integrators/ias_speed.h"
 #include "lights/cluster_tree.h"
@@ -212,6 +213,8 @@ typedef struct ias_shared {
     int ratio_members;        /* largest cluster given its closed form */
     bool sparse_stats;        /* trees cut: statistics in hash tables, not dense arrays (sparse_add) */
     struct ias_tnode *tnodes; /* sparse_stats: the forest's links and power ratios, compact */
+    bool light_guide;         /* ias-light-guide: grids over large lights' sample squares (ias_guide.h) */
+    pn_ias_guide_lights guide;
 } ias_shared;
 
 /* A cluster node as sparse_add and sparse_aggregate read it (32 bytes instead of the node's 140):
@@ -251,6 +254,7 @@ static void ias_release(pn_render_job *job) {
     pn_light_bvh_free(&sh->bvh);
     free(sh->distant);
     free(sh->tnodes);
+    pn_ias_guide_lights_free(&sh->guide);
     free(sh);
     job->integrator_data = NULL;
 }
@@ -349,6 +353,16 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     /* The ratio estimator needs the trees cut's ids and RGB samples (spectral samples are not). */
     sh->ratio = !paper && !sh->bvh_cut && !job->spectral ? job->ias_ratio : PN_IAS_RATIO_OFF;
     sh->ratio_members = job->ias_ratio_members > 0 ? (int)job->ias_ratio_members : 1;
+    if (!paper && job->ias_light_guide) {
+        /* EXPERIMENT: PN_GUIDE_SIDE / PN_GUIDE_MIX override (removed before merge) */
+        const char *es = getenv("PN_GUIDE_SIDE"), *em = getenv("PN_GUIDE_MIX");
+        if (!pn_ias_guide_lights_init(&sh->guide, L, es ? atoi(es) : PN_IAS_GUIDE_SIDE,
+                                      em ? atof(em) : PN_IAS_GUIDE_MIX)) {
+            ias_release(job);
+            return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
+        }
+        sh->light_guide = sh->guide.count > 0;
+    }
     pn_status st;
     int next;
     if (sh->bvh_cut) {
@@ -657,6 +671,7 @@ typedef struct ias_scratch {
     pn_ias_ratio_region *ratio_regions;
     int ratio_region_cap;
     pn_ias_ratio_scratch ratio;
+    pn_ias_guide guide; /* ias-light-guide: the block's grids */
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -699,6 +714,7 @@ static void ias_scratch_free(void *p) {
     free(s->ratio_smp);
     free(s->ratio_regions);
     pn_ias_ratio_scratch_free(&s->ratio);
+    pn_ias_guide_free(&s->guide);
     free(s);
 }
 
@@ -758,7 +774,8 @@ static void *ias_scratch_create(const pn_render_job *job) {
             return NULL;
         }
     }
-    if (!s->cut_prior || !s->fprior || !s->emit_hits || (sh->bvh_cut && !table_grow(&s->table))) {
+    if (!s->cut_prior || !s->fprior || !s->emit_hits || (sh->bvh_cut && !table_grow(&s->table)) ||
+        (sh->light_guide && !pn_ias_guide_init(&s->guide, &sh->guide))) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -1607,15 +1624,19 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 light = sh->distant[id - sh->bvh.node_count];
             }
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
+            int guide_cell = -1; /* ias-light-guide: the sample's cell in its light's grid */
+            double guide_density = 1.0;
             if (id < sh->light_ids) {
                 p_light = (double)pl;
                 pn_light_sample ls;
+                if (sh->light_guide && light >= 0) guide_cell = pn_ias_guide_warp(&s->guide, light, &u1, &u2, &guide_density);
                 ok =
                     light >= 0 && pl > 0.0f &&
                     pn_light_sample_point_cached(job->lights, &job->lights->lights[light], origin, u1, u2, &cache, &ls);
                 wi = ls.wi;
                 radiance = ls.radiance;
                 pdf = ls.pdf;
+                if (guide_density != 1.0) pdf = (float)((double)pdf * guide_density);
                 dist = ls.dist;
             } else {
                 int e = 0;
@@ -1690,6 +1711,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             }
             /* Statistics: the cluster's contribution estimate (eq. 3), visibility. */
             double lum_v = (double)v3_luminance(v);
+            if (guide_cell >= 0) pn_ias_guide_record(&s->guide, light, guide_cell, lum_v * guide_density);
             if (timed_upkeep) t_upkeep = pn_clock_seconds();
             if (sh->bvh_cut) /* the node's own contribution estimate: the sample over P(light | node) */
                 push_pending(s, (int)(px - s->pixels), r->cls, id, p_light > 0.0 ? lum_v / p_light : 0.0, visible);
@@ -1929,6 +1951,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
     s->oom = false;
     s->pool_used = 0;
     memset(s->block_class_used, 0, sizeof s->block_class_used);
+    if (sh->light_guide) pn_ias_guide_begin_block(&s->guide);
     if (batch->count > s->max_pixels) return PN_ERROR_INTERNAL; /* larger than any block */
     const int np = batch->count;
     s->pixel_count = np;
@@ -2081,6 +2104,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                 refresh_block_feedback(sh, s);
             s->pixels[0].pdf_seconds += elapsed_since(sh, t_pdf); /* the block's share, on its first pixel */
         }
+        if (pass > 0 && sh->light_guide) pn_ias_guide_refresh(&s->guide);
         for (int pi = 0; pi < np; pi++) {
             ias_pixel *px = &s->pixels[pi];
             if (px->done) continue;

@@ -301,6 +301,15 @@ static const pn_option_decl options[] = {
      F(ias_ratio_members),
      PN_FIELD_U32,
      0},
+    {{"ias-light-guide", PN_OPTION_CHOICE, "off", 0, 0, 0, 0, "", "off,on",
+      "default variant: 'on' learns, per block, where large rectangle and triangle lights are visible (a 16 x 16 "
+      "grid over each light's sample square, following the contribution its samples found, 20% kept uniform) and "
+      "samples those lights through it (unbiased: the pdf carries the grid's density); 'off' samples them "
+      "uniformly"},
+     BIT(M_IAS),
+     F(ias_light_guide),
+     PN_FIELD_INT,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},

@@ -90,6 +90,7 @@ typedef struct pn_render_job {
     uint32_t ias_edge_rays;     /* ias-emitter-rays: eye rays next to emitter edges; 0: off */
     int ias_ratio;              /* ias-ratio: PN_IAS_RATIO_* (integrators/ias_ratio.h) */
     uint32_t ias_ratio_members; /* ias-ratio-members: largest cluster given its closed form */
+    int ias_light_guide;        /* ias-light-guide: 1 to guide samples within large lights (ias_guide.h) */
     /* reference */
     int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
     /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is
