@@ -151,9 +151,11 @@ static int invert(const double *cdf, int n, double x, double *frac) {
     return i;
 }
 
-static float below_one(double x) {
-    float f = (float)x;
-    return f < 1.0f ? f : nextafterf(1.0f, 0.0f);
+/* (i + f) / side as a float that still falls in cell i (rounding could carry it into i + 1). */
+static float in_cell(int i, double f, int side) {
+    float x = (float)(((double)i + f) / (double)side);
+    while (x > 0.0f && (int)(x * (float)side) > i) x = nextafterf(x, 0.0f);
+    return x;
 }
 
 int pn_ias_guide_warp(const pn_ias_guide *g, int light, float *u1, float *u2, double *density) {
@@ -171,8 +173,8 @@ int pn_ias_guide_warp(const pn_ias_guide *g, int light, float *u1, float *u2, do
     const int b = invert(row, G, (double)*u2, &fb);
     const double *col = g->col_cdf + ((size_t)s * (size_t)G + (size_t)b) * (size_t)(G + 1);
     const int a = invert(col, G, (double)*u1, &fa);
-    *u1 = below_one(((double)a + fa) / (double)G);
-    *u2 = below_one(((double)b + fb) / (double)G);
+    *u1 = in_cell(a, fa, G);
+    *u2 = in_cell(b, fb, G);
     const double q = g->prob[(size_t)s * (size_t)G * (size_t)G + (size_t)b * (size_t)G + (size_t)a];
     *density *= q * (double)G * (double)G;
     return b * G + a;
