@@ -25,7 +25,7 @@
 #define PN_IAS_GUIDE_MIN_SHARE 0.02
 #define PN_IAS_GUIDE_MAX_SIDE 64
 /* The grid ias uses: cells per side, and the uniform square's share of its PDF. */
-#define PN_IAS_GUIDE_SIDE 16
+#define PN_IAS_GUIDE_SIDE 8
 #define PN_IAS_GUIDE_MIX 0.2
 
 /* Which lights are guided, and the grid's settings; shared read-only by the workers. */
