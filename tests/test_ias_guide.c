@@ -52,7 +52,9 @@ static void test_choice(void) {
 }
 
 /* The test function over the unit square: smooth, with an integral of 4/3 + 1/2 = 11/6. */
-static double g_of(double a, double b) { return 1.0 + a * a + b; }
+static double g_of(double a, double b) {
+    return 1.0 + a * a + b;
+}
 
 static void test_warp(void) {
     pn_light l;
@@ -144,10 +146,11 @@ static const char *scene_text(void) {
         for (int j = 0; j < 14; j++) {
             if ((i == 4 && j == 5) || (i == 9 && j == 3) || (i == 6 && j == 10) || (i == 10 && j == 9)) continue;
             double x0 = -0.7 + 0.1 * i, z0 = -0.7 + 0.1 * j, x1 = x0 + 0.1, z1 = z0 + 0.1;
-            at += snprintf(text + at, sizeof text - (size_t)at,
-                           "Shape \"trianglemesh\" \"point3 P\" [ %.2f 1.9 %.2f  %.2f 1.9 %.2f  %.2f 1.9 %.2f  %.2f 1.9 "
-                           "%.2f ] \"integer indices\" [ 0 1 2  0 2 3 ]\n",
-                           x0, z0, x1, z0, x1, z1, x0, z1);
+            at +=
+                snprintf(text + at, sizeof text - (size_t)at,
+                         "Shape \"trianglemesh\" \"point3 P\" [ %.2f 1.9 %.2f  %.2f 1.9 %.2f  %.2f 1.9 %.2f  %.2f 1.9 "
+                         "%.2f ] \"integer indices\" [ 0 1 2  0 2 3 ]\n",
+                         x0, z0, x1, z0, x1, z1, x0, z1);
         }
     return text;
 }

@@ -354,10 +354,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->ratio = !paper && !sh->bvh_cut && !job->spectral ? job->ias_ratio : PN_IAS_RATIO_OFF;
     sh->ratio_members = job->ias_ratio_members > 0 ? (int)job->ias_ratio_members : 1;
     if (!paper && job->ias_light_guide) {
-        /* EXPERIMENT: PN_GUIDE_SIDE / PN_GUIDE_MIX override (removed before merge) */
-        const char *es = getenv("PN_GUIDE_SIDE"), *em = getenv("PN_GUIDE_MIX");
-        if (!pn_ias_guide_lights_init(&sh->guide, L, es ? atoi(es) : PN_IAS_GUIDE_SIDE,
-                                      em ? atof(em) : PN_IAS_GUIDE_MIX)) {
+        if (!pn_ias_guide_lights_init(&sh->guide, L, PN_IAS_GUIDE_SIDE, PN_IAS_GUIDE_MIX)) {
             ias_release(job);
             return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
         }
@@ -1629,7 +1626,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             if (id < sh->light_ids) {
                 p_light = (double)pl;
                 pn_light_sample ls;
-                if (sh->light_guide && light >= 0) guide_cell = pn_ias_guide_warp(&s->guide, light, &u1, &u2, &guide_density);
+                if (sh->light_guide && light >= 0)
+                    guide_cell = pn_ias_guide_warp(&s->guide, light, &u1, &u2, &guide_density);
                 ok =
                     light >= 0 && pl > 0.0f &&
                     pn_light_sample_point_cached(job->lights, &job->lights->lights[light], origin, u1, u2, &cache, &ls);

@@ -30,10 +30,10 @@
 
 /* Which lights are guided, and the grid's settings; shared read-only by the workers. */
 typedef struct pn_ias_guide_lights {
-    int count;  /* guided lights (slots) */
-    int *slot;  /* per light of the scene: its slot, or -1 */
-    int side;   /* cells per side of a light's grid */
-    double mix; /* share of the uniform square in every grid's PDF (defensive) */
+    int count;       /* guided lights (slots) */
+    int *slot;       /* per light of the scene: its slot, or -1 */
+    int side;        /* cells per side of a light's grid */
+    double mix;      /* share of the uniform square in every grid's PDF (defensive) */
     int min_samples; /* samples of a light in a block before its grid leaves the uniform square */
 } pn_ias_guide_lights;
 
