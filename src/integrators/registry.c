@@ -301,11 +301,11 @@ static const pn_option_decl options[] = {
      F(ias_ratio_members),
      PN_FIELD_U32,
      0},
-    {{"ias-light-guide", PN_OPTION_CHOICE, "off", 0, 0, 0, 0, "", "off,on",
+    {{"ias-light-guide", PN_OPTION_CHOICE, "on", 0, 0, 0, 0, "", "off,on",
       "default variant: 'on' learns, per block, where large rectangle and triangle lights are visible (an 8 x 8 "
       "grid over each light's sample square, following the contribution its samples found, 20% kept uniform) and "
       "samples those lights through it (unbiased: the pdf carries the grid's density); 'off' samples them "
-      "uniformly"},
+      "uniformly (the paper's)"},
      BIT(M_IAS),
      F(ias_light_guide),
      PN_FIELD_INT,
