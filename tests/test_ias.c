@@ -285,6 +285,8 @@ static void test_ias_variants(void) {
                                       "0",
                                       "ias-emitter-rays",
                                       "0",
+                                      "ias-light-guide",
+                                      "off",
                                       "adaptive-rule",
                                       "paper",
                                       NULL};

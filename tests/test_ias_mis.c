@@ -253,7 +253,10 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
     pn_options o = pn_options_new();
     s.options = o;
     if (mis) {
-        const char *const opts[] = {"ias-mis", mis, "max-passes", "2", "ias-aa-threshold", "0", NULL};
+        /* The light guide off in every mode: ias-mis turns it off (ias.c), and the modes are
+         * compared on the same light sampling. */
+        const char *const opts[] = {"ias-mis",         mis,   "max-passes", "2", "ias-aa-threshold", "0",
+                                    "ias-light-guide", "off", NULL};
         for (int i = 0; opts[i]; i += 2) CHECK(pn_options_set(ctx, o, opts[i], opts[i + 1]) == PN_OK);
         if (paper) CHECK(pn_options_set(ctx, o, "ias-variant", "paper") == PN_OK);
         s.threshold = 1e-7; /* every pixel takes its two passes: the same light samples in every mode */

@@ -296,14 +296,22 @@ static char *slurp(const char *path) {
     return s;
 }
 
+/* Room for a command line of the tests (args_from_json's: ias has the most options, two
+ * arguments each). */
+#define JSON_ARGS_MAX 160
+
 static int run_cli(char **out, char **err, const char *const *args) {
     char out_path[300], err_path[300];
     snprintf(out_path, sizeof out_path, "%s/out.txt", tmpdir);
     snprintf(err_path, sizeof err_path, "%s/err.txt", tmpdir);
-    const char *argv[64];
+    const char *argv[JSON_ARGS_MAX + 8];
     int n = 0;
     argv[n++] = PN_CLI_PATH;
-    while (args[n - 1] && n < 63) {
+    while (args[n - 1]) {
+        if (n >= JSON_ARGS_MAX + 7) {
+            CHECK_MSG(false, "run_cli: more than %d arguments", JSON_ARGS_MAX + 6);
+            return -1;
+        }
         argv[n] = args[n - 1];
         n++;
     }
@@ -464,7 +472,16 @@ static int args_from_json(const char *json, const char *scene, const char *outpu
     if (!root) return -1;
     const cJSON *set = cJSON_GetObjectItemCaseSensitive(root, "settings");
     CHECK(cJSON_GetObjectItemCaseSensitive(root, "schema_version") != NULL);
-#define ADD(text) (snprintf(store[n], 128, "%s", (text)), args[n] = store[n], n++)
+#define ADD(text)                                                                                                      \
+    do {                                                                                                               \
+        if (n >= JSON_ARGS_MAX) {                                                                                      \
+            CHECK_MSG(false, "more than %d arguments from the JSON", JSON_ARGS_MAX);                                   \
+            break;                                                                                                     \
+        }                                                                                                              \
+        snprintf(store[n], 128, "%s", (text));                                                                         \
+        args[n] = store[n];                                                                                            \
+        n++;                                                                                                           \
+    } while (0)
     ADD("render");
     ADD(scene);
     ADD("-o");
@@ -595,8 +612,8 @@ static void test_json_round_trip(void) {
         CHECK(json != NULL);
         if (!json) continue;
         check_json_stats(json, c);
-        char store[64][128];
-        const char *again[66];
+        char store[JSON_ARGS_MAX][128];
+        const char *again[JSON_ARGS_MAX + 3];
         int options = args_from_json(json, "rt.pbrt", "b.exr", store, again);
         free(json);
         CHECK_MSG(options > 0, "case %zu: no options in the JSON", c);

@@ -68,6 +68,10 @@ METHOD_ARGS = {
                    for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
     "ias-nomis": [["--integrator", "ias", "--ias-mis", "off", "--threshold", t]
                   for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # the default variant with the light guide (ias_guide.h) named on and off
+    **{f"ias-{name}": [["--integrator", "ias", "--ias-light-guide", mode, "--threshold", t]
+                       for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
+       for name, mode in (("guide", "on"), ("noguide", "off"))},
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):

@@ -305,7 +305,7 @@ static const pn_option_decl options[] = {
       "default variant, trees cut, RGB: each shadow ray's light sample is paired with a BSDF-sampled ray whose hits "
       "on area lights and the environment are weighted against ias's own light-sampling PDF by the power "
       "heuristic (multiple importance sampling), 'on' at every shaded point, 'glossy' only at points with a glossy "
-      "lobe, 'off' light samples only"},
+      "lobe, 'off' light samples only; with 'on' or 'glossy' the light guide (ias-light-guide) is off"},
      BIT(M_IAS),
      F(ias_mis),
      PN_FIELD_INT,
@@ -316,6 +316,15 @@ static const pn_option_decl options[] = {
      BIT(M_IAS),
      F(ias_mis_share),
      PN_FIELD_F64,
+     0},
+    {{"ias-light-guide", PN_OPTION_CHOICE, "on", 0, 0, 0, 0, "", "off,on",
+      "default variant: 'on' learns, per block, where large rectangle and triangle lights are visible (an 8 x 8 "
+      "grid over each light's sample square, following the contribution its samples found, 20% kept uniform) and "
+      "samples those lights through it (unbiased: the pdf carries the grid's density); 'off' samples them "
+      "uniformly (the paper's)"},
+     BIT(M_IAS),
+     F(ias_light_guide),
+     PN_FIELD_INT,
      0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",

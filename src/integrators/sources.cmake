@@ -6,6 +6,7 @@ list(APPEND PN_SOURCES
   src/integrators/ias_speed.c
   src/integrators/ias_ratio.c
   src/integrators/ias_mis.c
+  src/integrators/ias_guide.c
   src/integrators/ias.c
   src/integrators/vpl_common.c
   src/integrators/vpl.c
