@@ -140,7 +140,7 @@
  *    the pdf carries the grid's density, so the estimate stays unbiased. Reason: on
  *    bathroom-72-matte choosing each light by its exactly known visible contribution (an oracle)
  *    lowers reference's relMSE only 1.75x at 16 shadow rays per pixel, sampling only the visible
- *    part of the chosen light 10.8x: the variance left is the window seen through the blinds, within
+ *    part of the chosen light 10.7x: the variance left is the window seen through the blinds, within
  *    one light, which no cluster PDF reaches. Effect (bench crop, one thread, beyond.sh, CPU at
  *    equal relMSE): bathroom-72-matte ias 6.2 -> 3.76 s at relMSE 0.0027 against 0.0025 (fixed 4
  *    passes: relMSE 0.0049 -> 0.0022 for the same shadow rays), bathroom-72 8.5 -> 4.9 s; hall-many
