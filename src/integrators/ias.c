@@ -142,12 +142,12 @@
  *    the pdf carries the grid's density, so the estimate stays unbiased. Reason: on
  *    bathroom-72-matte choosing each light by its exactly known visible contribution (an oracle)
  *    lowers reference's relMSE only 1.75x at 16 shadow rays per pixel, sampling only the visible
- *    part of the chosen light 10.8x: the variance left is the window seen through the blinds, within
+ *    part of the chosen light 10.7x: the variance left is the window seen through the blinds, within
  *    one light, which no cluster PDF reaches. Effect (bench crop, one thread, beyond.sh, CPU at
  *    equal relMSE): bathroom-72-matte ias 6.2 -> 3.76 s at relMSE 0.0027 against 0.0025 (fixed 4
- *    passes: relMSE 0.0049 -> 0.0022 for the same shadow rays), bathroom-72 8.5 -> 4.9 s; hall-many
- *    and hall-many-matte within 4% (its windows are not occluded in pieces); scenes without such
- *    lights (staircase-832, living-env-138, the generated ones) unchanged bit for bit.
+ *    passes: relMSE 0.0049 -> 0.0022 for the same shadow rays), bathroom-72 8.5 -> 4.9 s,
+ *    bathroom-72-matte at T = 0.0025 1.6x; hall-many and hall-many-matte within 4%; scenes without
+ *    such lights (staircase-832, living-env-138, the generated ones) unchanged bit for bit.
  *
  * Not a departure (the images are the same bit for bit, both variants): with the trees cut and at
  * least PN_IAS_DENSE_IDS cluster ids (ias_speed.h; some 30,000 emitters) the block's and the
