@@ -959,6 +959,131 @@ int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, 
     return pn_cluster_cut_ex(f, lights, p, n, max_solid_angle, out, capacity, NULL, 0, NULL);
 }
 
+/* ---------------------------------------------------------------- capped cut */
+
+/* An open node of pn_cluster_cut_capped: its r^2 / d^2 (the solid angle's order), its index. */
+typedef struct cut_open {
+    float x;
+    int node;
+} cut_open;
+
+static float open_key(const pn_cluster_node *nd, vec3 p) {
+    float d2 = v3_length2(v3_sub(nd->center, p));
+    return d2 > 0.0f ? nd->radius * nd->radius / d2 : INFINITY;
+}
+
+/* Max-heap order: the larger solid angle first, ties to the lower index. */
+static bool open_before(const cut_open *a, const cut_open *b) {
+    return a->x > b->x || (a->x == b->x && a->node < b->node);
+}
+
+static void open_push(cut_open *h, int *count, cut_open e) {
+    int i = (*count)++;
+    while (i > 0) {
+        int parent = (i - 1) / 2;
+        if (!open_before(&e, &h[parent])) break;
+        h[i] = h[parent];
+        i = parent;
+    }
+    h[i] = e;
+}
+
+static cut_open open_pop(cut_open *h, int *count) {
+    cut_open top = h[0], last = h[--*count];
+    int i = 0, n = *count;
+    for (;;) {
+        int c = 2 * i + 1;
+        if (c >= n) break;
+        if (c + 1 < n && open_before(&h[c + 1], &h[c])) c++;
+        if (!open_before(&h[c], &last)) break;
+        h[i] = h[c];
+        i = c;
+    }
+    if (n > 0) h[i] = last;
+    return top;
+}
+
+size_t pn_cluster_cut_capped_work(int max_count) {
+    return (size_t)((max_count > 0 ? max_count : 0) + PN_TREE_COUNT + 1) * sizeof(cut_open);
+}
+
+static void sift_down(int *a, int i, int n, const pn_cluster_node *nodes) {
+    for (;;) {
+        int c = 2 * i + 1;
+        if (c >= n) return;
+        if (c + 1 < n && nodes[a[c + 1]].first > nodes[a[c]].first) c++;
+        if (nodes[a[c]].first <= nodes[a[i]].first) return;
+        int t = a[i];
+        a[i] = a[c];
+        a[c] = t;
+        i = c;
+    }
+}
+
+/* Heap sort by light range start: the taken nodes' ranges are disjoint, and the order of their
+ * starts is the depth-first walk's order (trees in order, left before right, singles last). */
+static void sort_by_first(int *a, int n, const pn_cluster_node *nodes) {
+    for (int i = n / 2 - 1; i >= 0; i--) sift_down(a, i, n, nodes);
+    for (int end = n - 1; end > 0; end--) {
+        int t = a[0];
+        a[0] = a[end];
+        a[end] = t;
+        sift_down(a, 0, end, nodes);
+    }
+}
+
+int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          int max_count, int *out, int capacity, void *work) {
+    if (max_count <= 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
+    cut_open *heap = work;
+    int open = 0, count = 0, total = 0;
+    bool horizon = !v3_is_zero(n);
+    const cut_limit lim = make_cut_limit(max_solid_angle);
+    for (int s = 0; s < f->single_count; s++)
+        if (!pn_cluster_light_culled(&lights->lights[f->nodes[f->singles[s]].light], p, n)) {
+            if (count < capacity) out[count] = f->singles[s];
+            count++;
+        }
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        int root = f->roots[t];
+        if (root < 0) continue;
+        int action = classify(lights, &f->nodes[root], p, n, horizon, &lim);
+        if (action == PN_CUT_TAKE) {
+            if (count < capacity) out[count] = root;
+            count++;
+        } else if (action == PN_CUT_DESCEND) {
+            open_push(heap, &open, (cut_open){open_key(&f->nodes[root], p), root});
+        }
+    }
+    total = count + open;
+    while (open > 0) {
+        const int m = open_pop(heap, &open).node;
+        const pn_cluster_node *nd = &f->nodes[m];
+        const int child[2] = {nd->left, nd->right};
+        int act[2], delta = -1;
+        for (int c = 0; c < 2; c++) {
+            act[c] = classify(lights, &f->nodes[child[c]], p, n, horizon, &lim);
+            delta += act[c] != PN_CUT_CULL;
+        }
+        if (total + delta > max_count) { /* over the cap: the node stays a cluster */
+            if (count < capacity) out[count] = m;
+            count++;
+            continue;
+        }
+        total += delta;
+        for (int c = 0; c < 2; c++) {
+            if (act[c] == PN_CUT_TAKE) {
+                if (count < capacity) out[count] = child[c];
+                count++;
+            } else if (act[c] == PN_CUT_DESCEND) {
+                open_push(heap, &open, (cut_open){open_key(&f->nodes[child[c]], p), child[c]});
+            }
+        }
+    }
+    sort_by_first(out, count < capacity ? count : capacity, f->nodes);
+    return count;
+}
+
 /* ---------------------------------------------------------------- picking */
 
 int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int node, float u, float *prob) {

@@ -20,6 +20,7 @@
 #include "lights/lights.h"
 
 #include <stdbool.h>
+#include <stddef.h>
 
 typedef struct pn_cluster_node {
     int left, right; /* children, -1 for a leaf */
@@ -101,6 +102,18 @@ int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, 
  * of the forest. */
 int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                       int *out, int capacity, int *culled, int culled_capacity, int *culled_count);
+
+/* pn_cluster_cut with at most max_count clusters (issue 15: a cut whose size stops growing with
+ * the number of lights). The trees are refined from their roots by priority, the open node of
+ * largest solid angle first, each refined node replaced by its children that are not culled, as
+ * long as the count (taken, open and singles) stays within max_count; a node whose refinement
+ * would exceed it is taken as it is, although it subtends max_solid_angle or more. The clusters
+ * come out in the depth-first walk's order, so that below the cap the result is pn_cluster_cut's
+ * exactly. `work` holds pn_cluster_cut_capped_work(max_count) bytes. max_count <= 0: no cap
+ * (pn_cluster_cut). When the count returned is above capacity, out[] holds only some of them. */
+int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          int max_count, int *out, int capacity, void *work);
+size_t pn_cluster_cut_capped_work(int max_count);
 
 /* Chooses a light of node `node` in proportion to the lights' power (the paper: "based on their
  * relative intensities"); u in [0,1); returns the light index and its probability within the
