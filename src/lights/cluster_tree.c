@@ -1004,7 +1004,7 @@ static cut_open open_pop(cut_open *h, int *count) {
 }
 
 size_t pn_cluster_cut_capped_work(int max_count) {
-    return (size_t)((max_count > 0 ? max_count : 0) + PN_TREE_COUNT + 1) * sizeof(cut_open);
+    return 2 * (size_t)((max_count > 0 ? max_count : 0) + PN_TREE_COUNT + 1) * sizeof(cut_open);
 }
 
 static void sift_down(int *a, int i, int n, const pn_cluster_node *nodes) {
@@ -1035,8 +1035,13 @@ static void sort_by_first(int *a, int n, const pn_cluster_node *nodes) {
 int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                           int max_count, int *out, int capacity, void *work) {
     if (max_count <= 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
-    cut_open *heap = work;
-    int open = 0, count = 0, total = 0;
+    /* Under the cap the plain walk's cut is the answer (and cheaper than the priority walk). */
+    const int plain = pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
+    if (plain <= max_count) return plain;
+    /* heap: the open nodes; held: nodes whose refinement the cap stopped, refined after all when
+     * a refinement that culls both children makes room (then the count ends at max_count). */
+    cut_open *heap = work, *held = heap + max_count + PN_TREE_COUNT + 1;
+    int open = 0, count = 0, total = 0, held_count = 0;
     bool horizon = !v3_is_zero(n);
     const cut_limit lim = make_cut_limit(max_solid_angle);
     for (int s = 0; s < f->single_count; s++)
@@ -1065,12 +1070,12 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
             act[c] = classify(lights, &f->nodes[child[c]], p, n, horizon, &lim);
             delta += act[c] != PN_CUT_CULL;
         }
-        if (total + delta > max_count) { /* over the cap: the node stays a cluster */
-            if (count < capacity) out[count] = m;
-            count++;
+        if (total + delta > max_count) { /* over the cap: held, unless room is made later */
+            open_push(held, &held_count, (cut_open){open_key(nd, p), m});
             continue;
         }
         total += delta;
+        if (delta < 0 && held_count > 0) open_push(heap, &open, open_pop(held, &held_count));
         for (int c = 0; c < 2; c++) {
             if (act[c] == PN_CUT_TAKE) {
                 if (count < capacity) out[count] = child[c];
@@ -1079,6 +1084,10 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
                 open_push(heap, &open, (cut_open){open_key(&f->nodes[child[c]], p), child[c]});
             }
         }
+    }
+    for (int h = 0; h < held_count; h++) { /* the nodes the cap left whole */
+        if (count < capacity) out[count] = held[h].node;
+        count++;
     }
     sort_by_first(out, count < capacity ? count : capacity, f->nodes);
     return count;
