@@ -679,6 +679,20 @@ static void check_pick(const pn_cluster_forest *f, const pn_lights *L, int node,
         if (li < 0 || li >= L->count) continue;
         hits[li]++;
         float expected = nd->power > 0.0f ? pn_cluster_light_power(&L->lights[li]) / nd->power : 1.0f / (float)k;
+        if (s < 2000 && k > 1) {
+            /* The answer of a plain scan: the first position whose running sum passes the target
+             * (the grouped search of pn_cluster_pick must find the very same light). */
+            const double *pre = f->power_prefix;
+            float u = rnd(r);
+            double total = pre[nd->first + k] - pre[nd->first];
+            if (total > 0.0) {
+                double target = pre[nd->first] + (double)u * total;
+                int j = nd->first;
+                while (j < nd->first + k - 1 && !(pre[j + 1] > target)) j++;
+                while (j > nd->first && !(pre[j + 1] > pre[j])) j--;
+                CHECK(pn_cluster_pick(f, L, node, u, NULL) == f->light_order[j]);
+            }
+        }
         if (s < 2000) {
             CHECK_NEAR(prob, expected, 1e-5 * (double)expected + 1e-9);
             CHECK(prob > 0.0f);

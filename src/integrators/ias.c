@@ -1203,7 +1203,6 @@ static bool cut_build(const ias_shared *sh, ias_scratch *s) {
         s->node_r[id] = s->r_count;
         s->r_id[s->r_count++] = id;
     }
-    add_work((uint64_t)s->cut_used);
     int np = 0;
     for (int r = 0; r < s->r_count; r++) {
         const int id = s->r_id[r];

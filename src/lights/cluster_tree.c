@@ -638,6 +638,7 @@ void pn_cluster_forest_free(pn_cluster_forest *f) {
     if (!f) return;
     free(f->nodes);
     free(f->light_order);
+    free(f->power_coarse);
     free(f->leaf_of_light);
     free(f->singles);
     free(f->power_prefix);
@@ -812,6 +813,16 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
         for (int i = 0; i < order_count; i++)
             out->power_prefix[i + 1] =
                 out->power_prefix[i] + (double)pn_cluster_light_power(&lights->lights[out->light_order[i]]);
+        out->coarse_count = order_count / PN_CLUSTER_COARSE + 1;
+        out->power_coarse = malloc((size_t)out->coarse_count * sizeof *out->power_coarse);
+        if (!out->power_coarse) {
+            status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
+            goto done;
+        }
+        for (int j = 0; j < out->coarse_count; j++) {
+            int at = (j + 1) * PN_CLUSTER_COARSE;
+            out->power_coarse[j] = out->power_prefix[at < order_count ? at : order_count];
+        }
     }
 
 done:
@@ -1112,8 +1123,24 @@ int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int nod
         return f->light_order[first + i];
     }
     double target = pre[first] + (double)u * total;
-    /* The first position whose running sum passes the target: never a zero-power light. */
+    /* The first position whose running sum passes the target: never a zero-power light. The
+     * predicate pre[i + 1] > target grows with i; its first true position among the coarse
+     * entries (pre[16 j + 16] > target: position 16 j + 15 true) bounds the search to one group
+     * of 16, the same answer as the search over the whole range. */
     int lo = first, hi = first + count - 1;
+    if (count > 4 * PN_CLUSTER_COARSE && f->power_coarse) {
+        int a = first / PN_CLUSTER_COARSE, b = hi / PN_CLUSTER_COARSE;
+        while (a < b) {
+            int mid = a + (b - a) / 2;
+            if (f->power_coarse[mid] > target)
+                b = mid;
+            else
+                a = mid + 1;
+        }
+        int g0 = a * PN_CLUSTER_COARSE, g1 = g0 + PN_CLUSTER_COARSE - 1;
+        if (g0 > lo) lo = g0;
+        if (g1 < hi) hi = g1;
+    }
     while (lo < hi) {
         int mid = lo + (hi - lo) / 2;
         if (pre[mid + 1] > target)

@@ -75,8 +75,14 @@ typedef struct pn_cluster_forest {
                                        clustered, always their own cluster */
     double *power_prefix; /* order_count + 1 running sums of the lights' power in
                                   light_order, for pn_cluster_pick */
+    double *power_coarse; /* every PN_CLUSTER_COARSE-th of them, power_prefix[(j + 1) * PN_CLUSTER_COARSE]
+                                  (clamped at order_count): pn_cluster_pick searches these first, so
+                                  that a pick reads a few cache lines of power_prefix, not log2(count) */
+    int coarse_count;
     int light_count;      /* pn_lights.count at build time */
 } pn_cluster_forest;
+
+#define PN_CLUSTER_COARSE 16
 
 /* Builds the seven trees and the singles. On failure *out is left zeroed. */
 pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *out, pn_err *err);
