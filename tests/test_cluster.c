@@ -597,7 +597,7 @@ static void test_cut_capped(void) {
     const int cap = f.node_count + 1;
     int *plain = malloc((size_t)cap * sizeof *plain), *out = malloc((size_t)cap * sizeof *out);
     int *mark = calloc((size_t)count, sizeof *mark);
-    void *work = malloc(pn_cluster_cut_capped_work(cap));
+    void *work = calloc(1, pn_cluster_cut_capped_work(cap));
     int capped_points = 0, whole = 0;
     float limits[] = {0.02f, 0.2f, 0.002f};
     for (int i = 0; i < 200; i++) {

@@ -8,16 +8,18 @@
 # integrator's preparation). Every pixel takes the same eye rays (ias: aa-rays per pixel), so
 # render time per eye ray grows as the render time does; its growth from the first count is
 # printed per method. With BASE, the images of the two binaries are compared with cmp (last run).
-# Render CPU: the render's own seconds are wall clock, which the shared machine's load inflates; with
-# SETUP=1 every run is paired with a run of the same case on a one-pixel crop (parsing, builds,
-# preparation, one pixel), and render CPU = CPU - that run's CPU (median over the pairs), per eye
-# ray beside the wall-clock column.
+# Render CPU: the render's own seconds are wall clock, which the shared machine's load inflates.
+# The table's render CPU is render_seconds x (process CPU / process wall clock), the render's wall
+# time at the process's own share of a CPU (the load taken as steady over the run); per eye ray and
+# its growth from the first count follow from it. With SETUP=1 every run is paired instead with a
+# run of the same case on a crop of about one pixel (parsing, builds, preparation), and render CPU
+# = CPU - that run's CPU (noisier where the set-up is most of the process: at 10^6 emitters).
 #
 #   bench/ias/scaling.sh [BUILD_DIR] [OUT_DIR]     (defaults: build, bench/out/scaling)
 #
 # Environment: GEN ("1000 10000 100000 1000000"), GEN_DIR (OUT_DIR/gen: generated scenes, kept and
 # reused), GEN_CROP (0.3,0.7,0.55,0.95), T (0.01), SPP (16), RUNS (3), BASE (a second penumbra
-# binary, e.g. a build of the base commit, BASE_BUILD/penumbra), METHODS ("ias bvh"), SETUP (1),
+# binary, e.g. a build of the base commit, BASE_BUILD/penumbra), METHODS ("ias bvh"), SETUP (0),
 # VARIANTS (more cases of the new binary only: "name=args;name=args", e.g.
 # "cap256=--integrator ias --threshold 0.01 --ias-cut-max 256"; named cases run after METHODS).
 set -eu
@@ -31,14 +33,14 @@ SPP=${SPP:-16}
 RUNS=${RUNS:-3}
 BASE=${BASE:-}
 METHODS=${METHODS:-ias bvh}
-SETUP=${SETUP:-1}
+SETUP=${SETUP:-0}
 VARIANTS=${VARIANTS:-}
 mkdir -p "$OUT" "$GEN_DIR"
 for n in $GEN; do
     [ -f "$GEN_DIR/many-$n.pbrt" ] || python3 "$(dirname "$0")/gen_many.py" "$n" "$GEN_DIR"
 done
 exec nice -n 15 python3 - "$BUILD/penumbra" "$OUT" "$GEN_CROP" "$T" "$SPP" "$RUNS" "$GEN_DIR" "$BASE" "$METHODS" "$SETUP" "$VARIANTS" $GEN <<'PY'
-import filecmp, json, resource, subprocess, sys
+import filecmp, json, resource, subprocess, sys, time
 pn, out, crop, t, spp, runs, gen, base, methods, setup, variants = sys.argv[1:12]
 counts = sys.argv[12:]
 setup = setup == "1"
@@ -62,9 +64,14 @@ one = f"{c[0]},{c[0] + 0.01},{c[2]},{c[2] + 0.01}"
 def run(exe, scene, cr, args, stem):
     js = f"{stem}.json"
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.monotonic()
     subprocess.run([exe, "render", scene, "--crop", cr, "--threads", "1", "--quiet", "-o", f"{stem}.exr", "--stats", js] + args, check=True)
+    wall = time.monotonic() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, json.load(open(js))["stats"]
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    st = json.load(open(js))["stats"]
+    st["render_cpu_est"] = st["render_seconds"] * min(1.0, cpu / wall) if wall > 0 else st["render_seconds"]
+    return cpu, st
 
 
 res = {}
@@ -73,8 +80,8 @@ for n in counts:
     for r in range(int(runs)):
         for (m, b), (exe, args) in cases.items():
             cpu, st = run(exe, scene, crop, args, f"{out}/many-{n}-{m}-{b}")
-            cpu1 = run(exe, scene, one, args, f"{out}/one-{n}-{m}-{b}")[0] if setup else 0.0
-            res.setdefault((n, m, b), []).append((cpu, st, cpu - cpu1))
+            rcpu = cpu - run(exe, scene, one, args, f"{out}/one-{n}-{m}-{b}")[0] if setup else st["render_cpu_est"]
+            res.setdefault((n, m, b), []).append((cpu, st, rcpu))
 print("| emitters | method | binary | CPU s (median) | render CPU s (median) | render CPU µs / eye ray | growth | render s (wall, median) | eye rays | shadow rays/px | clusters/point | peak MB | image |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 first = {}
@@ -86,7 +93,7 @@ for n in counts:
         ren = med([x[1]["render_seconds"] for x in rs])
         rcpu = med([x[2] for x in rs])
         st = rs[-1][1]
-        per = (rcpu if setup else ren) / st["eye_rays"] * 1e6
+        per = rcpu / st["eye_rays"] * 1e6
         first.setdefault((m, b), per)
         same = ""
         if base and b == "new" and (m, "base") in cases:

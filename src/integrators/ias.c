@@ -763,7 +763,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->regions = malloc((size_t)s->region_cap * sizeof *s->regions);
     s->cut_cap = (int)per_cut * 8;
     s->cut = malloc((size_t)s->cut_cap * sizeof *s->cut);
-    s->cut_work = malloc(pn_cluster_cut_capped_work(sh->cut_max));
+    s->cut_work = calloc(1, pn_cluster_cut_capped_work(sh->cut_max));
     s->cut_prior = malloc((size_t)s->cut_cap * sizeof *s->cut_prior);
     s->fprior = malloc((per_cut + 1) * sizeof *s->fprior);
     s->block_stats = calloc(IAS_CLASSES * ids, sizeof *s->block_stats);

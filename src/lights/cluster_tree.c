@@ -1014,66 +1014,58 @@ static cut_open open_pop(cut_open *h, int *count) {
     return top;
 }
 
+/* The capped cut's clusters as a doubly linked list in light order (a refined node's element
+ * becomes its first child's that is not culled, the other child's is linked after it), so that
+ * the depth-first order comes out without a sort. */
+typedef struct cut_elem {
+    int node, prev, next;
+} cut_elem;
+
+static int slots_for(int max_count) {
+    return (max_count > 0 ? max_count : 0) + PN_TREE_COUNT + 1;
+}
+
 size_t pn_cluster_cut_capped_work(int max_count) {
-    return 2 * (size_t)((max_count > 0 ? max_count : 0) + PN_TREE_COUNT + 1) * sizeof(cut_open);
-}
-
-static void sift_down(int *a, int i, int n, const pn_cluster_node *nodes) {
-    for (;;) {
-        int c = 2 * i + 1;
-        if (c >= n) return;
-        if (c + 1 < n && nodes[a[c + 1]].first > nodes[a[c]].first) c++;
-        if (nodes[a[c]].first <= nodes[a[i]].first) return;
-        int t = a[i];
-        a[i] = a[c];
-        a[c] = t;
-        i = c;
-    }
-}
-
-/* Heap sort by light range start: the taken nodes' ranges are disjoint, and the order of their
- * starts is the depth-first walk's order (trees in order, left before right, singles last). */
-static void sort_by_first(int *a, int n, const pn_cluster_node *nodes) {
-    for (int i = n / 2 - 1; i >= 0; i--) sift_down(a, i, n, nodes);
-    for (int end = n - 1; end > 0; end--) {
-        int t = a[0];
-        a[0] = a[end];
-        a[end] = t;
-        sift_down(a, 0, end, nodes);
-    }
+    return (size_t)slots_for(max_count) * (2 * sizeof(cut_open) + sizeof(cut_elem));
 }
 
 int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                           int max_count, int *out, int capacity, void *work) {
     if (max_count <= 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
-    /* Under the cap the plain walk's cut is the answer (and cheaper than the priority walk). */
+    /* Under the cap the plain walk's cut is the answer. (The priority walk alone would not always
+     * give it there: its count can pass the cap on the way, before subtrees turn out culled.) */
     const int plain = pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
     if (plain <= max_count) return plain;
-    /* heap: the open nodes; held: nodes whose refinement the cap stopped, refined after all when
-     * a refinement that culls both children makes room (then the count ends at max_count). */
-    cut_open *heap = work, *held = heap + max_count + PN_TREE_COUNT + 1;
-    int open = 0, count = 0, total = 0, held_count = 0;
+    /* heap: the open elements; held: elements whose refinement the cap stopped, refined after all
+     * when a refinement that culls both children makes room (so the count ends at max_count);
+     * both keyed by the element's node's solid angle, the element's index in cut_open.node. At
+     * most slots elements are live: the trees' part of the count stays within max_count. */
+    const int slots = slots_for(max_count);
+    cut_open *heap = work, *held = heap + slots;
+    cut_elem *el = (cut_elem *)(held + slots);
+    int open = 0, held_count = 0, used = 0, free_list = -1, head = -1, tail = -1;
     bool horizon = !v3_is_zero(n);
     const cut_limit lim = make_cut_limit(max_solid_angle);
+    int singles = 0;
     for (int s = 0; s < f->single_count; s++)
-        if (!pn_cluster_light_culled(&lights->lights[f->nodes[f->singles[s]].light], p, n)) {
-            if (count < capacity) out[count] = f->singles[s];
-            count++;
-        }
+        singles += !pn_cluster_light_culled(&lights->lights[f->nodes[f->singles[s]].light], p, n);
     for (int t = 0; t < PN_TREE_COUNT; t++) {
         int root = f->roots[t];
         if (root < 0) continue;
         int action = classify(lights, &f->nodes[root], p, n, horizon, &lim);
-        if (action == PN_CUT_TAKE) {
-            if (count < capacity) out[count] = root;
-            count++;
-        } else if (action == PN_CUT_DESCEND) {
-            open_push(heap, &open, (cut_open){open_key(&f->nodes[root], p), root});
-        }
+        if (action == PN_CUT_CULL) continue;
+        const int e = used++;
+        el[e] = (cut_elem){root, tail, -1};
+        if (tail >= 0)
+            el[tail].next = e;
+        else
+            head = e;
+        tail = e;
+        if (action == PN_CUT_DESCEND) open_push(heap, &open, (cut_open){open_key(&f->nodes[root], p), e});
     }
-    total = count + open;
+    int total = singles + used;
     while (open > 0) {
-        const int m = open_pop(heap, &open).node;
+        const int e = open_pop(heap, &open).node, m = el[e].node;
         const pn_cluster_node *nd = &f->nodes[m];
         const int child[2] = {nd->left, nd->right};
         int act[2], delta = -1;
@@ -1081,26 +1073,58 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
             act[c] = classify(lights, &f->nodes[child[c]], p, n, horizon, &lim);
             delta += act[c] != PN_CUT_CULL;
         }
-        if (total + delta > max_count) { /* over the cap: held, unless room is made later */
-            open_push(held, &held_count, (cut_open){open_key(nd, p), m});
+        if (delta > 0 && total + delta > max_count) { /* over the cap: held, unless room is made later */
+            open_push(held, &held_count, (cut_open){open_key(nd, p), e});
             continue;
         }
         total += delta;
-        if (delta < 0 && held_count > 0) open_push(heap, &open, open_pop(held, &held_count));
+        if (delta < 0) { /* both children culled: the element leaves the list */
+            if (el[e].prev >= 0)
+                el[el[e].prev].next = el[e].next;
+            else
+                head = el[e].next;
+            if (el[e].next >= 0)
+                el[el[e].next].prev = el[e].prev;
+            else
+                tail = el[e].prev;
+            el[e].node = free_list;
+            free_list = e;
+            if (held_count > 0) open_push(heap, &open, open_pop(held, &held_count));
+            continue;
+        }
+        int at = -1;
         for (int c = 0; c < 2; c++) {
-            if (act[c] == PN_CUT_TAKE) {
-                if (count < capacity) out[count] = child[c];
-                count++;
-            } else if (act[c] == PN_CUT_DESCEND) {
-                open_push(heap, &open, (cut_open){open_key(&f->nodes[child[c]], p), child[c]});
+            if (act[c] == PN_CUT_CULL) continue;
+            int x = e;
+            if (at >= 0) { /* the second child: a new element after the first */
+                if (free_list >= 0) {
+                    x = free_list;
+                    free_list = el[x].node;
+                } else {
+                    x = used++;
+                }
+                el[x] = (cut_elem){child[c], at, el[at].next};
+                if (el[at].next >= 0)
+                    el[el[at].next].prev = x;
+                else
+                    tail = x;
+                el[at].next = x;
             }
+            el[x].node = child[c];
+            at = x;
+            if (act[c] == PN_CUT_DESCEND) open_push(heap, &open, (cut_open){open_key(&f->nodes[child[c]], p), x});
         }
     }
-    for (int h = 0; h < held_count; h++) { /* the nodes the cap left whole */
-        if (count < capacity) out[count] = held[h].node;
+    int count = 0;
+    for (int e = head; e >= 0; e = el[e].next) {
+        if (count < capacity) out[count] = el[e].node;
         count++;
     }
-    sort_by_first(out, count < capacity ? count : capacity, f->nodes);
+    for (int s = 0; s < f->single_count; s++)
+        if (!pn_cluster_light_culled(&lights->lights[f->nodes[f->singles[s]].light], p, n)) {
+            if (count < capacity) out[count] = f->singles[s];
+            count++;
+        }
     return count;
 }
 

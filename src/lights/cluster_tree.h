@@ -113,7 +113,7 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
  * the number of lights). The trees are refined from their roots by priority, the open node of
  * largest solid angle first, each refined node replaced by its children that are not culled, as
  * long as the count (taken, open and singles) stays within max_count; a node whose refinement
- * would exceed it is taken as it is, although it subtends max_solid_angle or more (refined
+ * would add one is taken as it is, although it subtends max_solid_angle or more (refined
  * after all if a later refinement culls both children and so makes room). When the plain cut has
  * more than max_count clusters the capped one has max_count (if the roots and the singles that
  * are not culled are fewer). The clusters
