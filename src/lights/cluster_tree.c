@@ -345,11 +345,29 @@ typedef struct pn_heap_entry {
     unsigned stamp;
 } pn_heap_entry;
 
+/* A cluster's sphere, compact (16 bytes, where the forest's node is 140). */
+typedef struct pn_build_item {
+    vec3 center;
+    float radius;
+} pn_build_item;
+
+/* An entry of a k-d leaf's doubly linked list: the cluster's sphere and index beside the links,
+ * numbered in k-d leaf order when the k-d tree is built (each leaf's entries contiguous; merged
+ * clusters appended), so that a leaf's candidates share cache lines. */
+typedef struct pn_build_slot {
+    vec3 center;
+    float radius;
+    int id, next, prev;
+} pn_build_slot;
+
 typedef struct pn_builder {
     pn_cluster_node *nodes;
     unsigned char *alive;       /* per forest node */
     int *slot;                  /* per forest node: its k-d leaf, or -1 */
-    int *next_item, *prev_item; /* per forest node: the doubly linked list of its k-d leaf */
+    pn_build_item *it;          /* per forest node: its sphere */
+    pn_build_slot *slots;       /* the k-d leaves' lists (heads and links are slot indices) */
+    int *slot_at;               /* per forest node: its slot while it is live */
+    int slot_used;
     unsigned *stamp;            /* per forest node: bumped when its heap entry is replaced */
     pn_kd_node *kd;
     int kd_count, kd_root;
@@ -406,7 +424,7 @@ static pn_heap_entry heap_pop(pn_builder *b) {
 
 /* Moves the k-th smallest item (by centre coordinate `axis`) of items[0..n) to position k, with
  * smaller or equal ones before it (three-way quickselect: many equal keys stay linear). */
-static void select_kth(int *items, int n, int k, const pn_cluster_node *nodes, int axis) {
+static void select_kth(int *items, int n, int k, const pn_build_item *nodes, int axis) {
     int lo = 0, hi = n - 1;
     while (lo < hi) {
         float pivot = v3_get(nodes[items[lo + (hi - lo) / 2]].center, axis);
@@ -442,11 +460,11 @@ static int kd_build(pn_builder *b, int begin, int end, int parent) {
     kn->left = kn->right = kn->head = -1;
     kn->axis = 0;
     kn->split = 0.0f;
-    const pn_cluster_node *first = &b->nodes[b->items[begin]];
+    const pn_build_item *first = &b->it[b->items[begin]];
     kn->lo = kn->hi = first->center;
     kn->rmin = first->radius;
     for (int i = begin + 1; i < end; i++) {
-        const pn_cluster_node *c = &b->nodes[b->items[i]];
+        const pn_build_item *c = &b->it[b->items[i]];
         kn->lo = v3_min(kn->lo, c->center);
         kn->hi = v3_max(kn->hi, c->center);
         kn->rmin = min_f(kn->rmin, c->radius);
@@ -454,23 +472,23 @@ static int kd_build(pn_builder *b, int begin, int end, int parent) {
     if (end - begin <= PN_CLUSTER_KD_LEAF) {
         int prev = -1;
         for (int i = begin; i < end; i++) {
-            int c = b->items[i];
+            int c = b->items[i], e = b->slot_used++;
             b->slot[c] = id;
-            b->prev_item[c] = prev;
-            b->next_item[c] = -1;
+            b->slot_at[c] = e;
+            b->slots[e] = (pn_build_slot){b->it[c].center, b->it[c].radius, c, -1, prev};
             if (prev >= 0)
-                b->next_item[prev] = c;
+                b->slots[prev].next = e;
             else
-                kn->head = c;
-            prev = c;
+                kn->head = e;
+            prev = e;
         }
         return id;
     }
     vec3 ext = v3_sub(kn->hi, kn->lo);
     int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
     int mid = begin + (end - begin) / 2;
-    select_kth(b->items + begin, end - begin, mid - begin, b->nodes, axis);
-    float split = v3_get(b->nodes[b->items[mid]].center, axis);
+    select_kth(b->items + begin, end - begin, mid - begin, b->it, axis);
+    float split = v3_get(b->it[b->items[mid]].center, axis);
     int left = kd_build(b, begin, mid, id);
     int right = kd_build(b, mid, end, id);
     kn = &b->kd[id];
@@ -488,12 +506,13 @@ static void kd_rebuild(pn_builder *b, int base, int end) {
     for (int i = base; i < end; i++)
         if (b->alive[i]) b->items[n++] = i;
     b->kd_count = 0;
+    b->slot_used = 0;
     b->kd_root = kd_build(b, 0, n, -1);
     b->rebuild_below = n / 2;
 }
 
 static void kd_insert(pn_builder *b, int c) {
-    const pn_cluster_node *nd = &b->nodes[c];
+    const pn_build_item *nd = &b->it[c];
     int k = b->kd_root;
     for (;;) {
         pn_kd_node *kn = &b->kd[k];
@@ -505,34 +524,36 @@ static void kd_insert(pn_builder *b, int c) {
         k = v3_get(nd->center, kn->axis) < kn->split ? kn->left : kn->right;
     }
     pn_kd_node *leaf = &b->kd[k];
+    const int e = b->slot_used++;
     b->slot[c] = k;
-    b->prev_item[c] = -1;
-    b->next_item[c] = leaf->head;
-    if (leaf->head >= 0) b->prev_item[leaf->head] = c;
-    leaf->head = c;
+    b->slot_at[c] = e;
+    b->slots[e] = (pn_build_slot){nd->center, nd->radius, c, leaf->head, -1};
+    if (leaf->head >= 0) b->slots[leaf->head].prev = e;
+    leaf->head = e;
     b->alive[c] = 1;
 }
 
 static void kd_remove(pn_builder *b, int c) {
     int s = b->slot[c];
-    int prev = b->prev_item[c], next = b->next_item[c];
+    const int e = b->slot_at[c];
+    int prev = b->slots[e].prev, next = b->slots[e].next;
     if (prev >= 0)
-        b->next_item[prev] = next;
+        b->slots[prev].next = next;
     else
         b->kd[s].head = next;
-    if (next >= 0) b->prev_item[next] = prev;
+    if (next >= 0) b->slots[next].prev = prev;
     for (int k = s; k >= 0; k = b->kd[k].parent) b->kd[k].alive--;
     b->slot[c] = -1;
     b->alive[c] = 0;
 }
 
 /* A float lower bound of the merge cost (up to rounding), to skip the exact evaluation. */
-static float cost_bound(const pn_cluster_node *x, const pn_cluster_node *y) {
+static float cost_bound(const pn_build_item *x, const pn_build_slot *y) {
     float d = v3_length(v3_sub(x->center, y->center));
     return max_f(max_f(x->radius, y->radius), 0.5f * (d + x->radius + y->radius));
 }
 
-static float merge_cost(const pn_cluster_node *x, const pn_cluster_node *y) {
+static float merge_cost(const pn_build_item *x, const pn_build_slot *y) {
     vec3 c;
     float r;
     pn_cluster_merge_spheres(x->center, x->radius, y->center, y->radius, &c, &r);
@@ -542,7 +563,7 @@ static float merge_cost(const pn_cluster_node *x, const pn_cluster_node *y) {
 /* The live cluster (other than c) whose merge with c has the smallest sphere; -1 if none. Ties
  * go to the lower index. */
 static int nearest_partner(const pn_builder *b, int c, float *best_cost) {
-    const pn_cluster_node *q = &b->nodes[c];
+    const pn_build_item *q = &b->it[c];
     float best = INFINITY;
     int best_id = -1;
     int stack[PN_CLUSTER_KD_STACK];
@@ -558,9 +579,10 @@ static int nearest_partner(const pn_builder *b, int c, float *best_cost) {
         float lb = max_f(max_f(q->radius, kn->rmin), 0.5f * (dbox + q->radius + kn->rmin));
         if (lb * (1.0f - PN_CLUSTER_PRUNE_SLACK) > best) continue;
         if (kn->left < 0) {
-            for (int j = kn->head; j >= 0; j = b->next_item[j]) {
+            for (int e = kn->head; e >= 0; e = b->slots[e].next) {
+                const pn_build_slot *cand = &b->slots[e];
+                const int j = cand->id;
                 if (j == c) continue;
-                const pn_cluster_node *cand = &b->nodes[j];
                 if (cost_bound(q, cand) * (1.0f - PN_CLUSTER_PRUNE_SLACK) > best) continue;
                 float cost = merge_cost(q, cand);
                 if (cost < best || (cost == best && j < best_id)) {
@@ -594,7 +616,11 @@ static bool push_nearest(pn_builder *b, int c) {
 static bool build_tree(pn_builder *b, int base, int m, int tree) {
     if (m <= 1) return true;
     b->heap_count = 0;
-    for (int i = 0; i < m; i++) b->alive[base + i] = 1;
+    for (int i = 0; i < m; i++) {
+        b->alive[base + i] = 1;
+        b->it[base + i].center = b->nodes[base + i].center;
+        b->it[base + i].radius = b->nodes[base + i].radius;
+    }
     b->alive_count = m;
     kd_rebuild(b, base, base + m);
     for (int i = 0; i < m; i++)
@@ -610,6 +636,8 @@ static bool build_tree(pn_builder *b, int base, int m, int tree) {
         pn_cluster_node *nd = &b->nodes[next];
         const pn_cluster_node *na = &b->nodes[e.a], *nb = &b->nodes[e.b];
         pn_cluster_merge_spheres(na->center, na->radius, nb->center, nb->radius, &nd->center, &nd->radius);
+        b->it[next].center = nd->center;
+        b->it[next].radius = nd->radius;
         nd->left = e.a < e.b ? e.a : e.b;
         nd->right = e.a < e.b ? e.b : e.a;
         nd->parent = -1;
@@ -715,12 +743,13 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
     b.slot = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.slot);
     b.stamp = calloc((size_t)(total > 0 ? total : 1), sizeof *b.stamp);
     b.items = malloc((size_t)(max_m > 0 ? max_m : 1) * sizeof *b.items);
-    b.next_item = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.next_item);
-    b.prev_item = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.prev_item);
+    b.it = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.it);
+    b.slot_at = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.slot_at);
+    b.slots = malloc((size_t)(2 * max_m + 2) * sizeof *b.slots);
     b.kd = malloc((size_t)(2 * max_m + 1) * sizeof *b.kd);
     pn_status status = PN_OK;
     if (!out->nodes || !out->light_order || !out->leaf_of_light || !out->singles || !out->power_prefix || !b.alive ||
-        !b.slot || !b.stamp || !b.items || !b.next_item || !b.prev_item || !b.kd) {
+        !b.slot || !b.stamp || !b.items || !b.it || !b.slot_at || !b.slots || !b.kd) {
         status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
         goto done;
     }
@@ -838,8 +867,9 @@ done:
     free(b.slot);
     free(b.stamp);
     free(b.items);
-    free(b.next_item);
-    free(b.prev_item);
+    free(b.it);
+    free(b.slot_at);
+    free(b.slots);
     free(b.kd);
     free(b.heap);
     if (status != PN_OK) pn_cluster_forest_free(out);

@@ -110,16 +110,15 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
                       int *out, int capacity, int *culled, int culled_capacity, int *culled_count);
 
 /* pn_cluster_cut with at most max_count clusters (issue 15: a cut whose size stops growing with
- * the number of lights). The trees are refined from their roots by priority, the open node of
- * largest solid angle first, each refined node replaced by its children that are not culled, as
- * long as the count (taken, open and singles) stays within max_count; a node whose refinement
- * would add one is taken as it is, although it subtends max_solid_angle or more (refined
- * after all if a later refinement culls both children and so makes room). When the plain cut has
- * more than max_count clusters the capped one has max_count (if the roots and the singles that
- * are not culled are fewer). The clusters
- * come out in the depth-first walk's order, so that below the cap the result is pn_cluster_cut's
- * exactly. `work` holds pn_cluster_cut_capped_work(max_count) bytes. max_count <= 0: no cap
- * (pn_cluster_cut). When the count returned is above capacity, out[] holds only some of them. */
+ * the number of lights). When the plain cut has at most max_count clusters it is the answer, the
+ * same clusters in the same order. Otherwise the trees are refined from their roots by priority,
+ * the open node of largest solid angle first, each refined node replaced by its children that are
+ * not culled, while the count (taken, open and the singles not culled) stays within max_count: a
+ * node whose refinement would pass it is taken whole, although it subtends max_solid_angle or
+ * more (refined after all if a later refinement culls both children and so makes room). The
+ * result then has max_count clusters (unless the roots and singles alone are more), in the
+ * depth-first walk's order. `work` holds pn_cluster_cut_capped_work(max_count) bytes. max_count
+ * <= 0: no cap. When the count returned is above capacity, out[] holds only some of them. */
 int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                           int max_count, int *out, int capacity, void *work);
 size_t pn_cluster_cut_capped_work(int max_count);
