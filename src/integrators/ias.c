@@ -618,7 +618,7 @@ typedef struct ias_scratch {
     int region_cap, region_count;
     int *cut;
     int cut_cap, cut_used;
-    void *cut_work; /* pn_cluster_cut_capped's heap */
+    void *cut_work;            /* pn_cluster_cut_capped's heap */
     pn_ias_stats *block_stats; /* IAS_CLASSES x id_count */
     bool block_class_used[IAS_CLASSES];
     int max_pixels;           /* pixels a batch may hold: at least 64, block_size^2 */
@@ -1166,11 +1166,11 @@ static bool grow_r(ias_scratch *s, int need) {
     if (need <= s->r_cap) return true;
     int cap = s->r_cap ? s->r_cap : 1024;
     while (cap < need) cap *= 2;
-#define GROW(field, n)                                                                                            \
-    do {                                                                                                          \
-        void *p_ = realloc(s->field, (size_t)(n) * sizeof *s->field);                                             \
-        if (!p_) return false;                                                                                    \
-        s->field = p_;                                                                                            \
+#define GROW(field, n)                                                                                                 \
+    do {                                                                                                               \
+        void *p_ = realloc(s->field, (size_t)(n) * sizeof *s->field);                                                  \
+        if (!p_) return false;                                                                                         \
+        s->field = p_;                                                                                                 \
     } while (0)
     GROW(r_id, cap);
     GROW(r_pre, cap);
@@ -1263,8 +1263,8 @@ static const pn_ias_stats *pixel_slab_find(const ias_scratch *s, int pixel, unsi
 }
 
 /* A sample through cluster id `id` with light `light` (see above), for the block and the pixel. */
-static void cut_record(const ias_shared *sh, ias_scratch *s, int pixel, unsigned cls, int id, int light,
-                       double value, bool visible) {
+static void cut_record(const ias_shared *sh, ias_scratch *s, int pixel, unsigned cls, int id, int light, double value,
+                       bool visible) {
     const pn_cluster_forest *f = &sh->forest;
     if (!s->r_ready && !cut_build(sh, s)) {
         s->oom = true;

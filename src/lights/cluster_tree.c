@@ -362,13 +362,13 @@ typedef struct pn_build_slot {
 
 typedef struct pn_builder {
     pn_cluster_node *nodes;
-    unsigned char *alive;       /* per forest node */
-    int *slot;                  /* per forest node: its k-d leaf, or -1 */
-    pn_build_item *it;          /* per forest node: its sphere */
-    pn_build_slot *slots;       /* the k-d leaves' lists (heads and links are slot indices) */
-    int *slot_at;               /* per forest node: its slot while it is live */
+    unsigned char *alive; /* per forest node */
+    int *slot;            /* per forest node: its k-d leaf, or -1 */
+    pn_build_item *it;    /* per forest node: its sphere */
+    pn_build_slot *slots; /* the k-d leaves' lists (heads and links are slot indices) */
+    int *slot_at;         /* per forest node: its slot while it is live */
     int slot_used;
-    unsigned *stamp;            /* per forest node: bumped when its heap entry is replaced */
+    unsigned *stamp; /* per forest node: bumped when its heap entry is replaced */
     pn_kd_node *kd;
     int kd_count, kd_root;
     int *items; /* scratch for building the k-d tree */

@@ -79,7 +79,7 @@ typedef struct pn_cluster_forest {
                                   (clamped at order_count): pn_cluster_pick searches these first, so
                                   that a pick reads a few cache lines of power_prefix, not log2(count) */
     int coarse_count;
-    int light_count;      /* pn_lights.count at build time */
+    int light_count; /* pn_lights.count at build time */
 } pn_cluster_forest;
 
 #define PN_CLUSTER_COARSE 16
