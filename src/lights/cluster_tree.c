@@ -28,6 +28,7 @@
  */
 #include "lights/cluster_tree.h"
 
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -952,8 +953,10 @@ static int classify(const pn_lights *lights, const pn_cluster_node *nd, vec3 p, 
     return pn_cluster_solid_angle(nd->center, nd->radius, p) < lim->max_solid_angle ? PN_CUT_TAKE : PN_CUT_DESCEND;
 }
 
-int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
-                      int *out, int capacity, int *culled, int culled_capacity, int *culled_count) {
+/* pn_cluster_cut_ex's walk, abandoned (returning stop + 1) as soon as more than `stop` clusters
+ * are taken: the count only grows, so the cut has more than `stop` of them. */
+static int cut_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                    int *out, int capacity, int *culled, int culled_capacity, int *culled_count, int stop) {
     int count = 0, ccount = 0;
     bool horizon = !v3_is_zero(n);
     const cut_limit lim = make_cut_limit(max_solid_angle);
@@ -971,7 +974,7 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
             }
             if (action == PN_CUT_TAKE) {
                 if (count < capacity) out[count] = node;
-                count++;
+                if (++count > stop) return count;
             } else {
                 if (ccount < culled_capacity) culled[ccount] = node;
                 ccount++;
@@ -988,11 +991,16 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
             ccount++;
         } else {
             if (count < capacity) out[count] = node;
-            count++;
+            if (++count > stop) return count;
         }
     }
     if (culled_count) *culled_count = ccount;
     return count;
+}
+
+int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                      int *out, int capacity, int *culled, int culled_capacity, int *culled_count) {
+    return cut_walk(f, lights, p, n, max_solid_angle, out, capacity, culled, culled_capacity, culled_count, INT_MAX);
 }
 
 int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle, int *out,
@@ -1064,7 +1072,7 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
     if (max_count <= 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
     /* Under the cap the plain walk's cut is the answer. (The priority walk alone would not always
      * give it there: its count can pass the cap on the way, before subtrees turn out culled.) */
-    const int plain = pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
+    const int plain = cut_walk(f, lights, p, n, max_solid_angle, out, capacity, NULL, 0, NULL, max_count);
     if (plain <= max_count) return plain;
     /* heap: the open elements; held: elements whose refinement the cap stopped, refined after all
      * when a refinement that culls both children makes room (so the count ends at max_count);
