@@ -131,7 +131,21 @@
  *    mode is slower at equal relMSE (control by 20-30%, pixel by 65%; the light there is 30%
  *    occluded, the noise left is which lights are visible, and the floor is glossy); on
  *    bathroom-72-matte's control is 1.18-1.25x faster, pixel 2.6x slower; cluster is 0.25% dark
- *    after one pass on hall-many (pixel and control within noise; docs/methods/ias.md).
+ *    after one pass on hall-many (pixel and control within noise; docs/methods/ias.md);
+ *  - ias-stats cut (session 20; issue 15, light count; cut_record): with the hash-table statistics
+ *    (sparse_stats, from PN_IAS_DENSE_IDS cluster ids) a sample is added only to the nodes of the
+ *    block's cuts whose light range holds its light, each with the sample over the light's
+ *    probability within the node, instead of at its leaf with every node above it aggregated
+ *    (sparse_add, sparse_aggregate). The statistics are only ever read at cut nodes, so these are
+ *    the same sums, but as power(node) / power(light) rather than the product of the ratios of
+ *    the chain of children: equal up to rounding, not bit for bit by construction (the paper
+ *    variant keeps the tree statistics). Reason: at 10^6 emitters the chain below the cut was some
+ *    ten new hash-table entries per sample, the largest part of the render after the shadow rays
+ *    (sparse_aggregate and replay_log 23% of the process's CPU). Effect (bench/ias/scaling.sh,
+ *    many-10^6, docs/methods/ias.md "Light count, session 20"): render time per eye ray about
+ *    half, peak memory 932 -> 712 MB; the images came out bit for bit the tree statistics' on
+ *    every scene tried (the generated 10^5 and 10^6 emitters, tests/test_ias_scale.c's unequal
+ *    emitters); --ias-stats tree restores the tree statistics.
  *
  * Not a departure (the images are the same bit for bit, both variants): with the trees cut and at
  * least PN_IAS_DENSE_IDS cluster ids (ias_speed.h; some 30,000 emitters) the block's and the
@@ -139,7 +153,13 @@
  * sparse_add): the arrays were aggregated and cleared in full per pass and pixel pass, O(lights)
  * per pixel. At 10^6 emitters (bench/ias/scaling.sh) process CPU 115 -> 23 s, render time per
  * eye ray 12x less, peak memory 3.77 GB -> 0.93 GB; the work per shadow ray grows with the depth
- * below the cut, not with N (tests/test_ias_scale.c). */
+ * below the cut, not with N (tests/test_ias_scale.c). Nor are (session 20) pn_cluster_pick's search
+ * by groups of 16 running sums and the tree build's compact k-d leaf lists (lights/cluster_tree.c):
+ * the same lights and trees, fewer cache misses.
+ *
+ * Option, not the default: ias-cut-max K (session 20; compute_cut, pn_cluster_cut_capped) caps a
+ * point's trees cut at K clusters, refined largest solid angle first, so that N_C and the passes
+ * stop growing with the emitters; measured in docs/methods/ias.md, "Light count, session 20". */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
