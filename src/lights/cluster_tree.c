@@ -668,6 +668,7 @@ void pn_cluster_forest_free(pn_cluster_forest *f) {
     free(f->nodes);
     free(f->light_order);
     free(f->power_coarse);
+    free(f->ranges);
     free(f->leaf_of_light);
     free(f->singles);
     free(f->power_prefix);
@@ -848,6 +849,15 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
         if (!out->power_coarse) {
             status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
             goto done;
+        }
+        out->ranges = malloc(2 * (size_t)(total > 0 ? total : 1) * sizeof *out->ranges);
+        if (!out->ranges) {
+            status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
+            goto done;
+        }
+        for (int i = 0; i < total; i++) {
+            out->ranges[2 * i] = out->nodes[i].first;
+            out->ranges[2 * i + 1] = out->nodes[i].count;
         }
         for (int j = 0; j < out->coarse_count; j++) {
             int at = (j + 1) * PN_CLUSTER_COARSE;
@@ -1169,8 +1179,7 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
 /* ---------------------------------------------------------------- picking */
 
 int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int node, float u, float *prob) {
-    const pn_cluster_node *nd = &f->nodes[node];
-    int first = nd->first, count = nd->count;
+    int first = f->ranges[2 * node], count = f->ranges[2 * node + 1];
     if (count <= 1) {
         if (prob) *prob = 1.0f;
         return f->light_order[first];
