@@ -681,6 +681,7 @@ typedef struct ias_scratch {
     struct ias_range *r_sort;
     int r_count, r_cap;
     uint32_t r_stamp, *node_stamp;
+    int *cut_r; /* per cut entry: its member number (cut_build), so that reads need no node_r */
     int *node_r, *r_id, *r_pre, *pre_first, *r_first, *r_up, *r_end, pre_count;
     double *r_power;
     pn_ias_stats *rb;
@@ -739,6 +740,7 @@ static void ias_scratch_free(void *p) {
     free(s->stack);
     free(s->node_stamp);
     free(s->node_r);
+    free(s->cut_r);
     free(s->r_id);
     free(s->r_pre);
     free(s->pre_first);
@@ -807,7 +809,8 @@ static void *ias_scratch_create(const pn_render_job *job) {
             s->node_stamp = calloc((size_t)sh->id_count, sizeof *s->node_stamp);
             s->node_r = malloc((size_t)sh->id_count * sizeof *s->node_r);
             s->px_slab = malloc((size_t)s->max_pixels * IAS_CLASSES * sizeof *s->px_slab);
-            ok = s->node_stamp && s->node_r && s->px_slab;
+            s->cut_r = malloc((size_t)s->cut_cap * sizeof *s->cut_r);
+            ok = s->node_stamp && s->node_r && s->px_slab && s->cut_r;
         }
         for (int i = 0; ok && i < s->max_pixels; i++) ok = table_grow(&s->ptables[i]);
         if (!ok) {
@@ -880,6 +883,11 @@ static bool reserve_cut(ias_scratch *s, int more) {
         double *f = realloc(s->fp_snap, (size_t)cap * sizeof *f);
         if (!f) return false;
         s->fp_snap = f;
+    }
+    if (s->cut_r) {
+        int *cr = realloc(s->cut_r, (size_t)cap * sizeof *cr);
+        if (!cr) return false;
+        s->cut_r = cr;
     }
     if (s->ratio_mode) {
         vec3 *e = realloc(s->cut_unshadowed, (size_t)cap * sizeof *e);
@@ -1217,11 +1225,13 @@ static bool cut_build(const ias_shared *sh, ias_scratch *s) {
     s->r_count = 0;
     for (int i = 0; i < s->cut_used; i++) {
         const int id = s->cut[i];
-        if (s->node_stamp[id] == s->r_stamp) continue;
-        if (!grow_r(s, s->r_count + 1)) return false;
-        s->node_stamp[id] = s->r_stamp;
-        s->node_r[id] = s->r_count;
-        s->r_id[s->r_count++] = id;
+        if (s->node_stamp[id] != s->r_stamp) {
+            if (!grow_r(s, s->r_count + 1)) return false;
+            s->node_stamp[id] = s->r_stamp;
+            s->node_r[id] = s->r_count;
+            s->r_id[s->r_count++] = id;
+        }
+        s->cut_r[i] = s->node_r[id];
     }
     int np = 0;
     for (int r = 0; r < s->r_count; r++) {
@@ -1396,7 +1406,8 @@ static void sparse_begin_pixel(const ias_shared *sh, ias_scratch *s, ias_pixel *
             const bool any = px->classes & (1u << r->cls); /* none: no data yet, F = 0 */
             const pn_ias_stats *slab = sh->cut_stats ? pixel_slab_find(s, pixel, (unsigned)r->cls) : NULL;
             if (sh->cut_stats) {
-                for (int i = 0; i < r->cut_count; i++) f[i] = slab ? pn_ias_feedback(&slab[s->node_r[cut[i]]]) : 0.0;
+                const int *cr = s->cut_r + r->cut_first;
+                for (int i = 0; i < r->cut_count; i++) f[i] = slab ? pn_ias_feedback(&slab[cr[i]]) : 0.0;
                 prev = r;
                 continue;
             }
@@ -1430,7 +1441,8 @@ static void build_pdf(const ias_shared *sh, ias_scratch *s, const ias_region *r,
     double fb = 0.0, fp = 0.0;
     if (cb > 0.0 && sh->cut_stats) {
         const double *snap = s->rb_snap + (size_t)r->cls * (size_t)s->r_count;
-        for (int i = 0; i < nc; i++) fb += (fblock[i] = snap[s->node_r[cut[i]]]);
+        const int *cr = s->cut_r + r->cut_first;
+        for (int i = 0; i < nc; i++) fb += (fblock[i] = snap[cr[i]]);
     } else if (cb > 0.0 && sh->sparse_stats) {
         for (int i = 0; i < nc; i++) {
             const ias_entry *e = table_entry(&s->btable, table_key(-1, (unsigned)r->cls, cut[i]), false, NULL);
