@@ -3,18 +3,20 @@
  * emitting triangles, written here,
  *  - the hash-table statistics give the dense arrays' images bit for bit (N = 1,000 and 30,000,
  *    default variant with ias-stats tree, and paper variant);
- *  - ias-stats cut (the statistics of the block's cut nodes only, the default) gives the same
- *    images up to rounding: on emitters of unequal power (so that the power ratios round), relMSE
- *    against the tree statistics below 1e-9, where the render's own noise is some 1e-3;
- *  - its work per shadow ray grows less: within 1.5x from N = 1,000 to 30,000 (the cut nodes' chain
- *    per sample is flat; the pixels' statistics over the block's cut nodes are cleared per block),
- *    where the tree statistics' grows with the depth below the cut (2x);
- *  - ias-cut-max K bounds the clusters per point (mean at most K, and close to K when the plain
- *    cut is larger), and a K above every point's cut changes nothing, bit for bit;
  *  - their work per shadow ray (entries aggregated, set and cleared, pn_ias_stats_work) grows by
- *    less than 3x from N = 1,000 to 30,000 (log N), where the dense arrays' grows with N (checked too, so
- *    that the measure is known to see the difference: with the hash tables switched off, by
- *    pn_ias_set_dense_limit(INT_MAX), the first check fails). */
+ *    less than 3x from N = 1,000 to 30,000 (log N), where the dense arrays' grows with N (checked
+ *    too, so that the measure is known to see the difference: with the hash tables switched off,
+ *    by pn_ias_set_dense_limit(INT_MAX), that check fails);
+ *  - ias-stats cut (the statistics of the block's cut nodes only, the default) gives the tree
+ *    statistics' images up to rounding: on emitters of unequal power (so that the power ratios
+ *    round) relMSE between them below 1e-9, where another seed differs by 6e-4 to 0.2 (measured:
+ *    0, the same images);
+ *  - its work per shadow ray grows less: within 1.5x from N = 1,000 to 30,000 (the chain of cut
+ *    nodes per sample is flat; what grows is clearing the pixels' statistics over the block's cut
+ *    nodes once per block), where the tree statistics' grows with the depth below the cut (2x);
+ *  - ias-cut-max K bounds the clusters per point (pixel means at most K; with caps 20 and 40 as
+ *    1 : 2, every point's cut being exactly the cap), a K above every point's cut changes
+ *    nothing bit for bit, and the paper variant ignores it. */
 #include "harness.h"
 #include "render_fields.h"
 
