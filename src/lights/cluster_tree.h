@@ -79,7 +79,7 @@ typedef struct pn_cluster_forest {
                                   (clamped at order_count): pn_cluster_pick searches these first, so
                                   that a pick reads a few cache lines of power_prefix, not log2(count) */
     int coarse_count;
-    int *ranges;          /* node_count pairs: each node's first and count again, compact (8 bytes
+    int *ranges;     /* node_count pairs: each node's first and count again, compact (8 bytes
                                   where the node is 140), for pn_cluster_pick */
     int light_count; /* pn_lights.count at build time */
 } pn_cluster_forest;
