@@ -581,6 +581,74 @@ static void test_cut_properties(void) {
     free(mark);
 }
 
+/* pn_cluster_cut_capped: at or above the plain cut's size the same clusters in the same order;
+ * below it exactly max_count clusters, in light order, disjoint, every lit light in one of them,
+ * every cluster's ancestors opened, and only clusters that subtend the limit or more left whole. */
+static void test_cut_capped(void) {
+    test_rng r = {23};
+    int count = 2500;
+    pn_light *l = mixed_lights(&r, count, 6.0f);
+    for (int i = 0; i < 800; i++) l[i].p = v3_add(v3((float)(i / 100) * 2.0f - 7.0f, 3.0f, 0.5f), rnd_box(&r, 0.2f));
+    pn_lights L = wrap_lights(l, count);
+    pn_cluster_forest f;
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_cluster_forest_build(&L, &f, &err) == PN_OK);
+    const int cap = f.node_count + 1;
+    int *plain = malloc((size_t)cap * sizeof *plain), *out = malloc((size_t)cap * sizeof *out);
+    int *mark = calloc((size_t)count, sizeof *mark);
+    void *work = calloc(1, pn_cluster_cut_capped_work(cap));
+    int capped_points = 0, whole = 0;
+    float limits[] = {0.02f, 0.2f, 0.002f};
+    for (int i = 0; i < 200; i++) {
+        vec3 p = rnd_box(&r, i % 3 == 0 ? 20.0f : 7.0f);
+        vec3 n = i % 10 == 9 ? v3(0, 0, 0) : rnd_unit(&r);
+        float sa = limits[i % 3];
+        int k = pn_cluster_cut(&f, &L, p, n, sa, plain, cap);
+        for (int extra = 0; extra <= 5; extra += 5) {
+            int c = pn_cluster_cut_capped(&f, &L, p, n, sa, k + extra, out, cap, work);
+            CHECK(c == k && memcmp(out, plain, (size_t)k * sizeof *out) == 0);
+        }
+        int single_lit = 0;
+        for (int s = 0; s < f.single_count; s++)
+            single_lit += !pn_cluster_light_culled(&L.lights[f.nodes[f.singles[s]].light], p, n);
+        const int caps[3] = {k / 2, k - 1, single_lit + PN_TREE_COUNT + 3};
+        for (int j = 0; j < 3; j++) {
+            const int m = caps[j];
+            if (m >= k || m < single_lit + PN_TREE_COUNT) continue;
+            capped_points++;
+            int c = pn_cluster_cut_capped(&f, &L, p, n, sa, m, out, cap, work);
+            CHECK_MSG(c == m, "capped at %d: %d clusters (plain %d)", m, c, k);
+            memset(mark, 0, (size_t)count * sizeof *mark);
+            for (int a = 0; a < c && a < cap; a++) {
+                const pn_cluster_node *nd = &f.nodes[out[a]];
+                if (a > 0) CHECK(f.nodes[out[a - 1]].first + f.nodes[out[a - 1]].count <= nd->first);
+                if (nd->left >= 0 && pn_cluster_solid_angle(nd->center, nd->radius, p) >= sa) whole++;
+                for (int up = nd->parent; up >= 0; up = f.nodes[up].parent)
+                    CHECK(pn_cluster_solid_angle(f.nodes[up].center, f.nodes[up].radius, p) >= sa);
+                for (int q = nd->first; q < nd->first + nd->count; q++) mark[f.light_order[q]]++;
+            }
+            for (int li = 0; li < count; li++) {
+                if (L.lights[li].kind == PN_LIGHT_ENVIRONMENT) continue;
+                CHECK(mark[li] <= 1);
+                if (!gives_nothing(&L.lights[li], p, n)) CHECK_MSG(mark[li] == 1, "lit light %d in no cluster", li);
+            }
+        }
+    }
+    printf("  %d capped cuts, %d clusters left whole above the limit\n", capped_points, whole);
+    CHECK(capped_points > 100 && whole > 0);
+    /* No cap (0): the plain cut. */
+    int k = pn_cluster_cut(&f, &L, v3(-7, 3, 0.5f), v3(0, 0, 0), 0.02f, plain, cap);
+    CHECK(pn_cluster_cut_capped(&f, &L, v3(-7, 3, 0.5f), v3(0, 0, 0), 0.02f, 0, out, cap, work) == k);
+    CHECK(memcmp(out, plain, (size_t)k * sizeof *out) == 0);
+    pn_cluster_forest_free(&f);
+    free(work);
+    free(mark);
+    free(out);
+    free(plain);
+    free(l);
+}
+
 static void test_solid_angle(void) {
     /* A sphere of radius 1 at distance 2 subtends a cone of half-angle 30 degrees. */
     double expected = 2.0 * M_PI * (1.0 - cos(M_PI / 6.0));
@@ -611,6 +679,20 @@ static void check_pick(const pn_cluster_forest *f, const pn_lights *L, int node,
         if (li < 0 || li >= L->count) continue;
         hits[li]++;
         float expected = nd->power > 0.0f ? pn_cluster_light_power(&L->lights[li]) / nd->power : 1.0f / (float)k;
+        if (s < 2000 && k > 1) {
+            /* The answer of a plain scan: the first position whose running sum passes the target
+             * (the grouped search of pn_cluster_pick must find the very same light). */
+            const double *pre = f->power_prefix;
+            float u = rnd(r);
+            double total = pre[nd->first + k] - pre[nd->first];
+            if (total > 0.0) {
+                double target = pre[nd->first] + (double)u * total;
+                int j = nd->first;
+                while (j < nd->first + k - 1 && !(pre[j + 1] > target)) j++;
+                while (j > nd->first && !(pre[j + 1] > pre[j])) j--;
+                CHECK(pn_cluster_pick(f, L, node, u, NULL) == f->light_order[j]);
+            }
+        }
         if (s < 2000) {
             CHECK_NEAR(prob, expected, 1e-5 * (double)expected + 1e-9);
             CHECK(prob > 0.0f);
@@ -728,4 +810,4 @@ static void test_build_time(void) {
 }
 
 PN_TESTS(TEST(test_solid_angle), TEST(test_forest_structure), TEST(test_greedy_matches_brute_force),
-         TEST(test_cut_properties), TEST(test_pick), TEST(test_build_time))
+         TEST(test_cut_properties), TEST(test_cut_capped), TEST(test_pick), TEST(test_build_time))

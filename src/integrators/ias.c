@@ -148,6 +148,20 @@
  *    passes: relMSE 0.0049 -> 0.0022 for the same shadow rays), bathroom-72 8.5 -> 4.9 s,
  *    bathroom-72-matte at T = 0.0025 1.6x; hall-many and hall-many-matte within 4%; scenes without
  *    such lights (staircase-832, living-env-138, the generated ones) unchanged bit for bit.
+ *  - ias-stats cut (session 20; issue 15, light count; cut_record): with the hash-table statistics
+ *    (sparse_stats, from PN_IAS_DENSE_IDS cluster ids) a sample is added only to the nodes of the
+ *    block's cuts whose light range holds its light, each with the sample over the light's
+ *    probability within the node, instead of at its leaf with every node above it aggregated
+ *    (sparse_add, sparse_aggregate). The statistics are only ever read at cut nodes, so these are
+ *    the same sums, but as power(node) / power(light) rather than the product of the ratios of
+ *    the chain of children: equal up to rounding, not bit for bit by construction (the paper
+ *    variant keeps the tree statistics). Reason: at 10^6 emitters the chain below the cut was some
+ *    ten new hash-table entries per sample, the largest part of the render after the shadow rays
+ *    (sparse_aggregate and replay_log 23% of the process's CPU). Effect (bench/ias/scaling.sh,
+ *    docs/methods/ias.md "Light count, session 20"): render CPU per eye ray at 10^5 emitters
+ *    54 -> 33 us, at 10^6 118 -> 54 us, peak memory at 10^6 948 -> 768 MB; the images came out
+ *    bit for bit the tree statistics' on every scene tried (the generated 10^5 and 10^6
+ *    emitters, tests/test_ias_scale.c's unequal emitters); --ias-stats tree restores them.
  *
  * Not a departure (the images are the same bit for bit, both variants): with the trees cut and at
  * least PN_IAS_DENSE_IDS cluster ids (ias_speed.h; some 30,000 emitters) the block's and the
@@ -155,7 +169,13 @@
  * sparse_add): the arrays were aggregated and cleared in full per pass and pixel pass, O(lights)
  * per pixel. At 10^6 emitters (bench/ias/scaling.sh) process CPU 115 -> 23 s, render time per
  * eye ray 12x less, peak memory 3.77 GB -> 0.93 GB; the work per shadow ray grows with the depth
- * below the cut, not with N (tests/test_ias_scale.c). */
+ * below the cut, not with N (tests/test_ias_scale.c). Nor are (session 20) pn_cluster_pick's search
+ * by groups of 16 running sums and the tree build's compact k-d leaf lists (lights/cluster_tree.c):
+ * the same lights and trees, fewer cache misses.
+ *
+ * Option, not the default: ias-cut-max K (session 20; compute_cut, pn_cluster_cut_capped) caps a
+ * point's trees cut at K clusters, refined largest solid angle first, so that N_C and the passes
+ * stop growing with the emitters; measured in docs/methods/ias.md, "Light count, session 20". */
 #include "integrators/integrator.h"
 
 #include "core/clock.h"
@@ -221,6 +241,7 @@ typedef struct ias_shared {
     double prior_share;    /* the least weight c_U's PDF keeps in eq. 6 (build_pdf_table); 0: Fig. 2's */
     double env_floor;      /* trees cut: an environment region keeps this times its pass-0 probability */
     int cut_size;
+    int cut_max; /* trees cut: most clusters per point (pn_cluster_cut_capped); 0: no cap */
     pn_light_bvh bvh;
     int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
     int distant_count;
@@ -229,6 +250,8 @@ typedef struct ias_shared {
     int ratio;                /* PN_IAS_RATIO_*: the ratio estimator (ias_ratio.h); 0: off */
     int ratio_members;        /* largest cluster given its closed form */
     bool sparse_stats;        /* trees cut: statistics in hash tables, not dense arrays (sparse_add) */
+    bool cut_stats;           /* sparse_stats, default variant: statistics of the block's cut nodes only
+                                 (ias-stats cut; cut_record) */
     struct ias_tnode *tnodes; /* sparse_stats: the forest's links and power ratios, compact */
     int mis;                  /* PN_IAS_MIS_*: BSDF samples paired with the light samples (ias_mis.h) */
     pn_ias_mis_map mis_map;   /* mis: emitting surfaces -> lights */
@@ -366,6 +389,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->member_points = !paper && job->ias_points == PN_IAS_POINTS_MEMBERS;
     sh->sobol_direct = !paper && job->ias_cluster_numbers == PN_IAS_NUMBERS_SOBOL;
     sh->cut_size = job->ias_cut_size > 0 ? (int)job->ias_cut_size : 1;
+    sh->cut_max = paper || sh->bvh_cut ? 0 : (int)job->ias_cut_max;
     sh->aa_rays = ias_eye_rays(job, paper);
     sh->prior_share = sh->bvh_cut ? job->ias_prior_share : 0.0;
     sh->irradiance_prior = !paper && !sh->bvh_cut && job->ias_prior == PN_IAS_PRIOR_IMPORTANCE;
@@ -434,6 +458,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     }
     sh->id_count = next;
     sh->sparse_stats = !sh->bvh_cut && next >= dense_limit;
+    sh->cut_stats = sh->sparse_stats && !paper && job->ias_stats == PN_IAS_STATS_CUT;
     if (sh->sparse_stats) {
         const pn_cluster_forest *f = &sh->forest;
         sh->tnodes = malloc((size_t)(f->node_count > 0 ? f->node_count : 1) * sizeof *sh->tnodes);
@@ -646,12 +671,17 @@ typedef struct ias_pending {
     bool visible;
 } ias_pending;
 
+typedef struct ias_range {
+    int first, end, r;
+} ias_range;
+
 typedef struct ias_scratch {
     int id_count;
     ias_region *regions;
     int region_cap, region_count;
     int *cut;
     int cut_cap, cut_used;
+    void *cut_work;            /* pn_cluster_cut_capped's heap */
     pn_ias_stats *block_stats; /* IAS_CLASSES x id_count */
     bool block_class_used[IAS_CLASSES];
     int max_pixels;           /* pixels a batch may hold: at least 64, block_size^2 */
@@ -684,6 +714,24 @@ typedef struct ias_scratch {
     struct ias_log blog, *plogs; /* the samples not yet in btable / ptables[pixel] */
     double *fp_snap;
     int *stack;
+    /* ias-stats cut (cut_record): the block's cut nodes R, numbered 0 .. r_count in the order met;
+     * node_r[id] is id's number where node_stamp[id] == r_stamp. r_pre: the tree nodes of R by
+     * light range (start ascending, larger first), pre_first their range starts; r_up: the nearest
+     * member of R above (-1: none); r_end, r_power: range end and power. Statistics per class and
+     * member: the block's (rb, its feedback weights when the pass began rb_snap) and, per pixel and
+     * class, a slab of r_count (px_slab: its index in slab_pool, or -1). */
+    bool r_ready;
+    struct ias_range *r_sort;
+    int r_count, r_cap;
+    uint32_t r_stamp, *node_stamp;
+    int *cut_r; /* per cut entry: its member number (cut_build), so that reads need no node_r */
+    int *node_r, *r_id, *r_pre, *pre_first, *r_first, *r_up, *r_end, pre_count;
+    double *r_power;
+    pn_ias_stats *rb;
+    double *rb_snap;
+    int *px_slab;
+    pn_ias_stats *slab_pool;
+    int slab_used, slab_cap;
     int stack_cap;
     bool oom;
     ias_point *points, *points_tmp; /* member points, by region; the pixel's, in ray order */
@@ -714,6 +762,7 @@ static void ias_scratch_free(void *p) {
     if (!s) return;
     free(s->regions);
     free(s->cut);
+    free(s->cut_work);
     free(s->block_stats);
     free(s->pixel_pool);
     free(s->pdf);
@@ -739,6 +788,21 @@ static void ias_scratch_free(void *p) {
     free(s->plogs);
     free(s->fp_snap);
     free(s->stack);
+    free(s->node_stamp);
+    free(s->node_r);
+    free(s->cut_r);
+    free(s->r_id);
+    free(s->r_pre);
+    free(s->pre_first);
+    free(s->r_first);
+    free(s->r_sort);
+    free(s->r_up);
+    free(s->r_end);
+    free(s->r_power);
+    free(s->rb);
+    free(s->rb_snap);
+    free(s->px_slab);
+    free(s->slab_pool);
     free(s->pending);
     free(s->fprior);
     free(s->emit_hits);
@@ -774,6 +838,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->regions = malloc((size_t)s->region_cap * sizeof *s->regions);
     s->cut_cap = (int)per_cut * 8;
     s->cut = malloc((size_t)s->cut_cap * sizeof *s->cut);
+    s->cut_work = calloc(1, pn_cluster_cut_capped_work(sh->cut_max));
     s->cut_prior = malloc((size_t)s->cut_cap * sizeof *s->cut_prior);
     s->fprior = malloc((per_cut + 1) * sizeof *s->fprior);
     s->block_stats = calloc(IAS_CLASSES * ids, sizeof *s->block_stats);
@@ -793,6 +858,13 @@ static void *ias_scratch_create(const pn_render_job *job) {
         s->ptables = calloc((size_t)s->max_pixels, sizeof *s->ptables);
         s->plogs = calloc((size_t)s->max_pixels, sizeof *s->plogs);
         bool ok = s->fp_snap && s->ptables && s->plogs && table_grow(&s->btable);
+        if (ok && sh->cut_stats) {
+            s->node_stamp = calloc((size_t)sh->id_count, sizeof *s->node_stamp);
+            s->node_r = malloc((size_t)sh->id_count * sizeof *s->node_r);
+            s->px_slab = malloc((size_t)s->max_pixels * IAS_CLASSES * sizeof *s->px_slab);
+            s->cut_r = malloc((size_t)s->cut_cap * sizeof *s->cut_r);
+            ok = s->node_stamp && s->node_r && s->px_slab && s->cut_r;
+        }
         for (int i = 0; ok && i < s->max_pixels; i++) ok = table_grow(&s->ptables[i]);
         if (!ok) {
             ias_scratch_free(s);
@@ -820,7 +892,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
             return NULL;
         }
     }
-    if (!s->cut_prior || !s->fprior || !s->emit_hits || (sh->bvh_cut && !table_grow(&s->table)) ||
+    if (!s->cut_prior || !s->fprior || !s->emit_hits || !s->cut_work || (sh->bvh_cut && !table_grow(&s->table)) ||
         (sh->light_guide && !pn_ias_guide_init(&s->guide, &sh->guide))) {
         ias_scratch_free(s);
         return NULL;
@@ -874,6 +946,11 @@ static bool reserve_cut(ias_scratch *s, int more) {
         double *f = realloc(s->fp_snap, (size_t)cap * sizeof *f);
         if (!f) return false;
         s->fp_snap = f;
+    }
+    if (s->cut_r) {
+        int *cr = realloc(s->cut_r, (size_t)cap * sizeof *cr);
+        if (!cr) return false;
+        s->cut_r = cr;
     }
     if (s->ratio_mode) {
         vec3 *e = realloc(s->cut_unshadowed, (size_t)cap * sizeof *e);
@@ -965,7 +1042,8 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
             out[k++] = sh->bvh.node_count + d;
         }
     } else {
-        k = pn_cluster_cut(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, out, sh->max_cut);
+        k = pn_cluster_cut_capped(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, sh->cut_max, out,
+                                  sh->max_cut, s->cut_work);
         if (k > sh->max_cut) k = sh->max_cut;
         for (int i = 0; i < k; i++) prior[i] = 1.0;
     }
@@ -1152,6 +1230,184 @@ static void sparse_aggregate(const ias_shared *sh, ias_scratch *s, ias_table *t,
     add_work(work);
 }
 
+/* ---- ias-stats cut: the statistics of the block's cut nodes only ----------------------------
+ *
+ * A node's statistics are read only where the node is in a point's cut: the block's at the cuts
+ * of all its regions (build_pdf), a pixel's at its regions' cuts (sparse_begin_pixel). The cuts
+ * are computed for all of the block's regions before its first pass, so the set R of nodes that
+ * can ever be read is known when the first sample is taken. Instead of recording a sample at its
+ * light's leaf and aggregating every node above it (sparse_add, sparse_aggregate: some 20 entries
+ * of a hash table per sample at 10^6 emitters, most of them below the cut), cut_record adds it to
+ * the members of R whose light range holds the light, each with the sample divided by the light's
+ * probability within the node, power(light) / power(node): the sum aggregate_stats forms through
+ * the chain of children, up to rounding (the product of the ratios instead of the one ratio), and
+ * the same counts. The members holding a light are the deepest one (a binary search over R's
+ * ranges by start) and its chain of nearest members above (r_up); they are few, the cuts of one
+ * block being alike. The images are the same up to that rounding, not bit for bit (the PDFs'
+ * last bits move some stratified choices); tests/test_ias_scale.c compares them. */
+
+/* The members of R in light-range order (start ascending, the larger range first on a tie). */
+static int pre_before(const void *a, const void *b) {
+    const ias_range *x = a, *y = b;
+    if (x->first != y->first) return x->first < y->first ? -1 : 1;
+    return x->end > y->end ? -1 : x->end < y->end ? 1 : 0;
+}
+
+static bool grow_r(ias_scratch *s, int need) {
+    if (need <= s->r_cap) return true;
+    int cap = s->r_cap ? s->r_cap : 1024;
+    while (cap < need) cap *= 2;
+#define GROW(field, n)                                                                                                 \
+    do {                                                                                                               \
+        void *p_ = realloc(s->field, (size_t)(n) * sizeof *s->field);                                                  \
+        if (!p_) return false;                                                                                         \
+        s->field = p_;                                                                                                 \
+    } while (0)
+    GROW(r_id, cap);
+    GROW(r_pre, cap);
+    GROW(r_sort, cap);
+    GROW(pre_first, cap);
+    GROW(r_first, cap);
+    GROW(r_up, cap);
+    GROW(r_end, cap);
+    GROW(r_power, cap);
+    GROW(rb, (size_t)IAS_CLASSES * (size_t)cap);
+    GROW(rb_snap, (size_t)IAS_CLASSES * (size_t)cap);
+#undef GROW
+    s->r_cap = cap;
+    return true;
+}
+
+/* R from the block's cuts (all computed before the first pass), its order and links. */
+static bool cut_build(const ias_shared *sh, ias_scratch *s) {
+    const pn_cluster_forest *f = &sh->forest;
+    if (++s->r_stamp == 0) {
+        memset(s->node_stamp, 0, (size_t)sh->id_count * sizeof *s->node_stamp);
+        s->r_stamp = 1;
+    }
+    s->r_count = 0;
+    for (int i = 0; i < s->cut_used; i++) {
+        const int id = s->cut[i];
+        if (s->node_stamp[id] != s->r_stamp) {
+            if (!grow_r(s, s->r_count + 1)) return false;
+            s->node_stamp[id] = s->r_stamp;
+            s->node_r[id] = s->r_count;
+            s->r_id[s->r_count++] = id;
+        }
+        s->cut_r[i] = s->node_r[id];
+    }
+    int np = 0;
+    for (int r = 0; r < s->r_count; r++) {
+        const int id = s->r_id[r];
+        s->r_up[r] = -1;
+        if (id >= f->node_count) { /* an environment region: no range, nothing above */
+            s->r_first[r] = s->r_end[r] = 0;
+            s->r_power[r] = 0.0;
+            continue;
+        }
+        s->r_first[r] = f->nodes[id].first;
+        s->r_end[r] = f->nodes[id].first + f->nodes[id].count;
+        s->r_power[r] = (double)f->nodes[id].power;
+        s->r_sort[np++] = (ias_range){s->r_first[r], s->r_end[r], r};
+    }
+    qsort(s->r_sort, (size_t)np, sizeof *s->r_sort, pre_before);
+    for (int k = 0; k < np; k++) s->r_pre[k] = s->r_sort[k].r;
+    /* Nearest member above: the innermost open range holding the member's start. */
+    int top = 0;
+    for (int k = 0; k < np; k++) {
+        const int r = s->r_pre[k], first = s->r_first[r];
+        s->pre_first[k] = first;
+        while (top > 0 && s->r_end[s->stack[top - 1]] <= first) top--;
+        s->r_up[r] = top > 0 ? s->stack[top - 1] : -1;
+        if (!push_stack(s, &top, r)) return false;
+    }
+    s->pre_count = np;
+    memset(s->rb, 0, (size_t)IAS_CLASSES * (size_t)s->r_count * sizeof *s->rb);
+    memset(s->rb_snap, 0, (size_t)IAS_CLASSES * (size_t)s->r_count * sizeof *s->rb_snap);
+    for (int i = 0; i < s->max_pixels * IAS_CLASSES; i++) s->px_slab[i] = -1;
+    s->slab_used = 0;
+    s->r_ready = true;
+    return true;
+}
+
+/* The pixel's statistics of class cls over R, zero until its first sample (NULL: out of memory). */
+static pn_ias_stats *pixel_slab(ias_scratch *s, int pixel, unsigned cls) {
+    int *slot = &s->px_slab[pixel * IAS_CLASSES + (int)cls];
+    if (*slot < 0) {
+        const size_t need = (size_t)(s->slab_used + 1) * (size_t)s->r_count;
+        if (need > (size_t)s->slab_cap) {
+            size_t cap = s->slab_cap ? (size_t)s->slab_cap : 4096;
+            while (cap < need) cap *= 2;
+            pn_ias_stats *p = realloc(s->slab_pool, cap * sizeof *p);
+            if (!p) return NULL;
+            s->slab_pool = p;
+            s->slab_cap = (int)cap;
+        }
+        *slot = s->slab_used++;
+        memset(s->slab_pool + (size_t)*slot * (size_t)s->r_count, 0, (size_t)s->r_count * sizeof *s->slab_pool);
+        add_work((uint64_t)s->r_count);
+    }
+    return s->slab_pool + (size_t)*slot * (size_t)s->r_count;
+}
+
+static const pn_ias_stats *pixel_slab_find(const ias_scratch *s, int pixel, unsigned cls) {
+    const int slot = s->px_slab[pixel * IAS_CLASSES + (int)cls];
+    return slot < 0 ? NULL : s->slab_pool + (size_t)slot * (size_t)s->r_count;
+}
+
+/* A sample through cluster id `id` with light `light` (see above), for the block and the pixel. */
+static void cut_record(const ias_shared *sh, ias_scratch *s, int pixel, unsigned cls, int id, int light, double value,
+                       bool visible) {
+    const pn_cluster_forest *f = &sh->forest;
+    if (!s->r_ready && !cut_build(sh, s)) {
+        s->oom = true;
+        return;
+    }
+    pn_ias_stats *pix = pixel_slab(s, pixel, cls), *blk = s->rb + (size_t)cls * (size_t)s->r_count;
+    if (!pix) {
+        s->oom = true;
+        return;
+    }
+    int r = s->node_r[id];
+    double base = 0.0;
+    if (id < f->node_count) {
+        const int from = light >= 0 ? f->leaf_of_light[light] : id;
+        base = (double)f->nodes[from].power;
+        if (light >= 0) { /* the deepest member holding the light: the last by start, or above it */
+            const int pos = f->nodes[from].first;
+            int lo = 0, hi = s->pre_count - 1;
+            while (lo < hi) {
+                const int mid = lo + (hi - lo + 1) / 2;
+                if (s->pre_first[mid] <= pos)
+                    lo = mid;
+                else
+                    hi = mid - 1;
+            }
+            r = s->r_pre[lo];
+            while (r >= 0 && s->r_end[r] <= pos) r = s->r_up[r];
+        }
+    }
+    uint64_t work = 0;
+    for (; r >= 0; r = s->r_up[r]) {
+        const double v = base > 0.0 ? value * (s->r_power[r] / base) : value;
+        pn_ias_stats_add(&blk[r], v, visible);
+        pn_ias_stats_add(&pix[r], v, visible);
+        work++;
+    }
+    add_work(work);
+}
+
+/* sparse_refresh_block with ias-stats cut: every member's block feedback weight. */
+static void cut_refresh_block(ias_scratch *s) {
+    for (int c = 0; c < IAS_CLASSES; c++) {
+        double *snap = s->rb_snap + (size_t)c * (size_t)s->r_count;
+        const pn_ias_stats *b = s->rb + (size_t)c * (size_t)s->r_count;
+        if (!s->block_class_used[c]) continue; /* zero since cut_build */
+        for (int r = 0; r < s->r_count; r++) snap[r] = pn_ias_feedback(&b[r]);
+        add_work((uint64_t)s->r_count);
+    }
+}
+
 static void push_log(ias_scratch *s, ias_log *l, unsigned cls, int id, double value, bool visible) {
     if (!room_for_one((void **)&l->r, &l->cap, l->count, 1024, sizeof *l->r)) {
         s->oom = true;
@@ -1164,6 +1420,10 @@ static void push_log(ias_scratch *s, ias_log *l, unsigned cls, int id, double va
  * block and for the pixel. */
 static void sparse_record(const ias_shared *sh, ias_scratch *s, int pixel, unsigned cls, int id, int light,
                           double value, bool visible) {
+    if (sh->cut_stats) {
+        cut_record(sh, s, pixel, cls, id, light, value, visible);
+        return;
+    }
     if (id < sh->forest.node_count && light >= 0) id = sh->forest.leaf_of_light[light];
     push_log(s, &s->blog, cls, id, value, visible);
     push_log(s, &s->plogs[pixel], cls, id, value, visible);
@@ -1179,6 +1439,10 @@ static void replay_log(const ias_shared *sh, ias_scratch *s, ias_log *l, ias_tab
 
 /* refresh_block_feedback with sparse_stats. */
 static void sparse_refresh_block(const ias_shared *sh, ias_scratch *s) {
+    if (sh->cut_stats) {
+        cut_refresh_block(s);
+        return;
+    }
     replay_log(sh, s, &s->blog, &s->btable, -1);
     sparse_aggregate(sh, s, &s->btable, -1, true);
 }
@@ -1186,8 +1450,14 @@ static void sparse_refresh_block(const ias_shared *sh, ias_scratch *s) {
 /* begin_pixel_feedback with sparse_stats: the feedback weights of the pixel's cut entries. */
 static void sparse_begin_pixel(const ias_shared *sh, ias_scratch *s, ias_pixel *px) {
     const int pixel = (int)(px - s->pixels);
-    replay_log(sh, s, &s->plogs[pixel], &s->ptables[pixel], pixel);
-    sparse_aggregate(sh, s, &s->ptables[pixel], pixel, false);
+    if (sh->cut_stats && !s->r_ready && !cut_build(sh, s)) {
+        s->oom = true;
+        return;
+    }
+    if (!sh->cut_stats) {
+        replay_log(sh, s, &s->plogs[pixel], &s->ptables[pixel], pixel);
+        sparse_aggregate(sh, s, &s->ptables[pixel], pixel, false);
+    }
     const ias_region *prev = NULL;
     for (int k = 0; k < px->region_count; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
@@ -1197,6 +1467,13 @@ static void sparse_begin_pixel(const ias_shared *sh, ias_scratch *s, ias_pixel *
         } else {
             const int *cut = s->cut + r->cut_first;
             const bool any = px->classes & (1u << r->cls); /* none: no data yet, F = 0 */
+            const pn_ias_stats *slab = sh->cut_stats ? pixel_slab_find(s, pixel, (unsigned)r->cls) : NULL;
+            if (sh->cut_stats) {
+                const int *cr = s->cut_r + r->cut_first;
+                for (int i = 0; i < r->cut_count; i++) f[i] = slab ? pn_ias_feedback(&slab[cr[i]]) : 0.0;
+                prev = r;
+                continue;
+            }
             for (int i = 0; i < r->cut_count; i++) {
                 const pn_ias_stats *q = any ? sparse_find(&s->ptables[pixel], pixel, (unsigned)r->cls, cut[i]) : NULL;
                 f[i] = q ? pn_ias_feedback(q) : 0.0;
@@ -1225,7 +1502,11 @@ static void build_pdf(const ias_shared *sh, ias_scratch *s, const ias_region *r,
     const double *fb_class = sh->sparse_stats ? NULL : s->fb_cache + (size_t)r->cls * (size_t)s->id_count;
     double *fblock = s->pdf, *fpixel = s->fpix; /* feedback weights of the cut's clusters */
     double fb = 0.0, fp = 0.0;
-    if (cb > 0.0 && sh->sparse_stats) {
+    if (cb > 0.0 && sh->cut_stats) {
+        const double *snap = s->rb_snap + (size_t)r->cls * (size_t)s->r_count;
+        const int *cr = s->cut_r + r->cut_first;
+        for (int i = 0; i < nc; i++) fb += (fblock[i] = snap[cr[i]]);
+    } else if (cb > 0.0 && sh->sparse_stats) {
         for (int i = 0; i < nc; i++) {
             const ias_entry *e = table_entry(&s->btable, table_key(-1, (unsigned)r->cls, cut[i]), false, NULL);
             fb += (fblock[i] = e ? e->snap : 0.0);
@@ -2379,6 +2660,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             s->plogs[pi].count = s->plogs[pi].done = 0;
         }
         s->blog.count = s->blog.done = 0;
+        s->r_ready = false; /* ias-stats cut: the next block's cuts make its own R */
         if (s->oom) return PN_ERROR_OUT_OF_MEMORY;
         return PN_OK;
     }

@@ -218,6 +218,23 @@ static const pn_option_decl options[] = {
      F(ias_cut_size),
      PN_FIELD_U32,
      0},
+    {{"ias-cut-max", PN_OPTION_INT, "0", 0, 1000000, 0, 0, "clusters", "",
+      "default variant with the cluster trees' cut: most clusters in a point's cut, the trees refined largest "
+      "solid angle first until the cap (clusters left above cluster-solid-angle pick their light by power); 0: no "
+      "cap, the paper's cut"},
+     BIT(M_IAS),
+     F(ias_cut_max),
+     PN_FIELD_U32,
+     0},
+    {{"ias-stats", PN_OPTION_CHOICE, "cut", 0, 0, 0, 0, "", "tree,cut",
+      "default variant with the cluster trees' cut and many cluster ids (the hash-table statistics, from about "
+      "30,000 emitters): a sample's statistics kept at every tree node above its light ('tree', the paper's "
+      "numbers bit for bit) or only at the nodes of the block's cuts above it ('cut': the same sums up to "
+      "rounding, work per sample independent of the tree's depth below the cut)"},
+     BIT(M_IAS),
+     F(ias_stats),
+     PN_FIELD_INT,
+     PN_IAS_STATS_TREE},
     {{"ias-prior", PN_OPTION_CHOICE, "importance", 0, 0, 0, 0, "", "uniform,importance",
       "default variant: the PDF of the first pass and the share eq. 6 gives c_U, 'uniform' over the clusters (the "
       "paper) or by each cluster's importance (with ias-cut bvh its unoccluded-irradiance bound; with the trees "

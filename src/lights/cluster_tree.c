@@ -28,6 +28,7 @@
  */
 #include "lights/cluster_tree.h"
 
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -345,12 +346,30 @@ typedef struct pn_heap_entry {
     unsigned stamp;
 } pn_heap_entry;
 
+/* A cluster's sphere, compact (16 bytes, where the forest's node is 140). */
+typedef struct pn_build_item {
+    vec3 center;
+    float radius;
+} pn_build_item;
+
+/* An entry of a k-d leaf's doubly linked list: the cluster's sphere and index beside the links,
+ * numbered in k-d leaf order when the k-d tree is built (each leaf's entries contiguous; merged
+ * clusters appended), so that a leaf's candidates share cache lines. */
+typedef struct pn_build_slot {
+    vec3 center;
+    float radius;
+    int id, next, prev;
+} pn_build_slot;
+
 typedef struct pn_builder {
     pn_cluster_node *nodes;
-    unsigned char *alive;       /* per forest node */
-    int *slot;                  /* per forest node: its k-d leaf, or -1 */
-    int *next_item, *prev_item; /* per forest node: the doubly linked list of its k-d leaf */
-    unsigned *stamp;            /* per forest node: bumped when its heap entry is replaced */
+    unsigned char *alive; /* per forest node */
+    int *slot;            /* per forest node: its k-d leaf, or -1 */
+    pn_build_item *it;    /* per forest node: its sphere */
+    pn_build_slot *slots; /* the k-d leaves' lists (heads and links are slot indices) */
+    int *slot_at;         /* per forest node: its slot while it is live */
+    int slot_used;
+    unsigned *stamp; /* per forest node: bumped when its heap entry is replaced */
     pn_kd_node *kd;
     int kd_count, kd_root;
     int *items; /* scratch for building the k-d tree */
@@ -406,7 +425,7 @@ static pn_heap_entry heap_pop(pn_builder *b) {
 
 /* Moves the k-th smallest item (by centre coordinate `axis`) of items[0..n) to position k, with
  * smaller or equal ones before it (three-way quickselect: many equal keys stay linear). */
-static void select_kth(int *items, int n, int k, const pn_cluster_node *nodes, int axis) {
+static void select_kth(int *items, int n, int k, const pn_build_item *nodes, int axis) {
     int lo = 0, hi = n - 1;
     while (lo < hi) {
         float pivot = v3_get(nodes[items[lo + (hi - lo) / 2]].center, axis);
@@ -442,11 +461,11 @@ static int kd_build(pn_builder *b, int begin, int end, int parent) {
     kn->left = kn->right = kn->head = -1;
     kn->axis = 0;
     kn->split = 0.0f;
-    const pn_cluster_node *first = &b->nodes[b->items[begin]];
+    const pn_build_item *first = &b->it[b->items[begin]];
     kn->lo = kn->hi = first->center;
     kn->rmin = first->radius;
     for (int i = begin + 1; i < end; i++) {
-        const pn_cluster_node *c = &b->nodes[b->items[i]];
+        const pn_build_item *c = &b->it[b->items[i]];
         kn->lo = v3_min(kn->lo, c->center);
         kn->hi = v3_max(kn->hi, c->center);
         kn->rmin = min_f(kn->rmin, c->radius);
@@ -454,23 +473,23 @@ static int kd_build(pn_builder *b, int begin, int end, int parent) {
     if (end - begin <= PN_CLUSTER_KD_LEAF) {
         int prev = -1;
         for (int i = begin; i < end; i++) {
-            int c = b->items[i];
+            int c = b->items[i], e = b->slot_used++;
             b->slot[c] = id;
-            b->prev_item[c] = prev;
-            b->next_item[c] = -1;
+            b->slot_at[c] = e;
+            b->slots[e] = (pn_build_slot){b->it[c].center, b->it[c].radius, c, -1, prev};
             if (prev >= 0)
-                b->next_item[prev] = c;
+                b->slots[prev].next = e;
             else
-                kn->head = c;
-            prev = c;
+                kn->head = e;
+            prev = e;
         }
         return id;
     }
     vec3 ext = v3_sub(kn->hi, kn->lo);
     int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
     int mid = begin + (end - begin) / 2;
-    select_kth(b->items + begin, end - begin, mid - begin, b->nodes, axis);
-    float split = v3_get(b->nodes[b->items[mid]].center, axis);
+    select_kth(b->items + begin, end - begin, mid - begin, b->it, axis);
+    float split = v3_get(b->it[b->items[mid]].center, axis);
     int left = kd_build(b, begin, mid, id);
     int right = kd_build(b, mid, end, id);
     kn = &b->kd[id];
@@ -488,12 +507,13 @@ static void kd_rebuild(pn_builder *b, int base, int end) {
     for (int i = base; i < end; i++)
         if (b->alive[i]) b->items[n++] = i;
     b->kd_count = 0;
+    b->slot_used = 0;
     b->kd_root = kd_build(b, 0, n, -1);
     b->rebuild_below = n / 2;
 }
 
 static void kd_insert(pn_builder *b, int c) {
-    const pn_cluster_node *nd = &b->nodes[c];
+    const pn_build_item *nd = &b->it[c];
     int k = b->kd_root;
     for (;;) {
         pn_kd_node *kn = &b->kd[k];
@@ -505,34 +525,36 @@ static void kd_insert(pn_builder *b, int c) {
         k = v3_get(nd->center, kn->axis) < kn->split ? kn->left : kn->right;
     }
     pn_kd_node *leaf = &b->kd[k];
+    const int e = b->slot_used++;
     b->slot[c] = k;
-    b->prev_item[c] = -1;
-    b->next_item[c] = leaf->head;
-    if (leaf->head >= 0) b->prev_item[leaf->head] = c;
-    leaf->head = c;
+    b->slot_at[c] = e;
+    b->slots[e] = (pn_build_slot){nd->center, nd->radius, c, leaf->head, -1};
+    if (leaf->head >= 0) b->slots[leaf->head].prev = e;
+    leaf->head = e;
     b->alive[c] = 1;
 }
 
 static void kd_remove(pn_builder *b, int c) {
     int s = b->slot[c];
-    int prev = b->prev_item[c], next = b->next_item[c];
+    const int e = b->slot_at[c];
+    int prev = b->slots[e].prev, next = b->slots[e].next;
     if (prev >= 0)
-        b->next_item[prev] = next;
+        b->slots[prev].next = next;
     else
         b->kd[s].head = next;
-    if (next >= 0) b->prev_item[next] = prev;
+    if (next >= 0) b->slots[next].prev = prev;
     for (int k = s; k >= 0; k = b->kd[k].parent) b->kd[k].alive--;
     b->slot[c] = -1;
     b->alive[c] = 0;
 }
 
 /* A float lower bound of the merge cost (up to rounding), to skip the exact evaluation. */
-static float cost_bound(const pn_cluster_node *x, const pn_cluster_node *y) {
+static float cost_bound(const pn_build_item *x, const pn_build_slot *y) {
     float d = v3_length(v3_sub(x->center, y->center));
     return max_f(max_f(x->radius, y->radius), 0.5f * (d + x->radius + y->radius));
 }
 
-static float merge_cost(const pn_cluster_node *x, const pn_cluster_node *y) {
+static float merge_cost(const pn_build_item *x, const pn_build_slot *y) {
     vec3 c;
     float r;
     pn_cluster_merge_spheres(x->center, x->radius, y->center, y->radius, &c, &r);
@@ -542,7 +564,7 @@ static float merge_cost(const pn_cluster_node *x, const pn_cluster_node *y) {
 /* The live cluster (other than c) whose merge with c has the smallest sphere; -1 if none. Ties
  * go to the lower index. */
 static int nearest_partner(const pn_builder *b, int c, float *best_cost) {
-    const pn_cluster_node *q = &b->nodes[c];
+    const pn_build_item *q = &b->it[c];
     float best = INFINITY;
     int best_id = -1;
     int stack[PN_CLUSTER_KD_STACK];
@@ -558,9 +580,10 @@ static int nearest_partner(const pn_builder *b, int c, float *best_cost) {
         float lb = max_f(max_f(q->radius, kn->rmin), 0.5f * (dbox + q->radius + kn->rmin));
         if (lb * (1.0f - PN_CLUSTER_PRUNE_SLACK) > best) continue;
         if (kn->left < 0) {
-            for (int j = kn->head; j >= 0; j = b->next_item[j]) {
+            for (int e = kn->head; e >= 0; e = b->slots[e].next) {
+                const pn_build_slot *cand = &b->slots[e];
+                const int j = cand->id;
                 if (j == c) continue;
-                const pn_cluster_node *cand = &b->nodes[j];
                 if (cost_bound(q, cand) * (1.0f - PN_CLUSTER_PRUNE_SLACK) > best) continue;
                 float cost = merge_cost(q, cand);
                 if (cost < best || (cost == best && j < best_id)) {
@@ -594,7 +617,11 @@ static bool push_nearest(pn_builder *b, int c) {
 static bool build_tree(pn_builder *b, int base, int m, int tree) {
     if (m <= 1) return true;
     b->heap_count = 0;
-    for (int i = 0; i < m; i++) b->alive[base + i] = 1;
+    for (int i = 0; i < m; i++) {
+        b->alive[base + i] = 1;
+        b->it[base + i].center = b->nodes[base + i].center;
+        b->it[base + i].radius = b->nodes[base + i].radius;
+    }
     b->alive_count = m;
     kd_rebuild(b, base, base + m);
     for (int i = 0; i < m; i++)
@@ -610,6 +637,8 @@ static bool build_tree(pn_builder *b, int base, int m, int tree) {
         pn_cluster_node *nd = &b->nodes[next];
         const pn_cluster_node *na = &b->nodes[e.a], *nb = &b->nodes[e.b];
         pn_cluster_merge_spheres(na->center, na->radius, nb->center, nb->radius, &nd->center, &nd->radius);
+        b->it[next].center = nd->center;
+        b->it[next].radius = nd->radius;
         nd->left = e.a < e.b ? e.a : e.b;
         nd->right = e.a < e.b ? e.b : e.a;
         nd->parent = -1;
@@ -638,6 +667,8 @@ void pn_cluster_forest_free(pn_cluster_forest *f) {
     if (!f) return;
     free(f->nodes);
     free(f->light_order);
+    free(f->power_coarse);
+    free(f->ranges);
     free(f->leaf_of_light);
     free(f->singles);
     free(f->power_prefix);
@@ -714,12 +745,13 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
     b.slot = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.slot);
     b.stamp = calloc((size_t)(total > 0 ? total : 1), sizeof *b.stamp);
     b.items = malloc((size_t)(max_m > 0 ? max_m : 1) * sizeof *b.items);
-    b.next_item = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.next_item);
-    b.prev_item = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.prev_item);
+    b.it = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.it);
+    b.slot_at = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.slot_at);
+    b.slots = malloc((size_t)(2 * max_m + 2) * sizeof *b.slots);
     b.kd = malloc((size_t)(2 * max_m + 1) * sizeof *b.kd);
     pn_status status = PN_OK;
     if (!out->nodes || !out->light_order || !out->leaf_of_light || !out->singles || !out->power_prefix || !b.alive ||
-        !b.slot || !b.stamp || !b.items || !b.next_item || !b.prev_item || !b.kd) {
+        !b.slot || !b.stamp || !b.items || !b.it || !b.slot_at || !b.slots || !b.kd) {
         status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
         goto done;
     }
@@ -812,6 +844,25 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
         for (int i = 0; i < order_count; i++)
             out->power_prefix[i + 1] =
                 out->power_prefix[i] + (double)pn_cluster_light_power(&lights->lights[out->light_order[i]]);
+        out->coarse_count = order_count / PN_CLUSTER_COARSE + 1;
+        out->power_coarse = malloc((size_t)out->coarse_count * sizeof *out->power_coarse);
+        if (!out->power_coarse) {
+            status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
+            goto done;
+        }
+        out->ranges = malloc(2 * (size_t)(total > 0 ? total : 1) * sizeof *out->ranges);
+        if (!out->ranges) {
+            status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
+            goto done;
+        }
+        for (int i = 0; i < total; i++) {
+            out->ranges[2 * i] = out->nodes[i].first;
+            out->ranges[2 * i + 1] = out->nodes[i].count;
+        }
+        for (int j = 0; j < out->coarse_count; j++) {
+            int at = (j + 1) * PN_CLUSTER_COARSE;
+            out->power_coarse[j] = out->power_prefix[at < order_count ? at : order_count];
+        }
     }
 
 done:
@@ -827,8 +878,9 @@ done:
     free(b.slot);
     free(b.stamp);
     free(b.items);
-    free(b.next_item);
-    free(b.prev_item);
+    free(b.it);
+    free(b.slot_at);
+    free(b.slots);
     free(b.kd);
     free(b.heap);
     if (status != PN_OK) pn_cluster_forest_free(out);
@@ -911,8 +963,10 @@ static int classify(const pn_lights *lights, const pn_cluster_node *nd, vec3 p, 
     return pn_cluster_solid_angle(nd->center, nd->radius, p) < lim->max_solid_angle ? PN_CUT_TAKE : PN_CUT_DESCEND;
 }
 
-int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
-                      int *out, int capacity, int *culled, int culled_capacity, int *culled_count) {
+/* pn_cluster_cut_ex's walk, abandoned (returning stop + 1) as soon as more than `stop` clusters
+ * are taken: the count only grows, so the cut has more than `stop` of them. */
+static int cut_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                    int *out, int capacity, int *culled, int culled_capacity, int *culled_count, int stop) {
     int count = 0, ccount = 0;
     bool horizon = !v3_is_zero(n);
     const cut_limit lim = make_cut_limit(max_solid_angle);
@@ -930,7 +984,7 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
             }
             if (action == PN_CUT_TAKE) {
                 if (count < capacity) out[count] = node;
-                count++;
+                if (++count > stop) return count;
             } else {
                 if (ccount < culled_capacity) culled[ccount] = node;
                 ccount++;
@@ -947,11 +1001,16 @@ int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 
             ccount++;
         } else {
             if (count < capacity) out[count] = node;
-            count++;
+            if (++count > stop) return count;
         }
     }
     if (culled_count) *culled_count = ccount;
     return count;
+}
+
+int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                      int *out, int capacity, int *culled, int culled_capacity, int *culled_count) {
+    return cut_walk(f, lights, p, n, max_solid_angle, out, capacity, culled, culled_capacity, culled_count, INT_MAX);
 }
 
 int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle, int *out,
@@ -959,11 +1018,168 @@ int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, 
     return pn_cluster_cut_ex(f, lights, p, n, max_solid_angle, out, capacity, NULL, 0, NULL);
 }
 
+/* ---------------------------------------------------------------- capped cut */
+
+/* An open node of pn_cluster_cut_capped: its r^2 / d^2 (the solid angle's order), its index. */
+typedef struct cut_open {
+    float x;
+    int node;
+} cut_open;
+
+static float open_key(const pn_cluster_node *nd, vec3 p) {
+    float d2 = v3_length2(v3_sub(nd->center, p));
+    return d2 > 0.0f ? nd->radius * nd->radius / d2 : INFINITY;
+}
+
+/* Max-heap order: the larger solid angle first, ties to the lower index. */
+static bool open_before(const cut_open *a, const cut_open *b) {
+    return a->x > b->x || (a->x == b->x && a->node < b->node);
+}
+
+static void open_push(cut_open *h, int *count, cut_open e) {
+    int i = (*count)++;
+    while (i > 0) {
+        int parent = (i - 1) / 2;
+        if (!open_before(&e, &h[parent])) break;
+        h[i] = h[parent];
+        i = parent;
+    }
+    h[i] = e;
+}
+
+static cut_open open_pop(cut_open *h, int *count) {
+    cut_open top = h[0], last = h[--*count];
+    int i = 0, n = *count;
+    for (;;) {
+        int c = 2 * i + 1;
+        if (c >= n) break;
+        if (c + 1 < n && open_before(&h[c + 1], &h[c])) c++;
+        if (!open_before(&h[c], &last)) break;
+        h[i] = h[c];
+        i = c;
+    }
+    if (n > 0) h[i] = last;
+    return top;
+}
+
+/* The capped cut's clusters as a doubly linked list in light order (a refined node's element
+ * becomes its first child's that is not culled, the other child's is linked after it), so that
+ * the depth-first order comes out without a sort. */
+typedef struct cut_elem {
+    int node, prev, next;
+} cut_elem;
+
+static int slots_for(int max_count) {
+    return (max_count > 0 ? max_count : 0) + PN_TREE_COUNT + 1;
+}
+
+size_t pn_cluster_cut_capped_work(int max_count) {
+    return (size_t)slots_for(max_count) * (2 * sizeof(cut_open) + sizeof(cut_elem));
+}
+
+int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          int max_count, int *out, int capacity, void *work) {
+    if (max_count <= 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
+    /* Under the cap the plain walk's cut is the answer. (The priority walk alone would not always
+     * give it there: its count can pass the cap on the way, before subtrees turn out culled.) */
+    const int plain = cut_walk(f, lights, p, n, max_solid_angle, out, capacity, NULL, 0, NULL, max_count);
+    if (plain <= max_count) return plain;
+    /* heap: the open elements; held: elements whose refinement the cap stopped, refined after all
+     * when a refinement that culls both children makes room (so the count ends at max_count);
+     * both keyed by the element's node's solid angle, the element's index in cut_open.node. At
+     * most slots elements are live: the trees' part of the count stays within max_count. */
+    const int slots = slots_for(max_count);
+    cut_open *heap = work, *held = heap + slots;
+    cut_elem *el = (cut_elem *)(held + slots);
+    int open = 0, held_count = 0, used = 0, free_list = -1, head = -1, tail = -1;
+    bool horizon = !v3_is_zero(n);
+    const cut_limit lim = make_cut_limit(max_solid_angle);
+    int singles = 0;
+    for (int s = 0; s < f->single_count; s++)
+        singles += !pn_cluster_light_culled(&lights->lights[f->nodes[f->singles[s]].light], p, n);
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        int root = f->roots[t];
+        if (root < 0) continue;
+        int action = classify(lights, &f->nodes[root], p, n, horizon, &lim);
+        if (action == PN_CUT_CULL) continue;
+        const int e = used++;
+        el[e] = (cut_elem){root, tail, -1};
+        if (tail >= 0)
+            el[tail].next = e;
+        else
+            head = e;
+        tail = e;
+        if (action == PN_CUT_DESCEND) open_push(heap, &open, (cut_open){open_key(&f->nodes[root], p), e});
+    }
+    int total = singles + used;
+    while (open > 0) {
+        const int e = open_pop(heap, &open).node, m = el[e].node;
+        const pn_cluster_node *nd = &f->nodes[m];
+        const int child[2] = {nd->left, nd->right};
+        int act[2], delta = -1;
+        for (int c = 0; c < 2; c++) {
+            act[c] = classify(lights, &f->nodes[child[c]], p, n, horizon, &lim);
+            delta += act[c] != PN_CUT_CULL;
+        }
+        if (delta > 0 && total + delta > max_count) { /* over the cap: held, unless room is made later */
+            open_push(held, &held_count, (cut_open){open_key(nd, p), e});
+            continue;
+        }
+        total += delta;
+        if (delta < 0) { /* both children culled: the element leaves the list */
+            if (el[e].prev >= 0)
+                el[el[e].prev].next = el[e].next;
+            else
+                head = el[e].next;
+            if (el[e].next >= 0)
+                el[el[e].next].prev = el[e].prev;
+            else
+                tail = el[e].prev;
+            el[e].node = free_list;
+            free_list = e;
+            if (held_count > 0) open_push(heap, &open, open_pop(held, &held_count));
+            continue;
+        }
+        int at = -1;
+        for (int c = 0; c < 2; c++) {
+            if (act[c] == PN_CUT_CULL) continue;
+            int x = e;
+            if (at >= 0) { /* the second child: a new element after the first */
+                if (free_list >= 0) {
+                    x = free_list;
+                    free_list = el[x].node;
+                } else {
+                    x = used++;
+                }
+                el[x] = (cut_elem){child[c], at, el[at].next};
+                if (el[at].next >= 0)
+                    el[el[at].next].prev = x;
+                else
+                    tail = x;
+                el[at].next = x;
+            }
+            el[x].node = child[c];
+            at = x;
+            if (act[c] == PN_CUT_DESCEND) open_push(heap, &open, (cut_open){open_key(&f->nodes[child[c]], p), x});
+        }
+    }
+    int count = 0;
+    for (int e = head; e >= 0; e = el[e].next) {
+        if (count < capacity) out[count] = el[e].node;
+        count++;
+    }
+    for (int s = 0; s < f->single_count; s++)
+        if (!pn_cluster_light_culled(&lights->lights[f->nodes[f->singles[s]].light], p, n)) {
+            if (count < capacity) out[count] = f->singles[s];
+            count++;
+        }
+    return count;
+}
+
 /* ---------------------------------------------------------------- picking */
 
 int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int node, float u, float *prob) {
-    const pn_cluster_node *nd = &f->nodes[node];
-    int first = nd->first, count = nd->count;
+    int first = f->ranges[2 * node], count = f->ranges[2 * node + 1];
     if (count <= 1) {
         if (prob) *prob = 1.0f;
         return f->light_order[first];
@@ -978,8 +1194,24 @@ int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int nod
         return f->light_order[first + i];
     }
     double target = pre[first] + (double)u * total;
-    /* The first position whose running sum passes the target: never a zero-power light. */
+    /* The first position whose running sum passes the target: never a zero-power light. The
+     * predicate pre[i + 1] > target grows with i; its first true position among the coarse
+     * entries (pre[16 j + 16] > target: position 16 j + 15 true) bounds the search to one group
+     * of 16, the same answer as the search over the whole range. */
     int lo = first, hi = first + count - 1;
+    if (count > 4 * PN_CLUSTER_COARSE && f->power_coarse) {
+        int a = first / PN_CLUSTER_COARSE, b = hi / PN_CLUSTER_COARSE;
+        while (a < b) {
+            int mid = a + (b - a) / 2;
+            if (f->power_coarse[mid] > target)
+                b = mid;
+            else
+                a = mid + 1;
+        }
+        int g0 = a * PN_CLUSTER_COARSE, g1 = g0 + PN_CLUSTER_COARSE - 1;
+        if (g0 > lo) lo = g0;
+        if (g1 < hi) hi = g1;
+    }
     while (lo < hi) {
         int mid = lo + (hi - lo) / 2;
         if (pre[mid + 1] > target)

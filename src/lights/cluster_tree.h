@@ -20,6 +20,7 @@
 #include "lights/lights.h"
 
 #include <stdbool.h>
+#include <stddef.h>
 
 typedef struct pn_cluster_node {
     int left, right; /* children, -1 for a leaf */
@@ -74,8 +75,16 @@ typedef struct pn_cluster_forest {
                                        clustered, always their own cluster */
     double *power_prefix; /* order_count + 1 running sums of the lights' power in
                                   light_order, for pn_cluster_pick */
-    int light_count;      /* pn_lights.count at build time */
+    double *power_coarse; /* every PN_CLUSTER_COARSE-th of them, power_prefix[(j + 1) * PN_CLUSTER_COARSE]
+                                  (clamped at order_count): pn_cluster_pick searches these first, so
+                                  that a pick reads a few cache lines of power_prefix, not log2(count) */
+    int coarse_count;
+    int *ranges;     /* node_count pairs: each node's first and count again, compact (8 bytes
+                                  where the node is 140), for pn_cluster_pick */
+    int light_count; /* pn_lights.count at build time */
 } pn_cluster_forest;
+
+#define PN_CLUSTER_COARSE 16
 
 /* Builds the seven trees and the singles. On failure *out is left zeroed. */
 pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *out, pn_err *err);
@@ -101,6 +110,20 @@ int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, 
  * of the forest. */
 int pn_cluster_cut_ex(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                       int *out, int capacity, int *culled, int culled_capacity, int *culled_count);
+
+/* pn_cluster_cut with at most max_count clusters (issue 15: a cut whose size stops growing with
+ * the number of lights). When the plain cut has at most max_count clusters it is the answer, the
+ * same clusters in the same order. Otherwise the trees are refined from their roots by priority,
+ * the open node of largest solid angle first, each refined node replaced by its children that are
+ * not culled, while the count (taken, open and the singles not culled) stays within max_count: a
+ * node whose refinement would pass it is taken whole, although it subtends max_solid_angle or
+ * more (refined after all if a later refinement culls both children and so makes room). The
+ * result then has max_count clusters (unless the roots and singles alone are more), in the
+ * depth-first walk's order. `work` holds pn_cluster_cut_capped_work(max_count) bytes. max_count
+ * <= 0: no cap. When the count returned is above capacity, out[] holds only some of them. */
+int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          int max_count, int *out, int capacity, void *work);
+size_t pn_cluster_cut_capped_work(int max_count);
 
 /* Chooses a light of node `node` in proportion to the lights' power (the paper: "based on their
  * relative intensities"); u in [0,1); returns the light index and its probability within the
