@@ -51,6 +51,12 @@ METHOD_ARGS = {
     # balance of eye and shadow rays measured on hall-many, docs/methods/ias.md)
     "ias-eyesqrt": [["--integrator", "ias", "--ias-aa-threshold", "0.1", "--ias-aa-power", "0.5", "--threshold", t]
                     for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # neighbours of ias-eyesqrt (the eye-ray / shadow-ray balance as a default, stop 20): T0 = 0.05
+    # with P = 0.5 (fewer eye rays at every T), and T0 = 0.1 with P = 0.75 (more)
+    "ias-eye05": [["--integrator", "ias", "--ias-aa-threshold", "0.05", "--ias-aa-power", "0.5", "--threshold", t]
+                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-eye075": [["--integrator", "ias", "--ias-aa-threshold", "0.1", "--ias-aa-power", "0.75", "--threshold", t]
+                   for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
     # the default variant with each cluster cut named (issue 15: which one is the default)
     "ias-bvh": [["--integrator", "ias", "--ias-cut", "bvh", "--threshold", t]
                 for t in os.environ.get("IAS_T", "0.01 0.0025").split()],

@@ -81,8 +81,11 @@
  *    is 60% of relMSE at T = 0.01, and the CPU-optimal split there is n_eye ~ 0.28 n_shadow, which
  *    P = 0.5 with T0 = 0.1 approximates. Effect (bench crop, one thread): relMSE x CPU 0.0084 /
  *    0.0073 at T = 0.04 / 0.01 against 0.0097 / 0.0108 for P = 1, T0 = 0.01 (reference 64 spp
- *    0.0096). Not the default: measured on hall-many only; docs/methods/ias.md also gives the bound
- *    that puts the 3x goal out of reach there;
+ *    0.0096). Not the default (stop 20, five bench crops at equal relMSE): 1.10-1.24x faster on
+ *    hall-many and staircase-832, 0.77-0.89x on hall-many-matte, bathroom-72 and
+ *    bathroom-72-matte, where 32 -> 102 eye rays lower relMSE only 4-11% (docs/methods/ias.md, "The
+ *    eye-ray / shadow-ray balance as a default"); docs/methods/ias.md also gives the bound that
+ *    puts the 3x goal out of reach on hall-many;
  *  - ias-prior-share S (off by default, 0): a defensive mixture, the prior keeping at least the
  *    weight S in every pass's PDF (build_pdf_table); measured in docs/methods/ias.md;
  *  - ias-prior importance with the trees cut (stop 16; ias_speed.c): c_U's PDF, all of pass 0's,
