@@ -13,6 +13,7 @@
  *  - ias-mis glossy on a scene without glossy lobes is the off render bit for bit, and so are
  *    the paper variant's renders with ias-mis set. */
 #include "harness.h"
+#include "ias_modes.h"
 #include "render_fields.h"
 
 #include "core/rng.h"
@@ -249,31 +250,20 @@ static const char *scene_text(bool glossy) {
 
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *mis,
                        bool paper, uint64_t seed) {
-    pn_render_settings s = PN_RENDER_SETTINGS_INIT;
-    pn_options o = pn_options_new();
-    s.options = o;
-    if (mis) {
-        /* The light guide off in every mode: ias-mis turns it off (ias.c), and the modes are
-         * compared on the same light sampling. */
-        const char *const opts[] = {"ias-mis",         mis,   "max-passes", "2", "ias-aa-threshold", "0",
-                                    "ias-light-guide", "off", NULL};
-        for (int i = 0; opts[i]; i += 2) CHECK(pn_options_set(ctx, o, opts[i], opts[i + 1]) == PN_OK);
-        if (paper) CHECK(pn_options_set(ctx, o, "ias-variant", "paper") == PN_OK);
-        s.threshold = 1e-7; /* every pixel takes its two passes: the same light samples in every mode */
-    }
-    s.integrator = kind;
-    s.spp = spp;
-    s.seed = seed;
-    s.threads = 1;
-    pn_image img = NULL;
-    pn_status st = pn_test_render(ctx, scene, &s, &img, NULL);
-    pn_options_free(o);
-    if (st != PN_OK) fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
-    return st == PN_OK ? img : NULL;
-}
-
-static double lum_at(const float *a, int i) {
-    return 0.2126 * (double)a[3 * i] + 0.7152 * (double)a[3 * i + 1] + 0.0722 * (double)a[3 * i + 2];
+    /* Two passes for every pixel, the light guide off in every mode (ias-mis turns it off, ias.c):
+     * the modes are compared on the same light samples. */
+    const char *const opts[] = {"ias-mis",
+                                mis,
+                                "max-passes",
+                                "2",
+                                "ias-aa-threshold",
+                                "0",
+                                "ias-light-guide",
+                                "off",
+                                "ias-variant",
+                                paper ? "paper" : "default",
+                                NULL};
+    return pn_test_render_modes(ctx, scene, kind, spp, seed, mis ? opts : NULL);
 }
 
 static pn_scene load(pn_context ctx, const char *name, bool glossy) {
@@ -294,14 +284,14 @@ static void test_renders(void) {
         const float *r = pn_image_layer_data(ref, 0);
         double ref_sum = 0.0, ref_max = 0.0;
         for (int i = 0; i < np; i++) {
-            ref_sum += lum_at(r, i);
-            ref_max = fmax(ref_max, lum_at(r, i));
+            ref_sum += pn_test_lum_at(r, i);
+            ref_max = fmax(ref_max, pn_test_lum_at(r, i));
         }
         /* The highlight: pixels above a quarter of the brightest (the coated plane's base alone
          * is below 0.6 of the pixel values there). */
         unsigned char *hl = calloc(nps, 1);
         int n_hl = 0;
-        for (int i = 0; i < np; i++) n_hl += (hl[i] = lum_at(r, i) > 0.25 * ref_max);
+        for (int i = 0; i < np; i++) n_hl += (hl[i] = pn_test_lum_at(r, i) > 0.25 * ref_max);
         CHECK(n_hl > 10 && n_hl < np / 3);
         static const char *const modes[] = {"off", "glossy", "on"};
         enum { SEEDS = 4 };
@@ -317,7 +307,7 @@ static void test_renders(void) {
                 const float *b = pn_image_layer_data(img, 0);
                 double s = 0.0;
                 for (int i = 0; i < np; i++) {
-                    const double y = lum_at(b, i);
+                    const double y = pn_test_lum_at(b, i);
                     s += y;
                     sum[i] += y;
                     sum2[i] += y * y;
@@ -330,7 +320,7 @@ static void test_renders(void) {
             for (int i = 0; i < np; i++) {
                 if (!hl[i]) continue;
                 const double mu = sum[i] / SEEDS, v = fmax(0.0, sum2[i] / SEEDS - mu * mu) * SEEDS / (SEEDS - 1.0);
-                const double y = lum_at(r, i);
+                const double y = pn_test_lum_at(r, i);
                 var_hl[m] += v / (y * y + 0.01) / n_hl;
             }
             free(sum);

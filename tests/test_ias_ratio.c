@@ -9,6 +9,7 @@
  *    within 0.5% of the reference, and on the pixels the occluder does not shadow (where the
  *    reference of the scene without it agrees) a relMSE well below the plain estimator's. */
 #include "harness.h"
+#include "ias_modes.h"
 #include "render_fields.h"
 
 #include "core/rng.h"
@@ -153,27 +154,9 @@ static const char *scene_text(bool occluder) {
 
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *mode,
                        uint64_t seed) {
-    pn_render_settings s = PN_RENDER_SETTINGS_INIT;
-    pn_options o = pn_options_new();
-    s.options = o;
-    if (mode) {
-        const char *const opts[] = {"ias-ratio", mode, "max-passes", "2", "ias-aa-threshold", "0", NULL};
-        for (int i = 0; opts[i]; i += 2) CHECK(pn_options_set(ctx, o, opts[i], opts[i + 1]) == PN_OK);
-        s.threshold = 1e-7; /* no pixel stops before its two passes: the same shadow rays for every mode */
-    }
-    s.integrator = kind;
-    s.spp = spp;
-    s.seed = seed;
-    s.threads = 1;
-    pn_image img = NULL;
-    pn_status st = pn_test_render(ctx, scene, &s, &img, NULL);
-    pn_options_free(o);
-    if (st != PN_OK) fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
-    return st == PN_OK ? img : NULL;
-}
-
-static double lum_at(const float *a, int i) {
-    return 0.2126 * (double)a[3 * i] + 0.7152 * (double)a[3 * i + 1] + 0.0722 * (double)a[3 * i + 2];
+    /* No pixel stops before its two passes: the same shadow rays for every mode. */
+    const char *const opts[] = {"ias-ratio", mode, "max-passes", "2", "ias-aa-threshold", "0", NULL};
+    return pn_test_render_modes(ctx, scene, kind, spp, seed, mode ? opts : NULL);
 }
 
 static pn_scene load(pn_context ctx, const char *name, bool occluder) {
@@ -197,7 +180,7 @@ static void test_renders(void) {
         int n_open = 0, n_shadow = 0;
         double ref_sum = 0.0;
         for (int i = 0; i < np; i++) {
-            double a = lum_at(r, i), b = lum_at(f, i);
+            double a = pn_test_lum_at(r, i), b = pn_test_lum_at(f, i);
             open[i] = fabs(a - b) < 0.01 * b;
             n_open += open[i];
             n_shadow += a < 0.9 * b;
@@ -215,7 +198,7 @@ static void test_renders(void) {
                 const float *b = pn_image_layer_data(img, 0);
                 double e = 0.0, s = 0.0;
                 for (int i = 0; i < np; i++) {
-                    double ya = lum_at(r, i), yb = lum_at(b, i);
+                    double ya = pn_test_lum_at(r, i), yb = pn_test_lum_at(b, i);
                     s += yb;
                     if (open[i]) e += (yb - ya) * (yb - ya) / (ya * ya + 0.01);
                 }
