@@ -261,6 +261,7 @@ typedef struct ias_shared {
     double mis_share;         /* mis: the expected BSDF rays per light sample, in (0, 1] */
     bool light_guide;         /* ias-light-guide: grids over large lights' sample squares (ias_guide.h) */
     pn_ias_guide_lights guide;
+    unsigned guide_refresh; /* ias-guide-refresh: first-pass pixels between grid rebuilds; 0: none */
 } ias_shared;
 
 /* A cluster node as sparse_add and sparse_aggregate read it (32 bytes instead of the node's 140):
@@ -414,6 +415,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
             return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
         }
         sh->light_guide = sh->guide.count > 0;
+        sh->guide_refresh = sh->light_guide ? job->ias_guide_refresh : 0u;
     }
     pn_status st;
     int next;
@@ -2581,6 +2583,10 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                 count = (unsigned)ceil(1.5 * px->clusters);
                 if (grown > count) count = grown;
             }
+            /* ias-guide-refresh: the first pass's later pixels sample through the grids of what the
+             * block's earlier pixels found (rebuilt before the pixel, so its samples share one PDF). */
+            if (pass == 0 && sh->guide_refresh && pi > 0 && pi % (int)sh->guide_refresh == 0)
+                pn_ias_guide_refresh(&s->guide);
             sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
             if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {

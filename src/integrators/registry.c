@@ -343,6 +343,15 @@ static const pn_option_decl options[] = {
      F(ias_light_guide),
      PN_FIELD_INT,
      0},
+    {{"ias-guide-refresh", PN_OPTION_INT, "0", 0, 4096, 0, 0, "pixels", "",
+      "default variant with ias-light-guide on: in a block's first pass, the grids are rebuilt from the block's "
+      "samples so far before every this many pixels (the block's later pixels then sample through what its earlier "
+      "ones found; unbiased, and the same for any thread count: a block is one worker's); 0: the first pass "
+      "samples the lights' whole squares, the grids being built between passes only"},
+     BIT(M_IAS),
+     F(ias_guide_refresh),
+     PN_FIELD_U32,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},
