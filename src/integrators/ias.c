@@ -2585,8 +2585,11 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             }
             /* ias-guide-refresh: the first pass's later pixels sample through the grids of what the
              * block's earlier pixels found (rebuilt before the pixel, so its samples share one PDF). */
-            if (pass == 0 && sh->guide_refresh && pi > 0 && pi % (int)sh->guide_refresh == 0)
-                pn_ias_guide_refresh(&s->guide);
+            if (sh->guide_refresh) {
+                if (pass == 0 && pi > 0 && pi % (int)sh->guide_refresh == 0) pn_ias_guide_refresh(&s->guide);
+                pn_ias_guide_set_rotation(&s->guide, pn_hash3(job->seed ^ 0x67d1ull, (uint64_t)scramble,
+                                                              (uint64_t)(uint32_t)pi << 32 | (uint32_t)pass));
+            }
             sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
             if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {
