@@ -8,7 +8,7 @@
  *    passes (the same shadow rays with and without the guide): the guided images' mean over four
  *    seeds within 0.5% of a 1024-spp reference, and the guided image's variance (the spread of the four
  *    seeds per pixel, relative) below half the unguided one's;
- *  - ias-guide-refresh: at one pass (unguided without it), 16 seeds, the grids rebuilt every pixel
+ *  - ias-guide-refresh: at one pass (unguided without it), 64 seeds, the grids rebuilt every pixel
  *    keep the mean within 4 standard errors (at most 1.6%) of the reference and lower the variance
  *    below 0.6x; the image is the same for 1 and 3 threads. */
 #include "harness.h"
