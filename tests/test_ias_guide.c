@@ -224,7 +224,8 @@ static void measure(pn_context ctx, pn_scene scene, const float *r, int np, doub
     *mean = m1;
     *sd = sqrt(fmax(0.0, m2 - m1 * m1) * SEEDS / (SEEDS - 1.0) / SEEDS);
     *var = v;
-    fprintf(stderr, "  guide %-3s, %s passes, refresh %-4s: relative variance %.3g; mean over the reference's %.5f +- %.5f\n",
+    fprintf(stderr,
+            "  guide %-3s, %s passes, refresh %-4s: relative variance %.3g; mean over the reference's %.5f +- %.5f\n",
             guide, passes, refresh ? refresh : "-", v, m1, *sd);
 }
 
@@ -298,4 +299,4 @@ static void test_teardown(void) {
 }
 
 PN_TESTS(TEST(test_choice), TEST(test_warp), TEST(test_setup), TEST(test_renders), TEST(test_refresh_threads),
-          TEST(test_teardown))
+         TEST(test_teardown))
