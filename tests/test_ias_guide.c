@@ -10,7 +10,9 @@
  *    seeds per pixel, relative) below half the unguided one's;
  *  - ias-guide-refresh: at one pass (unguided without it), 64 seeds, the grids rebuilt every pixel
  *    keep the mean within 4 standard errors (at most 1.6%) of the reference and lower the variance
- *    below 0.6x; the image is the same for 1 and 3 threads. */
+ *    below 0.6x;
+ *  - ias-guide-refresh and ias-guide-rotate (on by default): the image is the same for 1 and 3
+ *    threads, and each changes it (the refresh always rotating). */
 #include "harness.h"
 #include "render_fields.h"
 
@@ -161,7 +163,7 @@ static const char *scene_text(void) {
 /* ias at fixed passes (guide non-NULL: "off" or "on"; refresh: ias-guide-refresh, NULL for its
  * default) or, with guide NULL, kind at spp. */
 static pn_image render_ias(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
-                           const char *passes, const char *refresh, int threads, uint64_t seed) {
+                           const char *passes, const char *refresh, const char *rotate, int threads, uint64_t seed) {
     pn_render_settings s = PN_RENDER_SETTINGS_INIT;
     pn_options o = pn_options_new();
     s.options = o;
@@ -169,6 +171,7 @@ static pn_image render_ias(pn_context ctx, pn_scene scene, pn_integrator_kind ki
         const char *const opts[] = {"ias-light-guide", guide, "max-passes", passes, "ias-aa-threshold", "0", NULL};
         for (int i = 0; opts[i]; i += 2) CHECK(pn_options_set(ctx, o, opts[i], opts[i + 1]) == PN_OK);
         if (refresh) CHECK(pn_options_set(ctx, o, "ias-guide-refresh", refresh) == PN_OK);
+        if (rotate) CHECK(pn_options_set(ctx, o, "ias-guide-rotate", rotate) == PN_OK);
         s.threshold = 1e-7; /* every pixel takes its passes: the same shadow rays with and without */
     }
     s.integrator = kind;
@@ -184,7 +187,7 @@ static pn_image render_ias(pn_context ctx, pn_scene scene, pn_integrator_kind ki
 
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
                        uint64_t seed) {
-    return render_ias(ctx, scene, kind, spp, guide, "4", NULL, 1, seed);
+    return render_ias(ctx, scene, kind, spp, guide, "4", NULL, NULL, 1, seed);
 }
 
 static double lum_at(const float *a, int i) {
@@ -200,7 +203,7 @@ static void measure(pn_context ctx, pn_scene scene, const float *r, int np, doub
     double *px_sum = calloc((size_t)np, sizeof *px_sum), *px_sum2 = calloc((size_t)np, sizeof *px_sum2);
     CHECK(px_sum && px_sum2);
     for (int k = 0; k < SEEDS && px_sum && px_sum2; k++) {
-        pn_image img = render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, guide, passes, refresh, 1, (uint64_t)k);
+        pn_image img = render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, guide, passes, refresh, NULL, 1, (uint64_t)k);
         CHECK(img != NULL);
         if (!img) continue;
         const float *b = pn_image_layer_data(img, 0);
@@ -261,27 +264,35 @@ static void test_renders(void) {
     pn_context_free(ctx);
 }
 
-/* ias-guide-refresh keeps the image independent of the thread count: a block's grids come from
- * its own earlier pixels, and a block is one worker's. */
-static void test_refresh_threads(void) {
+/* ias-guide-refresh and ias-guide-rotate keep the image independent of the thread count: a block's
+ * grids come from its own earlier pixels, its rotations from a hash of the seed, block, pixel and
+ * pass, and a block is one worker's. Each is in use: the image differs without it. */
+static void test_threads(void) {
     pn_context ctx = pn_context_new();
     const char *path = pn_test_write_file(tmpdir, "guide.pbrt", scene_text());
     pn_scene scene = NULL;
     CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
-    pn_image a = scene ? render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, "on", "2", "1", 1, 5) : NULL;
-    pn_image b = scene ? render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, "on", "2", "1", 3, 5) : NULL;
-    pn_image c = scene ? render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, "on", "2", NULL, 1, 5) : NULL;
-    CHECK(a && b && c);
-    if (a && b && c) {
-        const size_t n = (size_t)pn_image_width(a) * (size_t)pn_image_height(a) * 3;
-        CHECK_MSG(memcmp(pn_image_layer_data(a, 0), pn_image_layer_data(b, 0), n * sizeof(float)) == 0,
-                  "ias-guide-refresh: 1 and 3 threads differ");
-        /* and it is in use: the first pass's samples differ from those without it */
-        CHECK(memcmp(pn_image_layer_data(a, 0), pn_image_layer_data(c, 0), n * sizeof(float)) != 0);
+    enum { N = 6 };
+    /* {refresh, rotate, threads}: refresh 1 / 3 threads, default (rotated) 1 / 3 threads, neither */
+    static const char *const cfg[N][2] = {{"1", NULL},  {"1", NULL},   {NULL, NULL},
+                                          {NULL, NULL}, {NULL, "off"}, {"1", "off"}};
+    static const int threads[N] = {1, 3, 1, 3, 1, 1};
+    pn_image img[N] = {0};
+    for (int i = 0; i < N && scene; i++) {
+        img[i] = render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, "on", "2", cfg[i][0], cfg[i][1], threads[i], 5);
+        CHECK(img[i] != NULL);
     }
-    pn_image_free(a);
-    pn_image_free(b);
-    pn_image_free(c);
+    if (img[0] && img[1] && img[2] && img[3] && img[4] && img[5]) {
+        const size_t n = (size_t)pn_image_width(img[0]) * (size_t)pn_image_height(img[0]) * 3 * sizeof(float);
+#define SAME(a, b) (memcmp(pn_image_layer_data(img[a], 0), pn_image_layer_data(img[b], 0), n) == 0)
+        CHECK_MSG(SAME(0, 1), "ias-guide-refresh: 1 and 3 threads differ");
+        CHECK_MSG(SAME(2, 3), "ias-guide-rotate on: 1 and 3 threads differ");
+        CHECK(!SAME(0, 2)); /* the refresh changes the first pass */
+        CHECK(!SAME(2, 4)); /* the rotation changes the guided samples */
+        CHECK(SAME(0, 5));  /* the refresh always rotates */
+#undef SAME
+    }
+    for (int i = 0; i < N; i++) pn_image_free(img[i]);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }
@@ -298,5 +309,5 @@ static void test_teardown(void) {
     CHECK(rmdir(tmpdir) == 0);
 }
 
-PN_TESTS(TEST(test_choice), TEST(test_warp), TEST(test_setup), TEST(test_renders), TEST(test_refresh_threads),
+PN_TESTS(TEST(test_choice), TEST(test_warp), TEST(test_setup), TEST(test_renders), TEST(test_threads),
          TEST(test_teardown))

@@ -262,6 +262,7 @@ typedef struct ias_shared {
     bool light_guide;         /* ias-light-guide: grids over large lights' sample squares (ias_guide.h) */
     pn_ias_guide_lights guide;
     unsigned guide_refresh; /* ias-guide-refresh: first-pass pixels between grid rebuilds; 0: none */
+    bool guide_rotate;      /* ias-guide-rotate (always with ias-guide-refresh): pn_ias_guide_set_rotation */
 } ias_shared;
 
 /* A cluster node as sparse_add and sparse_aggregate read it (32 bytes instead of the node's 140):
@@ -416,6 +417,7 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
         }
         sh->light_guide = sh->guide.count > 0;
         sh->guide_refresh = sh->light_guide ? job->ias_guide_refresh : 0u;
+        sh->guide_rotate = sh->light_guide && (job->ias_guide_rotate || sh->guide_refresh);
     }
     pn_status st;
     int next;
@@ -2585,11 +2587,13 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             }
             /* ias-guide-refresh: the first pass's later pixels sample through the grids of what the
              * block's earlier pixels found (rebuilt before the pixel, so its samples share one PDF). */
-            if (sh->guide_refresh) {
-                if (pass == 0 && pi > 0 && pi % (int)sh->guide_refresh == 0) pn_ias_guide_refresh(&s->guide);
+            if (sh->guide_refresh && pass == 0 && pi > 0 && pi % (int)sh->guide_refresh == 0)
+                pn_ias_guide_refresh(&s->guide);
+            /* ias-guide-rotate: the pixel's guided numbers shifted independently of the samples
+             * that built the grids (ias_guide.h, pn_ias_guide_set_rotation). */
+            if (sh->guide_rotate)
                 pn_ias_guide_set_rotation(&s->guide, pn_hash3(job->seed ^ 0x67d1ull, (uint64_t)scramble,
                                                               (uint64_t)(uint32_t)pi << 32 | (uint32_t)pass));
-            }
             sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
             if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {
