@@ -151,6 +151,16 @@
  *    passes: relMSE 0.0049 -> 0.0022 for the same shadow rays), bathroom-72 8.5 -> 4.9 s,
  *    bathroom-72-matte at T = 0.0025 1.6x; hall-many and hall-many-matte within 4%; scenes without
  *    such lights (staircase-832, living-env-138, the generated ones) unchanged bit for bit.
+ *  - ias-guide-rotate on (stop 20; ias_guide.c pn_ias_guide_set_rotation, set before each pixel's
+ *    pass in ias_render_batch): the numbers a guide grid warps are first rotated (mod 1) by a shift
+ *    hashed from the seed, the block's scramble, the pixel and the pass. Reason: a block's numbers
+ *    are one Sobol sequence, so a pixel's points depend on the earlier points that built the grid,
+ *    and the grid's density is then not independent of where they fall: on tests/test_ias_guide.c's
+ *    screened light the guide at 2 passes measured 0.99906 +- 0.00030 of the reference without the
+ *    rotation, 0.99991 +- 0.00037 with it (512 seeds; rebuilding the grid within a pass,
+ *    ias-guide-refresh, 1.0% bright without it). Effect: variance unchanged (test scene 0.000240 ->
+ *    0.000244; bathroom-72-matte fixed 2 / 4 passes relMSE within the seeds' noise); CPU at equal
+ *    relMSE in docs/methods/ias.md, "The light guide's gap to the oracles".
  *  - ias-stats cut (session 20; issue 15, light count; cut_record): with the hash-table statistics
  *    (sparse_stats, from PN_IAS_DENSE_IDS cluster ids) a sample is added only to the nodes of the
  *    block's cuts whose light range holds its light, each with the sample over the light's
