@@ -8,12 +8,12 @@
 
 #include <stdio.h>
 
-/* Renders `scene` with one thread. `opts` (name, value pairs ending in NULL) are set when given,
+/* Renders `scene` with `threads` threads. `opts` (name, value pairs ending in NULL) are set when given,
  * and then the threshold is 1e-7, so that no pixel stops before the passes the options ask for
  * and every mode takes the same shadow rays; without them the integrator's defaults apply. NULL
  * when the render fails (the context's message is printed). */
 static inline pn_image pn_test_render_modes(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp,
-                                            uint64_t seed, const char *const *opts) {
+                                            uint64_t seed, int threads, const char *const *opts) {
     pn_render_settings s = PN_RENDER_SETTINGS_INIT;
     pn_options o = pn_options_new();
     s.options = o;
@@ -24,7 +24,7 @@ static inline pn_image pn_test_render_modes(pn_context ctx, pn_scene scene, pn_i
     s.integrator = kind;
     s.spp = spp;
     s.seed = seed;
-    s.threads = 1;
+    s.threads = threads;
     pn_image img = NULL;
     pn_status st = pn_test_render(ctx, scene, &s, &img, NULL);
     pn_options_free(o);

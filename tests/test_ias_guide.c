@@ -7,8 +7,14 @@
  *  - renders of a quad light seen through a screen with a few holes close under it, over a plane, at fixed
  *    passes (the same shadow rays with and without the guide): the guided images' mean over four
  *    seeds within 0.5% of a 1024-spp reference, and the guided image's variance (the spread of the four
- *    seeds per pixel, relative) below half the unguided one's. */
+ *    seeds per pixel, relative) below half the unguided one's;
+ *  - ias-guide-refresh: at one pass (unguided without it), 64 seeds, the grids rebuilt every pixel
+ *    keep the mean within 4 standard errors (at most 1.6%) of the reference and lower the variance
+ *    below 0.6x;
+ *  - ias-guide-refresh and ias-guide-rotate (on by default): the image is the same for 1 and 3
+ *    threads, and each changes it (the refresh always rotating). */
 #include "harness.h"
+#include "ias_modes.h"
 #include "render_fields.h"
 
 #include "core/rng.h"
@@ -155,29 +161,66 @@ static const char *scene_text(void) {
     return text;
 }
 
-static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
-                       uint64_t seed) {
-    pn_render_settings s = PN_RENDER_SETTINGS_INIT;
-    pn_options o = pn_options_new();
-    s.options = o;
-    if (guide) {
-        const char *const opts[] = {"ias-light-guide", guide, "max-passes", "4", "ias-aa-threshold", "0", NULL};
-        for (int i = 0; opts[i]; i += 2) CHECK(pn_options_set(ctx, o, opts[i], opts[i + 1]) == PN_OK);
-        s.threshold = 1e-7; /* every pixel takes its four passes: the same shadow rays with and without */
+/* ias at fixed passes (guide non-NULL: "off" or "on"; refresh: ias-guide-refresh, NULL for its
+ * default) or, with guide NULL, kind at spp. */
+static pn_image render_ias(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
+                           const char *passes, const char *refresh, const char *rotate, int threads, uint64_t seed) {
+    /* Every pixel takes its passes: the same shadow rays with and without the guide. */
+    const char *opts[13] = {"ias-light-guide", guide, "max-passes", passes, "ias-aa-threshold", "0"};
+    int n = 6;
+    if (refresh) {
+        opts[n++] = "ias-guide-refresh";
+        opts[n++] = refresh;
     }
-    s.integrator = kind;
-    s.spp = spp;
-    s.seed = seed;
-    s.threads = 1;
-    pn_image img = NULL;
-    pn_status st = pn_test_render(ctx, scene, &s, &img, NULL);
-    pn_options_free(o);
-    if (st != PN_OK) fprintf(stderr, "  render failed: %s\n", pn_context_error_message(ctx));
-    return st == PN_OK ? img : NULL;
+    if (rotate) {
+        opts[n++] = "ias-guide-rotate";
+        opts[n++] = rotate;
+    }
+    opts[n] = NULL;
+    return pn_test_render_modes(ctx, scene, kind, spp, seed, threads, guide ? opts : NULL);
 }
 
-static double lum_at(const float *a, int i) {
-    return 0.2126 * (double)a[3 * i] + 0.7152 * (double)a[3 * i + 1] + 0.0722 * (double)a[3 * i + 2];
+static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
+                       uint64_t seed) {
+    return render_ias(ctx, scene, kind, spp, guide, "4", NULL, NULL, 1, seed);
+}
+
+/* Over SEEDS seeds of ias at fixed passes: the image's mean luminance over the reference's (and
+ * that mean's standard error) and the relative variance of one image, from the spread of the seeds
+ * per pixel. */
+static void measure(pn_context ctx, pn_scene scene, const float *r, int np, double ref_sum, const char *guide,
+                    const char *passes, const char *refresh, int SEEDS, double *mean, double *sd, double *var) {
+    double m1 = 0.0, m2 = 0.0, v = 0.0;
+    double *px_sum = calloc((size_t)np, sizeof *px_sum), *px_sum2 = calloc((size_t)np, sizeof *px_sum2);
+    CHECK(px_sum && px_sum2);
+    for (int k = 0; k < SEEDS && px_sum && px_sum2; k++) {
+        pn_image img = render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, guide, passes, refresh, NULL, 1, (uint64_t)k);
+        CHECK(img != NULL);
+        if (!img) continue;
+        const float *b = pn_image_layer_data(img, 0);
+        double sum = 0.0;
+        for (int i = 0; i < np; i++) {
+            double y = pn_test_lum_at(b, i);
+            sum += y;
+            px_sum[i] += y;
+            px_sum2[i] += y * y;
+        }
+        m1 += sum / ref_sum / SEEDS;
+        m2 += (sum / ref_sum) * (sum / ref_sum) / SEEDS;
+        pn_image_free(img);
+    }
+    for (int i = 0; px_sum && px_sum2 && i < np; i++) {
+        double mu = px_sum[i] / SEEDS, ya = pn_test_lum_at(r, i);
+        v += fmax(0.0, px_sum2[i] - SEEDS * mu * mu) / (SEEDS - 1.0) / (ya * ya + 0.01) / np;
+    }
+    free(px_sum);
+    free(px_sum2);
+    *mean = m1;
+    *sd = sqrt(fmax(0.0, m2 - m1 * m1) * SEEDS / (SEEDS - 1.0) / SEEDS);
+    *var = v;
+    fprintf(stderr,
+            "  guide %-3s, %s passes, refresh %-4s: relative variance %.3g; mean over the reference's %.5f +- %.5f\n",
+            guide, passes, refresh ? refresh : "-", v, m1, *sd);
 }
 
 static void test_renders(void) {
@@ -191,50 +234,56 @@ static void test_renders(void) {
         const int np = pn_image_width(ref) * pn_image_height(ref);
         const float *r = pn_image_layer_data(ref, 0);
         double ref_sum = 0.0;
-        for (int i = 0; i < np; i++) ref_sum += lum_at(r, i);
-        static const char *const modes[] = {"off", "on"};
-        enum { SEEDS = 4 };
-        double var[2] = {0}, mean[2] = {0}, mean2[2] = {0};
-        double *px_sum = calloc((size_t)np, sizeof *px_sum), *px_sum2 = calloc((size_t)np, sizeof *px_sum2);
-        CHECK(px_sum && px_sum2);
-        for (int m = 0; m < 2 && px_sum && px_sum2; m++) {
-            memset(px_sum, 0, (size_t)np * sizeof *px_sum);
-            memset(px_sum2, 0, (size_t)np * sizeof *px_sum2);
-            for (int k = 0; k < SEEDS; k++) {
-                pn_image img = render(ctx, scene, PN_INTEGRATOR_IAS, 0, modes[m], (uint64_t)k);
-                CHECK(img != NULL);
-                if (!img) continue;
-                const float *b = pn_image_layer_data(img, 0);
-                double s = 0.0;
-                for (int i = 0; i < np; i++) {
-                    double y = lum_at(b, i);
-                    s += y;
-                    px_sum[i] += y;
-                    px_sum2[i] += y * y;
-                }
-                mean[m] += s / ref_sum / SEEDS;
-                mean2[m] += (s / ref_sum) * (s / ref_sum) / SEEDS;
-                pn_image_free(img);
-            }
-            /* The relative variance of one image, from the spread of the seeds per pixel. */
-            for (int i = 0; i < np; i++) {
-                double mu = px_sum[i] / SEEDS, ya = lum_at(r, i);
-                var[m] += fmax(0.0, px_sum2[i] - SEEDS * mu * mu) / (SEEDS - 1.0) / (ya * ya + 0.01) / np;
-            }
-        }
-        free(px_sum);
-        free(px_sum2);
-        for (int m = 0; m < 2; m++) {
-            double sd = sqrt(fmax(0.0, mean2[m] - mean[m] * mean[m]) * SEEDS / (SEEDS - 1.0) / SEEDS);
-            fprintf(stderr, "  guide %-3s relative variance %.3g; mean over the reference's %.5f +- %.5f\n", modes[m],
-                    var[m], mean[m], sd);
-        }
+        for (int i = 0; i < np; i++) ref_sum += pn_test_lum_at(r, i);
+        double mean[4], sd[4], var[4];
+        measure(ctx, scene, r, np, ref_sum, "off", "4", NULL, 4, &mean[0], &sd[0], &var[0]);
+        measure(ctx, scene, r, np, ref_sum, "on", "4", NULL, 4, &mean[1], &sd[1], &var[1]);
         /* Unbiased with the guide (without it the fixed passes' eq. 7-8 weights leave ias about
          * 0.5% bright on this scene, measured 1.0049 +- 0.0004: not this test's subject). */
         CHECK_MSG(fabs(mean[1] - 1.0) < 0.005, "guide on: mean %.5f of the reference", mean[1]);
         CHECK_MSG(var[1] < 0.5 * var[0], "guide on: relative variance %.3g, off %.3g", var[1], var[0]);
+        /* ias-guide-refresh: one pass, which without it is unguided; with the grids rebuilt every
+         * pixel its later pixels sample through what the block's earlier ones found. */
+        measure(ctx, scene, r, np, ref_sum, "on", "1", NULL, 64, &mean[2], &sd[2], &var[2]);
+        measure(ctx, scene, r, np, ref_sum, "on", "1", "1", 64, &mean[3], &sd[3], &var[3]);
+        CHECK_MSG(fabs(mean[3] - 1.0) < fmax(0.005, 4.0 * sd[3]) && sd[3] < 0.004,
+                  "guide refresh: mean %.5f +- %.5f of the reference", mean[3], sd[3]);
+        CHECK_MSG(var[3] < 0.6 * var[2], "guide refresh: relative variance %.3g, without %.3g", var[3], var[2]);
     }
     pn_image_free(ref);
+    pn_scene_free(scene);
+    pn_context_free(ctx);
+}
+
+/* ias-guide-refresh and ias-guide-rotate keep the image independent of the thread count: a block's
+ * grids come from its own earlier pixels, its rotations from a hash of the seed, block, pixel and
+ * pass, and a block is one worker's. Each is in use: the image differs without it. */
+static void test_threads(void) {
+    pn_context ctx = pn_context_new();
+    const char *path = pn_test_write_file(tmpdir, "guide.pbrt", scene_text());
+    pn_scene scene = NULL;
+    CHECK(path && pn_scene_load(ctx, path, &scene) == PN_OK);
+    enum { N = 6 };
+    /* {refresh, rotate, threads}: refresh 1 / 3 threads, default (rotated) 1 / 3 threads, neither */
+    static const char *const cfg[N][2] = {{"1", NULL},  {"1", NULL},   {NULL, NULL},
+                                          {NULL, NULL}, {NULL, "off"}, {"1", "off"}};
+    static const int threads[N] = {1, 3, 1, 3, 1, 1};
+    pn_image img[N] = {0};
+    for (int i = 0; i < N && scene; i++) {
+        img[i] = render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, "on", "2", cfg[i][0], cfg[i][1], threads[i], 5);
+        CHECK(img[i] != NULL);
+    }
+    if (img[0] && img[1] && img[2] && img[3] && img[4] && img[5]) {
+        const size_t n = (size_t)pn_image_width(img[0]) * (size_t)pn_image_height(img[0]) * 3 * sizeof(float);
+#define SAME(a, b) (memcmp(pn_image_layer_data(img[a], 0), pn_image_layer_data(img[b], 0), n) == 0)
+        CHECK_MSG(SAME(0, 1), "ias-guide-refresh: 1 and 3 threads differ");
+        CHECK_MSG(SAME(2, 3), "ias-guide-rotate on: 1 and 3 threads differ");
+        CHECK(!SAME(0, 2)); /* the refresh changes the first pass */
+        CHECK(!SAME(2, 4)); /* the rotation changes the guided samples */
+        CHECK(SAME(0, 5));  /* the refresh always rotates */
+#undef SAME
+    }
+    for (int i = 0; i < N; i++) pn_image_free(img[i]);
     pn_scene_free(scene);
     pn_context_free(ctx);
 }
@@ -251,4 +300,5 @@ static void test_teardown(void) {
     CHECK(rmdir(tmpdir) == 0);
 }
 
-PN_TESTS(TEST(test_choice), TEST(test_warp), TEST(test_setup), TEST(test_renders), TEST(test_teardown))
+PN_TESTS(TEST(test_choice), TEST(test_warp), TEST(test_setup), TEST(test_renders), TEST(test_threads),
+         TEST(test_teardown))

@@ -263,7 +263,7 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
                                 "ias-variant",
                                 paper ? "paper" : "default",
                                 NULL};
-    return pn_test_render_modes(ctx, scene, kind, spp, seed, mis ? opts : NULL);
+    return pn_test_render_modes(ctx, scene, kind, spp, seed, 1, mis ? opts : NULL);
 }
 
 static pn_scene load(pn_context ctx, const char *name, bool glossy) {

@@ -156,7 +156,7 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
                        uint64_t seed) {
     /* No pixel stops before its two passes: the same shadow rays for every mode. */
     const char *const opts[] = {"ias-ratio", mode, "max-passes", "2", "ias-aa-threshold", "0", NULL};
-    return pn_test_render_modes(ctx, scene, kind, spp, seed, mode ? opts : NULL);
+    return pn_test_render_modes(ctx, scene, kind, spp, seed, 1, mode ? opts : NULL);
 }
 
 static pn_scene load(pn_context ctx, const char *name, bool occluder) {

@@ -78,6 +78,13 @@ METHOD_ARGS = {
     **{f"ias-{name}": [["--integrator", "ias", "--ias-light-guide", mode, "--threshold", t]
                        for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
        for name, mode in (("guide", "on"), ("noguide", "off"))},
+    # the default variant with the guided numbers not rotated (ias-guide-rotate off: the guide before stop 20's
+    # rotation)
+    "ias-norot": [["--integrator", "ias", "--ias-guide-rotate", "off", "--threshold", t]
+                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # the default variant with the first pass guided from the block's earlier pixels (ias-guide-refresh)
+    "ias-gref": [["--integrator", "ias", "--ias-guide-refresh", "1", "--threshold", t]
+                 for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):

@@ -151,6 +151,16 @@
  *    passes: relMSE 0.0049 -> 0.0022 for the same shadow rays), bathroom-72 8.5 -> 4.9 s,
  *    bathroom-72-matte at T = 0.0025 1.6x; hall-many and hall-many-matte within 4%; scenes without
  *    such lights (staircase-832, living-env-138, the generated ones) unchanged bit for bit.
+ *  - ias-guide-rotate on (stop 20; ias_guide.c pn_ias_guide_set_rotation, set before each pixel's
+ *    pass in ias_render_batch): the numbers a guide grid warps are first rotated (mod 1) by a shift
+ *    hashed from the seed, the block's scramble, the pixel and the pass. Reason: a block's numbers
+ *    are one Sobol sequence, so a pixel's points depend on the earlier points that built the grid,
+ *    and the grid's density is then not independent of where they fall: on tests/test_ias_guide.c's
+ *    screened light the guide at 2 passes measured 0.99906 +- 0.00030 of the reference without the
+ *    rotation, 0.99991 +- 0.00037 with it (512 seeds; rebuilding the grid within a pass,
+ *    ias-guide-refresh, 1.0% bright without it). Effect: variance unchanged (test scene 0.000240 ->
+ *    0.000244; bathroom-72-matte fixed 2 / 4 passes relMSE within the seeds' noise); CPU at equal
+ *    relMSE in docs/methods/ias.md, "The light guide's gap to the oracles".
  *  - ias-stats cut (session 20; issue 15, light count; cut_record): with the hash-table statistics
  *    (sparse_stats, from PN_IAS_DENSE_IDS cluster ids) a sample is added only to the nodes of the
  *    block's cuts whose light range holds its light, each with the sample over the light's
@@ -261,6 +271,8 @@ typedef struct ias_shared {
     double mis_share;         /* mis: the expected BSDF rays per light sample, in (0, 1] */
     bool light_guide;         /* ias-light-guide: grids over large lights' sample squares (ias_guide.h) */
     pn_ias_guide_lights guide;
+    unsigned guide_refresh; /* ias-guide-refresh: first-pass pixels between grid rebuilds; 0: none */
+    bool guide_rotate;      /* ias-guide-rotate (always with ias-guide-refresh): pn_ias_guide_set_rotation */
 } ias_shared;
 
 /* A cluster node as sparse_add and sparse_aggregate read it (32 bytes instead of the node's 140):
@@ -414,6 +426,8 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
             return pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory");
         }
         sh->light_guide = sh->guide.count > 0;
+        sh->guide_refresh = sh->light_guide ? job->ias_guide_refresh : 0u;
+        sh->guide_rotate = sh->light_guide && (job->ias_guide_rotate || sh->guide_refresh);
     }
     pn_status st;
     int next;
@@ -2581,6 +2595,15 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                 count = (unsigned)ceil(1.5 * px->clusters);
                 if (grown > count) count = grown;
             }
+            /* ias-guide-refresh: the first pass's later pixels sample through the grids of what the
+             * block's earlier pixels found (rebuilt before the pixel, so its samples share one PDF). */
+            if (sh->guide_refresh && pass == 0 && pi > 0 && pi % (int)sh->guide_refresh == 0)
+                pn_ias_guide_refresh(&s->guide);
+            /* ias-guide-rotate: the pixel's guided numbers shifted independently of the samples
+             * that built the grids (ias_guide.h, pn_ias_guide_set_rotation). */
+            if (sh->guide_rotate)
+                pn_ias_guide_set_rotation(&s->guide, pn_hash3(job->seed ^ 0x67d1ull, (uint64_t)scramble,
+                                                              (uint64_t)(uint32_t)pi << 32 | (uint32_t)pass));
             sample_pixel(job, sh, s, px, pass, count, scramble, &counter);
             store_pass(s, px);
             if (job->adaptive_rule == PN_ADAPTIVE_CROSS) {

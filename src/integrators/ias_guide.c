@@ -158,6 +158,19 @@ static float in_cell(int i, double f, int side) {
     return x;
 }
 
+void pn_ias_guide_set_rotation(pn_ias_guide *g, uint64_t key) {
+    g->rotate = true;
+    g->shift[0] = (float)(key >> 40) * 0x1p-24f; /* 24 bits each: exact in a float, below 1 */
+    g->shift[1] = (float)((key >> 16) & 0xffffffu) * 0x1p-24f;
+}
+
+/* u + d modulo 1, in [0, 1). */
+static float rotated(float u, float d) {
+    float x = u + d;
+    if (x >= 1.0f) x -= 1.0f;
+    return x < 1.0f ? x : nextafterf(1.0f, 0.0f);
+}
+
 int pn_ias_guide_warp(const pn_ias_guide *g, int light, float *u1, float *u2, double *density) {
     const int s = g->lights->slot[light];
     if (s < 0) return -1;
@@ -167,6 +180,10 @@ int pn_ias_guide_warp(const pn_ias_guide *g, int light, float *u1, float *u2, do
         a = a < G ? a : G - 1;
         b = b < G ? b : G - 1;
         return b * G + a;
+    }
+    if (g->rotate) {
+        *u1 = rotated(*u1, g->shift[0]);
+        *u2 = rotated(*u2, g->shift[1]);
     }
     const double *row = g->row_cdf + (size_t)s * (size_t)(G + 1);
     double fb, fa;

@@ -343,6 +343,24 @@ static const pn_option_decl options[] = {
      F(ias_light_guide),
      PN_FIELD_INT,
      0},
+    {{"ias-guide-rotate", PN_OPTION_CHOICE, "on", 0, 0, 0, 0, "", "off,on",
+      "default variant with ias-light-guide on: 'on' rotates the numbers a grid warps (mod 1) by a shift drawn "
+      "per pixel and pass, so that they are independent of the block's earlier samples that built the grid (a "
+      "block's numbers are one Sobol sequence; without it the guide measured 0.09% dark at 2 passes on "
+      "tests/test_ias_guide.c's scene); 'off' warps them as they come (ias-guide-refresh always rotates)"},
+     BIT(M_IAS),
+     F(ias_guide_rotate),
+     PN_FIELD_INT,
+     0},
+    {{"ias-guide-refresh", PN_OPTION_INT, "0", 0, 4096, 0, 0, "pixels", "",
+      "default variant with ias-light-guide on: in a block's first pass, the grids are rebuilt from the block's "
+      "samples so far before every this many pixels (the block's later pixels then sample through what its earlier "
+      "ones found; unbiased, and the same for any thread count: a block is one worker's); 0: the first pass "
+      "samples the lights' whole squares, the grids being built between passes only"},
+     BIT(M_IAS),
+     F(ias_guide_refresh),
+     PN_FIELD_U32,
+     0},
     /* tiles */
     {{"block-size", PN_OPTION_INT, "8", 8, 32, 0, 0, "pixels", "",
       "pixels per side of the square blocks handed to the integrator (ias: its block of section 3.2)"},

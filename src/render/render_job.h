@@ -96,6 +96,8 @@ typedef struct pn_render_job {
     int ias_mis;                /* ias-mis: PN_IAS_MIS_* (integrators/ias_mis.h) */
     double ias_mis_share;       /* ias-mis-share: expected BSDF rays per light sample, (0, 1] */
     int ias_light_guide;        /* ias-light-guide: 1 to guide samples within large lights (ias_guide.h) */
+    int ias_guide_rotate;       /* ias-guide-rotate: 1 to rotate the guided numbers per pixel and pass */
+    uint32_t ias_guide_refresh; /* ias-guide-refresh: first-pass pixels between grid rebuilds; 0: off */
     /* reference */
     int light_sampler; /* PN_LIGHT_SAMPLER_IRRADIANCE or _BVH */
     /* reference and ias with a threshold: the stopping rule (option adaptive-rule; AUTO is
