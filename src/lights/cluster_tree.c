@@ -1236,3 +1236,89 @@ float pn_cluster_pick_pdf(const pn_cluster_forest *f, const pn_lights *lights, i
     if (!(total > 0.0)) return 1.0f / (float)nd->count;
     return (float)((double)pn_cluster_light_power(&lights->lights[light]) / total);
 }
+
+/* ---------------------------------------------------------------- picking by importance */
+
+/* cos(max(0, a - b)) from the cosines and sines of a and b. */
+static float cos_minus_clamped(float cos_a, float sin_a, float cos_b, float sin_b) {
+    return cos_a >= cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;
+}
+
+#define PN_PICK_COS_FLOOR 1e-3f
+
+double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n) {
+    if (!(nd->power > 0.0f)) return 0.0;
+    const bool horizon = !v3_is_zero(n);
+    if (node_culled(nd, p, n, horizon)) return 0.0;
+    vec3 pc = v3_sub(nd->center, p);
+    float d2 = v3_length2(pc), r2 = nd->radius * nd->radius;
+    if (!(d2 > r2)) return (double)nd->power / (double)fmaxf(r2, 1e-30f); /* p in the sphere */
+    float d = sqrtf(d2);
+    vec3 w = v3_scale(pc, 1.0f / d); /* from p towards the centre */
+    float sin_b = fminf(nd->radius / d, 1.0f), cos_b = sqrtf(fmaxf(0.0f, 1.0f - sin_b * sin_b));
+    float emit = 1.0f, incident = 1.0f;
+    if (nd->cos_spread > -1.0f) {
+        /* The smallest angle between an emitting normal (within theta_o of the axis) and a
+         * direction from a point of the sphere to p (within theta_b of -w): max(0, theta_w -
+         * theta_o - theta_b); its cosine. */
+        float cos_w = -v3_dot(nd->axis, w), sin_w = sqrtf(fmaxf(0.0f, 1.0f - cos_w * cos_w));
+        float cos_o = nd->cos_spread, sin_o = sqrtf(fmaxf(0.0f, 1.0f - cos_o * cos_o));
+        float cos_x = cos_minus_clamped(cos_w, sin_w, cos_o, sin_o);
+        float sin_x = cos_w >= cos_o ? 0.0f : sin_w * cos_o - cos_w * sin_o;
+        emit = fmaxf(cos_minus_clamped(cos_x, sin_x, cos_b, sin_b), PN_PICK_COS_FLOOR);
+    }
+    if (horizon) {
+        float cos_i = v3_dot(n, w), sin_i = sqrtf(fmaxf(0.0f, 1.0f - cos_i * cos_i));
+        incident = fmaxf(cos_minus_clamped(cos_i, sin_i, cos_b, sin_b), PN_PICK_COS_FLOOR);
+    }
+    return (double)nd->power * (double)emit * (double)incident / (double)d2;
+}
+
+/* The probability of the left child at interior node m. */
+static double pick_left_share(const pn_cluster_forest *f, int m, vec3 p, vec3 n) {
+    const pn_cluster_node *nd = &f->nodes[m], *a = &f->nodes[nd->left], *b = &f->nodes[nd->right];
+    double ia = pn_cluster_importance(a, p, n), ib = pn_cluster_importance(b, p, n);
+    if (ia + ib > 0.0) return ia / (ia + ib);
+    double pa = (double)a->power, pb = (double)b->power;
+    if (pa + pb > 0.0) return pa / (pa + pb);
+    return (double)a->count / (double)(a->count + b->count);
+}
+
+int pn_cluster_pick_importance(const pn_cluster_forest *f, int node, vec3 p, vec3 n, float u, float *prob) {
+    double v = (double)u, pr = 1.0;
+    if (!(v >= 0.0)) v = 0.0;
+    if (v >= 1.0) v = nextafter(1.0, 0.0);
+    while (f->nodes[node].left >= 0) {
+        const double s = pick_left_share(f, node, p, n);
+        if (v < s) {
+            v /= s;
+            pr *= s;
+            node = f->nodes[node].left;
+        } else {
+            v = (v - s) / (1.0 - s);
+            pr *= 1.0 - s;
+            node = f->nodes[node].right;
+        }
+        if (v >= 1.0) v = nextafter(1.0, 0.0);
+    }
+    if (prob) *prob = (float)pr;
+    return f->nodes[node].light;
+}
+
+float pn_cluster_pick_importance_pdf(const pn_cluster_forest *f, int node, vec3 p, vec3 n, int light) {
+    if (light < 0 || light >= f->light_count) return 0.0f;
+    int at = f->leaf_of_light[light];
+    if (at < 0) return 0.0f;
+    const pn_cluster_node *nd = &f->nodes[node];
+    int pos = f->nodes[at].first;
+    if (pos < nd->first || pos >= nd->first + nd->count) return 0.0f;
+    double pr = 1.0;
+    while (at != node) {
+        const int up = f->nodes[at].parent;
+        if (up < 0) return 0.0f;
+        const double s = pick_left_share(f, up, p, n);
+        pr *= f->nodes[up].left == at ? s : 1.0 - s;
+        at = up;
+    }
+    return (float)pr;
+}

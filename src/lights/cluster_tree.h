@@ -134,6 +134,25 @@ int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int nod
 /* Probability that pn_cluster_pick(node) returns `light` (0 if the light is not below node). */
 float pn_cluster_pick_pdf(const pn_cluster_forest *f, const pn_lights *lights, int node, int light);
 
+/* Chooses a light of node `node` by importance at the point p (unit normal n; n = 0: no horizon):
+ * from the node down to a leaf, each child is taken in proportion to pn_cluster_importance at p
+ * (in proportion to power where both children have none, and to their light counts where both
+ * have no power either), u rescaled to [0,1) within the chosen child for the next level. Returns
+ * the light and, in *prob, its probability: the product of the choices along the path.
+ * O(depth below node) importance evaluations. */
+int pn_cluster_pick_importance(const pn_cluster_forest *f, int node, vec3 p, vec3 n, float u, float *prob);
+
+/* Probability that pn_cluster_pick_importance(node, p, n) returns `light` (0 if the light is not
+ * below node): the same products, walked up from the light's leaf. */
+float pn_cluster_pick_importance_pdf(const pn_cluster_forest *f, int node, vec3 p, vec3 n, int light);
+
+/* A bound on node nd's unoccluded irradiance at p (unit normal n, or 0), up to a constant:
+ * power x (a bound on the emitting cosine over the node's normal cone and bounding sphere) x (a
+ * bound on the incident cosine over the sphere) / max(d^2, r^2); 0 exactly where the cut's
+ * conservative test says no light below nd can light p (the cosine bounds are kept at least
+ * 1e-3 elsewhere, so that no light that can light p is left out by rounding). */
+double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n);
+
 /* ---- building blocks, shared with the tests and other cuts ---- */
 
 /* Luminous power used for picking and node sums: point 4 pi I, spot 2 pi I (1 - (cos_start +
