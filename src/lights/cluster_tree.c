@@ -1249,7 +1249,6 @@ static float cos_minus_clamped(float cos_a, float sin_a, float cos_b, float sin_
 double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n) {
     if (!(nd->power > 0.0f)) return 0.0;
     const bool horizon = !v3_is_zero(n);
-    if (node_culled(nd, p, n, horizon)) return 0.0;
     vec3 pc = v3_sub(nd->center, p);
     float d2 = v3_length2(pc), r2 = nd->radius * nd->radius;
     if (!(d2 > r2)) return (double)nd->power / (double)fmaxf(r2, 1e-30f); /* p in the sphere */

@@ -148,9 +148,9 @@ float pn_cluster_pick_importance_pdf(const pn_cluster_forest *f, int node, vec3 
 
 /* A bound on node nd's unoccluded irradiance at p (unit normal n, or 0), up to a constant:
  * power x (a bound on the emitting cosine over the node's normal cone and bounding sphere) x (a
- * bound on the incident cosine over the sphere) / max(d^2, r^2); 0 exactly where the cut's
- * conservative test says no light below nd can light p (the cosine bounds are kept at least
- * 1e-3 elsewhere, so that no light that can light p is left out by rounding). */
+ * bound on the incident cosine over the sphere) / max(d^2, r^2), each cosine bound kept at least
+ * 1e-3: never 0 for a node with power, so that no light that can light p is left out, whatever
+ * the rounding (a node facing away or below the horizon keeps 1e-3 or 1e-6 of its weight). */
 double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n);
 
 /* ---- building blocks, shared with the tests and other cuts ---- */
