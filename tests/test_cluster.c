@@ -776,14 +776,14 @@ static void test_pick(void) {
  * the probability pn_cluster_pick_importance_pdf gives, the picks' frequencies follow it
  * (chi-square), and every light that can light the point has a probability above 0. */
 static void check_pick_importance(const pn_cluster_forest *f, const pn_lights *L, int node, vec3 p, vec3 n,
-                                  test_rng *r, int samples) {
+                                  float lim, test_rng *r, int samples) {
     const pn_cluster_node *nd = &f->nodes[node];
     double *pdf = calloc((size_t)L->count, sizeof *pdf);
     int *hits = calloc((size_t)L->count, sizeof *hits);
     double sum = 0.0;
     for (int j = nd->first; j < nd->first + nd->count; j++) {
         int li = f->light_order[j];
-        pdf[li] = (double)pn_cluster_pick_importance_pdf(f, node, p, n, li);
+        pdf[li] = (double)pn_cluster_pick_importance_pdf(f, L, node, p, n, lim, li);
         CHECK(pdf[li] >= 0.0 && pdf[li] <= 1.0);
         sum += pdf[li];
         if (pdf[li] == 0.0 && pn_cluster_light_power(&L->lights[li]) > 0.0f)
@@ -792,7 +792,7 @@ static void check_pick_importance(const pn_cluster_forest *f, const pn_lights *L
     CHECK_NEAR(sum, 1.0, 1e-5);
     for (int s = 0; s < samples; s++) {
         float prob = -1.0f;
-        int li = pn_cluster_pick_importance(f, node, p, n, rnd(r), &prob);
+        int li = pn_cluster_pick_importance(f, L, node, p, n, lim, rnd(r), &prob);
         CHECK(li >= 0 && li < L->count);
         if (li < 0 || li >= L->count) continue;
         hits[li]++;
@@ -817,7 +817,7 @@ static void check_pick_importance(const pn_cluster_forest *f, const pn_lights *L
         double limit = dof + 5.0 * sqrt(2.0 * dof) + 10.0;
         CHECK_MSG(chi2 < limit, "chi-square %g with %d degrees of freedom", chi2, dof);
     }
-    CHECK(pn_cluster_pick_importance_pdf(f, node, p, n, -1) == 0.0f);
+    CHECK(pn_cluster_pick_importance_pdf(f, L, node, p, n, lim, -1) == 0.0f);
     free(hits);
     free(pdf);
 }
@@ -838,12 +838,12 @@ static void test_pick_importance(void) {
     for (int q = 0; q < 3; q++) {
         for (int t = 0; t < PN_TREE_COUNT; t++)
             if (f.roots[t] >= 0 && f.nodes[f.roots[t]].count > 1) {
-                check_pick_importance(&f, &L, f.roots[t], pts[q], nrm[q], &r, 60000);
+                check_pick_importance(&f, &L, f.roots[t], pts[q], nrm[q], q == 1 ? 0.05f : 0.0f, &r, 60000);
                 checked++;
             }
         for (int i = 0, k = 0; i < f.node_count && k < 3; i++)
             if (f.nodes[i].left >= 0 && f.nodes[i].count >= 6 && f.nodes[i].count <= 60 && i % 5 == q) {
-                check_pick_importance(&f, &L, i, pts[q], nrm[q], &r, 30000);
+                check_pick_importance(&f, &L, i, pts[q], nrm[q], q == 2 ? 0.05f : 0.0f, &r, 30000);
                 k++;
                 checked++;
             }
@@ -852,17 +852,17 @@ static void test_pick_importance(void) {
     int root = f.roots[PN_TREE_OMNI];
     for (int j = f.nodes[root].first; j < f.nodes[root].first + f.nodes[root].count && !skewed; j++) {
         int li = f.light_order[j];
-        float pw = pn_cluster_pick_pdf(&f, &L, root, li), pi = pn_cluster_pick_importance_pdf(&f, root, pts[0], nrm[0], li);
+        float pw = pn_cluster_pick_pdf(&f, &L, root, li), pi = pn_cluster_pick_importance_pdf(&f, &L, root, pts[0], nrm[0], 0.0f, li);
         if (pw > 0.0f && (pi > 2.0f * pw || pi < 0.5f * pw)) skewed = 1;
     }
     CHECK(checked >= 15 && skewed);
     /* Leaves and singles: the one light with probability 1. */
     int leaf = f.leaf_of_light[1];
     float prob = 0.0f;
-    CHECK(pn_cluster_pick_importance(&f, leaf, pts[0], nrm[0], 0.5f, &prob) == 1 && prob == 1.0f);
-    CHECK(pn_cluster_pick_importance_pdf(&f, leaf, pts[0], nrm[0], 1) == 1.0f);
-    CHECK(pn_cluster_pick_importance_pdf(&f, leaf, pts[0], nrm[0], 2) == 0.0f);
-    int li = pn_cluster_pick_importance(&f, root, pts[0], nrm[0], 0.99999994f, &prob);
+    CHECK(pn_cluster_pick_importance(&f, &L, leaf, pts[0], nrm[0], 0.0f, 0.5f, &prob) == 1 && prob == 1.0f);
+    CHECK(pn_cluster_pick_importance_pdf(&f, &L, leaf, pts[0], nrm[0], 0.0f, 1) == 1.0f);
+    CHECK(pn_cluster_pick_importance_pdf(&f, &L, leaf, pts[0], nrm[0], 0.0f, 2) == 0.0f);
+    int li = pn_cluster_pick_importance(&f, &L, root, pts[0], nrm[0], 0.0f, 0.99999994f, &prob);
     CHECK(li >= 0 && li < count && prob > 0.0f);
     pn_cluster_forest_free(&f);
     free(l);

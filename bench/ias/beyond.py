@@ -92,7 +92,10 @@ METHOD_ARGS = {
     **{f"ias-cap{k}{sfx}": [["--integrator", "ias", "--ias-cut-max", k] + extra + ["--threshold", t]
                             for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
        for k in ("128", "256")
-       for sfx, extra in (("", []), ("-imp", ["--ias-cluster-pick", "importance"]))},
+       for sfx, extra in (("", []), ("-imp", ["--ias-cluster-pick", "importance"]),
+                          ("-large", ["--ias-cluster-pick", "large"]))},
+    "ias-large": [["--integrator", "ias", "--ias-cluster-pick", "large", "--threshold", t]
+                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):

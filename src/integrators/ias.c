@@ -256,6 +256,7 @@ typedef struct ias_shared {
     int cut_size;
     int cut_max; /* trees cut: most clusters per point (pn_cluster_cut_capped); 0: no cap */
     bool importance_pick; /* trees cut: a cluster's light by importance at the point (pn_cluster_pick_importance) */
+    float pick_limit;     /* its descent stops below this solid angle (ias-cluster-pick large); 0: at the leaf */
     pn_light_bvh bvh;
     int *distant; /* with bvh_cut: the distant lights, ids bvh.node_count + k */
     int distant_count;
@@ -406,7 +407,8 @@ static pn_status ias_prepare(pn_render_job *job, pn_err *err) {
     sh->sobol_direct = !paper && job->ias_cluster_numbers == PN_IAS_NUMBERS_SOBOL;
     sh->cut_size = job->ias_cut_size > 0 ? (int)job->ias_cut_size : 1;
     sh->cut_max = paper || sh->bvh_cut ? 0 : (int)job->ias_cut_max;
-    sh->importance_pick = !paper && !sh->bvh_cut && job->ias_cluster_pick == PN_IAS_PICK_IMPORTANCE;
+    sh->importance_pick = !paper && !sh->bvh_cut && job->ias_cluster_pick != PN_IAS_PICK_POWER;
+    sh->pick_limit = job->ias_cluster_pick == PN_IAS_PICK_LARGE ? job->cluster_solid_angle : 0.0f;
     sh->aa_rays = ias_eye_rays(job, paper);
     sh->prior_share = sh->bvh_cut ? job->ias_prior_share : 0.0;
     sh->irradiance_prior = !paper && !sh->bvh_cut && job->ias_prior == PN_IAS_PRIOR_IMPORTANCE;
@@ -1933,7 +1935,8 @@ static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, cons
         if (e >= 0) {
             const int node = s->cut[r->cut_first + e];
             const float pick = sh->importance_pick
-                                   ? pn_cluster_pick_importance_pdf(&sh->forest, node, origin, bsdf->ns, light)
+                                   ? pn_cluster_pick_importance_pdf(&sh->forest, job->lights, node, origin, bsdf->ns,
+                                                                    sh->pick_limit, light)
                                    : pn_cluster_pick_pdf(&sh->forest, job->lights, node, light);
             pl = s->pdf[e] * (double)pick * (double)pn_ias_mis_light_pdf(l, origin, wi, hit.t);
         }
@@ -2053,7 +2056,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                  * sample's cosine below is taken with (lights under it give nothing). */
                 if (id < sh->forest.node_count)
                     light = sh->importance_pick
-                                ? pn_cluster_pick_importance(&sh->forest, id, origin, bsdf->ns, u_pick, &pl)
+                                ? pn_cluster_pick_importance(&sh->forest, job->lights, id, origin, bsdf->ns,
+                                                             sh->pick_limit, u_pick, &pl)
                                 : pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
             } else if (id < sh->bvh.node_count) {
                 /* A light of the BVH node by importance descent (O(depth)). */

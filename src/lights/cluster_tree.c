@@ -1283,11 +1283,19 @@ static double pick_left_share(const pn_cluster_forest *f, int m, vec3 p, vec3 n)
     return (double)a->count / (double)(a->count + b->count);
 }
 
-int pn_cluster_pick_importance(const pn_cluster_forest *f, int node, vec3 p, vec3 n, float u, float *prob) {
+/* True while the importance descent goes on at node m: an interior node subtending at least
+ * max_solid_angle from p (always, max_solid_angle <= 0). */
+static bool pick_descends(const pn_cluster_node *nd, vec3 p, float max_solid_angle) {
+    if (nd->left < 0) return false;
+    return !(max_solid_angle > 0.0f) || !(pn_cluster_solid_angle(nd->center, nd->radius, p) < max_solid_angle);
+}
+
+int pn_cluster_pick_importance(const pn_cluster_forest *f, const pn_lights *lights, int node, vec3 p, vec3 n,
+                               float max_solid_angle, float u, float *prob) {
     double v = (double)u, pr = 1.0;
     if (!(v >= 0.0)) v = 0.0;
     if (v >= 1.0) v = nextafter(1.0, 0.0);
-    while (f->nodes[node].left >= 0) {
+    while (pick_descends(&f->nodes[node], p, max_solid_angle)) {
         const double s = pick_left_share(f, node, p, n);
         if (v < s) {
             v /= s;
@@ -1300,24 +1308,32 @@ int pn_cluster_pick_importance(const pn_cluster_forest *f, int node, vec3 p, vec
         }
         if (v >= 1.0) v = nextafter(1.0, 0.0);
     }
-    if (prob) *prob = (float)pr;
-    return f->nodes[node].light;
+    float pp = 1.0f, fv = (float)v;
+    if (fv >= 1.0f) fv = nextafterf(1.0f, 0.0f);
+    int light = pn_cluster_pick(f, lights, node, fv, &pp);
+    if (prob) *prob = (float)(pr * (double)pp);
+    return light;
 }
 
-float pn_cluster_pick_importance_pdf(const pn_cluster_forest *f, int node, vec3 p, vec3 n, int light) {
+float pn_cluster_pick_importance_pdf(const pn_cluster_forest *f, const pn_lights *lights, int node, vec3 p, vec3 n,
+                                     float max_solid_angle, int light) {
     if (light < 0 || light >= f->light_count) return 0.0f;
     int at = f->leaf_of_light[light];
     if (at < 0) return 0.0f;
-    const pn_cluster_node *nd = &f->nodes[node];
-    int pos = f->nodes[at].first;
-    if (pos < nd->first || pos >= nd->first + nd->count) return 0.0f;
+    const int pos = f->nodes[at].first;
+    if (pos < f->nodes[node].first || pos >= f->nodes[node].first + f->nodes[node].count) return 0.0f;
+    /* The descent's path down to the light: the child whose light range holds it. */
     double pr = 1.0;
-    while (at != node) {
-        const int up = f->nodes[at].parent;
-        if (up < 0) return 0.0f;
-        const double s = pick_left_share(f, up, p, n);
-        pr *= f->nodes[up].left == at ? s : 1.0 - s;
-        at = up;
+    while (pick_descends(&f->nodes[node], p, max_solid_angle)) {
+        const double s = pick_left_share(f, node, p, n);
+        const pn_cluster_node *l = &f->nodes[f->nodes[node].left];
+        if (pos >= l->first && pos < l->first + l->count) {
+            pr *= s;
+            node = f->nodes[node].left;
+        } else {
+            pr *= 1.0 - s;
+            node = f->nodes[node].right;
+        }
     }
-    return (float)pr;
+    return (float)(pr * (double)pn_cluster_pick_pdf(f, lights, node, light));
 }
