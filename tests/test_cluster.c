@@ -775,8 +775,8 @@ static void test_pick(void) {
 /* pn_cluster_pick_importance: its probabilities sum to 1 over a node's lights, the pick reports
  * the probability pn_cluster_pick_importance_pdf gives, the picks' frequencies follow it
  * (chi-square), and every light that can light the point has a probability above 0. */
-static void check_pick_importance(const pn_cluster_forest *f, const pn_lights *L, int node, vec3 p, vec3 n,
-                                  float lim, test_rng *r, int samples) {
+static void check_pick_importance(const pn_cluster_forest *f, const pn_lights *L, int node, vec3 p, vec3 n, float lim,
+                                  test_rng *r, int samples) {
     const pn_cluster_node *nd = &f->nodes[node];
     double *pdf = calloc((size_t)L->count, sizeof *pdf);
     int *hits = calloc((size_t)L->count, sizeof *hits);
@@ -852,7 +852,8 @@ static void test_pick_importance(void) {
     int root = f.roots[PN_TREE_OMNI];
     for (int j = f.nodes[root].first; j < f.nodes[root].first + f.nodes[root].count && !skewed; j++) {
         int li = f.light_order[j];
-        float pw = pn_cluster_pick_pdf(&f, &L, root, li), pi = pn_cluster_pick_importance_pdf(&f, &L, root, pts[0], nrm[0], 0.0f, li);
+        float pw = pn_cluster_pick_pdf(&f, &L, root, li),
+              pi = pn_cluster_pick_importance_pdf(&f, &L, root, pts[0], nrm[0], 0.0f, li);
         if (pw > 0.0f && (pi > 2.0f * pw || pi < 0.5f * pw)) skewed = 1;
     }
     CHECK(checked >= 15 && skewed);

@@ -268,8 +268,8 @@ static int cmp_double(const void *a, const void *b) {
  * the reference's (*mean, and its standard error *sd) and the median over pixels of a pixel's relative variance. */
 static void pick_measure(pn_context ctx, pn_scene scene, const char *pick, const float *ref, const bool *lit, int np,
                          double ref_sum, int seeds, double *per_seed, double *mean, double *sd, double *var) {
-    const char *opts[] = {"ias-cut-max", "1", "ias-cluster-pick", pick, "max-passes", "3", "ias-aa-threshold", "0",
-                          NULL};
+    const char *opts[] = {"ias-cut-max", "1", "ias-cluster-pick", pick, "max-passes", "3", "ias-aa-threshold",
+                          "0",           NULL};
     double m1 = 0.0, m2 = 0.0, v = 0.0;
     double *ps = calloc((size_t)np, sizeof *ps), *ps2 = calloc((size_t)np, sizeof *ps2);
     CHECK(ps && ps2);
@@ -369,8 +369,7 @@ static void test_importance_pick(void) {
         fprintf(stderr, "  importance - power: %.5f +- %.5f\n", d1, se);
         free(sorted);
         free(lit);
-        CHECK_MSG(fabs(d1) < 4.0 * se + 1e-4, "importance %.5f, power %.5f (difference +- %.5f)", mean[1], mean[0],
-                  se);
+        CHECK_MSG(fabs(d1) < 4.0 * se + 1e-4, "importance %.5f, power %.5f (difference +- %.5f)", mean[1], mean[0], se);
         /* Both about 1.2% above the reference here, measured 1.0116 and 1.0116 +- 0.004: the fixed
          * passes' eq. 7-8 weights (test_ias_guide.c sees 0.5% on its scene), not the pick. */
         CHECK_MSG(fabs(mean[1] - 1.0) < 0.02, "importance: mean %.5f of the reference", mean[1]);

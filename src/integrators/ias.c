@@ -254,7 +254,7 @@ typedef struct ias_shared {
     double prior_share;    /* the least weight c_U's PDF keeps in eq. 6 (build_pdf_table); 0: Fig. 2's */
     double env_floor;      /* trees cut: an environment region keeps this times its pass-0 probability */
     int cut_size;
-    int cut_max; /* trees cut: most clusters per point (pn_cluster_cut_capped); 0: no cap */
+    int cut_max;          /* trees cut: most clusters per point (pn_cluster_cut_capped); 0: no cap */
     bool importance_pick; /* trees cut: a cluster's light by importance at the point (pn_cluster_pick_importance) */
     float pick_limit;     /* its descent stops below this solid angle (ias-cluster-pick large); 0: at the leaf */
     pn_light_bvh bvh;
@@ -2055,10 +2055,9 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 /* ias-cluster-pick importance: the horizon is the shading normal's, the one the
                  * sample's cosine below is taken with (lights under it give nothing). */
                 if (id < sh->forest.node_count)
-                    light = sh->importance_pick
-                                ? pn_cluster_pick_importance(&sh->forest, job->lights, id, origin, bsdf->ns,
-                                                             sh->pick_limit, u_pick, &pl)
-                                : pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
+                    light = sh->importance_pick ? pn_cluster_pick_importance(&sh->forest, job->lights, id, origin,
+                                                                             bsdf->ns, sh->pick_limit, u_pick, &pl)
+                                                : pn_cluster_pick(&sh->forest, job->lights, id, u_pick, &pl);
             } else if (id < sh->bvh.node_count) {
                 /* A light of the BVH node by importance descent (O(depth)). */
                 double pm;
