@@ -1,7 +1,8 @@
 /* test_cluster.c — the light cluster trees of Donikian et al. 2006 (IAS §4.3, §4.3.1): forest
  * structure, equivalence of the fast greedy construction with a brute-force greedy one, the
- * per-point cut (solid angle, culling, partition of the lights), power-proportional picking, and
- * the build time for 20,000 lights. */
+ * per-point cut (solid angle, culling, partition of the lights), power-proportional picking, the
+ * importance pick at a point (its pdf sums to 1, matches the picks' frequencies and leaves out no
+ * light that can light the point), and the build time for 20,000 lights. */
 #include "harness.h"
 
 #include "lights/cluster_tree.h"

@@ -25,6 +25,11 @@
  *
  * After the merges, light_order is laid out depth-first so each subtree's lights are contiguous,
  * and node aggregates (power, bounding box, normal cone with emission spread) are filled bottom-up.
+ *
+ * A light within a node is picked by power (the paper's "relative intensities", pn_cluster_pick)
+ * or, not in the paper (ias-cluster-pick, an option), by a descent of the node's subtree by an
+ * importance bound at the shading point (pn_cluster_pick_importance; Conty & Kulla 2018's idea on
+ * these trees' spheres and cones).
  */
 #include "lights/cluster_tree.h"
 
