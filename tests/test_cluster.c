@@ -1,7 +1,8 @@
 /* test_cluster.c — the light cluster trees of Donikian et al. 2006 (IAS §4.3, §4.3.1): forest
  * structure, equivalence of the fast greedy construction with a brute-force greedy one, the
- * per-point cut (solid angle, culling, partition of the lights), power-proportional picking, and
- * the build time for 20,000 lights. */
+ * per-point cut (solid angle, culling, partition of the lights), power-proportional picking, the
+ * importance pick at a point (its pdf sums to 1, matches the picks' frequencies and leaves out no
+ * light that can light the point), and the build time for 20,000 lights. */
 #include "harness.h"
 
 #include "lights/cluster_tree.h"
@@ -772,6 +773,103 @@ static void test_pick(void) {
     free(l);
 }
 
+/* pn_cluster_pick_importance: its probabilities sum to 1 over a node's lights, the pick reports
+ * the probability pn_cluster_pick_importance_pdf gives, the picks' frequencies follow it
+ * (chi-square), and every light that can light the point has a probability above 0. */
+static void check_pick_importance(const pn_cluster_forest *f, const pn_lights *L, int node, vec3 p, vec3 n, float lim,
+                                  test_rng *r, int samples) {
+    const pn_cluster_node *nd = &f->nodes[node];
+    double *pdf = calloc((size_t)L->count, sizeof *pdf);
+    int *hits = calloc((size_t)L->count, sizeof *hits);
+    double sum = 0.0;
+    for (int j = nd->first; j < nd->first + nd->count; j++) {
+        int li = f->light_order[j];
+        pdf[li] = (double)pn_cluster_pick_importance_pdf(f, L, node, p, n, lim, li);
+        CHECK(pdf[li] >= 0.0 && pdf[li] <= 1.0);
+        sum += pdf[li];
+        if (pdf[li] == 0.0 && pn_cluster_light_power(&L->lights[li]) > 0.0f)
+            CHECK_MSG(pn_cluster_light_culled(&L->lights[li], p, n), "light %d can light p, probability 0", li);
+    }
+    CHECK_NEAR(sum, 1.0, 1e-5);
+    for (int s = 0; s < samples; s++) {
+        float prob = -1.0f;
+        int li = pn_cluster_pick_importance(f, L, node, p, n, lim, rnd(r), &prob);
+        CHECK(li >= 0 && li < L->count);
+        if (li < 0 || li >= L->count) continue;
+        hits[li]++;
+        if (s < 2000) CHECK_NEAR(prob, pdf[li], 1e-5 * pdf[li] + 1e-12);
+    }
+    double chi2 = 0.0;
+    int dof = -1, outside = 0;
+    for (int j = nd->first; j < nd->first + nd->count; j++) {
+        int li = f->light_order[j];
+        double e = pdf[li] * samples;
+        if (e == 0.0) {
+            CHECK(hits[li] == 0);
+            continue;
+        }
+        chi2 += (hits[li] - e) * (hits[li] - e) / e;
+        dof++;
+        hits[li] = 0;
+    }
+    for (int i = 0; i < L->count; i++) outside += hits[i];
+    CHECK(outside == 0);
+    if (dof > 0) {
+        double limit = dof + 5.0 * sqrt(2.0 * dof) + 10.0;
+        CHECK_MSG(chi2 < limit, "chi-square %g with %d degrees of freedom", chi2, dof);
+    }
+    CHECK(pn_cluster_pick_importance_pdf(f, L, node, p, n, lim, -1) == 0.0f);
+    free(hits);
+    free(pdf);
+}
+
+static void test_pick_importance(void) {
+    test_rng r = {41};
+    int count = 600;
+    pn_light *l = mixed_lights(&r, count, 6.0f);
+    pn_lights L = wrap_lights(l, count);
+    pn_cluster_forest f;
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_cluster_forest_build(&L, &f, &err) == PN_OK);
+    /* Points among the lights and outside them, with and without a horizon. */
+    const vec3 pts[3] = {v3(0.3f, -0.2f, 0.1f), v3(9, 2, -1), v3(-2, 5, 3)};
+    const vec3 nrm[3] = {v3(0, 0, 1), v3_normalize(v3(-1, 0.2f, 0.1f)), v3(0, 0, 0)};
+    int checked = 0, skewed = 0;
+    for (int q = 0; q < 3; q++) {
+        for (int t = 0; t < PN_TREE_COUNT; t++)
+            if (f.roots[t] >= 0 && f.nodes[f.roots[t]].count > 1) {
+                check_pick_importance(&f, &L, f.roots[t], pts[q], nrm[q], q == 1 ? 0.05f : 0.0f, &r, 60000);
+                checked++;
+            }
+        for (int i = 0, k = 0; i < f.node_count && k < 3; i++)
+            if (f.nodes[i].left >= 0 && f.nodes[i].count >= 6 && f.nodes[i].count <= 60 && i % 5 == q) {
+                check_pick_importance(&f, &L, i, pts[q], nrm[q], q == 2 ? 0.05f : 0.0f, &r, 30000);
+                k++;
+                checked++;
+            }
+    }
+    /* The pick differs from power's: near the point, a near light outweighs a brighter far one. */
+    int root = f.roots[PN_TREE_OMNI];
+    for (int j = f.nodes[root].first; j < f.nodes[root].first + f.nodes[root].count && !skewed; j++) {
+        int li = f.light_order[j];
+        float pw = pn_cluster_pick_pdf(&f, &L, root, li),
+              pi = pn_cluster_pick_importance_pdf(&f, &L, root, pts[0], nrm[0], 0.0f, li);
+        if (pw > 0.0f && (pi > 2.0f * pw || pi < 0.5f * pw)) skewed = 1;
+    }
+    CHECK(checked >= 15 && skewed);
+    /* Leaves and singles: the one light with probability 1. */
+    int leaf = f.leaf_of_light[1];
+    float prob = 0.0f;
+    CHECK(pn_cluster_pick_importance(&f, &L, leaf, pts[0], nrm[0], 0.0f, 0.5f, &prob) == 1 && prob == 1.0f);
+    CHECK(pn_cluster_pick_importance_pdf(&f, &L, leaf, pts[0], nrm[0], 0.0f, 1) == 1.0f);
+    CHECK(pn_cluster_pick_importance_pdf(&f, &L, leaf, pts[0], nrm[0], 0.0f, 2) == 0.0f);
+    int li = pn_cluster_pick_importance(&f, &L, root, pts[0], nrm[0], 0.0f, 0.99999994f, &prob);
+    CHECK(li >= 0 && li < count && prob > 0.0f);
+    pn_cluster_forest_free(&f);
+    free(l);
+}
+
 /* ---------------------------------------------------------------- timing */
 
 static double now_seconds(void) {
@@ -810,4 +908,5 @@ static void test_build_time(void) {
 }
 
 PN_TESTS(TEST(test_solid_angle), TEST(test_forest_structure), TEST(test_greedy_matches_brute_force),
-         TEST(test_cut_properties), TEST(test_cut_capped), TEST(test_pick), TEST(test_build_time))
+         TEST(test_cut_properties), TEST(test_cut_capped), TEST(test_pick), TEST(test_pick_importance),
+         TEST(test_build_time))

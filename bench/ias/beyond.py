@@ -85,6 +85,17 @@ METHOD_ARGS = {
     # the default variant with the first pass guided from the block's earlier pixels (ias-guide-refresh)
     "ias-gref": [["--integrator", "ias", "--ias-guide-refresh", "1", "--threshold", t]
                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    # the default variant with a cluster's light picked by importance at the point (ias-cluster-pick), with and
+    # without a capped cut (ias-cut-max K): the light-count session's cap and what repairs it
+    "ias-imp": [["--integrator", "ias", "--ias-cluster-pick", "importance", "--threshold", t]
+                for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    **{f"ias-cap{k}{sfx}": [["--integrator", "ias", "--ias-cut-max", k] + extra + ["--threshold", t]
+                            for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
+       for k in ("128", "256")
+       for sfx, extra in (("", []), ("-imp", ["--ias-cluster-pick", "importance"]),
+                          ("-large", ["--ias-cluster-pick", "large"]))},
+    "ias-large": [["--integrator", "ias", "--ias-cluster-pick", "large", "--threshold", t]
+                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):

@@ -15,7 +15,7 @@
 # 100000 1000000": emitter counts; empty for none; their converged renders use the light BVH),
 # SKIP (SCENE:METHOD pairs left out; default at 10^6 emitters the paper variant, whose per-block
 # arrays would need ~12 GB, and reference's O(N)-per-point PDF, minutes per render), SHARED_SCENES (default the eight below; empty
-# for none), CONV_SPP (1024), RUNS (3), METHODS ("ref bvh ias-paper ias"; NAME-main runs MAIN_BIN; ias-ratio-MODE: ias with --ias-ratio MODE; ias-mis, ias-mis-on, ias-nomis: ias with --ias-mis glossy, on, off), IAS_T,
+# for none), CONV_SPP (1024), RUNS (3), METHODS ("ref bvh ias-paper ias"; NAME-main runs MAIN_BIN; ias-ratio-MODE: ias with --ias-ratio MODE; ias-mis, ias-mis-on, ias-nomis: ias with --ias-mis glossy, on, off; ias-imp, ias-large: ias with --ias-cluster-pick importance, large; ias-capK, ias-capK-imp, ias-capK-large for K = 128, 256: ias with --ias-cut-max K and the power, importance or large pick), IAS_T,
 # MAIN_BIN (beyond.py), NICE (15: the priority).
 set -eu
 BUILD=${1:-build}

@@ -235,6 +235,17 @@ static const pn_option_decl options[] = {
      F(ias_stats),
      PN_FIELD_INT,
      PN_IAS_STATS_TREE},
+    {{"ias-cluster-pick", PN_OPTION_CHOICE, "power", 0, 0, 0, 0, "", "power,importance,large",
+      "default variant with the cluster trees' cut: the light a shadow ray takes within its cluster, in proportion "
+      "to the lights' power ('power', the paper's) or by a descent of the cluster's subtree choosing each child in "
+      "proportion to a bound on its unoccluded irradiance at the shading point ('importance': power times bounds "
+      "of the emitting and incident cosines over the child's bounding sphere, over the squared distance; 'large': "
+      "that descent only while the node subtends cluster-solid-angle or more, by power below, so that only the "
+      "clusters a capped cut leaves large change)"},
+     BIT(M_IAS),
+     F(ias_cluster_pick),
+     PN_FIELD_INT,
+     PN_IAS_PICK_POWER},
     {{"ias-prior", PN_OPTION_CHOICE, "importance", 0, 0, 0, 0, "", "uniform,importance",
       "default variant: the PDF of the first pass and the share eq. 6 gives c_U, 'uniform' over the clusters (the "
       "paper) or by each cluster's importance (with ias-cut bvh its unoccluded-irradiance bound; with the trees "

@@ -25,6 +25,11 @@
  *
  * After the merges, light_order is laid out depth-first so each subtree's lights are contiguous,
  * and node aggregates (power, bounding box, normal cone with emission spread) are filled bottom-up.
+ *
+ * A light within a node is picked by power (the paper's "relative intensities", pn_cluster_pick)
+ * or, not in the paper (ias-cluster-pick, an option), by a descent of the node's subtree by an
+ * importance bound at the shading point (pn_cluster_pick_importance; Conty & Kulla 2018's idea on
+ * these trees' spheres and cones).
  */
 #include "lights/cluster_tree.h"
 
@@ -1235,4 +1240,105 @@ float pn_cluster_pick_pdf(const pn_cluster_forest *f, const pn_lights *lights, i
     double total = f->power_prefix[nd->first + nd->count] - f->power_prefix[nd->first];
     if (!(total > 0.0)) return 1.0f / (float)nd->count;
     return (float)((double)pn_cluster_light_power(&lights->lights[light]) / total);
+}
+
+/* ---------------------------------------------------------------- picking by importance */
+
+/* cos(max(0, a - b)) from the cosines and sines of a and b. */
+static float cos_minus_clamped(float cos_a, float sin_a, float cos_b, float sin_b) {
+    return cos_a >= cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;
+}
+
+#define PN_PICK_COS_FLOOR 1e-3f
+
+double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n) {
+    if (!(nd->power > 0.0f)) return 0.0;
+    const bool horizon = !v3_is_zero(n);
+    vec3 pc = v3_sub(nd->center, p);
+    float d2 = v3_length2(pc), r2 = nd->radius * nd->radius;
+    if (!(d2 > r2)) return (double)nd->power / (double)fmaxf(r2, 1e-30f); /* p in the sphere */
+    float d = sqrtf(d2);
+    vec3 w = v3_scale(pc, 1.0f / d); /* from p towards the centre */
+    float sin_b = fminf(nd->radius / d, 1.0f), cos_b = sqrtf(fmaxf(0.0f, 1.0f - sin_b * sin_b));
+    float emit = 1.0f, incident = 1.0f;
+    if (nd->cos_spread > -1.0f) {
+        /* The smallest angle between an emitting normal (within theta_o of the axis) and a
+         * direction from a point of the sphere to p (within theta_b of -w): max(0, theta_w -
+         * theta_o - theta_b); its cosine. */
+        float cos_w = -v3_dot(nd->axis, w), sin_w = sqrtf(fmaxf(0.0f, 1.0f - cos_w * cos_w));
+        float cos_o = nd->cos_spread, sin_o = sqrtf(fmaxf(0.0f, 1.0f - cos_o * cos_o));
+        float cos_x = cos_minus_clamped(cos_w, sin_w, cos_o, sin_o);
+        float sin_x = cos_w >= cos_o ? 0.0f : sin_w * cos_o - cos_w * sin_o;
+        emit = fmaxf(cos_minus_clamped(cos_x, sin_x, cos_b, sin_b), PN_PICK_COS_FLOOR);
+    }
+    if (horizon) {
+        float cos_i = v3_dot(n, w), sin_i = sqrtf(fmaxf(0.0f, 1.0f - cos_i * cos_i));
+        incident = fmaxf(cos_minus_clamped(cos_i, sin_i, cos_b, sin_b), PN_PICK_COS_FLOOR);
+    }
+    return (double)nd->power * (double)emit * (double)incident / (double)d2;
+}
+
+/* The probability of the left child at interior node m. */
+static double pick_left_share(const pn_cluster_forest *f, int m, vec3 p, vec3 n) {
+    const pn_cluster_node *nd = &f->nodes[m], *a = &f->nodes[nd->left], *b = &f->nodes[nd->right];
+    double ia = pn_cluster_importance(a, p, n), ib = pn_cluster_importance(b, p, n);
+    if (ia + ib > 0.0) return ia / (ia + ib);
+    double pa = (double)a->power, pb = (double)b->power;
+    if (pa + pb > 0.0) return pa / (pa + pb);
+    return (double)a->count / (double)(a->count + b->count);
+}
+
+/* True while the importance descent goes on at node m: an interior node subtending at least
+ * max_solid_angle from p (always, max_solid_angle <= 0). */
+static bool pick_descends(const pn_cluster_node *nd, vec3 p, float max_solid_angle) {
+    if (nd->left < 0) return false;
+    return !(max_solid_angle > 0.0f) || !(pn_cluster_solid_angle(nd->center, nd->radius, p) < max_solid_angle);
+}
+
+int pn_cluster_pick_importance(const pn_cluster_forest *f, const pn_lights *lights, int node, vec3 p, vec3 n,
+                               float max_solid_angle, float u, float *prob) {
+    double v = (double)u, pr = 1.0;
+    if (!(v >= 0.0)) v = 0.0;
+    if (v >= 1.0) v = nextafter(1.0, 0.0);
+    while (pick_descends(&f->nodes[node], p, max_solid_angle)) {
+        const double s = pick_left_share(f, node, p, n);
+        if (v < s) {
+            v /= s;
+            pr *= s;
+            node = f->nodes[node].left;
+        } else {
+            v = (v - s) / (1.0 - s);
+            pr *= 1.0 - s;
+            node = f->nodes[node].right;
+        }
+        if (v >= 1.0) v = nextafter(1.0, 0.0);
+    }
+    float pp = 1.0f, fv = (float)v;
+    if (fv >= 1.0f) fv = nextafterf(1.0f, 0.0f);
+    int light = pn_cluster_pick(f, lights, node, fv, &pp);
+    if (prob) *prob = (float)(pr * (double)pp);
+    return light;
+}
+
+float pn_cluster_pick_importance_pdf(const pn_cluster_forest *f, const pn_lights *lights, int node, vec3 p, vec3 n,
+                                     float max_solid_angle, int light) {
+    if (light < 0 || light >= f->light_count) return 0.0f;
+    int at = f->leaf_of_light[light];
+    if (at < 0) return 0.0f;
+    const int pos = f->nodes[at].first;
+    if (pos < f->nodes[node].first || pos >= f->nodes[node].first + f->nodes[node].count) return 0.0f;
+    /* The descent's path down to the light: the child whose light range holds it. */
+    double pr = 1.0;
+    while (pick_descends(&f->nodes[node], p, max_solid_angle)) {
+        const double s = pick_left_share(f, node, p, n);
+        const pn_cluster_node *l = &f->nodes[f->nodes[node].left];
+        if (pos >= l->first && pos < l->first + l->count) {
+            pr *= s;
+            node = f->nodes[node].left;
+        } else {
+            pr *= 1.0 - s;
+            node = f->nodes[node].right;
+        }
+    }
+    return (float)(pr * (double)pn_cluster_pick_pdf(f, lights, node, light));
 }

@@ -134,6 +134,29 @@ int pn_cluster_pick(const pn_cluster_forest *f, const pn_lights *lights, int nod
 /* Probability that pn_cluster_pick(node) returns `light` (0 if the light is not below node). */
 float pn_cluster_pick_pdf(const pn_cluster_forest *f, const pn_lights *lights, int node, int light);
 
+/* Chooses a light of node `node` by importance at the point p (unit normal n; n = 0: no horizon):
+ * from the node down, while the node is interior and subtends max_solid_angle or more from p
+ * (always, max_solid_angle <= 0), each child is taken in proportion to pn_cluster_importance at p
+ * (in proportion to power where both children have none, and to their light counts where both
+ * have no power either), u rescaled to [0,1) within the chosen child for the next level; below,
+ * pn_cluster_pick (by power) with the rescaled u. Returns the light and, in *prob, its
+ * probability: the product of the choices along the path. O(depth of the descent) importance
+ * evaluations. */
+int pn_cluster_pick_importance(const pn_cluster_forest *f, const pn_lights *lights, int node, vec3 p, vec3 n,
+                               float max_solid_angle, float u, float *prob);
+
+/* Probability that pn_cluster_pick_importance(node, p, n, max_solid_angle) returns `light` (0 if the
+ * light is not below node): the same products along the light's path from node. */
+float pn_cluster_pick_importance_pdf(const pn_cluster_forest *f, const pn_lights *lights, int node, vec3 p, vec3 n,
+                                     float max_solid_angle, int light);
+
+/* A bound on node nd's unoccluded irradiance at p (unit normal n, or 0), up to a constant:
+ * power x (a bound on the emitting cosine over the node's normal cone and bounding sphere) x (a
+ * bound on the incident cosine over the sphere) / max(d^2, r^2), each cosine bound kept at least
+ * 1e-3: never 0 for a node with power, so that no light that can light p is left out, whatever
+ * the rounding (a node facing away or below the horizon keeps 1e-3 or 1e-6 of its weight). */
+double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n);
+
 /* ---- building blocks, shared with the tests and other cuts ---- */
 
 /* Luminous power used for picking and node sums: point 4 pi I, spot 2 pi I (1 - (cos_start +

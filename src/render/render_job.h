@@ -51,6 +51,7 @@ enum {
 enum { PN_IAS_VARIANT_DEFAULT = 0, PN_IAS_VARIANT_PAPER = 1 };
 enum { PN_IAS_CUT_TREES = 0, PN_IAS_CUT_BVH = 1 };
 enum { PN_IAS_STATS_TREE = 0, PN_IAS_STATS_CUT = 1 };
+enum { PN_IAS_PICK_POWER = 0, PN_IAS_PICK_IMPORTANCE = 1, PN_IAS_PICK_LARGE = 2 };
 enum { PN_IAS_PRIOR_UNIFORM = 0, PN_IAS_PRIOR_IMPORTANCE = 1 };
 enum { PN_IAS_POINTS_REPRESENTATIVE = 0, PN_IAS_POINTS_MEMBERS = 1 };
 enum { PN_IAS_NUMBERS_JITTERED = 0, PN_IAS_NUMBERS_SOBOL = 1 };
@@ -86,6 +87,7 @@ typedef struct pn_render_job {
     uint32_t ias_pass_rays;     /* pass j takes (j + 1) times this; 0: the paper's 1.5 N_C >= 50 */
     uint32_t ias_cut_max;       /* trees cut: most clusters per point (priority refinement); 0: no cap */
     int ias_stats;              /* PN_IAS_STATS_*: where many-light statistics are kept */
+    int ias_cluster_pick;       /* PN_IAS_PICK_*: a light within a trees-cut cluster, by power or importance */
     double ias_aa_threshold;    /* below this threshold the eye rays grow as 1 / threshold; 0: off */
     double ias_aa_power;        /* ias-aa-power: the eye rays grow as (ias_aa_threshold / threshold)^this */
     double ias_prior_share;     /* least weight of the prior in eq. 6's blend; 0: Fig. 2's weights */
