@@ -669,6 +669,32 @@ static void test_solid_angle(void) {
 
 /* ---------------------------------------------------------------- picking */
 
+/* The picks' frequencies `hits` (per light, over `samples` picks from node nd) against the
+ * probabilities `pdf` (per light): a chi-square bound over the node's lights, none picked with
+ * probability 0, and none outside the node. Clears hits. */
+static void check_pick_frequencies(const pn_cluster_forest *f, const pn_lights *L, const pn_cluster_node *nd,
+                                   const double *pdf, int *hits, int samples) {
+    double chi2 = 0.0;
+    int dof = -1, outside = 0;
+    for (int j = nd->first; j < nd->first + nd->count; j++) {
+        int li = f->light_order[j];
+        double e = pdf[li] * samples;
+        if (e == 0.0) {
+            CHECK(hits[li] == 0);
+            continue;
+        }
+        chi2 += (hits[li] - e) * (hits[li] - e) / e;
+        dof++;
+        hits[li] = 0;
+    }
+    for (int i = 0; i < L->count; i++) outside += hits[i];
+    CHECK(outside == 0); /* never a light outside the node */
+    if (dof > 0) {
+        double limit = dof + 5.0 * sqrt(2.0 * dof) + 10.0;
+        CHECK_MSG(chi2 < limit, "chi-square %g with %d degrees of freedom", chi2, dof);
+    }
+}
+
 static void check_pick(const pn_cluster_forest *f, const pn_lights *L, int node, test_rng *r, int samples) {
     const pn_cluster_node *nd = &f->nodes[node];
     int k = nd->count;
@@ -700,26 +726,14 @@ static void check_pick(const pn_cluster_forest *f, const pn_lights *L, int node,
             CHECK_NEAR(pn_cluster_pick_pdf(f, L, node, li), prob, 1e-7);
         }
     }
-    double chi2 = 0.0;
-    int dof = -1, outside = 0;
-    for (int j = nd->first; j < nd->first + k; j++) {
+    double *pdf = calloc((size_t)L->count, sizeof *pdf);
+    CHECK(pdf != NULL);
+    for (int j = nd->first; pdf && j < nd->first + k; j++) {
         int li = f->light_order[j];
-        double p = nd->power > 0.0f ? (double)pn_cluster_light_power(&L->lights[li]) / (double)nd->power : 1.0 / k;
-        double e = p * samples;
-        if (e == 0.0) {
-            CHECK(hits[li] == 0);
-            continue;
-        }
-        chi2 += (hits[li] - e) * (hits[li] - e) / e;
-        dof++;
-        hits[li] = 0;
+        pdf[li] = nd->power > 0.0f ? (double)pn_cluster_light_power(&L->lights[li]) / (double)nd->power : 1.0 / k;
     }
-    for (int i = 0; i < L->count; i++) outside += hits[i];
-    CHECK(outside == 0); /* never a light outside the node */
-    if (dof > 0) {
-        double limit = dof + 5.0 * sqrt(2.0 * dof) + 10.0;
-        CHECK_MSG(chi2 < limit, "chi-square %g with %d degrees of freedom", chi2, dof);
-    }
+    if (pdf) check_pick_frequencies(f, L, nd, pdf, hits, samples);
+    free(pdf);
     free(hits);
 }
 
@@ -799,25 +813,7 @@ static void check_pick_importance(const pn_cluster_forest *f, const pn_lights *L
         hits[li]++;
         if (s < 2000) CHECK_NEAR(prob, pdf[li], 1e-5 * pdf[li] + 1e-12);
     }
-    double chi2 = 0.0;
-    int dof = -1, outside = 0;
-    for (int j = nd->first; j < nd->first + nd->count; j++) {
-        int li = f->light_order[j];
-        double e = pdf[li] * samples;
-        if (e == 0.0) {
-            CHECK(hits[li] == 0);
-            continue;
-        }
-        chi2 += (hits[li] - e) * (hits[li] - e) / e;
-        dof++;
-        hits[li] = 0;
-    }
-    for (int i = 0; i < L->count; i++) outside += hits[i];
-    CHECK(outside == 0);
-    if (dof > 0) {
-        double limit = dof + 5.0 * sqrt(2.0 * dof) + 10.0;
-        CHECK_MSG(chi2 < limit, "chi-square %g with %d degrees of freedom", chi2, dof);
-    }
+    check_pick_frequencies(f, L, nd, pdf, hits, samples);
     CHECK(pn_cluster_pick_importance_pdf(f, L, node, p, n, lim, -1) == 0.0f);
     free(hits);
     free(pdf);
