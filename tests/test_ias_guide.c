@@ -161,13 +161,14 @@ static const char *scene_text(void) {
     return text;
 }
 
-/* ias at fixed passes (guide non-NULL: "off" or "on"; refresh: ias-guide-refresh, NULL for its
- * default) or, with guide NULL, kind at spp. */
-static pn_image render_ias(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
-                           const char *passes, const char *refresh, const char *rotate, int threads, uint64_t seed) {
-    /* Every pixel takes its passes: the same shadow rays with and without the guide. */
-    const char *opts[13] = {"ias-light-guide", guide, "max-passes", passes, "ias-aa-threshold", "0"};
-    int n = 6;
+/* The options of ias at fixed passes (guide non-NULL: "off" or "on"; refresh, rotate: the
+ * ias-guide-* options, NULL for their defaults) in opts, or NULL with guide NULL. Every pixel takes
+ * its passes: the same shadow rays with and without the guide. */
+static const char *const *guide_opts(const char *opts[13], const char *guide, const char *passes, const char *refresh,
+                                     const char *rotate) {
+    const char *base[] = {"ias-light-guide", guide, "max-passes", passes, "ias-aa-threshold", "0"};
+    int n = 0;
+    for (; n < 6; n++) opts[n] = base[n];
     if (refresh) {
         opts[n++] = "ias-guide-refresh";
         opts[n++] = refresh;
@@ -177,7 +178,14 @@ static pn_image render_ias(pn_context ctx, pn_scene scene, pn_integrator_kind ki
         opts[n++] = rotate;
     }
     opts[n] = NULL;
-    return pn_test_render_modes(ctx, scene, kind, spp, seed, threads, guide ? opts : NULL);
+    return guide ? opts : NULL;
+}
+
+/* ias at fixed passes (guide_opts) or, with guide NULL, kind at spp. */
+static pn_image render_ias(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
+                           const char *passes, const char *refresh, const char *rotate, int threads, uint64_t seed) {
+    const char *opts[13];
+    return pn_test_render_modes(ctx, scene, kind, spp, seed, threads, guide_opts(opts, guide, passes, refresh, rotate));
 }
 
 static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, uint32_t spp, const char *guide,
@@ -190,37 +198,17 @@ static pn_image render(pn_context ctx, pn_scene scene, pn_integrator_kind kind, 
  * per pixel. */
 static void measure(pn_context ctx, pn_scene scene, const float *r, int np, double ref_sum, const char *guide,
                     const char *passes, const char *refresh, int SEEDS, double *mean, double *sd, double *var) {
-    double m1 = 0.0, m2 = 0.0, v = 0.0;
-    double *px_sum = calloc((size_t)np, sizeof *px_sum), *px_sum2 = calloc((size_t)np, sizeof *px_sum2);
-    CHECK(px_sum && px_sum2);
-    for (int k = 0; k < SEEDS && px_sum && px_sum2; k++) {
-        pn_image img = render_ias(ctx, scene, PN_INTEGRATOR_IAS, 0, guide, passes, refresh, NULL, 1, (uint64_t)k);
-        CHECK(img != NULL);
-        if (!img) continue;
-        const float *b = pn_image_layer_data(img, 0);
-        double sum = 0.0;
-        for (int i = 0; i < np; i++) {
-            double y = pn_test_lum_at(b, i);
-            sum += y;
-            px_sum[i] += y;
-            px_sum2[i] += y * y;
-        }
-        m1 += sum / ref_sum / SEEDS;
-        m2 += (sum / ref_sum) * (sum / ref_sum) / SEEDS;
-        pn_image_free(img);
-    }
-    for (int i = 0; px_sum && px_sum2 && i < np; i++) {
-        double mu = px_sum[i] / SEEDS, ya = pn_test_lum_at(r, i);
-        v += fmax(0.0, px_sum2[i] - SEEDS * mu * mu) / (SEEDS - 1.0) / (ya * ya + 0.01) / np;
-    }
-    free(px_sum);
-    free(px_sum2);
-    *mean = m1;
-    *sd = sqrt(fmax(0.0, m2 - m1 * m1) * SEEDS / (SEEDS - 1.0) / SEEDS);
+    const char *opts[13];
+    double v = 0.0, *rv = malloc((size_t)np * sizeof *rv);
+    CHECK(rv != NULL);
+    if (rv && pn_test_seed_spread(ctx, scene, guide_opts(opts, guide, passes, refresh, NULL), 0, SEEDS, r, NULL, np,
+                                  ref_sum, NULL, mean, sd, rv))
+        for (int i = 0; i < np; i++) v += rv[i] / np;
+    free(rv);
     *var = v;
     fprintf(stderr,
             "  guide %-3s, %s passes, refresh %-4s: relative variance %.3g; mean over the reference's %.5f +- %.5f\n",
-            guide, passes, refresh ? refresh : "-", v, m1, *sd);
+            guide, passes, refresh ? refresh : "-", v, *mean, *sd);
 }
 
 static void test_renders(void) {

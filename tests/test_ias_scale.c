@@ -264,49 +264,22 @@ static int cmp_double(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
-/* Over SEEDS seeds, ias with cut cap 4 at 3 fixed passes and the given pick: mean luminance of the image over
+/* Over SEEDS seeds, ias with cut cap 1 at 3 fixed passes and the given pick: mean luminance of the image over
  * the reference's (*mean, and its standard error *sd) and the median over pixels of a pixel's relative variance. */
 static void pick_measure(pn_context ctx, pn_scene scene, const char *pick, const float *ref, const bool *lit, int np,
                          double ref_sum, int seeds, double *per_seed, double *mean, double *sd, double *var) {
     const char *opts[] = {"ias-cut-max", "1", "ias-cluster-pick", pick, "max-passes", "3", "ias-aa-threshold",
                           "0",           NULL};
-    double m1 = 0.0, m2 = 0.0, v = 0.0;
-    double *ps = calloc((size_t)np, sizeof *ps), *ps2 = calloc((size_t)np, sizeof *ps2);
-    CHECK(ps && ps2);
-    for (int k = 0; k < seeds && ps && ps2; k++) {
-        pn_image img = pn_test_render_modes(ctx, scene, PN_INTEGRATOR_IAS, 0, (uint64_t)(100 + k), 1, opts);
-        CHECK(img != NULL);
-        if (!img) continue;
-        const float *b = pn_image_layer_data(img, 0);
-        double sum = 0.0;
-        for (int i = 0; i < np; i++) {
-            double y = pn_test_lum_at(b, i);
-            if (lit[i]) sum += y;
-            ps[i] += y;
-            ps2[i] += y * y;
-        }
-        per_seed[k] = sum / ref_sum;
-        m1 += sum / ref_sum / seeds;
-        m2 += (sum / ref_sum) * (sum / ref_sum) / seeds;
-        pn_image_free(img);
-    }
-    /* The median over pixels: pixels that see the emitters directly (eye-ray noise) left out. */
-    double *rv = malloc((size_t)np * sizeof *rv);
-    for (int i = 0; rv && ps && ps2 && i < np; i++) {
-        double mu = ps[i] / seeds, ya = pn_test_lum_at(ref, i);
-        rv[i] = fmax(0.0, ps2[i] - seeds * mu * mu) / (seeds - 1.0) / (ya * ya + 0.01);
-    }
-    if (rv) {
+    /* The median over pixels of a pixel's relative variance. */
+    double v = 0.0, *rv = malloc((size_t)np * sizeof *rv);
+    CHECK(rv != NULL);
+    if (rv && pn_test_seed_spread(ctx, scene, opts, 100, seeds, ref, lit, np, ref_sum, per_seed, mean, sd, rv)) {
         qsort(rv, (size_t)np, sizeof *rv, cmp_double);
         v = rv[np / 2];
     }
     free(rv);
-    free(ps);
-    free(ps2);
-    *mean = m1;
-    *sd = sqrt(fmax(0.0, m2 - m1 * m1) / (seeds - 1.0));
     *var = v;
-    fprintf(stderr, "  pick %-10s: mean over the reference's %.5f +- %.5f, pixel relative variance %.3g\n", pick, m1,
+    fprintf(stderr, "  pick %-10s: mean over the reference's %.5f +- %.5f, pixel relative variance %.3g\n", pick, *mean,
             *sd, v);
 }
 
