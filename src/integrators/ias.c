@@ -703,6 +703,44 @@ typedef struct ias_range {
     int first, end, r;
 } ias_range;
 
+/* A map from cluster ids to small numbers, emptied in O(1): slot[id] holds where stamp[id] == now.
+ * Used for a block's cut members (ias-stats cut) and a region's cut entries (ias-mis). */
+typedef struct ias_idmap {
+    uint32_t *stamp, now;
+    int *slot;
+    size_t size;
+} ias_idmap;
+
+static bool idmap_init(ias_idmap *m, size_t size) {
+    m->size = size > 0 ? size : 1;
+    m->now = 0;
+    m->stamp = calloc(m->size, sizeof *m->stamp);
+    m->slot = malloc(m->size * sizeof *m->slot);
+    return m->stamp && m->slot;
+}
+
+static void idmap_free(ias_idmap *m) {
+    free(m->stamp);
+    free(m->slot);
+}
+
+static void idmap_clear(ias_idmap *m) {
+    if (++m->now == 0) {
+        memset(m->stamp, 0, m->size * sizeof *m->stamp);
+        m->now = 1;
+    }
+}
+
+static void idmap_put(ias_idmap *m, int id, int v) {
+    m->stamp[id] = m->now;
+    m->slot[id] = v;
+}
+
+/* id's number, -1 when it has none. */
+static int idmap_get(const ias_idmap *m, int id) {
+    return m->stamp[id] == m->now ? m->slot[id] : -1;
+}
+
 typedef struct ias_scratch {
     int id_count;
     ias_region *regions;
@@ -743,7 +781,7 @@ typedef struct ias_scratch {
     double *fp_snap;
     int *stack;
     /* ias-stats cut (cut_record): the block's cut nodes R, numbered 0 .. r_count in the order met;
-     * node_r[id] is id's number where node_stamp[id] == r_stamp. r_pre: the tree nodes of R by
+     * node_r maps an id to its number. r_pre: the tree nodes of R by
      * light range (start ascending, larger first), pre_first their range starts; r_up: the nearest
      * member of R above (-1: none); r_end, r_power: range end and power. Statistics per class and
      * member: the block's (rb, its feedback weights when the pass began rb_snap) and, per pixel and
@@ -751,9 +789,9 @@ typedef struct ias_scratch {
     bool r_ready;
     struct ias_range *r_sort;
     int r_count, r_cap;
-    uint32_t r_stamp, *node_stamp;
+    ias_idmap node_r;
     int *cut_r; /* per cut entry: its member number (cut_build), so that reads need no node_r */
-    int *node_r, *r_id, *r_pre, *pre_first, *r_first, *r_up, *r_end, pre_count;
+    int *r_id, *r_pre, *pre_first, *r_first, *r_up, *r_end, pre_count;
     double *r_power;
     pn_ias_stats *rb;
     double *rb_snap;
@@ -776,11 +814,8 @@ typedef struct ias_scratch {
     pn_ias_ratio_region *ratio_regions;
     int ratio_region_cap;
     pn_ias_ratio_scratch ratio;
-    /* ias-mis: the cut entry of each cluster id in the cut whose PDF s->pdf holds (valid where
-     * mis_stamp == mis_now), sh->id_count entries. */
-    int *mis_slot;
-    uint32_t *mis_stamp;
-    uint32_t mis_now;
+    /* ias-mis: the cut entry of each cluster id in the cut whose PDF s->pdf holds. */
+    ias_idmap mis_entry;
     uint32_t mis_rays;  /* BSDF rays traced (all of the worker's pixels) */
     pn_ias_guide guide; /* ias-light-guide: the block's grids */
 } ias_scratch;
@@ -816,8 +851,7 @@ static void ias_scratch_free(void *p) {
     free(s->plogs);
     free(s->fp_snap);
     free(s->stack);
-    free(s->node_stamp);
-    free(s->node_r);
+    idmap_free(&s->node_r);
     free(s->cut_r);
     free(s->r_id);
     free(s->r_pre);
@@ -841,8 +875,7 @@ static void ias_scratch_free(void *p) {
     free(s->ratio_smp);
     free(s->ratio_regions);
     pn_ias_ratio_scratch_free(&s->ratio);
-    free(s->mis_slot);
-    free(s->mis_stamp);
+    idmap_free(&s->mis_entry);
     pn_ias_guide_free(&s->guide);
     free(s);
 }
@@ -887,11 +920,10 @@ static void *ias_scratch_create(const pn_render_job *job) {
         s->plogs = calloc((size_t)s->max_pixels, sizeof *s->plogs);
         bool ok = s->fp_snap && s->ptables && s->plogs && table_grow(&s->btable);
         if (ok && sh->cut_stats) {
-            s->node_stamp = calloc((size_t)sh->id_count, sizeof *s->node_stamp);
-            s->node_r = malloc((size_t)sh->id_count * sizeof *s->node_r);
+            ok = idmap_init(&s->node_r, (size_t)sh->id_count);
             s->px_slab = malloc((size_t)s->max_pixels * IAS_CLASSES * sizeof *s->px_slab);
             s->cut_r = malloc((size_t)s->cut_cap * sizeof *s->cut_r);
-            ok = s->node_stamp && s->node_r && s->px_slab && s->cut_r;
+            ok = ok && s->px_slab && s->cut_r;
         }
         for (int i = 0; ok && i < s->max_pixels; i++) ok = table_grow(&s->ptables[i]);
         if (!ok) {
@@ -911,14 +943,9 @@ static void *ias_scratch_create(const pn_render_job *job) {
             return NULL;
         }
     }
-    if (sh->mis) {
-        const size_t all = (size_t)(sh->id_count > 0 ? sh->id_count : 1);
-        s->mis_slot = malloc(all * sizeof *s->mis_slot);
-        s->mis_stamp = calloc(all, sizeof *s->mis_stamp);
-        if (!s->mis_slot || !s->mis_stamp) {
-            ias_scratch_free(s);
-            return NULL;
-        }
+    if (sh->mis && !idmap_init(&s->mis_entry, (size_t)sh->id_count)) {
+        ias_scratch_free(s);
+        return NULL;
     }
     if (!s->cut_prior || !s->fprior || !s->emit_hits || !s->cut_work || (sh->bvh_cut && !table_grow(&s->table)) ||
         (sh->light_guide && !pn_ias_guide_init(&s->guide, &sh->guide))) {
@@ -1309,20 +1336,18 @@ static bool grow_r(ias_scratch *s, int need) {
 /* R from the block's cuts (all computed before the first pass), its order and links. */
 static bool cut_build(const ias_shared *sh, ias_scratch *s) {
     const pn_cluster_forest *f = &sh->forest;
-    if (++s->r_stamp == 0) {
-        memset(s->node_stamp, 0, (size_t)sh->id_count * sizeof *s->node_stamp);
-        s->r_stamp = 1;
-    }
+    idmap_clear(&s->node_r);
     s->r_count = 0;
     for (int i = 0; i < s->cut_used; i++) {
         const int id = s->cut[i];
-        if (s->node_stamp[id] != s->r_stamp) {
+        int r = idmap_get(&s->node_r, id);
+        if (r < 0) {
             if (!grow_r(s, s->r_count + 1)) return false;
-            s->node_stamp[id] = s->r_stamp;
-            s->node_r[id] = s->r_count;
-            s->r_id[s->r_count++] = id;
+            r = s->r_count++;
+            idmap_put(&s->node_r, id, r);
+            s->r_id[r] = id;
         }
-        s->cut_r[i] = s->node_r[id];
+        s->cut_r[i] = r;
     }
     int np = 0;
     for (int r = 0; r < s->r_count; r++) {
@@ -1396,7 +1421,7 @@ static void cut_record(const ias_shared *sh, ias_scratch *s, int pixel, unsigned
         s->oom = true;
         return;
     }
-    int r = s->node_r[id];
+    int r = s->node_r.slot[id]; /* a cut node of the block: its number is set */
     double base = 0.0;
     if (id < f->node_count) {
         const int from = light >= 0 ? f->leaf_of_light[light] : id;
@@ -1879,26 +1904,21 @@ static bool push_ratio_sample(ias_scratch *s, int region, int entry, vec3 v, vec
  * light no cut entry holds (p_L = 0) keeps its full value: the estimate is unbiased over the
  * union of the two strategies. */
 
-/* Fills s->mis_slot for region r's cut (the cut s->pdf is built for). */
-static void mis_map_cut(const ias_shared *sh, ias_scratch *s, const ias_region *r) {
-    if (++s->mis_now == 0) {
-        memset(s->mis_stamp, 0, (size_t)(sh->id_count > 0 ? sh->id_count : 1) * sizeof *s->mis_stamp);
-        s->mis_now = 1;
-    }
+/* Fills s->mis_entry for region r's cut (the cut s->pdf is built for). */
+static void mis_map_cut(ias_scratch *s, const ias_region *r) {
+    idmap_clear(&s->mis_entry);
     const int *cut = s->cut + r->cut_first;
-    for (int i = 0; i < r->cut_count; i++) {
-        s->mis_stamp[cut[i]] = s->mis_now;
-        s->mis_slot[cut[i]] = i;
-    }
+    for (int i = 0; i < r->cut_count; i++) idmap_put(&s->mis_entry, cut[i], i);
 }
 
 /* The cut entry holding cluster-tree light `light` (its leaf or the first ancestor in the cut), -1
  * when none does. */
 static int mis_entry_of_light(const ias_shared *sh, const ias_scratch *s, int light) {
     if (light < 0 || light >= sh->forest.light_count) return -1;
-    for (int node = sh->forest.leaf_of_light[light]; node >= 0; node = sh->forest.nodes[node].parent)
-        if (s->mis_stamp[node] == s->mis_now) return s->mis_slot[node];
-    return -1;
+    int e = -1;
+    for (int node = sh->forest.leaf_of_light[light]; node >= 0 && e < 0; node = sh->forest.nodes[node].parent)
+        e = idmap_get(&s->mis_entry, node);
+    return e;
 }
 
 /* The BSDF strategy at a point: its glossy lobe alone where it has one (a coated surface's lobe
@@ -1956,8 +1976,8 @@ static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, cons
         const int q = pn_env_region_of(&sh->env[m], env, wi);
         const int id = q >= 0 ? sh->env_base[m] + q : -1;
         double pl = 0.0;
-        if (id >= 0 && id < sh->id_count && s->mis_stamp[id] == s->mis_now)
-            pl = s->pdf[s->mis_slot[id]] * (double)pn_env_region_pdf(&sh->env[m], env, q, wi);
+        const int e = id >= 0 && id < sh->id_count ? idmap_get(&s->mis_entry, id) : -1;
+        if (e >= 0) pl = s->pdf[e] * (double)pn_env_region_pdf(&sh->env[m], env, q, wi);
         sum = v3_add(sum, v3_scale(v3_mul(f, L), (float)(k * pn_ias_mis_weight(pbb, pl))));
     }
     return sum;
@@ -2015,7 +2035,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 build_pdf_table(sh, s, r, pass);
             else
                 build_pdf(sh, s, r, pix, pass);
-            if (sh->mis) mis_map_cut(sh, s, r);
+            if (sh->mis) mis_map_cut(s, r);
             built = r;
         }
         px->pdf_seconds += elapsed_since(sh, t_pdf);
@@ -2191,6 +2211,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
              * of value 0, not 0 / 0: the NaN it made used to zero the whole pixel at output (the
              * default variant's BVH cut came out 45% dark on scenes/office's spots). */
             double w = p_cluster > 0.0 && p_light > 0.0 ? 1.0 / (p_cluster * p_light) : 0.0;
+            vec3 ve = v3_scale(v, (float)w);
+            double ly = lum_v * w;
             if (mis) {
                 /* The light sample weighted against the BSDF's density of its direction, plus the
                  * paired BSDF sample (its own dimensions 10-12); the statistics above keep the
@@ -2202,19 +2224,13 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                                          &s->mis_rays);
                 vb = v3_mul(vb, throughput);
                 if (pt) vb = v3_scale(vb, pt->share);
-                const vec3 ve = v3_add(v3_scale(v, (float)(w * wl)), vb);
-                const double ly = (double)v3_luminance(ve);
-                r->sum += ly;
-                r->sum2 += ly * ly;
-                r->rgb = v3_add(r->rgb, ve);
-                r->n++;
-            } else {
-                double ly = lum_v * w;
-                r->sum += ly;
-                r->sum2 += ly * ly;
-                r->rgb = v3_add(r->rgb, v3_scale(v, (float)w));
-                r->n++;
+                ve = v3_add(v3_scale(v, (float)(w * wl)), vb);
+                ly = (double)v3_luminance(ve);
             }
+            r->sum += ly;
+            r->sum2 += ly * ly;
+            r->rgb = v3_add(r->rgb, ve);
+            r->n++;
             if (lux) {
                 r->lux_sum += lux_v * w;
                 r->mel_sum += (double)edi * w;
