@@ -78,6 +78,16 @@ static inline float v3_luminance(vec3 c) {
 }
 
 /* An orthonormal basis around n (Duff et al. 2017, "Building an Orthonormal Basis, Revisited"). */
+/* cos and sin of max(0, a - b) from the cosines and sines of angles a and b in [0, pi] (the
+ * bounding-cone arithmetic of pbrt-v4's light bounds). */
+static inline float pn_cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+    return cos_a > cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;
+}
+
+static inline float pn_sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
+    return cos_a > cos_b ? 0.0f : sin_a * cos_b - cos_a * sin_b;
+}
+
 static inline void v3_basis(vec3 n, vec3 *t, vec3 *b) {
     float sign = copysignf(1.0f, n.z);
     float a = -1.0f / (sign + n.z);

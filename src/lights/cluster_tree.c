@@ -1244,11 +1244,6 @@ float pn_cluster_pick_pdf(const pn_cluster_forest *f, const pn_lights *lights, i
 
 /* ---------------------------------------------------------------- picking by importance */
 
-/* cos(max(0, a - b)) from the cosines and sines of a and b. */
-static float cos_minus_clamped(float cos_a, float sin_a, float cos_b, float sin_b) {
-    return cos_a >= cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;
-}
-
 #define PN_PICK_COS_FLOOR 1e-3f
 
 double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n) {
@@ -1267,13 +1262,13 @@ double pn_cluster_importance(const pn_cluster_node *nd, vec3 p, vec3 n) {
          * theta_o - theta_b); its cosine. */
         float cos_w = -v3_dot(nd->axis, w), sin_w = sqrtf(fmaxf(0.0f, 1.0f - cos_w * cos_w));
         float cos_o = nd->cos_spread, sin_o = sqrtf(fmaxf(0.0f, 1.0f - cos_o * cos_o));
-        float cos_x = cos_minus_clamped(cos_w, sin_w, cos_o, sin_o);
-        float sin_x = cos_w >= cos_o ? 0.0f : sin_w * cos_o - cos_w * sin_o;
-        emit = fmaxf(cos_minus_clamped(cos_x, sin_x, cos_b, sin_b), PN_PICK_COS_FLOOR);
+        float cos_x = pn_cos_sub_clamped(sin_w, cos_w, sin_o, cos_o);
+        float sin_x = pn_sin_sub_clamped(sin_w, cos_w, sin_o, cos_o);
+        emit = fmaxf(pn_cos_sub_clamped(sin_x, cos_x, sin_b, cos_b), PN_PICK_COS_FLOOR);
     }
     if (horizon) {
         float cos_i = v3_dot(n, w), sin_i = sqrtf(fmaxf(0.0f, 1.0f - cos_i * cos_i));
-        incident = fmaxf(cos_minus_clamped(cos_i, sin_i, cos_b, sin_b), PN_PICK_COS_FLOOR);
+        incident = fmaxf(pn_cos_sub_clamped(sin_i, cos_i, sin_b, cos_b), PN_PICK_COS_FLOOR);
     }
     return (double)nd->power * (double)emit * (double)incident / (double)d2;
 }

@@ -115,17 +115,6 @@ bool pn_light_bounds_of(const pn_lights *lights, const pn_light *l, pn_light_bvh
 
 /* ---- importance --------------------------------------------------------------------------- */
 
-/* cos and sin of max(0, a - b) from the cosines and sines of a and b. */
-static float cos_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
-    if (cos_a > cos_b) return 1.0f;
-    return cos_a * cos_b + sin_a * sin_b;
-}
-
-static float sin_sub_clamped(float sin_a, float cos_a, float sin_b, float cos_b) {
-    if (cos_a > cos_b) return 0.0f;
-    return sin_a * cos_b - cos_a * sin_b;
-}
-
 float pn_light_bounds_importance(const pn_light_bvh_bounds *b, vec3 p, vec3 n) {
     vec3 pc = v3_scale(v3_add(b->bmin, b->bmax), 0.5f);
     vec3 dp = v3_sub(p, pc);
@@ -145,16 +134,16 @@ float pn_light_bounds_importance(const pn_light_bvh_bounds *b, vec3 p, vec3 n) {
     /* theta' = max(0, theta_w - theta_o - theta_b): the smallest angle between an emitting
      * normal and the direction to p. */
     float sin_o = safe_sqrt(1.0f - b->cos_o * b->cos_o);
-    float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, b->cos_o);
-    float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, b->cos_o);
-    float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+    float cos_x = pn_cos_sub_clamped(sin_w, cos_w, sin_o, b->cos_o);
+    float sin_x = pn_sin_sub_clamped(sin_w, cos_w, sin_o, b->cos_o);
+    float cos_p = pn_cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
     if (cos_p <= b->cos_e) return 0.0f;
     float importance = b->phi * cos_p / d2;
     if (!v3_is_zero(n)) {
         /* The largest incident cosine over the box: theta_i' = max(0, theta_i - theta_b). */
         float cos_i = fabsf(v3_dot(wi, n));
         float sin_i = safe_sqrt(1.0f - cos_i * cos_i);
-        importance *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+        importance *= pn_cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
     }
     return fmaxf(importance, 0.0f);
 }
