@@ -147,7 +147,7 @@ static void test_bsdf_sampling(void) {
     CHECK(pn_bsdf_pdf_glossy(&matte, v3(0, 0, 1), v3(0, 0, 1)) == 0.0f);
 }
 
-/* The density pn_ias_mis_light_pdf gives against pn_light_sample_point's samples: histogram of
+/* The density pn_light_pdf_direction gives against pn_light_sample_point's samples: histogram of
  * the sampled directions over a small cone around a probe direction, for a rectangle seen large
  * (solid-angle sampling), the same rectangle far away (area sampling), a triangle, a disk and a
  * sphere. */
@@ -210,15 +210,15 @@ static void test_light_pdf(void) {
         /* The PDF at the probe: the distance along it to the light's surface. */
         pn_light_sample at;
         CHECK(pn_light_sample_point(&L, &l[i], p, 0.4f, 0.3f, &at));
-        const double mine = (double)pn_ias_mis_light_pdf(&l[i], p, at.wi, at.dist);
-        fprintf(stderr, "  light %d: pn_ias_mis_light_pdf %.5g, histogram %.5g +- %.2g, sampler's own %.5g\n", i, mine,
-                density, sd, (double)at.pdf);
+        const double mine = (double)pn_light_pdf_direction(&l[i], p, at.wi, at.dist);
+        fprintf(stderr, "  light %d: pn_light_pdf_direction %.5g, histogram %.5g +- %.2g, sampler's own %.5g\n", i,
+                mine, density, sd, (double)at.pdf);
         CHECK_MSG(fabs(mine - density) < 4.0 * sd + 0.01 * mine, "light %d: %.5g against %.5g", i, mine, density);
         CHECK_MSG(fabs(mine - (double)at.pdf) <= 1e-3 * (double)at.pdf, "light %d: %.6g, the sample's pdf %.6g", i,
                   mine, (double)at.pdf);
     }
     /* From behind a one-sided light: no density. */
-    CHECK(pn_ias_mis_light_pdf(&l[0], v3(0, 0, 2), v3(0, 0, -1), 1.0f) == 0.0f);
+    CHECK(pn_light_pdf_direction(&l[0], v3(0, 0, 2), v3(0, 0, -1), 1.0f) == 0.0f);
     CHECK(pn_ias_mis_weight(1.0, 0.0) == 1.0 && pn_ias_mis_weight(0.0, 1.0) == 0.0);
     CHECK_NEAR(pn_ias_mis_weight(2.0, 1.0) + pn_ias_mis_weight(1.0, 2.0), 1.0, 1e-12);
 }

@@ -1965,7 +1965,7 @@ static vec3 mis_bsdf_sample(const pn_render_job *job, const ias_shared *sh, cons
                                    ? pn_cluster_pick_importance_pdf(&sh->forest, job->lights, node, origin, bsdf->ns,
                                                                     sh->pick_limit, light)
                                    : pn_cluster_pick_pdf(&sh->forest, job->lights, node, light);
-            pl = s->pdf[e] * (double)pick * (double)pn_ias_mis_light_pdf(l, origin, wi, hit.t);
+            pl = s->pdf[e] * (double)pick * (double)pn_light_pdf_direction(l, origin, wi, hit.t);
         }
         return v3_scale(v3_mul(f, l->emit), (float)(k * pn_ias_mis_weight(pbb, pl)));
     }

@@ -1,14 +1,10 @@
 /* ias_mis.c — what ias's MIS with BSDF sampling needs from the scene and the lights (ias_mis.h). */
 #include "integrators/ias_mis.h"
 
-#include "core/sampling.h"
 #include "lights/lights.h"
 #include "scene/scene.h"
 
 #include <stdlib.h>
-
-/* pbrt-v4's MinSphericalSampleArea, as lights/light_sample.c uses it for rectangles. */
-#define MIS_MIN_SPHERICAL_SOLID_ANGLE 3e-4f
 
 pn_status pn_ias_mis_map_build(const pn_render_job *job, pn_ias_mis_map *map, pn_err *err) {
     const struct pn_scene_s *sc = job->scene;
@@ -74,39 +70,6 @@ int pn_ias_mis_light_of_hit(const pn_ias_mis_map *map, const pn_hit *hit) {
     if (hit->sphere >= 0) return map->sphere_light[hit->sphere];
     if (hit->mesh < 0 || map->mesh_base[hit->mesh] < 0) return -1;
     return map->tri_light[map->mesh_base[hit->mesh] + (int)hit->prim];
-}
-
-/* Area density 1 / area converted to solid angle at distance dist, as light_sample.c's
- * finish_area_sample does (0 where it refuses the sample). */
-static float area_to_solid_angle(const pn_light *l, vec3 wi, float dist) {
-    float cos_l = -v3_dot(wi, l->n);
-    if (l->two_sided) cos_l = fabsf(cos_l);
-    if (cos_l <= 1e-7f) return 0.0f;
-    float pdf = dist * dist / (l->area * cos_l);
-    return isfinite(pdf) && pdf > 0.0f ? pdf : 0.0f;
-}
-
-float pn_ias_mis_light_pdf(const pn_light *l, vec3 p, vec3 wi, float dist) {
-    switch (l->kind) {
-    case PN_LIGHT_TRIANGLE:
-    case PN_LIGHT_DISK: return area_to_solid_angle(l, wi, dist);
-    case PN_LIGHT_RECTANGLE: {
-        float side = v3_dot(v3_sub(p, l->p), l->n);
-        if (!l->two_sided && side <= 0.0f) return 0.0f;
-        /* The same choice as pn_light_sample_point: solid-angle sampling where the rectangle
-         * looks big enough, else area sampling. */
-        vec3 to_centre = v3_sub(v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 0.5f)), p);
-        float d2c = v3_length2(to_centre);
-        float approx_solid_angle = l->area * fabsf(side) / (d2c * sqrtf(d2c));
-        pn_spherical_rectangle sr;
-        if (approx_solid_angle >= MIS_MIN_SPHERICAL_SOLID_ANGLE &&
-            pn_spherical_rectangle_init(&sr, p, l->p, l->e1, l->e2) && sr.solid_angle > 1e-6f)
-            return 1.0f / sr.solid_angle;
-        return area_to_solid_angle(l, wi, dist);
-    }
-    case PN_LIGHT_SPHERE: return pn_sphere_cone_pdf(l->p, l->radius, p);
-    default: return 0.0f;
-    }
 }
 
 /* Whether hit's surface is a thin glass pane that shadow rays pass (accel.c's mask 0x4). */

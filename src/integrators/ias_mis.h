@@ -25,11 +25,6 @@ void pn_ias_mis_map_free(pn_ias_mis_map *map);
 /* The light an eye or BSDF ray hit, or -1 (not an emitter ias samples: instances, dropped). */
 int pn_ias_mis_light_of_hit(const pn_ias_mis_map *map, const pn_hit *hit);
 
-/* The solid-angle density with which pn_light_sample_point(l, p) gives direction wi whose ray
- * reaches l's surface at distance dist (triangle, rectangle, disk, sphere lights; 0 for the
- * others, and for directions that sampling would not return, as from behind a one-sided light). */
-float pn_ias_mis_light_pdf(const pn_light *l, vec3 p, vec3 wi, float dist);
-
 /* The power heuristic's weight of a strategy of density a against one of density b (one sample
  * each): a^2 / (a^2 + b^2); 1 when b is 0. */
 static inline double pn_ias_mis_weight(double a, double b) {

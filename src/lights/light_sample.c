@@ -15,22 +15,41 @@ static float spot_falloff(const pn_light *l, float cos_theta) {
     return t * t * (3.0f - 2.0f * t);
 }
 
+/* The solid-angle density at p of area density 1/area, for direction wi reaching the light's
+ * surface at squared distance d2; 0 where the surface is seen edge-on or from behind. */
+static float area_to_solid_angle(const pn_light *l, vec3 wi, float d2) {
+    float cos_l = -v3_dot(wi, l->n);
+    if (l->two_sided) cos_l = fabsf(cos_l);
+    if (cos_l <= 1e-7f) return 0.0f;
+    float pdf = (1.0f / l->area) * d2 / cos_l;
+    return isfinite(pdf) && pdf > 0.0f ? pdf : 0.0f;
+}
+
 /* Converts an area sample y (with area density 1/area) into a solid-angle sample at p. */
-static bool finish_area_sample(const pn_light *l, vec3 p, vec3 y, float area_pdf, pn_light_sample *s) {
+static bool finish_area_sample(const pn_light *l, vec3 p, vec3 y, pn_light_sample *s) {
     vec3 d = v3_sub(y, p);
     float d2 = v3_length2(d);
     if (!(d2 > 0.0f)) return false;
     float dist = sqrtf(d2);
     vec3 wi = v3_scale(d, 1.0f / dist);
-    float cos_l = -v3_dot(wi, l->n);
-    if (l->two_sided) cos_l = fabsf(cos_l);
-    if (cos_l <= 1e-7f) return false;
     s->wi = wi;
     s->dist = dist;
     s->radiance = l->emit;
-    s->pdf = area_pdf * d2 / cos_l;
+    s->pdf = area_to_solid_angle(l, wi, d2);
     s->delta = false;
-    return isfinite(s->pdf) && s->pdf > 0.0f;
+    return s->pdf > 0.0f;
+}
+
+/* A rectangle seen from p (side: p's signed distance to its plane) is sampled by solid angle
+ * (Ureña et al. 2013, set up in *sr) where it looks big; where it subtends less than
+ * PN_MIN_SPHERICAL_SOLID_ANGLE (estimated as A cos / d^2) both densities are nearly equal and the
+ * cheaper area sampling is used, as pbrt-v4 does. */
+static bool rectangle_spherical(const pn_light *l, vec3 p, float side, pn_spherical_rectangle *sr) {
+    vec3 to_centre = v3_sub(v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 0.5f)), p);
+    float d2c = v3_length2(to_centre);
+    float approx_solid_angle = l->area * fabsf(side) / (d2c * sqrtf(d2c));
+    return approx_solid_angle >= PN_MIN_SPHERICAL_SOLID_ANGLE &&
+           pn_spherical_rectangle_init(sr, p, l->p, l->e1, l->e2) && sr->solid_angle > 1e-6f;
 }
 
 bool pn_light_sample_point(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2, pn_light_sample *s) {
@@ -69,27 +88,20 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
         float b0, b1;
         pn_sample_uniform_triangle(u1, u2, &b0, &b1);
         vec3 y = v3_add(l->p, v3_add(v3_scale(l->e1, b1), v3_scale(l->e2, 1.0f - b0 - b1)));
-        return finish_area_sample(l, p, y, 1.0f / l->area, s);
+        return finish_area_sample(l, p, y, s);
     }
     case PN_LIGHT_RECTANGLE: {
         /* One-sided: nothing reaches a point behind the emitting side. */
         float side = v3_dot(v3_sub(p, l->p), l->n);
         if (!l->two_sided && side <= 0.0f) return false;
-        /* Solid-angle sampling (Ureña et al. 2013) where the rectangle looks big; where it
-         * subtends less than PN_MIN_SPHERICAL_SOLID_ANGLE (estimated as A cos / d^2) both
-         * densities are nearly equal and the cheaper area sampling is used, as pbrt-v4 does. */
         pn_light_sample_cache local;
         pn_light_sample_cache *c = cache ? cache : &local;
         if (!cache || c->light != l || c->p.x != p.x || c->p.y != p.y || c->p.z != p.z) {
             /* The set-up depends on the light and the receiver only: several shadow rays of one
              * eye ray to the same light share it. */
-            vec3 to_centre = v3_sub(v3_add(l->p, v3_scale(v3_add(l->e1, l->e2), 0.5f)), p);
-            float d2c = v3_length2(to_centre);
-            float approx_solid_angle = l->area * fabsf(side) / (d2c * sqrtf(d2c));
             c->light = l;
             c->p = p;
-            c->spherical = approx_solid_angle >= PN_MIN_SPHERICAL_SOLID_ANGLE &&
-                           pn_spherical_rectangle_init(&c->sr, p, l->p, l->e1, l->e2) && c->sr.solid_angle > 1e-6f;
+            c->spherical = rectangle_spherical(l, p, side, &c->sr);
         }
         if (c->spherical) {
             const pn_spherical_rectangle sr = c->sr;
@@ -105,7 +117,7 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
             return true;
         }
         vec3 y = v3_add(l->p, v3_add(v3_scale(l->e1, u1), v3_scale(l->e2, u2)));
-        return finish_area_sample(l, p, y, 1.0f / l->area, s);
+        return finish_area_sample(l, p, y, s);
     }
     case PN_LIGHT_DISK: {
         float dx, dy;
@@ -113,7 +125,7 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
         vec3 t, b;
         v3_basis(l->n, &t, &b);
         vec3 y = v3_add(l->p, v3_add(v3_scale(t, dx * l->radius), v3_scale(b, dy * l->radius)));
-        return finish_area_sample(l, p, y, 1.0f / l->area, s);
+        return finish_area_sample(l, p, y, s);
     }
     case PN_LIGHT_SPHERE: {
         vec3 y;
@@ -173,4 +185,19 @@ bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, ve
     case PN_LIGHT_KIND_COUNT: break;
     }
     return false;
+}
+
+float pn_light_pdf_direction(const pn_light *l, vec3 p, vec3 wi, float dist) {
+    switch (l->kind) {
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_DISK: return area_to_solid_angle(l, wi, dist * dist);
+    case PN_LIGHT_RECTANGLE: {
+        float side = v3_dot(v3_sub(p, l->p), l->n);
+        if (!l->two_sided && side <= 0.0f) return 0.0f;
+        pn_spherical_rectangle sr;
+        return rectangle_spherical(l, p, side, &sr) ? 1.0f / sr.solid_angle : area_to_solid_angle(l, wi, dist * dist);
+    }
+    case PN_LIGHT_SPHERE: return pn_sphere_cone_pdf(l->p, l->radius, p);
+    default: return 0.0f;
+    }
 }

@@ -169,6 +169,10 @@ typedef struct pn_light_sample_cache {
 /* pn_light_sample_point with a cache (may be NULL); the results are identical. */
 bool pn_light_sample_point_cached(const pn_lights *lights, const pn_light *l, vec3 p, float u1, float u2,
                                   pn_light_sample_cache *cache, pn_light_sample *s);
+/* The solid-angle density with which pn_light_sample_point(l, p) gives direction wi whose ray
+ * reaches l's surface at distance dist (triangle, rectangle, disk and sphere lights; 0 for the
+ * others and for directions sampling would not return, as from behind a one-sided light). */
+float pn_light_pdf_direction(const pn_light *l, vec3 p, vec3 wi, float dist);
 
 /* Emitted radiance of an area light toward direction w (unit, from the light's surface point to
  * the viewer), for eye rays that hit an emitter. */
