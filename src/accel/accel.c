@@ -353,6 +353,10 @@ bool pn_accel_intersect(const pn_accel *acc, vec3 o, vec3 d, float tmin, float t
     return intersect_mask(acc, o, d, tmin, tmax, 0x1, h);
 }
 
+bool pn_accel_intersect_opaque(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, pn_hit *h) {
+    return intersect_mask(acc, o, d, tmin, tmax, 0x2, h);
+}
+
 static bool intersect_mask(const pn_accel *acc, vec3 o, vec3 d, float tmin, float tmax, unsigned mask, pn_hit *h) {
     struct RTCIntersectContext ictx;
     rtcInitIntersectContext(&ictx);

@@ -35,6 +35,9 @@ void pn_accel_free(pn_accel *accel);
 /* Closest hit along o + t d for t in (tmin, tmax); d need not be unit length (t is in units of
  * |d|). Returns false on a miss. */
 bool pn_accel_intersect(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax, pn_hit *hit);
+/* The same for a shadow ray's surfaces: thin glass panes (see pn_accel_transmittance) are passed,
+ * so the hit is the first opaque blocker, emitters included. */
+bool pn_accel_intersect_opaque(const pn_accel *accel, vec3 o, vec3 d, float tmin, float tmax, pn_hit *hit);
 
 /* pbrt-v4's dp/du and dp/dv of a triangle hit (world space), from its vertices' (u, v) (the
  * default (0,0), (1,0), (1,1) without them); an arbitrary orthonormal pair in the triangle's

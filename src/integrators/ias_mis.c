@@ -72,31 +72,11 @@ int pn_ias_mis_light_of_hit(const pn_ias_mis_map *map, const pn_hit *hit) {
     return map->tri_light[map->mesh_base[hit->mesh] + (int)hit->prim];
 }
 
-/* Whether hit's surface is a thin glass pane that shadow rays pass (accel.c's mask 0x4). */
-static bool is_pane(const pn_render_job *job, const pn_hit *hit) {
-    const struct pn_scene_s *sc = job->scene;
-    if (hit->material < 0 || hit->material >= sc->material_count) return false;
-    const pn_material *m = &sc->materials[hit->material];
-    return m->kind == PN_MATERIAL_DIELECTRIC && m->thin;
-}
-
 bool pn_ias_mis_trace(const pn_render_job *job, vec3 o, vec3 wi, pn_hit *hit, float *trans) {
-    const bool panes = !job->opaque_glass && pn_accel_has_thin_glass(job->accel);
-    float tmin = 0.0f;
-    bool crossed = false;
     *trans = 1.0f;
-    for (int k = 0; k <= PN_ACCEL_MAX_PANES; k++) {
-        if (!pn_accel_intersect(job->accel, o, wi, tmin, INFINITY, hit)) {
-            if (crossed) *trans = pn_shadow_transmittance(job, o, wi, 0.0f, INFINITY);
-            return false;
-        }
-        if (!(panes && is_pane(job, hit))) {
-            if (crossed) *trans = pn_shadow_transmittance(job, o, wi, 0.0f, hit->t * (1.0f - 1e-4f));
-            return true;
-        }
-        crossed = true;
-        tmin = hit->t * (1.0f + 1e-5f) + 1e-6f;
-    }
-    *trans = 0.0f;
-    return true;
+    if (job->opaque_glass || !pn_accel_has_thin_glass(job->accel))
+        return pn_accel_intersect(job->accel, o, wi, 0.0f, INFINITY, hit);
+    const bool surface = pn_accel_intersect_opaque(job->accel, o, wi, 0.0f, INFINITY, hit);
+    *trans = pn_shadow_transmittance(job, o, wi, 0.0f, surface ? hit->t * (1.0f - 1e-4f) : INFINITY);
+    return surface;
 }
