@@ -200,6 +200,20 @@ static bool blinn_direction(const pn_bsdf *b, vec3 wo, float u2, float u3, vec3 
     return true;
 }
 
+/* A sampled direction d (not unit length) normalised, with its density under pdf_of; false where
+ * that density is not positive and finite (below the surface, or outside the lobe). */
+static bool accept_direction(const pn_bsdf *b, vec3 wo, vec3 d, float (*pdf_of)(const pn_bsdf *, vec3, vec3), vec3 *wi,
+                             float *pdf) {
+    float len = v3_length(d);
+    if (!(len > 0.0f)) return false;
+    d = v3_scale(d, 1.0f / len);
+    float p = pdf_of(b, wo, d);
+    if (!(p > 0.0f) || !isfinite(p)) return false;
+    *wi = d;
+    *pdf = p;
+    return true;
+}
+
 float pn_bsdf_pdf_glossy(const pn_bsdf *b, vec3 wo, vec3 wi) {
     if (v3_is_zero(b->ks) || v3_dot(b->ns, wi) <= 0.0f || v3_dot(b->ng, wi) <= 0.0f) return 0.0f;
     return blinn_pdf(b, wo, wi);
@@ -208,14 +222,7 @@ float pn_bsdf_pdf_glossy(const pn_bsdf *b, vec3 wo, vec3 wi) {
 bool pn_bsdf_sample_glossy(const pn_bsdf *b, vec3 wo, float u1, float u2, vec3 *wi, float *pdf) {
     vec3 d;
     if (v3_is_zero(b->ks) || !blinn_direction(b, wo, u1, u2, &d)) return false;
-    float len = v3_length(d);
-    if (!(len > 0.0f)) return false;
-    d = v3_scale(d, 1.0f / len);
-    float p = pn_bsdf_pdf_glossy(b, wo, d);
-    if (!(p > 0.0f) || !isfinite(p)) return false;
-    *wi = d;
-    *pdf = p;
-    return true;
+    return accept_direction(b, wo, d, pn_bsdf_pdf_glossy, wi, pdf);
 }
 
 float pn_bsdf_pdf(const pn_bsdf *b, vec3 wo, vec3 wi) {
@@ -239,14 +246,7 @@ bool pn_bsdf_sample(const pn_bsdf *b, vec3 wo, float u1, float u2, float u3, vec
     } else if (!blinn_direction(b, wo, u2, u3, &d)) {
         return false;
     }
-    float len = v3_length(d);
-    if (!(len > 0.0f)) return false;
-    d = v3_scale(d, 1.0f / len);
-    float p = pn_bsdf_pdf(b, wo, d);
-    if (!(p > 0.0f) || !isfinite(p)) return false;
-    *wi = d;
-    *pdf = p;
-    return true;
+    return accept_direction(b, wo, d, pn_bsdf_pdf, wi, pdf);
 }
 
 vec3 pn_coated_diffuse(vec3 kd, float transmission, float internal) {
