@@ -39,63 +39,52 @@ from beyond_table import table  # noqa: E402
 
 # method name -> (list of level argument lists, label). Levels are ordered from cheap to costly.
 BASE_SPP = os.environ.get("BASE_SPP", "16 64").split()
+
+
+def ias_at(*options):
+    """ias with the given options at each of the thresholds IAS_T (the default variant's levels)."""
+    return [["--integrator", "ias", *options, "--threshold", t] for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
+
+
 METHOD_ARGS = {
     "ref": [["--integrator", "reference", "--spp", s] for s in BASE_SPP],
     "bvh": [["--integrator", "reference", "--light-sampler", "bvh", "--spp", s] for s in BASE_SPP],
     "ias-paper": [["--integrator", "ias", "--ias-variant", "paper", "--threshold", t] for t in ("0.04", "0.01")],
-    "ias": [["--integrator", "ias", "--threshold", t] for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias": ias_at(),
     # the default variant with the paper's fixed eye rays (issue 21's growing eye rays off)
-    "ias-aa32": [["--integrator", "ias", "--ias-aa-threshold", "0", "--threshold", t]
-                 for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-aa32": ias_at("--ias-aa-threshold", "0"),
     # the default variant with eye rays growing as 1 / sqrt(T) below T0 = 0.1 (ias-aa-power; the
     # balance of eye and shadow rays measured on hall-many, docs/methods/ias.md)
-    "ias-eyesqrt": [["--integrator", "ias", "--ias-aa-threshold", "0.1", "--ias-aa-power", "0.5", "--threshold", t]
-                    for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-eyesqrt": ias_at("--ias-aa-threshold", "0.1", "--ias-aa-power", "0.5"),
     # neighbours of ias-eyesqrt (the eye-ray / shadow-ray balance as a default, stop 20): T0 = 0.05
     # with P = 0.5 (fewer eye rays at every T), and T0 = 0.1 with P = 0.75 (more)
-    "ias-eye05": [["--integrator", "ias", "--ias-aa-threshold", "0.05", "--ias-aa-power", "0.5", "--threshold", t]
-                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
-    "ias-eye075": [["--integrator", "ias", "--ias-aa-threshold", "0.1", "--ias-aa-power", "0.75", "--threshold", t]
-                   for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-eye05": ias_at("--ias-aa-threshold", "0.05", "--ias-aa-power", "0.5"),
+    "ias-eye075": ias_at("--ias-aa-threshold", "0.1", "--ias-aa-power", "0.75"),
     # the default variant with each cluster cut named (issue 15: which one is the default)
-    "ias-bvh": [["--integrator", "ias", "--ias-cut", "bvh", "--threshold", t]
-                for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
-    "ias-trees": [["--integrator", "ias", "--ias-cut", "trees", "--threshold", t]
-                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-bvh": ias_at("--ias-cut", "bvh"),
+    "ias-trees": ias_at("--ias-cut", "trees"),
     # the default variant with the ratio estimator (ias_ratio.h) in each of its modes
-    **{f"ias-ratio-{mode}": [["--integrator", "ias", "--ias-ratio", mode, "--threshold", t]
-                             for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
-       for mode in ("off", "pixel", "cluster", "control")},
+    **{f"ias-ratio-{mode}": ias_at("--ias-ratio", mode) for mode in ("off", "pixel", "cluster", "control")},
     # the default variant with MIS of its light samples and BSDF samples (ias_mis.h): 'glossy' (BSDF rays
     # at points with a glossy lobe only) and 'on' (at every shaded point)
-    "ias-mis": [["--integrator", "ias", "--ias-mis", "glossy", "--threshold", t]
-                for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
-    "ias-mis-on": [["--integrator", "ias", "--ias-mis", "on", "--threshold", t]
-                   for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
-    "ias-nomis": [["--integrator", "ias", "--ias-mis", "off", "--threshold", t]
-                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-mis": ias_at("--ias-mis", "glossy"),
+    "ias-mis-on": ias_at("--ias-mis", "on"),
+    "ias-nomis": ias_at("--ias-mis", "off"),
     # the default variant with the light guide (ias_guide.h) named on and off
-    **{f"ias-{name}": [["--integrator", "ias", "--ias-light-guide", mode, "--threshold", t]
-                       for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
-       for name, mode in (("guide", "on"), ("noguide", "off"))},
+    **{f"ias-{name}": ias_at("--ias-light-guide", mode) for name, mode in (("guide", "on"), ("noguide", "off"))},
     # the default variant with the guided numbers not rotated (ias-guide-rotate off: the guide before stop 20's
     # rotation)
-    "ias-norot": [["--integrator", "ias", "--ias-guide-rotate", "off", "--threshold", t]
-                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-norot": ias_at("--ias-guide-rotate", "off"),
     # the default variant with the first pass guided from the block's earlier pixels (ias-guide-refresh)
-    "ias-gref": [["--integrator", "ias", "--ias-guide-refresh", "1", "--threshold", t]
-                 for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-gref": ias_at("--ias-guide-refresh", "1"),
     # the default variant with a cluster's light picked by importance at the point (ias-cluster-pick), with and
     # without a capped cut (ias-cut-max K): the light-count session's cap and what repairs it
-    "ias-imp": [["--integrator", "ias", "--ias-cluster-pick", "importance", "--threshold", t]
-                for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
-    **{f"ias-cap{k}{sfx}": [["--integrator", "ias", "--ias-cut-max", k] + extra + ["--threshold", t]
-                            for t in os.environ.get("IAS_T", "0.01 0.0025").split()]
+    "ias-imp": ias_at("--ias-cluster-pick", "importance"),
+    **{f"ias-cap{k}{sfx}": ias_at("--ias-cut-max", k, *extra)
        for k in ("128", "256")
        for sfx, extra in (("", []), ("-imp", ["--ias-cluster-pick", "importance"]),
                           ("-large", ["--ias-cluster-pick", "large"]))},
-    "ias-large": [["--integrator", "ias", "--ias-cluster-pick", "large", "--threshold", t]
-                  for t in os.environ.get("IAS_T", "0.01 0.0025").split()],
+    "ias-large": ias_at("--ias-cluster-pick", "large"),
 }
 # The same methods run by MAIN_BIN (the base of a change), named NAME-main.
 for _m in list(METHOD_ARGS):
