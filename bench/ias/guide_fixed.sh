@@ -5,7 +5,8 @@
 #   bench/ias/guide_fixed.sh LABEL PASSES SEED [render options...]
 #
 # Environment: BIN (build/penumbra), PN_SHARED (../shared), CONV (the converged seed-7 render:
-# /work/conv/converged-bathroom-72-matte-512-seed7.exr), OUT (bench/out/guide-fixed). Prints LABEL,
+# beyond.sh's cached OUT/converged-bathroom-72-matte-512-seed7.exr, default
+# bench/out/beyond/converged-bathroom-72-matte-512-seed7.exr), OUT (bench/out/guide-fixed). Prints LABEL,
 # passes, seed, relMSE (the converged render's own not subtracted) and the process's CPU seconds.
 # The throw-away switches are environment variables read by a build with a patch applied (in a copy
 # of the tree): bench/ias/guide-experiments.patch (on c10acb2: PN_GX_REFRESH, PN_GX_ALL, PN_GX_PRIOR,
@@ -14,7 +15,7 @@ set -eu
 L=$1; P=$2; S=$3; shift 3
 B=${BIN:-build/penumbra}
 SC=${PN_SHARED:-../shared}/scenes/bathroom-72/bathroom-72-matte.pbrt
-CONV=${CONV:-/work/conv/converged-bathroom-72-matte-512-seed7.exr}
+CONV=${CONV:-bench/out/beyond/converged-bathroom-72-matte-512-seed7.exr}
 OUT=${OUT:-bench/out/guide-fixed}
 mkdir -p "$OUT"
 o=$OUT/$L-$P-$S.exr

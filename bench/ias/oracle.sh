@@ -9,7 +9,7 @@
 #
 # CONFIG is MODE:SPP:K:DEF:SEED (MODE 0, 1 or 2). Each render is one thread at nice 10, crop
 # CROP (default 0.375,0.625,0.375,0.625, the window of the converged renders CONV7/CONV8, e.g.
-# /work/conv/converged-NAME-512-seed7.exr). Prints one line per render: config, shadow rays per
+# beyond.sh's cached OUT/converged-NAME-512-seed7.exr). Prints one line per render: config, shadow rays per
 # pixel (the render's stats), relMSE against CONV7 minus CONV7's own (half the relMSE of CONV8
 # against CONV7), relMSE x rays, mean luminance relative to CONV7's, render seconds (wall, of the stats).
 set -eu
