@@ -10,10 +10,11 @@
  * The cost is "reducible": the merged sphere of A and B contains both, so any sphere enclosing
  * it and C also encloses A and C, hence cost(A+B, C) >= min(cost(A, C), cost(B, C)). So a merge
  * never gives any other cluster a partner cheaper than the one it had. Every live cluster keeps
- * its nearest partner (by cost) in a binary heap of (cost, cluster, partner) entries; the heap
- * minimum is the globally cheapest pair. Entries are invalidated lazily: when popped, an entry of
- * a dead cluster is dropped, and an entry whose partner has died is re-queried and pushed again
- * (by reducibility its old cost is a lower bound of the new one, so the heap order stays valid).
+ * its nearest partner (by cost) as one (cost, cluster) entry of a binary min-heap (core/heap.h;
+ * equal costs to the lower cluster index, the partner recorded per cluster); the heap minimum is
+ * the globally cheapest pair. Entries are invalidated lazily: when popped, an entry of a dead
+ * cluster is dropped, and an entry whose partner has died is re-queried and pushed again (by
+ * reducibility its old cost is a lower bound of the new one, so the heap order stays valid).
  *
  * Nearest-partner queries run on a k-d tree over the live clusters' centres (median splits,
  * leaves of <= 8 at build time), each node with the box of its centres, the smallest radius below
