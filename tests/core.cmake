@@ -1,3 +1,4 @@
-# Core utilities: hashing, random numbers, thread pool, the warning path.
+# Core utilities: hashing, random numbers, thread pool, the warning path, the binary heap.
 pn_add_test(test_core)
 pn_add_test(test_warn)
+pn_add_test(test_heap)

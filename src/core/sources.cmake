@@ -9,6 +9,7 @@ list(APPEND PN_SOURCES
   src/core/threadpool.c
   src/core/file.c
   src/core/text.c
+  src/core/heap.c
 )
 # Allocation-failure injection (core/alloc_hook.h): only in the sanitizer test build.
 if(PN_SANITIZE)

@@ -199,6 +199,8 @@
 
 #include "driver/progressive.h"
 
+#include "core/heap.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -1226,31 +1228,15 @@ static float step_residual(const pn_prog *p, const dcm_block *b, int sp) {
  * steps found (0.1% gave the same 6% image on quarter staircase as 0.25%). */
 #define DCM_RESIDUAL_CHUNK 0.0025
 
-/* A max-heap of boundary tasks (cmp_task's order: the first is the largest key). */
-static void heap_push(boundary_task *h, size_t *n, boundary_task t) {
-    size_t i = (*n)++;
-    while (i > 0) {
-        size_t up = (i - 1) / 2;
-        if (cmp_task(&h[up], &t) <= 0) break;
-        h[i] = h[up];
-        i = up;
-    }
-    h[i] = t;
+/* Boundary tasks in a max-heap (core/heap.h) in cmp_task's order: the key, then the larger
+ * spacing, then the lower block, both packed into the payload (spacing <= k / 2, blocks < 2^32). */
+static void task_push(pn_heap *h, boundary_task t, int k) {
+    pn_heap_push(h, t.key, (int64_t)(k - t.spacing) << 32 | (int64_t)t.block);
 }
 
-static boundary_task heap_pop(boundary_task *h, size_t *n) {
-    boundary_task top = h[0], last = h[--*n];
-    size_t i = 0;
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= *n) break;
-        if (c + 1 < *n && cmp_task(&h[c + 1], &h[c]) < 0) c++;
-        if (cmp_task(&last, &h[c]) <= 0) break;
-        h[i] = h[c];
-        i = c;
-    }
-    if (*n) h[i] = last;
-    return top;
+static boundary_task task_pop(pn_heap *h, int k) {
+    pn_heap_entry e = pn_heap_pop(h);
+    return (boundary_task){(float)e.key, k - (int)(e.payload >> 32), (size_t)(e.payload & 0xffffffff)};
 }
 
 /* Residual order (issue 18, see the header): boundary steps in chunks of DCM_RESIDUAL_CHUNK of
@@ -1261,27 +1247,27 @@ static boundary_task heap_pop(boundary_task *h, size_t *n) {
 static pn_status boundary_rounds(pn_prog *p, const dcm_block *blocks, const size_t *pending, size_t np, int k,
                                  bool guided) {
     if (np == 0 || k < 2) return PN_OK;
-    boundary_task *h = malloc(np * sizeof *h), *done = malloc(np * sizeof *done);
+    pn_heap h; /* one task a block at most: np entries */
+    pn_heap_init(&h, PN_HEAP_MAX | PN_HEAP_TIES_BY_PAYLOAD);
+    boundary_task *done = malloc(np * sizeof *done);
     float *range = malloc(np * sizeof *range);
-    if (!h || !done || !range) {
-        free(h);
+    if (!pn_heap_reserve(&h, np) || !done || !range) {
+        pn_heap_free(&h);
         free(done);
         free(range);
         return PN_ERROR_OUT_OF_MEMORY;
     }
-    size_t nh = 0;
     for (size_t j = 0; j < np; j++) {
         range[j] = block_range(p, &blocks[pending[j]], true, guided);
-        boundary_task t = {range[j] * (float)(k / 2), k / 2, j};
-        heap_push(h, &nh, t);
+        task_push(&h, (boundary_task){range[j] * (float)(k / 2), k / 2, j}, k);
     }
     size_t chunk = (size_t)((double)p->W * (double)p->H * DCM_RESIDUAL_CHUNK);
     if (chunk < 64) chunk = 64;
     pn_status st = PN_OK;
-    while (nh > 0 && st == PN_OK && !p->stopped) {
+    while (h.count > 0 && st == PN_OK && !p->stopped) {
         size_t nd = 0, queued = 0;
-        while (nh > 0 && queued < chunk) {
-            boundary_task t = heap_pop(h, &nh);
+        while (h.count > 0 && queued < chunk) {
+            boundary_task t = task_pop(&h, k);
             long q = queue_spacing(p, &blocks[pending[t.block]], t.spacing);
             if (q < 0) {
                 st = PN_ERROR_OUT_OF_MEMORY;
@@ -1298,10 +1284,10 @@ static pn_status boundary_rounds(pn_prog *p, const dcm_block *blocks, const size
             float e = r >= 0.0f ? 2.0f * r : range[t.block];
             t.spacing /= 2;
             t.key = e * (float)t.spacing;
-            heap_push(h, &nh, t);
+            task_push(&h, t, k);
         }
     }
-    free(h);
+    pn_heap_free(&h);
     free(done);
     free(range);
     return st;

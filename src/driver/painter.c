@@ -20,6 +20,7 @@
  * pixels can be evaluated in parallel); the order inside a batch is the priority order. */
 #include "driver/progressive.h"
 
+#include "core/heap.h"
 #include "core/rng.h"
 
 #include <math.h>
@@ -43,52 +44,8 @@ typedef struct painter_state {
     pn_prog *p;
     pnode *nodes;
     size_t n, cap;
-    uint32_t *heap; /* node indices, max-heap on (priority, -index) */
-    size_t hn, hcap;
+    pn_heap heap; /* leaves to refine: (priority, node index), ties to the lower index */
 } painter_state;
-
-static bool heap_less(const painter_state *s, uint32_t a, uint32_t b) {
-    double pa = s->nodes[a].priority, pb = s->nodes[b].priority;
-    return pa < pb || (pa == pb && a > b);
-}
-
-static bool heap_push(painter_state *s, uint32_t v) {
-    if (s->hn == s->hcap) {
-        size_t cap = s->hcap ? 2 * s->hcap : 1024;
-        void *h = realloc(s->heap, cap * sizeof *s->heap);
-        if (!h) return false;
-        s->heap = h;
-        s->hcap = cap;
-    }
-    size_t i = s->hn++;
-    s->heap[i] = v;
-    while (i > 0) {
-        size_t up = (i - 1) / 2;
-        if (!heap_less(s, s->heap[up], s->heap[i])) break;
-        uint32_t t = s->heap[up];
-        s->heap[up] = s->heap[i];
-        s->heap[i] = t;
-        i = up;
-    }
-    return true;
-}
-
-static uint32_t heap_pop(painter_state *s) {
-    uint32_t top = s->heap[0];
-    s->heap[0] = s->heap[--s->hn];
-    size_t i = 0;
-    for (;;) {
-        size_t l = 2 * i + 1, r = l + 1, m = i;
-        if (l < s->hn && heap_less(s, s->heap[m], s->heap[l])) m = l;
-        if (r < s->hn && heap_less(s, s->heap[m], s->heap[r])) m = r;
-        if (m == i) break;
-        uint32_t t = s->heap[m];
-        s->heap[m] = s->heap[i];
-        s->heap[i] = t;
-        i = m;
-    }
-    return top;
-}
 
 static int64_t new_node(painter_state *s, int x0, int y0, int x1, int y1) {
     if (s->n == s->cap) {
@@ -169,7 +126,7 @@ static void painter_free(void *driver) {
     if (!s) return;
     for (size_t i = 0; i < s->n; i++) free(s->nodes[i].samples);
     free(s->nodes);
-    free(s->heap);
+    pn_heap_free(&s->heap);
     free(s);
 }
 
@@ -182,7 +139,7 @@ static pn_status painter_loop(painter_state *s) {
     if ((st = pn_prog_flush(p)) != PN_OK || p->stopped) return st;
     if (!add_sample(&s->nodes[0], first)) return PN_ERROR_OUT_OF_MEMORY;
     node_stats(s, &s->nodes[0], 1.0f);
-    if (!heap_push(s, 0)) return PN_ERROR_OUT_OF_MEMORY;
+    if (!pn_heap_push(&s->heap, s->nodes[0].priority, 0)) return PN_ERROR_OUT_OF_MEMORY;
     size_t batch = ((size_t)p->W * (size_t)p->H) / 1024;
     if (batch < 16) batch = 16;
     uint32_t *fresh = malloc(2 * batch * sizeof *fresh);
@@ -193,10 +150,10 @@ static pn_status painter_loop(painter_state *s) {
         return PN_ERROR_OUT_OF_MEMORY;
     }
     st = PN_OK;
-    while (s->hn > 0 && st == PN_OK) {
+    while (s->heap.count > 0 && st == PN_OK) {
         size_t nf = 0;
-        for (size_t b = 0; b < batch && s->hn > 0; b++) {
-            uint32_t pi = heap_pop(s);
+        for (size_t b = 0; b < batch && s->heap.count > 0; b++) {
+            uint32_t pi = (uint32_t)pn_heap_pop(&s->heap).payload;
             if (s->nodes[pi].priority < 0.0) continue;
             pnode par = s->nodes[pi];
             bool vertical = (par.x1 - par.x0) >= (par.y1 - par.y0);
@@ -242,7 +199,7 @@ static pn_status painter_loop(painter_state *s) {
                 d->pending = -1;
             }
             node_stats(s, d, inherit[i]);
-            if (d->priority >= 0.0 && !heap_push(s, fresh[i])) {
+            if (d->priority >= 0.0 && !pn_heap_push(&s->heap, d->priority, fresh[i])) {
                 st = PN_ERROR_OUT_OF_MEMORY;
                 break;
             }
@@ -257,6 +214,7 @@ pn_status pn_painter_run(pn_prog *p) {
     painter_state *s = calloc(1, sizeof *s);
     if (!s) return PN_ERROR_OUT_OF_MEMORY;
     s->p = p;
+    pn_heap_init(&s->heap, PN_HEAP_MAX | PN_HEAP_TIES_BY_PAYLOAD);
     p->draw = painter_draw;
     p->driver = s;
     p->free_driver = painter_free;

@@ -11,6 +11,7 @@
  * M · G · V (no new shadow ray), so a refinement costs one shadow ray. */
 #include "integrators/illumcut.h"
 
+#include "core/heap.h"
 #include "core/photometry.h"
 
 #include "shade/bsdf.h"
@@ -28,64 +29,47 @@ typedef struct cut_entry {
     vec3 value;    /* the cluster's term of the total: unit times its intensity (cluster_value) */
 } cut_entry;
 
+/* The open clusters of one receiver's cut: their entries in `open` (appended, one per push), their
+ * bounds in a max-heap whose payload is the entry's index (ties in the sift's order, core/heap.h,
+ * which is also the order of the bound sum). */
 typedef struct lc_scratch {
-    cut_entry *heap;
-    size_t capacity;
+    pn_heap heap;
+    cut_entry *open;
+    size_t used, capacity;
 } lc_scratch;
+
+static void lc_scratch_free(void *p) {
+    lc_scratch *s = p;
+    if (!s) return;
+    pn_heap_free(&s->heap);
+    free(s->open);
+    free(s);
+}
 
 static void *lc_scratch_create(const pn_render_job *job) {
     (void)job;
     lc_scratch *s = calloc(1, sizeof *s);
     if (!s) return NULL;
+    pn_heap_init(&s->heap, PN_HEAP_MAX);
     s->capacity = 1024;
-    s->heap = malloc(s->capacity * sizeof *s->heap);
-    if (!s->heap) {
-        free(s);
+    s->open = malloc(s->capacity * sizeof *s->open);
+    if (!s->open || !pn_heap_reserve(&s->heap, s->capacity)) {
+        lc_scratch_free(s);
         return NULL;
     }
     return s;
 }
 
-static void lc_scratch_free(void *p) {
-    lc_scratch *s = p;
-    if (!s) return;
-    free(s->heap);
-    free(s);
-}
-
-static bool heap_push(lc_scratch *s, size_t *n, cut_entry e) {
-    if (*n == s->capacity) {
-        size_t cap = s->capacity * 2;
-        cut_entry *h = realloc(s->heap, cap * sizeof *h);
-        if (!h) return false;
-        s->heap = h;
-        s->capacity = cap;
+static bool open_push(lc_scratch *s, cut_entry e) {
+    if (s->used == s->capacity) {
+        cut_entry *o = realloc(s->open, 2 * s->capacity * sizeof *o);
+        if (!o) return false;
+        s->open = o;
+        s->capacity *= 2;
     }
-    size_t i = (*n)++;
-    while (i > 0) {
-        size_t p = (i - 1) / 2;
-        if (s->heap[p].bound >= e.bound) break;
-        s->heap[i] = s->heap[p];
-        i = p;
-    }
-    s->heap[i] = e;
+    if (!pn_heap_push(&s->heap, e.bound, (int64_t)s->used)) return false;
+    s->open[s->used++] = e;
     return true;
-}
-
-static cut_entry heap_pop(lc_scratch *s, size_t *n) {
-    cut_entry top = s->heap[0];
-    cut_entry last = s->heap[--(*n)];
-    size_t i = 0;
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= *n) break;
-        if (c + 1 < *n && s->heap[c + 1].bound > s->heap[c].bound) c++;
-        if (s->heap[c].bound <= last.bound) break;
-        s->heap[i] = s->heap[c];
-        i = c;
-    }
-    if (*n > 0) s->heap[i] = last;
-    return top;
 }
 
 /* M · G · V of VPL `rep` at the receiver per unit intensity (one shadow ray when non-zero). In
@@ -143,7 +127,8 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
     pn_receiver_bounds rb = {r->p, r->p,  r->ns, 0.0f,        pn_reflect(r->wo, r->ns),
                              0.0f, r->kd, r->ks, r->exponent, r->exponent,
                              1.0f, 0.0f,  1.0f,  0.0f};
-    size_t n = 0;
+    s->used = 0;
+    pn_heap_clear(&s->heap);
     vec3 total = v3(0, 0, 0), total_rgb = v3(0, 0, 0); /* total_rgb: RGB mode's, for the stopping test */
     uint64_t finished = 0; /* clusters of the cut outside the heap (exact leaves, zero bounds) */
     for (int k = 0; k < PN_VPL_KIND_COUNT; k++) {
@@ -161,16 +146,16 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
             (*bounds)++;
         }
         if (e.bound > 0.0f) {
-            if (!heap_push(s, &n, e)) return false;
+            if (!open_push(s, e)) return false;
         } else {
             finished++;
         }
     }
     const float delta = cx->error_bound;
-    while (n > 0) {
-        if (s->heap[0].bound <= delta * v3_luminance(total_rgb)) break;
-        if (cx->max_cut > 0 && n + finished >= cx->max_cut) break;
-        cut_entry e = heap_pop(s, &n);
+    while (s->heap.count > 0) {
+        if ((float)pn_heap_top(&s->heap).key <= delta * v3_luminance(total_rgb)) break;
+        if (cx->max_cut > 0 && s->heap.count + finished >= cx->max_cut) break;
+        cut_entry e = s->open[pn_heap_pop(&s->heap).payload];
         const pn_light_node *nd = &t->nodes[e.node];
         total = v3_sub(total, e.value);
         total_rgb = v3_sub(total_rgb, v3_mul(e.unit_rgb, nd->intensity));
@@ -193,16 +178,16 @@ static bool lightcut_point(const pn_lightcut_context *cx, lc_scratch *s, const p
                 (*bounds)++;
             }
             if (ce.bound > 0.0f) {
-                if (!heap_push(s, &n, ce)) return false;
+                if (!open_push(s, ce)) return false;
             } else {
                 finished++;
             }
         }
     }
-    *cut_size += n + finished;
+    *cut_size += s->heap.count + finished;
     if (bound_sum) {
         float b = 0.0f;
-        for (size_t i = 0; i < n; i++) b += s->heap[i].bound;
+        for (size_t i = 0; i < s->heap.count; i++) b += (float)s->heap.entries[i].key;
         *bound_sum = b;
     }
     *out = v3(fmaxf(0.0f, total.x), fmaxf(0.0f, total.y), fmaxf(0.0f, total.z));

@@ -10,10 +10,11 @@
  * The cost is "reducible": the merged sphere of A and B contains both, so any sphere enclosing
  * it and C also encloses A and C, hence cost(A+B, C) >= min(cost(A, C), cost(B, C)). So a merge
  * never gives any other cluster a partner cheaper than the one it had. Every live cluster keeps
- * its nearest partner (by cost) in a binary heap of (cost, cluster, partner) entries; the heap
- * minimum is the globally cheapest pair. Entries are invalidated lazily: when popped, an entry of
- * a dead cluster is dropped, and an entry whose partner has died is re-queried and pushed again
- * (by reducibility its old cost is a lower bound of the new one, so the heap order stays valid).
+ * its nearest partner (by cost) as one (cost, cluster) entry of a binary min-heap (core/heap.h;
+ * equal costs to the lower cluster index, the partner recorded per cluster); the heap minimum is
+ * the globally cheapest pair. Entries are invalidated lazily: when popped, an entry of a dead
+ * cluster is dropped, and an entry whose partner has died is re-queried and pushed again (by
+ * reducibility its old cost is a lower bound of the new one, so the heap order stays valid).
  *
  * Nearest-partner queries run on a k-d tree over the live clusters' centres (median splits,
  * leaves of <= 8 at build time), each node with the box of its centres, the smallest radius below
@@ -32,6 +33,8 @@
  * these trees' spheres and cones).
  */
 #include "lights/cluster_tree.h"
+
+#include "core/heap.h"
 
 #include <limits.h>
 #include <stdlib.h>
@@ -345,12 +348,6 @@ typedef struct pn_kd_node {
     int head; /* leaf: first cluster of its list */
 } pn_kd_node;
 
-typedef struct pn_heap_entry {
-    float cost;
-    int a, b;
-    unsigned stamp;
-} pn_heap_entry;
-
 /* A cluster's sphere, compact (16 bytes, where the forest's node is 140). */
 typedef struct pn_build_item {
     vec3 center;
@@ -374,59 +371,14 @@ typedef struct pn_builder {
     pn_build_slot *slots; /* the k-d leaves' lists (heads and links are slot indices) */
     int *slot_at;         /* per forest node: its slot while it is live */
     int slot_used;
-    unsigned *stamp; /* per forest node: bumped when its heap entry is replaced */
+    int *partner; /* per forest node: the partner of its entry in the heap */
     pn_kd_node *kd;
     int kd_count, kd_root;
     int *items; /* scratch for building the k-d tree */
     int alive_count, rebuild_below;
-    pn_heap_entry *heap;
-    int heap_count, heap_cap;
+    pn_heap heap; /* (cost, cluster): the smallest cost first, ties to the lower cluster index */
     bool out_of_memory;
 } pn_builder;
-
-static bool heap_less(const pn_heap_entry *x, const pn_heap_entry *y) {
-    if (x->cost != y->cost) return x->cost < y->cost;
-    if (x->a != y->a) return x->a < y->a;
-    return x->b < y->b;
-}
-
-static bool heap_push(pn_builder *b, pn_heap_entry e) {
-    if (b->heap_count == b->heap_cap) {
-        int cap = b->heap_cap ? 2 * b->heap_cap : 1024;
-        pn_heap_entry *h = realloc(b->heap, (size_t)cap * sizeof *h);
-        if (!h) {
-            b->out_of_memory = true;
-            return false;
-        }
-        b->heap = h;
-        b->heap_cap = cap;
-    }
-    int i = b->heap_count++;
-    while (i > 0) {
-        int parent = (i - 1) / 2;
-        if (!heap_less(&e, &b->heap[parent])) break;
-        b->heap[i] = b->heap[parent];
-        i = parent;
-    }
-    b->heap[i] = e;
-    return true;
-}
-
-static pn_heap_entry heap_pop(pn_builder *b) {
-    pn_heap_entry top = b->heap[0];
-    pn_heap_entry last = b->heap[--b->heap_count];
-    int i = 0, count = b->heap_count;
-    for (;;) {
-        int c = 2 * i + 1;
-        if (c >= count) break;
-        if (c + 1 < count && heap_less(&b->heap[c + 1], &b->heap[c])) c++;
-        if (!heap_less(&b->heap[c], &last)) break;
-        b->heap[i] = b->heap[c];
-        i = c;
-    }
-    if (count > 0) b->heap[i] = last;
-    return top;
-}
 
 /* Moves the k-th smallest item (by centre coordinate `axis`) of items[0..n) to position k, with
  * smaller or equal ones before it (three-way quickselect: many equal keys stay linear). */
@@ -612,16 +564,16 @@ static bool push_nearest(pn_builder *b, int c) {
     float cost;
     int partner = nearest_partner(b, c, &cost);
     if (partner < 0) return true;
-    b->stamp[c]++;
-    pn_heap_entry e = {cost, c, partner, b->stamp[c]};
-    return heap_push(b, e);
+    b->partner[c] = partner;
+    if (!pn_heap_push(&b->heap, cost, c)) b->out_of_memory = true;
+    return !b->out_of_memory;
 }
 
 /* Merges the leaves nodes[base .. base+m) into internal nodes nodes[base+m .. base+2m-1), in
  * merge order; the root is the last. */
 static bool build_tree(pn_builder *b, int base, int m, int tree) {
     if (m <= 1) return true;
-    b->heap_count = 0;
+    pn_heap_clear(&b->heap);
     for (int i = 0; i < m; i++) {
         b->alive[base + i] = 1;
         b->it[base + i].center = b->nodes[base + i].center;
@@ -632,27 +584,29 @@ static bool build_tree(pn_builder *b, int base, int m, int tree) {
     for (int i = 0; i < m; i++)
         if (!push_nearest(b, base + i)) return false;
     int next = base + m;
-    while (b->alive_count > 1 && b->heap_count > 0) {
-        pn_heap_entry e = heap_pop(b);
-        if (!b->alive[e.a] || e.stamp != b->stamp[e.a]) continue;
-        if (!b->alive[e.b]) {
-            if (!push_nearest(b, e.a)) return false;
+    while (b->alive_count > 1 && b->heap.count > 0) {
+        /* A live cluster's entry is its only one (pushed when it was made or its last entry was
+         * popped), so its partner is the one recorded; a dead cluster's entry is dropped. */
+        const int a = (int)pn_heap_pop(&b->heap).payload, mate = b->partner[a];
+        if (!b->alive[a]) continue;
+        if (!b->alive[mate]) {
+            if (!push_nearest(b, a)) return false;
             continue;
         }
         pn_cluster_node *nd = &b->nodes[next];
-        const pn_cluster_node *na = &b->nodes[e.a], *nb = &b->nodes[e.b];
+        const pn_cluster_node *na = &b->nodes[a], *nb = &b->nodes[mate];
         pn_cluster_merge_spheres(na->center, na->radius, nb->center, nb->radius, &nd->center, &nd->radius);
         b->it[next].center = nd->center;
         b->it[next].radius = nd->radius;
-        nd->left = e.a < e.b ? e.a : e.b;
-        nd->right = e.a < e.b ? e.b : e.a;
+        nd->left = a < mate ? a : mate;
+        nd->right = a < mate ? mate : a;
         nd->parent = -1;
         nd->light = -1;
         nd->tree = tree;
-        b->nodes[e.a].parent = next;
-        b->nodes[e.b].parent = next;
-        kd_remove(b, e.a);
-        kd_remove(b, e.b);
+        b->nodes[a].parent = next;
+        b->nodes[mate].parent = next;
+        kd_remove(b, a);
+        kd_remove(b, mate);
         b->alive_count--;
         if (b->alive_count < b->rebuild_below) {
             b->alive[next] = 1;
@@ -748,7 +702,8 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
     b.nodes = out->nodes;
     b.alive = calloc((size_t)(total > 0 ? total : 1), 1);
     b.slot = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.slot);
-    b.stamp = calloc((size_t)(total > 0 ? total : 1), sizeof *b.stamp);
+    b.partner = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.partner);
+    pn_heap_init(&b.heap, PN_HEAP_MIN | PN_HEAP_TIES_BY_PAYLOAD);
     b.items = malloc((size_t)(max_m > 0 ? max_m : 1) * sizeof *b.items);
     b.it = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.it);
     b.slot_at = malloc((size_t)(total > 0 ? total : 1) * sizeof *b.slot_at);
@@ -756,7 +711,7 @@ pn_status pn_cluster_forest_build(const pn_lights *lights, pn_cluster_forest *ou
     b.kd = malloc((size_t)(2 * max_m + 1) * sizeof *b.kd);
     pn_status status = PN_OK;
     if (!out->nodes || !out->light_order || !out->leaf_of_light || !out->singles || !out->power_prefix || !b.alive ||
-        !b.slot || !b.stamp || !b.items || !b.it || !b.slot_at || !b.slots || !b.kd) {
+        !b.slot || !b.partner || !b.items || !b.it || !b.slot_at || !b.slots || !b.kd) {
         status = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for the light cluster trees");
         goto done;
     }
@@ -881,13 +836,13 @@ done:
     }
     free(b.alive);
     free(b.slot);
-    free(b.stamp);
+    free(b.partner);
     free(b.items);
     free(b.it);
     free(b.slot_at);
     free(b.slots);
     free(b.kd);
-    free(b.heap);
+    pn_heap_free(&b.heap);
     if (status != PN_OK) pn_cluster_forest_free(out);
     return status;
 }
@@ -1025,46 +980,10 @@ int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, 
 
 /* ---------------------------------------------------------------- capped cut */
 
-/* An open node of pn_cluster_cut_capped: its r^2 / d^2 (the solid angle's order), its index. */
-typedef struct cut_open {
-    float x;
-    int node;
-} cut_open;
-
+/* An open node's key in pn_cluster_cut_capped's heaps: its r^2 / d^2 (the solid angle's order). */
 static float open_key(const pn_cluster_node *nd, vec3 p) {
     float d2 = v3_length2(v3_sub(nd->center, p));
     return d2 > 0.0f ? nd->radius * nd->radius / d2 : INFINITY;
-}
-
-/* Max-heap order: the larger solid angle first, ties to the lower index. */
-static bool open_before(const cut_open *a, const cut_open *b) {
-    return a->x > b->x || (a->x == b->x && a->node < b->node);
-}
-
-static void open_push(cut_open *h, int *count, cut_open e) {
-    int i = (*count)++;
-    while (i > 0) {
-        int parent = (i - 1) / 2;
-        if (!open_before(&e, &h[parent])) break;
-        h[i] = h[parent];
-        i = parent;
-    }
-    h[i] = e;
-}
-
-static cut_open open_pop(cut_open *h, int *count) {
-    cut_open top = h[0], last = h[--*count];
-    int i = 0, n = *count;
-    for (;;) {
-        int c = 2 * i + 1;
-        if (c >= n) break;
-        if (c + 1 < n && open_before(&h[c + 1], &h[c])) c++;
-        if (!open_before(&h[c], &last)) break;
-        h[i] = h[c];
-        i = c;
-    }
-    if (n > 0) h[i] = last;
-    return top;
 }
 
 /* The capped cut's clusters as a doubly linked list in light order (a refined node's element
@@ -1079,7 +998,7 @@ static int slots_for(int max_count) {
 }
 
 size_t pn_cluster_cut_capped_work(int max_count) {
-    return (size_t)slots_for(max_count) * (2 * sizeof(cut_open) + sizeof(cut_elem));
+    return (size_t)slots_for(max_count) * (2 * sizeof(pn_heap_entry) + sizeof(cut_elem));
 }
 
 int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
@@ -1091,12 +1010,15 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
     if (plain <= max_count) return plain;
     /* heap: the open elements; held: elements whose refinement the cap stopped, refined after all
      * when a refinement that culls both children makes room (so the count ends at max_count);
-     * both keyed by the element's node's solid angle, the element's index in cut_open.node. At
-     * most slots elements are live: the trees' part of the count stays within max_count. */
+     * both max-heaps keyed by the element's node's solid angle, ties to the lower element index
+     * (the payload). At most slots elements are live: the trees' part of the count stays within
+     * max_count. */
     const int slots = slots_for(max_count);
-    cut_open *heap = work, *held = heap + slots;
-    cut_elem *el = (cut_elem *)(held + slots);
-    int open = 0, held_count = 0, used = 0, free_list = -1, head = -1, tail = -1;
+    pn_heap heap, held;
+    pn_heap_init_fixed(&heap, PN_HEAP_MAX | PN_HEAP_TIES_BY_PAYLOAD, work, (size_t)slots);
+    pn_heap_init_fixed(&held, PN_HEAP_MAX | PN_HEAP_TIES_BY_PAYLOAD, heap.entries + slots, (size_t)slots);
+    cut_elem *el = (cut_elem *)(held.entries + slots);
+    int used = 0, free_list = -1, head = -1, tail = -1;
     bool horizon = !v3_is_zero(n);
     const cut_limit lim = make_cut_limit(max_solid_angle);
     int singles = 0;
@@ -1114,11 +1036,11 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
         else
             head = e;
         tail = e;
-        if (action == PN_CUT_DESCEND) open_push(heap, &open, (cut_open){open_key(&f->nodes[root], p), e});
+        if (action == PN_CUT_DESCEND) pn_heap_push(&heap, open_key(&f->nodes[root], p), e);
     }
     int total = singles + used;
-    while (open > 0) {
-        const int e = open_pop(heap, &open).node, m = el[e].node;
+    while (heap.count > 0) {
+        const int e = (int)pn_heap_pop(&heap).payload, m = el[e].node;
         const pn_cluster_node *nd = &f->nodes[m];
         const int child[2] = {nd->left, nd->right};
         int act[2], delta = -1;
@@ -1127,7 +1049,7 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
             delta += act[c] != PN_CUT_CULL;
         }
         if (delta > 0 && total + delta > max_count) { /* over the cap: held, unless room is made later */
-            open_push(held, &held_count, (cut_open){open_key(nd, p), e});
+            pn_heap_push(&held, open_key(nd, p), e);
             continue;
         }
         total += delta;
@@ -1142,7 +1064,10 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
                 tail = el[e].prev;
             el[e].node = free_list;
             free_list = e;
-            if (held_count > 0) open_push(heap, &open, open_pop(held, &held_count));
+            if (held.count > 0) {
+                const pn_heap_entry x = pn_heap_pop(&held);
+                pn_heap_push(&heap, x.key, x.payload);
+            }
             continue;
         }
         int at = -1;
@@ -1165,7 +1090,7 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
             }
             el[x].node = child[c];
             at = x;
-            if (act[c] == PN_CUT_DESCEND) open_push(heap, &open, (cut_open){open_key(&f->nodes[child[c]], p), x});
+            if (act[c] == PN_CUT_DESCEND) pn_heap_push(&heap, open_key(&f->nodes[child[c]], p), x);
         }
     }
     int count = 0;

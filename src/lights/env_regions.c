@@ -4,6 +4,8 @@
  * method; Structured Importance Sampling (Agarwal et al. 2003) was the alternative not taken. */
 #include "lights/env_regions.h"
 
+#include "core/heap.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -122,36 +124,6 @@ static void split_region(const split_ctx *c, pn_env_region *g, pn_env_region *se
     }
     *e_first = best_prefix;
     *e_second = fmax(0.0, total - best_prefix);
-}
-
-static void heap_push(int *heap, int *n, const double *key, int idx) {
-    int i = (*n)++;
-    heap[i] = idx;
-    while (i > 0) {
-        int p = (i - 1) / 2;
-        if (key[heap[p]] >= key[heap[i]]) break;
-        int t = heap[p];
-        heap[p] = heap[i];
-        heap[i] = t;
-        i = p;
-    }
-}
-
-static int heap_pop(int *heap, int *n, const double *key) {
-    int top = heap[0];
-    heap[0] = heap[--*n];
-    int i = 0;
-    for (;;) {
-        int l = 2 * i + 1, rr = l + 1, m = i;
-        if (l < *n && key[heap[l]] > key[heap[m]]) m = l;
-        if (rr < *n && key[heap[rr]] > key[heap[m]]) m = rr;
-        if (m == i) break;
-        int t = heap[m];
-        heap[m] = heap[i];
-        heap[i] = t;
-        i = m;
-    }
-    return top;
 }
 
 /* ---- per-region pre-integration and bounding cone --------------------------------------- */
@@ -291,11 +263,12 @@ pn_status pn_env_regions_build(const pn_env *env, int target_count, pn_env_regio
     r->col_cum = malloc(n * sizeof *r->col_cum);
     r->row_offset = malloc((size_t)cap * sizeof *r->row_offset);
     double *energy = malloc((size_t)cap * sizeof *energy);
-    int *heap = malloc((size_t)cap * sizeof *heap);
+    pn_heap heap; /* splittable regions by energy; ties in the sift's order (core/heap.h) */
+    pn_heap_init(&heap, PN_HEAP_MAX);
     double *scratch = malloc((size_t)(w > h ? w : h) * sizeof *scratch);
     pn_status st = PN_OK;
     if (!r->regions || !r->texel_region || !r->texel_lum || !r->row_solid_angle || !r->col_cum || !r->row_offset ||
-        !energy || !heap || !scratch) {
+        !energy || !pn_heap_reserve(&heap, (size_t)cap) || !scratch) {
         st = pn_err_set(err, PN_ERROR_OUT_OF_MEMORY, "out of memory for environment regions");
         goto done;
     }
@@ -324,14 +297,13 @@ pn_status pn_env_regions_build(const pn_env *env, int target_count, pn_env_regio
     energy[0] = 0.0;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) energy[0] += split_weight(&ctx, x, y);
-    int heap_n = 0;
-    if (splittable(&r->regions[0], energy[0])) heap_push(heap, &heap_n, energy, 0);
-    while (r->count < cap && heap_n > 0) {
-        int k = heap_pop(heap, &heap_n, energy);
+    if (splittable(&r->regions[0], energy[0])) pn_heap_push(&heap, energy[0], 0);
+    while (r->count < cap && heap.count > 0) {
+        int k = (int)pn_heap_pop(&heap).payload;
         int j = r->count++;
         split_region(&ctx, &r->regions[k], &r->regions[j], &energy[k], &energy[j]);
-        if (splittable(&r->regions[k], energy[k])) heap_push(heap, &heap_n, energy, k);
-        if (splittable(&r->regions[j], energy[j])) heap_push(heap, &heap_n, energy, j);
+        if (splittable(&r->regions[k], energy[k])) pn_heap_push(&heap, energy[k], k);
+        if (splittable(&r->regions[j], energy[j])) pn_heap_push(&heap, energy[j], j);
     }
 
     size_t rows = 0;
@@ -350,7 +322,7 @@ pn_status pn_env_regions_build(const pn_env *env, int target_count, pn_env_regio
 
 done:
     free(energy);
-    free(heap);
+    pn_heap_free(&heap);
     free(scratch);
     if (st != PN_OK) pn_env_regions_free(r);
     return st;
