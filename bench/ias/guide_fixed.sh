@@ -4,7 +4,7 @@
 #
 #   bench/ias/guide_fixed.sh LABEL PASSES SEED [render options...]
 #
-# Environment: BIN (build/penumbra), PN_SHARED (../shared), CONV (the converged seed-7 render:
+# Environment: BIN (build/penumbra), PN_SHARED (../shared), SCENE (another scene's .pbrt; then CONV its crop), CONV (the converged seed-7 render:
 # beyond.sh's cached OUT/converged-bathroom-72-matte-512-seed7.exr, default
 # bench/out/beyond/converged-bathroom-72-matte-512-seed7.exr), OUT (bench/out/guide-fixed). Prints LABEL,
 # passes, seed, relMSE (the converged render's own not subtracted) and the process's CPU seconds.
@@ -14,7 +14,7 @@
 set -eu
 L=$1; P=$2; S=$3; shift 3
 B=${BIN:-build/penumbra}
-SC=${PN_SHARED:-../shared}/scenes/bathroom-72/bathroom-72-matte.pbrt
+SC=${SCENE:-${PN_SHARED:-../shared}/scenes/bathroom-72/bathroom-72-matte.pbrt}
 CONV=${CONV:-bench/out/beyond/converged-bathroom-72-matte-512-seed7.exr}
 OUT=${OUT:-bench/out/guide-fixed}
 mkdir -p "$OUT"
