@@ -1120,20 +1120,44 @@ uint32_t pn_sobol_raw_u32_by_bits(uint32_t index, int dim) {
     return raw_by_bits(index, dim);
 }
 
+uint32_t pn_sobol_seed(int dim, uint32_t scramble) {
+    return (uint32_t)(pn_hash64(((uint64_t)scramble << 32) | (uint64_t)(uint32_t)dim) >> 32);
+}
+
 uint32_t pn_sobol_sample_u32(uint32_t index, int dim, uint32_t scramble) {
     if (dim < 0 || dim >= PN_SOBOL_DIMS) {
         /* No direction numbers: an independent hashed value per (index, dim, scramble). */
         return (uint32_t)(pn_hash3((uint64_t)index, (uint64_t)(uint32_t)dim, (uint64_t)scramble) >> 32);
     }
-    uint32_t seed = (uint32_t)(pn_hash64(((uint64_t)scramble << 32) | (uint64_t)(uint32_t)dim) >> 32);
-    return owen_scramble(pn_sobol_raw_u32(index, dim), seed);
+    return owen_scramble(pn_sobol_raw_u32(index, dim), pn_sobol_seed(dim, scramble));
+}
+
+/* Keep the top 24 bits: the conversion is exact, preserves the stratification of the first 2^24
+ * points and cannot round up to 1. */
+static inline float to_unit_float(uint32_t x) {
+    float u = (float)(x >> 8) * 0x1p-24f;
+    return u < 0x1.fffffep-1f ? u : 0x1.fffffep-1f;
 }
 
 float pn_sobol_sample(uint32_t index, int dim, uint32_t scramble) {
-    /* Keep the top 24 bits: the conversion is exact, preserves the stratification of the
-     * first 2^24 points and cannot round up to 1. */
-    float u = (float)(pn_sobol_sample_u32(index, dim, scramble) >> 8) * 0x1p-24f;
-    return u < 0x1.fffffep-1f ? u : 0x1.fffffep-1f;
+    return to_unit_float(pn_sobol_sample_u32(index, dim, scramble));
+}
+
+void pn_sobol_samples(uint32_t index, int first_dim, int count, const uint32_t *seeds, float *out) {
+    pthread_once(&byte_table_once, byte_table_init);
+    /* The index's bytes, shared by the dimensions' table lookups. */
+    const unsigned b0 = index & 0xffu, b1 = (index >> 8) & 0xffu, b2 = (index >> 16) & 0xffu, b3 = index >> 24;
+    for (int i = 0; i < count; i++) {
+        const int dim = first_dim + i;
+        uint32_t raw;
+        if (dim >= 1 && dim < PN_SOBOL_TABLE_DIMS) {
+            const uint32_t(*t)[256] = byte_table[dim];
+            raw = t[0][b0] ^ t[1][b1] ^ t[2][b2] ^ t[3][b3];
+        } else {
+            raw = pn_sobol_raw_u32(index, dim);
+        }
+        out[i] = to_unit_float(owen_scramble(raw, seeds[i]));
+    }
 }
 
 bool pn_sobol_tables_consistent(void) {

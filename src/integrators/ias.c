@@ -546,8 +546,9 @@ typedef struct ias_region {
      * PDF, so they are pooled with equal weights. */
     double lux_sum;
     unsigned lux_n;
-    double mel_sum; /* PN_AOV_MELANOPIC_EDI: the same with the melanopic EDI (lux_n of them) */
-    vec3 ratio_m;   /* ias-ratio: the mean over its points of share x throughput x kd / pi */
+    double mel_sum;        /* PN_AOV_MELANOPIC_EDI: the same with the melanopic EDI (lux_n of them) */
+    vec3 ratio_m;          /* ias-ratio: the mean over its points of share x throughput x kd / pi */
+    bool cut_done, member; /* shared trees cuts (ias_render_batch): cut; replays its leader's walk */
 } ias_region;
 
 /* An eye ray's own shading point in its antialiasing region (members_points). */
@@ -818,6 +819,12 @@ typedef struct ias_scratch {
     ias_idmap mis_entry;
     uint32_t mis_rays;  /* BSDF rays traced (all of the worker's pixels) */
     pn_ias_guide guide; /* ias-light-guide: the block's grids */
+    uint32_t tick;      /* the worker's timing counter (IAS_REGION_TIMING_STRIDE) */
+    /* Shared trees cuts (compute_cut): the leading region's record, the ball it holds for, where
+     * its tree part is in s->cut and how long it is. */
+    pn_cluster_cut_share cut_share;
+    float share_delta, share_dn;
+    int share_first, share_k;
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -826,6 +833,7 @@ static void ias_scratch_free(void *p) {
     free(s->regions);
     free(s->cut);
     free(s->cut_work);
+    pn_cluster_cut_share_free(&s->cut_share);
     free(s->block_stats);
     free(s->pixel_pool);
     free(s->pdf);
@@ -947,6 +955,10 @@ static void *ias_scratch_create(const pn_render_job *job) {
         ias_scratch_free(s);
         return NULL;
     }
+    if (!sh->bvh_cut && sh->cut_max == 0 && !pn_cluster_cut_share_init(&s->cut_share, &sh->forest)) {
+        ias_scratch_free(s);
+        return NULL;
+    }
     if (!s->cut_prior || !s->fprior || !s->emit_hits || !s->cut_work || (sh->bvh_cut && !table_grow(&s->table)) ||
         (sh->light_guide && !pn_ias_guide_init(&s->guide, &sh->guide))) {
         ias_scratch_free(s);
@@ -962,9 +974,17 @@ static void *ias_scratch_create(const pn_render_job *job) {
 
 /* ---- helpers ------------------------------------------------------------------------------- */
 
-/* Every IAS_TIMING_STRIDE-th ray has its Embree call timed; the sum, scaled by the stride,
- * estimates the time spent in Embree (as the reference integrator does). */
-#define IAS_TIMING_STRIDE 8u
+/* Every IAS_TIMING_STRIDE-th shadow ray has its Embree call timed, and every IAS_TIMING_STRIDE-th
+ * sample its PDF upkeep; the sums, scaled by the stride, estimate those times (the stats'
+ * estimates, not the image). 32 rather than 8 since stop 21: the clock's reads were 2.9% of
+ * hall-many's render (clock_gettime in perf), the estimates over a render's millions of samples
+ * move by well under a percent. The eye rays' times come from the driver at its own stride
+ * (PN_EYE_TIMING_STRIDE). */
+#define IAS_TIMING_STRIDE 32u
+/* Every IAS_REGION_TIMING_STRIDE-th region's cut and PDF build, and every such pixel pass's
+ * feedback upkeep, is timed and counted that many times (s->tick): two clock reads per region
+ * and call of sample_pixel were most of the clock's share. */
+#define IAS_REGION_TIMING_STRIDE 8u
 /* Eye rays read from the batch at once when the driver's in-advance hits do not hold them. */
 #define IAS_EYE_CHUNK 16u
 
@@ -1057,9 +1077,21 @@ static void balance_prior(const ias_shared *sh, const int *out, double *prior, i
     }
 }
 
+/* Regions that share a leading region's trees cut walk (compute_cut): normals within IAS_SHARE_DN
+ * of its normal, points within IAS_SHARE_REACH of its point, in units of its region radius (a
+ * quarter pixel at that depth). */
+#define IAS_SHARE_DN 1e-3
+#define IAS_SHARE_REACH 8.0
+
 /* The clusters of a region's point: the tree cut, distant lights above the horizon, and the
- * environment regions not below it, as cluster ids. */
-static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_region *r) {
+ * environment regions not below it, as cluster ids. share (trees cut without a cap): 1, a region
+ * that leads later regions of its pixel, whose walk records the decisions that hold for all points
+ * within s->share_delta and normals within s->share_dn; 2, such a later region, whose walk reads
+ * them (all of them, when the record was sure of every node: then its trees cut is the leader's);
+ * 0, neither.
+ * The same cuts as the plain walk, bit for bit (pn_cluster_cut_record); on hall-many's bench crop
+ * (11.4 regions per pixel) the walk was 15% of the render. */
+static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_region *r, int share) {
     vec3 n = r->bsdf.ng;
     if (!reserve_cut(s, sh->max_cut)) return false;
     int *out = s->cut + s->cut_used;
@@ -1097,9 +1129,23 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
             out[k++] = sh->bvh.node_count + d;
         }
     } else {
-        k = pn_cluster_cut_capped(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, sh->cut_max, out,
-                                  sh->max_cut, s->cut_work);
+        if (share == 1)
+            k = pn_cluster_cut_record(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, s->share_delta,
+                                      s->share_dn, out, sh->max_cut, &s->cut_share);
+        else if (share == 2 && s->cut_share.all_sure) {
+            k = s->share_k;
+            memcpy(out, s->cut + s->share_first, (size_t)k * sizeof *out);
+        } else if (share == 2)
+            k = pn_cluster_cut_replay(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, out,
+                                      sh->max_cut, &s->cut_share);
+        else
+            k = pn_cluster_cut_capped(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, sh->cut_max,
+                                      out, sh->max_cut, s->cut_work);
         if (k > sh->max_cut) k = sh->max_cut;
+        if (share == 1) {
+            s->share_first = s->cut_used;
+            s->share_k = k;
+        }
         for (int i = 0; i < k; i++) prior[i] = 1.0;
     }
     for (int e = 0; e < sh->env_count; e++) {
@@ -2019,6 +2065,10 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         given++;
     }
     if (given == 0) return;
+    /* The scramble seeds of the shadow rays' dimensions 5-9, hashed once per call instead of per
+     * number (pn_sobol_samples: the same numbers). */
+    uint32_t seeds[5];
+    for (int d = 0; d < 5; d++) seeds[d] = pn_sobol_seed(5 + d, scramble);
     const ias_region *built = NULL; /* the region whose PDF s->pdf / s->cdf hold */
     for (int k = 0; k < rc; k++) {
         if (n_of[k] == 0) continue;
@@ -2027,7 +2077,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         s->block_class_used[r->cls] = true;
         pn_ias_stats *pix = sh->bvh_cut || sh->sparse_stats ? NULL : pixel_stats(s, px, r->cls);
         px->classes |= 1u << r->cls;
-        double t_pdf = pn_clock_seconds();
+        const bool timed_pdf = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+        double t_pdf = timed_pdf ? pn_clock_seconds() : 0.0;
         /* Regions of one pixel on one surface usually have the same cut; their PDFs are then
          * the same numbers (the feedback weights are fixed for the pixel's pass), built once. */
         if (!same_cut(s, built, r)) {
@@ -2038,7 +2089,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             if (sh->mis) mis_map_cut(s, r);
             built = r;
         }
-        px->pdf_seconds += elapsed_since(sh, t_pdf);
+        if (timed_pdf) px->pdf_seconds += elapsed_since(sh, t_pdf) * IAS_REGION_TIMING_STRIDE;
         const int *cut = s->cut + r->cut_first;
         pn_light_sample_cache cache = {0};
         for (unsigned i = 0; i < n_of[k]; i++) {
@@ -2049,10 +2100,11 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             /* The paper variant jitters stratum i of n; the default takes the Sobol number itself,
              * whose consecutive points are already stratified: (i + xi_q) / n breaks that structure
              * (relMSE 2.6e-4 instead of 6.8e-5 on many-1000 at 64 shadow rays, one pass). */
-            double u = sh->sobol_direct ? (double)pn_sobol_sample(q, 5, scramble)
-                                        : ((double)i + (double)pn_sobol_sample(q, 5, scramble)) / (double)n_of[k];
-            float u_pick = pn_sobol_sample(q, 6, scramble);
-            float u1 = pn_sobol_sample(q, 7, scramble), u2 = pn_sobol_sample(q, 8, scramble);
+            float xi[5]; /* dimensions 5-9 (9 only with member points) */
+            pn_sobol_samples(q, 5, r->point_count > 0 ? 5 : 4, seeds, xi);
+            double u = sh->sobol_direct ? (double)xi[0] : ((double)i + (double)xi[0]) / (double)n_of[k];
+            float u_pick = xi[1];
+            float u1 = xi[2], u2 = xi[3];
             double t_upkeep = timed_upkeep ? pn_clock_seconds() : 0.0;
             /* The point the shadow ray leaves from: the representative, or the next member. */
             const ias_point *pt = NULL;
@@ -2060,7 +2112,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 /* Its own quasi-random dimension: tied to the stratum index i instead, each member
                  * saw the same part of the lights' CDF in every pass (relMSE 3.6e-4 instead of
                  * 6.8e-5 on many-1000 at 64 shadow rays). */
-                int m = (int)(pn_sobol_sample(q, 9, scramble) * (float)r->point_count);
+                int m = (int)(xi[4] * (float)r->point_count);
                 pt = &s->points[r->point_first + (m < r->point_count ? m : r->point_count - 1)];
             }
             const vec3 origin = pt ? pt->origin : r->origin, wo = pt ? pt->wo : r->wo;
@@ -2481,7 +2533,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             const pn_eye_hit *h = &hits[r % IAS_EYE_CHUNK];
             const float rx = h->raster_x, ry = h->raster_y, fw = h->weight;
             pn_eye_path path = h->path;
-            px->embree_seconds += (double)h->seconds * IAS_TIMING_STRIDE; /* 0 unless timed */
+            px->embree_seconds += (double)h->seconds * PN_EYE_TIMING_STRIDE; /* 0 unless timed */
             if (r == 0) {
                 out[pi].depth = path.first_depth;
                 out[pi].normal = path.first_normal;
@@ -2535,13 +2587,52 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         }
         px->emitted = px->weight_sum != 0.0 ? v3_scale(emitted, (float)(1.0 / px->weight_sum)) : v3(0, 0, 0);
         if (sh->member_points && !group_points(s, px)) return PN_ERROR_OUT_OF_MEMORY;
+        /* Trees cuts shared between the pixel's regions (compute_cut): each region not yet cut
+         * leads the later ones near it, whose walks replay the decisions its walk records; the
+         * members are cut right after their leader (a replay reads the latest record). */
+        const bool share_cuts = s->cut_share.links && px->region_count >= 2;
+        if (share_cuts) {
+            const bool timed_cut = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+            double t_cut = timed_cut ? pn_clock_seconds() : 0.0;
+            for (int k = 0; k < px->region_count; k++) s->regions[px->first_region + k].cut_done = false;
+            for (int k = 0; k < px->region_count; k++) {
+                ias_region *lead = &s->regions[px->first_region + k];
+                if (lead->cut_done) continue;
+                double reach = 0.0, turn = 0.0;
+                bool any = false;
+                for (int j = k + 1; j < px->region_count && !v3_is_zero(lead->bsdf.ng); j++) {
+                    ias_region *g = &s->regions[px->first_region + j];
+                    g->member = false;
+                    if (g->cut_done || v3_is_zero(g->bsdf.ng)) continue;
+                    double t = sqrt((double)v3_length2(v3_sub(g->bsdf.ng, lead->bsdf.ng)));
+                    double d = sqrt((double)v3_length2(v3_sub(g->origin, lead->origin)));
+                    if (!(t <= IAS_SHARE_DN && d <= IAS_SHARE_REACH * (double)lead->radius)) continue;
+                    g->member = any = true;
+                    if (d > reach) reach = d;
+                    if (t > turn) turn = t;
+                }
+                /* Rounded up: the ball must hold every member. */
+                s->share_delta = (float)(reach * (1.0 + 1e-6)) * (1.0f + 1e-6f);
+                s->share_dn = (float)(turn * (1.0 + 1e-6)) * (1.0f + 1e-6f);
+                if (!compute_cut(job, sh, s, lead, any ? 1 : 0)) return PN_ERROR_OUT_OF_MEMORY;
+                lead->cut_done = true;
+                for (int j = k + 1; j < px->region_count && any; j++) {
+                    ias_region *g = &s->regions[px->first_region + j];
+                    if (!g->member || g->cut_done) continue;
+                    if (!compute_cut(job, sh, s, g, 2)) return PN_ERROR_OUT_OF_MEMORY;
+                    g->cut_done = true;
+                }
+            }
+            if (timed_cut) px->cut_seconds += elapsed_since(sh, t_cut) * IAS_REGION_TIMING_STRIDE;
+        }
         /* Region weights as shares of the pixel. */
         double ncl = 0.0;
         for (int k = 0; k < px->region_count; k++) {
             ias_region *g = &s->regions[px->first_region + k];
             g->weight = px->weight_sum != 0.0 ? g->weight / px->weight_sum : 0.0;
-            double t_cut = pn_clock_seconds();
-            if (!compute_cut(job, sh, s, g)) return PN_ERROR_OUT_OF_MEMORY;
+            const bool timed_cut = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+            double t_cut = timed_cut ? pn_clock_seconds() : 0.0;
+            if (!share_cuts && !compute_cut(job, sh, s, g, 0)) return PN_ERROR_OUT_OF_MEMORY;
             /* The irradiance prior of the trees' clusters (environment regions keep theirs), once
              * per pixel for regions with the same cut (the first one's point: a prior need not be
              * exact, and the polygon irradiance per region was 19% of bathroom-72-matte's time). */
@@ -2556,7 +2647,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                         s->cut_prior[g->cut_first + i] =
                             pn_ias_cluster_irradiance(&sh->forest, job->lights, id, g->origin, g->bsdf.ng);
                 }
-            px->cut_seconds += elapsed_since(sh, t_cut);
+            if (timed_cut) px->cut_seconds += elapsed_since(sh, t_cut) * IAS_REGION_TIMING_STRIDE;
             px->region_weight += g->weight;
             ncl += g->weight * (double)g->cut_count;
         }
@@ -2611,14 +2702,15 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             if (px->done) continue;
             any = true;
             reset_regions(s, px);
-            double t_pdf = pn_clock_seconds();
+            const bool timed_pdf = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+            double t_pdf = timed_pdf ? pn_clock_seconds() : 0.0;
             flush_pending(s); /* the previous pixel pass's evaluations (default variant) */
             if (sh->sparse_stats)
                 sparse_begin_pixel(sh, s, px);
             else if (!sh->bvh_cut)
                 begin_pixel_feedback(sh, s, px);
             if (sh->ratio == PN_IAS_RATIO_CONTROL) control_betas(sh, s, px);
-            px->pdf_seconds += elapsed_since(sh, t_pdf);
+            if (timed_pdf) px->pdf_seconds += elapsed_since(sh, t_pdf) * IAS_REGION_TIMING_STRIDE;
             /* 1.5 N_C samples, at least 50 (§5.8); the default variant: (j + 1) pass_rays. */
             unsigned count = (unsigned)ceil(1.5 * px->clusters);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;
