@@ -1212,7 +1212,7 @@ static int shared_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3
     const cut_limit lim = make_cut_limit(max_solid_angle);
     pn_cluster_cut_link *links = sh->links;
     const uint32_t tag = sh->stamp << 2;
-    bool all_sure = true;
+    int met = 0, sure = 0;
     for (int t = 0; t < PN_TREE_COUNT; t++) {
         /* The same walk as cut_walk's, by the links instead of the parents. */
         for (int node = f->roots[t]; node >= 0;) {
@@ -1221,13 +1221,14 @@ static int shared_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3
             if (b) {
                 const pn_cluster_node *nd = &f->nodes[node];
                 action = node_ball(lights, nd, b, &lim);
+                met++;
                 if (action != CUT_UNSURE) {
+                    sure++;
                     ln->memo = tag | (uint32_t)action;
 #ifdef PN_CUT_SHARE_CHECK
                     if (action != classify(lights, nd, p, n, horizon, &lim)) abort();
 #endif
                 } else {
-                    all_sure = false;
                     action = classify(lights, nd, p, n, horizon, &lim);
                 }
             } else {
@@ -1254,10 +1255,11 @@ static int shared_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3
         int action;
         if (b) {
             action = leaf_ball(l, b);
+            met++;
             if (action != CUT_UNSURE) {
+                sure++;
                 links[node].memo = tag | (uint32_t)action;
             } else {
-                all_sure = false;
                 action = pn_cluster_light_culled(l, p, n) ? PN_CUT_CULL : PN_CUT_TAKE;
             }
         } else {
@@ -1269,7 +1271,11 @@ static int shared_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3
             count++;
         }
     }
-    if (b) sh->all_sure = all_sure;
+    if (b) {
+        sh->met = met;
+        sh->sure = sure;
+        sh->all_sure = sure == met;
+    }
     return count;
 }
 
@@ -1277,6 +1283,7 @@ int pn_cluster_cut_record(const pn_cluster_forest *f, const pn_lights *lights, v
                           float delta, float dn, int *out, int capacity, pn_cluster_cut_share *sh) {
     if (v3_is_zero(n) || !(delta >= 0.0f) || !(dn >= 0.0f) || !isfinite(delta) || !isfinite(dn)) {
         sh->all_sure = false;
+        sh->met = sh->sure = 0;
         sh->stamp = 0; /* no record: a replay walks in full */
         return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
     }

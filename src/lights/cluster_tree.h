@@ -144,6 +144,7 @@ typedef struct pn_cluster_cut_share {
     int node_count;
     uint32_t stamp; /* the current record's; 0: none */
     bool all_sure;  /* the current record decided every node it met for the whole ball */
+    int met, sure;  /* the nodes the current record met, and those it decided for the whole ball */
 } pn_cluster_cut_share;
 
 bool pn_cluster_cut_share_init(pn_cluster_cut_share *sh, const pn_cluster_forest *f);
