@@ -2153,6 +2153,14 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             } else if (id < sh->light_ids) {
                 light = sh->distant[id - sh->bvh.node_count];
             }
+            /* The statistics this sample will be added to (record), fetched while the light is
+             * sampled and the shadow ray traced: the pixel's array is cold (zeroed at the block's
+             * end), and that read was 12% of sample_pixel on hall-many. */
+            if (pix && light >= 0 && id < sh->forest.node_count) {
+                const int leaf = sh->forest.leaf_of_light[light];
+                __builtin_prefetch(&pix[leaf], 1);
+                __builtin_prefetch(&block[leaf], 1);
+            }
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
             int guide_cell = -1; /* ias-light-guide: the sample's cell in its light's grid */
             double guide_density = 1.0;
