@@ -1107,15 +1107,15 @@ static int leaf_ball(const pn_light *l, const cut_ball *b) {
     }
 }
 
-/* node_culled's cone test with the bounding sphere's radius replaced by `radius`. */
-static bool cone_culled(const pn_cluster_node *nd, vec3 pc, float d, float radius) {
-    if (!(d > radius * (1.0f + 1e-5f) && d > 0.0f) || !(nd->cut_cos > -1.5f)) return false;
-    vec3 w = v3_scale(pc, -1.0f / d);
+/* node_culled's cone test with the bounding sphere's radius replaced by `radius`, given d > 0 and
+ * the cosine cos_w = dot(axis, (p - center) / d). */
+static inline bool cone_culled(const pn_cluster_node *nd, float cos_w, float d, float radius) {
+    if (!(d > radius * (1.0f + 1e-5f)) || !(nd->cut_cos > -1.5f)) return false;
     float sb = fminf(radius / d, 1.0f);
     if (!(nd->cut_cos >= 0.0f || sb < nd->cut_sin)) return false;
     float cb = sqrtf(fmaxf(0.0f, 1.0f - sb * sb));
     float limit = nd->cut_cos * cb - nd->cut_sin * sb;
-    return v3_dot(nd->axis, w) < limit - 2e-6f;
+    return cos_w < limit - 2e-6f;
 }
 
 /* The horizon tests' sums s + r + 1e-5 (|s| + r): below 0, culled. Increasing in s. */
@@ -1152,8 +1152,9 @@ static int node_ball(const pn_lights *lights, const pn_cluster_node *nd, const c
      * test's own constant margins and the rounding of the angles' cosines. */
     if (nd->cos_spread > -1.0f && nd->cos_emit > -1.0f && d > 0.0f) {
         const float dc = b->delta * 1.001f + 1e-4f * d + SHARE_EPS * scale;
-        if (cone_culled(nd, pc, d, r + dc)) return PN_CUT_CULL;
-        if (!(r - dc > 0.0f) || cone_culled(nd, pc, d, r - dc)) return CUT_UNSURE;
+        const float cos_w = v3_dot(nd->axis, v3_scale(pc, -1.0f / d));
+        if (cone_culled(nd, cos_w, d, r + dc)) return PN_CUT_CULL;
+        if (!(r - dc > 0.0f) || cone_culled(nd, cos_w, d, r - dc)) return CUT_UNSURE;
     } else if (nd->cos_spread > -1.0f && nd->cos_emit > -1.0f) {
         return CUT_UNSURE;
     }
