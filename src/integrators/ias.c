@@ -250,7 +250,7 @@ typedef struct ias_shared {
     int *post_order;   /* the trees' interior nodes, every node after its children */
     int post_count;
     struct ias_post *post; /* the same nodes as aggregate_stats reads them */
-    int light_ids; /* ids below this are clusters of lights (forest nodes; or BVH nodes, then
+    int light_ids;         /* ids below this are clusters of lights (forest nodes; or BVH nodes, then
                       distant lights), above are environment regions */
     /* The default variant (issue 15; see the header): which departures are on. */
     bool bvh_cut;          /* cut of the light BVH by importance instead of the cluster trees */
@@ -568,6 +568,7 @@ typedef struct ias_region {
     double mel_sum;        /* PN_AOV_MELANOPIC_EDI: the same with the melanopic EDI (lux_n of them) */
     vec3 ratio_m;          /* ias-ratio: the mean over its points of share x throughput x kd / pi */
     bool cut_done, member; /* shared trees cuts (ias_render_batch): cut; replays its leader's walk */
+    bool dup;              /* a member whose class and clusters are its leader's (compute_cut) */
 } ias_region;
 
 /* An eye ray's own shading point in its antialiasing region (members_points). */
@@ -846,6 +847,7 @@ typedef struct ias_scratch {
     pn_cluster_cut_share cut_share;
     float share_delta, share_dn;
     int share_first, share_k;
+    const struct ias_region *share_leader;
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -1168,6 +1170,7 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
         if (share == 1) {
             s->share_first = s->cut_used;
             s->share_k = k;
+            s->share_leader = r;
         }
         for (int i = 0; i < k; i++) prior[i] = 1.0;
     }
@@ -1183,6 +1186,11 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
         }
     }
     if (sh->bvh_cut) balance_prior(sh, out, prior, k_tree, k);
+    /* A member whose clusters and class are its leader's: its feedback weights are the leader's
+     * (begin_pixel_feedback skips it). */
+    const ias_region *lead = s->share_leader;
+    r->dup = share == 2 && lead->cls == r->cls && lead->cut_count == k &&
+             memcmp(s->cut + lead->cut_first, out, (size_t)k * sizeof *out) == 0;
     r->cut_first = s->cut_used;
     r->cut_count = k;
     s->cut_used += k;
@@ -1773,6 +1781,7 @@ static void begin_pixel_feedback(const ias_shared *sh, ias_scratch *s, ias_pixel
         if (px->stats[c]) aggregate_stats(sh, px->stats[c]);
     for (int k = 0; k < px->region_count; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
+        if (r->dup) continue; /* its leader, a region of this pixel, has the same (class, id) pairs */
         const pn_ias_stats *pixel = px->stats[r->cls]; /* NULL: no data yet, F = 0 */
         const int *cut = s->cut + r->cut_first;
         for (int i = 0; i < r->cut_count; i++) (void)pixel_feedback(s, pixel, r->cls, cut[i]);

@@ -1044,8 +1044,9 @@ static inline float abs1(vec3 v) {
     return fabsf(v.x) + fabsf(v.y) + fabsf(v.z);
 }
 
-/* How far dot(X - p', n') can be from dot(X - p, n) for X at distance dist from p (|n| = 1 up to
- * rounding): delta |n'| + |X - p'| dn, plus the rounding allowance at coordinate size `scale`. */
+/* How far dot(X - p', n') can be from dot(X - p, n) for X at distance at most dist from p (|n| = 1
+ * up to rounding): delta |n'| + |X - p'| dn, plus the rounding allowance at coordinate size
+ * `scale`. (Leaves pass |X - p|_1 for the distance: no square root.) */
 static inline float plane_margin(const cut_ball *b, float dist, float scale) {
     return b->delta * (1.0f + b->dn) + (dist + b->delta) * b->dn + SHARE_EPS * scale;
 }
@@ -1063,7 +1064,7 @@ static int leaf_ball(const pn_light *l, const cut_ball *b) {
     case PN_LIGHT_SPHERE: { /* culled when dot(l->p - p, n) (+ radius) <= 0 */
         vec3 x = v3_sub(l->p, b->p);
         float rad = l->kind == PN_LIGHT_SPHERE ? l->radius : 0.0f;
-        int sg = sure_sign(v3_dot(x, b->n) + rad, plane_margin(b, v3_length(x), scale + rad));
+        int sg = sure_sign(v3_dot(x, b->n) + rad, plane_margin(b, abs1(x), scale + rad));
         return sg > 0 ? PN_CUT_TAKE : sg < 0 ? PN_CUT_CULL : CUT_UNSURE;
     }
     case PN_LIGHT_DISTANT: {
@@ -1074,7 +1075,7 @@ static int leaf_ball(const pn_light *l, const cut_ball *b) {
     case PN_LIGHT_RECTANGLE:
     case PN_LIGHT_DISK: {
         if (!l->two_sided) { /* culled when p is not in front of the light's plane */
-            int sg = sure_sign(v3_dot(v3_sub(b->p, l->p), l->n), b->delta * 1.001f + SHARE_EPS * scale);
+            int sg = sure_sign(v3_dot(v3_sub(b->p, l->p), l->n), b->delta * 1.001f * abs1(l->n) + SHARE_EPS * scale);
             if (sg < 0) return PN_CUT_CULL;
             if (sg == 0) return CUT_UNSURE;
         }
@@ -1084,7 +1085,7 @@ static int leaf_ball(const pn_light *l, const cut_ball *b) {
             vec3 x = v3_sub(l->p, b->p);
             /* ext moves by at most radius |n' - n| (|n x l->n| is 1-Lipschitz in n), and its
              * square root rounds by up to some 5e-4 radius where c is near +-1. */
-            float m = plane_margin(b, v3_length(x), scale + l->radius) + l->radius * (2.0f * b->dn + 1e-3f);
+            float m = plane_margin(b, abs1(x), scale + l->radius) + l->radius * (2.0f * b->dn + 1e-3f);
             int sg = sure_sign(v3_dot(x, b->n) + ext, m);
             return sg > 0 ? PN_CUT_TAKE : sg < 0 ? PN_CUT_CULL : CUT_UNSURE;
         }
@@ -1094,7 +1095,7 @@ static int leaf_ball(const pn_light *l, const cut_ball *b) {
         bool all_below = true;
         for (int i = 0; i < k; i++) {
             vec3 x = v3_sub(v[i], b->p);
-            int sg = sure_sign(v3_dot(x, b->n), plane_margin(b, v3_length(x), b->p1 + abs1(v[i])));
+            int sg = sure_sign(v3_dot(x, b->n), plane_margin(b, abs1(x), b->p1 + abs1(v[i])));
             if (sg > 0) return PN_CUT_TAKE;
             if (sg == 0) all_below = false;
         }
@@ -1141,7 +1142,7 @@ static int node_ball(const pn_lights *lights, const pn_cluster_node *nd, const c
             float sb = v3_dot(x, b->n);
             float reach = fabsf(b->n.x) * he.x + fabsf(b->n.y) * he.y + fabsf(b->n.z) * he.z;
             /* reach moves by at most dn (he.x + he.y + he.z) */
-            float mb = (plane_margin(b, v3_length(x), scale + abs1(bc)) + b->dn * (he.x + he.y + he.z)) * 1.001f;
+            float mb = (plane_margin(b, abs1(x), scale + abs1(bc)) + b->dn * (he.x + he.y + he.z)) * 1.001f;
             bool cull_all = horizon_sum(sb + mb, reach) < 0.0f, cull_none = horizon_sum(sb - mb, reach) >= 0.0f;
             if (cull_all && s + m <= r) return PN_CUT_CULL; /* every p' takes the box test */
             if (!cull_none) unsure = true;
