@@ -184,7 +184,14 @@
  * eye ray 12x less, peak memory 3.77 GB -> 0.93 GB; the work per shadow ray grows with the depth
  * below the cut, not with N (tests/test_ias_scale.c). Nor are (session 20) pn_cluster_pick's search
  * by groups of 16 running sums and the tree build's compact k-d leaf lists (lights/cluster_tree.c):
- * the same lights and trees, fewer cache misses.
+ * the same lights and trees, fewer cache misses. Nor is ias's upkeep of stop 21 (docs/methods/ias.md,
+ * "ias's upkeep, stop 21"; both variants): the trees cuts of a pixel's nearby regions share one
+ * walk (pn_cluster_cut_record / _replay: a decision is reused only where it holds for every point
+ * of the regions' ball, so the cuts are the same bit for bit), the PDF's entry is found through a
+ * guide table (choose_guided), the Sobol seeds are hashed once per call of sample_pixel and the
+ * scrambled points take one bit reversal (pn_sobol_samples), the statistics a sample is added to
+ * are prefetched, aggregate_stats reads a compact post-order array, and the stats' timers read
+ * the clock for every IAS_TIMING_STRIDE-th sample and IAS_REGION_TIMING_STRIDE-th region.
  *
  * Option, not the default: ias-cut-max K (session 20; compute_cut, pn_cluster_cut_capped) caps a
  * point's trees cut at K clusters, refined largest solid angle first, so that N_C and the passes
