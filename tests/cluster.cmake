@@ -1,1 +1,2 @@
 pn_add_test(test_cluster)
+pn_add_test(test_cluster_share)

@@ -1070,15 +1070,20 @@ static inline uint32_t reverse_bits32(uint32_t x) {
     return (x >> 16) | (x << 16);
 }
 
-/* Nested uniform scramble of a 32-bit fraction (bit 31 = most significant digit). */
-static inline uint32_t owen_scramble(uint32_t x, uint32_t seed) {
-    x = reverse_bits32(x);
+/* Nested uniform scramble of a 32-bit fraction given bit-reversed (bit 0 = most significant
+ * digit), as the hash needs it; returns the scrambled fraction in the usual order. */
+static inline uint32_t owen_scramble_reversed(uint32_t x, uint32_t seed) {
     x += seed;
     x ^= x * 0x6c50b47cu;
     x ^= x * 0xb82f1e52u;
     x ^= x * 0xc7afe638u;
     x ^= x * 0x8d22f6e6u;
     return reverse_bits32(x);
+}
+
+/* Nested uniform scramble of a 32-bit fraction (bit 31 = most significant digit). */
+static inline uint32_t owen_scramble(uint32_t x, uint32_t seed) {
+    return owen_scramble_reversed(reverse_bits32(x), seed);
 }
 
 /* The generator matrix times the index, one bit of the index at a time. */
@@ -1094,7 +1099,8 @@ static uint32_t raw_by_bits(uint32_t index, int dim) {
 /* For the first dimensions, the product by bytes: byte_table[d][k][b] is the generator matrix
  * times the index whose byte k is b and whose other bytes are 0, so a point is four lookups (the
  * matrix is linear over GF(2)). 64 KiB, built once; four lookups where the loop takes one step
- * per bit of the index. */
+ * per bit of the index. Kept bit-reversed (reversal is linear over GF(2) too), the order the
+ * scramble's hash takes: a scrambled point then costs one reversal instead of two. */
 #define PN_SOBOL_TABLE_DIMS 16
 static uint32_t byte_table[PN_SOBOL_TABLE_DIMS][4][256];
 static pthread_once_t byte_table_once = PTHREAD_ONCE_INIT;
@@ -1102,7 +1108,14 @@ static pthread_once_t byte_table_once = PTHREAD_ONCE_INIT;
 static void byte_table_init(void) {
     for (int d = 1; d < PN_SOBOL_TABLE_DIMS; d++)
         for (int k = 0; k < 4; k++)
-            for (int b = 0; b < 256; b++) byte_table[d][k][b] = raw_by_bits((uint32_t)b << (8 * k), d);
+            for (int b = 0; b < 256; b++) byte_table[d][k][b] = reverse_bits32(raw_by_bits((uint32_t)b << (8 * k), d));
+}
+
+/* The point bit-reversed, for dim in [0, PN_SOBOL_TABLE_DIMS) (dimension 0's is the index). */
+static inline uint32_t raw_reversed(uint32_t index, int dim) {
+    if (dim == 0) return index;
+    const uint32_t(*t)[256] = byte_table[dim];
+    return t[0][index & 0xffu] ^ t[1][(index >> 8) & 0xffu] ^ t[2][(index >> 16) & 0xffu] ^ t[3][index >> 24];
 }
 
 uint32_t pn_sobol_raw_u32(uint32_t index, int dim) {
@@ -1110,8 +1123,7 @@ uint32_t pn_sobol_raw_u32(uint32_t index, int dim) {
     if (dim == 0) return reverse_bits32(index);
     if (dim >= PN_SOBOL_TABLE_DIMS) return raw_by_bits(index, dim);
     pthread_once(&byte_table_once, byte_table_init);
-    const uint32_t(*t)[256] = byte_table[dim];
-    return t[0][index & 0xffu] ^ t[1][(index >> 8) & 0xffu] ^ t[2][(index >> 16) & 0xffu] ^ t[3][index >> 24];
+    return reverse_bits32(raw_reversed(index, dim));
 }
 
 uint32_t pn_sobol_raw_u32_by_bits(uint32_t index, int dim) {
@@ -1120,20 +1132,38 @@ uint32_t pn_sobol_raw_u32_by_bits(uint32_t index, int dim) {
     return raw_by_bits(index, dim);
 }
 
+uint32_t pn_sobol_seed(int dim, uint32_t scramble) {
+    return (uint32_t)(pn_hash64(((uint64_t)scramble << 32) | (uint64_t)(uint32_t)dim) >> 32);
+}
+
 uint32_t pn_sobol_sample_u32(uint32_t index, int dim, uint32_t scramble) {
     if (dim < 0 || dim >= PN_SOBOL_DIMS) {
         /* No direction numbers: an independent hashed value per (index, dim, scramble). */
         return (uint32_t)(pn_hash3((uint64_t)index, (uint64_t)(uint32_t)dim, (uint64_t)scramble) >> 32);
     }
-    uint32_t seed = (uint32_t)(pn_hash64(((uint64_t)scramble << 32) | (uint64_t)(uint32_t)dim) >> 32);
-    return owen_scramble(pn_sobol_raw_u32(index, dim), seed);
+    if (dim >= PN_SOBOL_TABLE_DIMS) return owen_scramble(raw_by_bits(index, dim), pn_sobol_seed(dim, scramble));
+    pthread_once(&byte_table_once, byte_table_init);
+    return owen_scramble_reversed(raw_reversed(index, dim), pn_sobol_seed(dim, scramble));
+}
+
+/* Keep the top 24 bits: the conversion is exact, preserves the stratification of the first 2^24
+ * points and cannot round up to 1. */
+static inline float to_unit_float(uint32_t x) {
+    float u = (float)(x >> 8) * 0x1p-24f;
+    return u < 0x1.fffffep-1f ? u : 0x1.fffffep-1f;
 }
 
 float pn_sobol_sample(uint32_t index, int dim, uint32_t scramble) {
-    /* Keep the top 24 bits: the conversion is exact, preserves the stratification of the
-     * first 2^24 points and cannot round up to 1. */
-    float u = (float)(pn_sobol_sample_u32(index, dim, scramble) >> 8) * 0x1p-24f;
-    return u < 0x1.fffffep-1f ? u : 0x1.fffffep-1f;
+    return to_unit_float(pn_sobol_sample_u32(index, dim, scramble));
+}
+
+void pn_sobol_samples(uint32_t index, int first_dim, int count, const uint32_t *seeds, float *out) {
+    pthread_once(&byte_table_once, byte_table_init);
+    for (int i = 0; i < count; i++) {
+        const int dim = first_dim + i;
+        out[i] = to_unit_float(dim < PN_SOBOL_TABLE_DIMS ? owen_scramble_reversed(raw_reversed(index, dim), seeds[i])
+                                                         : owen_scramble(raw_by_bits(index, dim), seeds[i]));
+    }
 }
 
 bool pn_sobol_tables_consistent(void) {

@@ -27,6 +27,15 @@ uint32_t pn_sobol_sample_u32(uint32_t index, int dim, uint32_t scramble);
 /* The same point as a float in [0, 1); the largest possible value is 0x1.fffffep-1f. */
 float pn_sobol_sample(uint32_t index, int dim, uint32_t scramble);
 
+/* The scramble seed pn_sobol_sample_u32 derives from (dim, scramble) for dim in
+ * [0, PN_SOBOL_DIMS): a caller drawing many points of the same dimensions hashes it once. */
+uint32_t pn_sobol_seed(int dim, uint32_t scramble);
+
+/* Points index of the dimensions first_dim .. first_dim + count - 1 (all within
+ * [0, PN_SOBOL_DIMS)), each as pn_sobol_sample would give it, from their seeds
+ * (seeds[i] = pn_sobol_seed(first_dim + i, scramble)): the same numbers, bit for bit. */
+void pn_sobol_samples(uint32_t index, int first_dim, int count, const uint32_t *seeds, float *out);
+
 /* The unscrambled Sobol' point (32-bit fraction); dims outside [0, PN_SOBOL_DIMS) give 0.
  * Exposed for tests and for callers that apply their own randomisation. */
 uint32_t pn_sobol_raw_u32(uint32_t index, int dim);

@@ -184,7 +184,14 @@
  * eye ray 12x less, peak memory 3.77 GB -> 0.93 GB; the work per shadow ray grows with the depth
  * below the cut, not with N (tests/test_ias_scale.c). Nor are (session 20) pn_cluster_pick's search
  * by groups of 16 running sums and the tree build's compact k-d leaf lists (lights/cluster_tree.c):
- * the same lights and trees, fewer cache misses.
+ * the same lights and trees, fewer cache misses. Nor is ias's upkeep of stop 21 (docs/methods/ias.md,
+ * "ias's upkeep, stop 21"; both variants): the trees cuts of a pixel's nearby regions share one
+ * walk (pn_cluster_cut_record / _replay: a decision is reused only where it holds for every point
+ * of the regions' ball, so the cuts are the same bit for bit), the PDF's entry is found through a
+ * guide table (choose_guided), the Sobol seeds are hashed once per call of sample_pixel and the
+ * scrambled points take one bit reversal (pn_sobol_samples), the statistics a sample is added to
+ * are prefetched, aggregate_stats reads a compact post-order array, and the stats' timers read
+ * the clock for every IAS_TIMING_STRIDE-th sample and IAS_REGION_TIMING_STRIDE-th region.
  *
  * Option, not the default: ias-cut-max K (session 20; compute_cut, pn_cluster_cut_capped) caps a
  * point's trees cut at K clusters, refined largest solid angle first, so that N_C and the passes
@@ -249,7 +256,8 @@ typedef struct ias_shared {
     double clock_cost; /* what one timed interval adds by itself (two clock reads), subtracted */
     int *post_order;   /* the trees' interior nodes, every node after its children */
     int post_count;
-    int light_ids; /* ids below this are clusters of lights (forest nodes; or BVH nodes, then
+    struct ias_post *post; /* the same nodes as aggregate_stats reads them */
+    int light_ids;         /* ids below this are clusters of lights (forest nodes; or BVH nodes, then
                       distant lights), above are environment regions */
     /* The default variant (issue 15; see the header): which departures are on. */
     bool bvh_cut;          /* cut of the light BVH by importance instead of the cluster trees */
@@ -291,6 +299,14 @@ typedef struct ias_tnode {
     double ra, rb;
 } ias_tnode;
 
+/* An interior node as aggregate_stats reads it, in post order (32 bytes instead of three nodes'
+ * 140 each): its children and their factors power(node) / power(child), 1 for a child without
+ * power, the same doubles aggregate_stats computed per node and pass. */
+typedef struct ias_post {
+    int node, left, right, pad;
+    double ra, rb;
+} ias_post;
+
 /* The smallest of many empty intervals: the cost a timed interval carries for its own clock
  * reads, which the sampled timings (scaled by IAS_TIMING_STRIDE) would otherwise multiply. */
 static double measure_clock_cost(void) {
@@ -318,6 +334,7 @@ static void ias_release(pn_render_job *job) {
     free(sh->env_base);
     free(sh->seen);
     free(sh->post_order);
+    free(sh->post);
     pn_light_bvh_free(&sh->bvh);
     free(sh->distant);
     free(sh->tnodes);
@@ -364,6 +381,15 @@ static bool build_post_order(ias_shared *sh) {
     }
     free(stack);
     free(expanded);
+    sh->post = malloc((size_t)(sh->post_count > 0 ? sh->post_count : 1) * sizeof *sh->post);
+    if (!sh->post) return false;
+    for (int k = 0; k < sh->post_count; k++) {
+        const int m = sh->post_order[k];
+        const pn_cluster_node *nd = &f->nodes[m];
+        const double pm = (double)nd->power, pa = (double)f->nodes[nd->left].power,
+                     pb = (double)f->nodes[nd->right].power;
+        sh->post[k] = (ias_post){m, nd->left, nd->right, 0, pa > 0.0 ? pm / pa : 1.0, pb > 0.0 ? pm / pb : 1.0};
+    }
     return true;
 }
 
@@ -546,8 +572,10 @@ typedef struct ias_region {
      * PDF, so they are pooled with equal weights. */
     double lux_sum;
     unsigned lux_n;
-    double mel_sum; /* PN_AOV_MELANOPIC_EDI: the same with the melanopic EDI (lux_n of them) */
-    vec3 ratio_m;   /* ias-ratio: the mean over its points of share x throughput x kd / pi */
+    double mel_sum;        /* PN_AOV_MELANOPIC_EDI: the same with the melanopic EDI (lux_n of them) */
+    vec3 ratio_m;          /* ias-ratio: the mean over its points of share x throughput x kd / pi */
+    bool cut_done, member; /* shared trees cuts (ias_render_batch): cut; replays its leader's walk */
+    bool dup;              /* a member whose class and clusters are its leader's (compute_cut) */
 } ias_region;
 
 /* An eye ray's own shading point in its antialiasing region (members_points). */
@@ -761,6 +789,8 @@ typedef struct ias_scratch {
     double *pdf;    /* per cut entry */
     double *cdf;
     double *fpix;
+    int *pick_guide; /* per cut entry: choose_guided's table for the PDF in s->cdf (guide_ok) */
+    bool guide_ok;
     /* Feedback weights F = C / sqrt(u) (eq. 4) computed once instead of per region and pass:
      * the block's for every cluster of every class at the start of each pass (from the previous
      * passes' data, as §4.1 says), the current pixel's for the clusters of its regions' cuts at
@@ -818,6 +848,21 @@ typedef struct ias_scratch {
     ias_idmap mis_entry;
     uint32_t mis_rays;  /* BSDF rays traced (all of the worker's pixels) */
     pn_ias_guide guide; /* ias-light-guide: the block's grids */
+    uint32_t tick;      /* the worker's timing counter (IAS_REGION_TIMING_STRIDE) */
+    /* Shared trees cuts (compute_cut): the leading region's record, the ball it holds for, where
+     * its tree part is in s->cut and how long it is. */
+    pn_cluster_cut_share cut_share;
+    float share_delta, share_dn;
+    int share_first, share_k;
+    const struct ias_region *share_leader;
+    /* compute_cut's last environment part, copied (s->cut_prior's entries are rewritten later):
+     * the normal it was for, its ids and priors, their number (env_valid: complete, not cut short
+     * by max_cut); env_cap entries. */
+    vec3 env_n;
+    int *env_ids;
+    double *env_prior;
+    int env_count, env_cap;
+    bool env_valid;
 } ias_scratch;
 
 static void ias_scratch_free(void *p) {
@@ -826,11 +871,15 @@ static void ias_scratch_free(void *p) {
     free(s->regions);
     free(s->cut);
     free(s->cut_work);
+    pn_cluster_cut_share_free(&s->cut_share);
     free(s->block_stats);
     free(s->pixel_pool);
     free(s->pdf);
     free(s->cdf);
     free(s->fpix);
+    free(s->pick_guide);
+    free(s->env_ids);
+    free(s->env_prior);
     free(s->fb_cache);
     free(s->fp_cache);
     free(s->fp_stamp);
@@ -907,6 +956,7 @@ static void *ias_scratch_create(const pn_render_job *job) {
     s->pdf = malloc((per_cut + 1) * sizeof *s->pdf);
     s->cdf = malloc((per_cut + 1) * sizeof *s->cdf);
     s->fpix = malloc((per_cut + 1) * sizeof *s->fpix);
+    s->pick_guide = malloc((per_cut + 1) * sizeof *s->pick_guide);
     s->fb_cache = calloc(IAS_CLASSES * ids, sizeof *s->fb_cache);
     s->fp_cache = calloc(IAS_CLASSES * ids, sizeof *s->fp_cache);
     s->fp_stamp = calloc(IAS_CLASSES * ids, sizeof *s->fp_stamp);
@@ -947,13 +997,28 @@ static void *ias_scratch_create(const pn_render_job *job) {
         ias_scratch_free(s);
         return NULL;
     }
+    /* compute_cut's copy of the last environment part (trees cut: balance_prior rescales the BVH
+     * cut's priors in place). */
+    for (int e = 0; e < sh->env_count && !sh->bvh_cut; e++) s->env_cap += sh->env[e].count;
+    if (s->env_cap > 0) {
+        s->env_ids = malloc((size_t)s->env_cap * sizeof *s->env_ids);
+        s->env_prior = malloc((size_t)s->env_cap * sizeof *s->env_prior);
+        if (!s->env_ids || !s->env_prior) {
+            ias_scratch_free(s);
+            return NULL;
+        }
+    }
+    if (!sh->bvh_cut && sh->cut_max == 0 && !pn_cluster_cut_share_init(&s->cut_share, &sh->forest)) {
+        ias_scratch_free(s);
+        return NULL;
+    }
     if (!s->cut_prior || !s->fprior || !s->emit_hits || !s->cut_work || (sh->bvh_cut && !table_grow(&s->table)) ||
         (sh->light_guide && !pn_ias_guide_init(&s->guide, &sh->guide))) {
         ias_scratch_free(s);
         return NULL;
     }
     if (!s->regions || !s->cut || !s->block_stats || !s->pixel_pool || !s->pdf || !s->cdf || !s->fpix || !s->fb_cache ||
-        !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen || !s->pixels) {
+        !s->fp_cache || !s->fp_stamp || !s->n_of || !s->pixel_seen || !s->pixels || !s->pick_guide) {
         ias_scratch_free(s);
         return NULL;
     }
@@ -962,9 +1027,17 @@ static void *ias_scratch_create(const pn_render_job *job) {
 
 /* ---- helpers ------------------------------------------------------------------------------- */
 
-/* Every IAS_TIMING_STRIDE-th ray has its Embree call timed; the sum, scaled by the stride,
- * estimates the time spent in Embree (as the reference integrator does). */
-#define IAS_TIMING_STRIDE 8u
+/* Every IAS_TIMING_STRIDE-th shadow ray has its Embree call timed, and every IAS_TIMING_STRIDE-th
+ * sample its PDF upkeep; the sums, scaled by the stride, estimate those times (the stats'
+ * estimates, not the image). 32 rather than 8 since stop 21: the clock's reads were 2.9% of
+ * hall-many's render (clock_gettime in perf), the estimates over a render's millions of samples
+ * move by well under a percent. The eye rays' times come from the driver at its own stride
+ * (PN_EYE_TIMING_STRIDE). */
+#define IAS_TIMING_STRIDE 32u
+/* Every IAS_REGION_TIMING_STRIDE-th region's cut and PDF build, and every such pixel pass's
+ * feedback upkeep, is timed and counted that many times (s->tick): two clock reads per region
+ * and call of sample_pixel were most of the clock's share. */
+#define IAS_REGION_TIMING_STRIDE 8u
 /* Eye rays read from the batch at once when the driver's in-advance hits do not hold them. */
 #define IAS_EYE_CHUNK 16u
 
@@ -1057,9 +1130,21 @@ static void balance_prior(const ias_shared *sh, const int *out, double *prior, i
     }
 }
 
+/* Regions that share a leading region's trees cut walk (compute_cut): normals within IAS_SHARE_DN
+ * of its normal, points within IAS_SHARE_REACH of its point, in units of its region radius (a
+ * quarter pixel at that depth). */
+#define IAS_SHARE_DN 1e-3
+#define IAS_SHARE_REACH 8.0
+
 /* The clusters of a region's point: the tree cut, distant lights above the horizon, and the
- * environment regions not below it, as cluster ids. */
-static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_region *r) {
+ * environment regions not below it, as cluster ids. share (trees cut without a cap): 1, a region
+ * that leads later regions of its pixel, whose walk records the decisions that hold for all points
+ * within s->share_delta and normals within s->share_dn; 2, such a later region, whose walk reads
+ * them (all of them, when the record was sure of every node: then its trees cut is the leader's);
+ * 0, neither.
+ * The same cuts as the plain walk, bit for bit (pn_cluster_cut_record); on hall-many's bench crop
+ * (11.4 regions per pixel) the walk was 15% of the render. */
+static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scratch *s, ias_region *r, int share) {
     vec3 n = r->bsdf.ng;
     if (!reserve_cut(s, sh->max_cut)) return false;
     int *out = s->cut + s->cut_used;
@@ -1097,12 +1182,37 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
             out[k++] = sh->bvh.node_count + d;
         }
     } else {
-        k = pn_cluster_cut_capped(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, sh->cut_max, out,
-                                  sh->max_cut, s->cut_work);
+        if (share == 1)
+            k = pn_cluster_cut_record(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, s->share_delta,
+                                      s->share_dn, out, sh->max_cut, &s->cut_share);
+        else if (share == 2 && s->cut_share.all_sure) {
+            k = s->share_k;
+            memcpy(out, s->cut + s->share_first, (size_t)k * sizeof *out);
+        } else if (share == 2)
+            k = pn_cluster_cut_replay(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, out,
+                                      sh->max_cut, &s->cut_share);
+        else
+            k = pn_cluster_cut_capped(&sh->forest, job->lights, r->origin, n, job->cluster_solid_angle, sh->cut_max,
+                                      out, sh->max_cut, s->cut_work);
         if (k > sh->max_cut) k = sh->max_cut;
+        if (share == 1) {
+            s->share_first = s->cut_used;
+            s->share_k = k;
+            s->share_leader = r;
+        }
         for (int i = 0; i < k; i++) prior[i] = 1.0;
     }
-    for (int e = 0; e < sh->env_count; e++) {
+    /* The environment regions depend on the normal alone: a region with the last one's normal
+     * (bit for bit; a pixel's regions on one flat surface) copies its list (pn_env_region_below
+     * per region and environment region was 2.6% of living-env-138's render). */
+    const int k_env = k;
+    const bool env_same = s->env_valid && memcmp(&s->env_n, &n, sizeof n) == 0 && k + s->env_count <= sh->max_cut;
+    if (env_same) {
+        memcpy(out + k, s->env_ids, (size_t)s->env_count * sizeof *out);
+        memcpy(prior + k, s->env_prior, (size_t)s->env_count * sizeof *prior);
+        k += s->env_count;
+    }
+    for (int e = 0; e < sh->env_count && !env_same; e++) {
         const pn_env_regions *reg = &sh->env[e];
         for (int q = 0; q < reg->count && k < sh->max_cut; q++) {
             if (!(reg->regions[q].power > 0.0f) || pn_env_region_below(&reg->regions[q], n)) continue;
@@ -1113,7 +1223,21 @@ static bool compute_cut(const pn_render_job *job, const ias_shared *sh, ias_scra
             out[k++] = sh->env_base[e] + q;
         }
     }
+    if (s->env_ids && !env_same) {
+        s->env_count = k - k_env;
+        s->env_valid = k < sh->max_cut && s->env_count <= s->env_cap;
+        s->env_n = n;
+        if (s->env_valid) {
+            memcpy(s->env_ids, out + k_env, (size_t)s->env_count * sizeof *out);
+            memcpy(s->env_prior, prior + k_env, (size_t)s->env_count * sizeof *prior);
+        }
+    }
     if (sh->bvh_cut) balance_prior(sh, out, prior, k_tree, k);
+    /* A member whose clusters and class are its leader's: its feedback weights are the leader's
+     * (begin_pixel_feedback skips it). */
+    const ias_region *lead = s->share_leader;
+    r->dup = share == 2 && lead->cls == r->cls && lead->cut_count == k &&
+             memcmp(s->cut + lead->cut_first, out, (size_t)k * sizeof *out) == 0;
     r->cut_first = s->cut_used;
     r->cut_count = k;
     s->cut_used += k;
@@ -1146,15 +1270,12 @@ static void record(const ias_shared *sh, pn_ias_stats *block, pn_ias_stats *pixe
  * numbers as adding every sample along its leaf-to-root path, for one pass over the nodes instead
  * of a path walk per sample. */
 static void aggregate_stats(const ias_shared *sh, pn_ias_stats *stats) {
-    const pn_cluster_node *nodes = sh->forest.nodes;
     add_work((uint64_t)sh->post_count);
     for (int k = 0; k < sh->post_count; k++) {
-        int m = sh->post_order[k];
-        const pn_cluster_node *nd = &nodes[m];
+        const ias_post *nd = &sh->post[k];
         const pn_ias_stats *a = &stats[nd->left], *b = &stats[nd->right];
-        double pm = (double)nd->power, pa = (double)nodes[nd->left].power, pb = (double)nodes[nd->right].power;
-        pn_ias_stats *o = &stats[m];
-        o->sum = a->sum * (pa > 0.0 ? pm / pa : 1.0) + b->sum * (pb > 0.0 ? pm / pb : 1.0);
+        pn_ias_stats *o = &stats[nd->node];
+        o->sum = a->sum * nd->ra + b->sum * nd->rb;
         o->count = a->count + b->count;
         o->visible = a->visible + b->visible;
     }
@@ -1707,6 +1828,7 @@ static void begin_pixel_feedback(const ias_shared *sh, ias_scratch *s, ias_pixel
         if (px->stats[c]) aggregate_stats(sh, px->stats[c]);
     for (int k = 0; k < px->region_count; k++) {
         const ias_region *r = &s->regions[px->first_region + k];
+        if (r->dup) continue; /* its leader, a region of this pixel, has the same (class, id) pairs */
         const pn_ias_stats *pixel = px->stats[r->cls]; /* NULL: no data yet, F = 0 */
         const int *cut = s->cut + r->cut_first;
         for (int i = 0; i < r->cut_count; i++) (void)pixel_feedback(s, pixel, r->cls, cut[i]);
@@ -1722,6 +1844,37 @@ static int choose(const double *cdf, int n, double u) {
         else
             hi = mid;
     }
+    while (lo < n - 1 && !(cdf[lo + 1] > cdf[lo])) lo++; /* never a zero-probability entry */
+    return lo;
+}
+
+/* A guide table for choose over s->cdf's n entries: guide[b] is the last entry whose cdf is at
+ * most b / n, so that a number u starts near its entry instead of a binary search's log2(n)
+ * dependent reads (the search was a sixth of sample_pixel on hall-many, some 50 numbers per PDF).
+ * Only for a non-decreasing CDF of finite numbers, where choose's answer is the last entry whose
+ * cdf is at most u; otherwise guide_ok is false and choose decides. */
+static void build_guide(ias_scratch *s, int n) {
+    const double *cdf = s->cdf;
+    s->guide_ok = false;
+    for (int i = 0; i < n; i++)
+        if (!(cdf[i + 1] >= cdf[i]) || !isfinite(cdf[i + 1])) return;
+    int i = 0;
+    const double step = 1.0 / (double)n; /* a hint only: choose_guided corrects either way */
+    for (int b = 0; b < n; b++) {
+        const double t = (double)b * step;
+        while (i + 1 < n && cdf[i + 1] <= t) i++;
+        s->pick_guide[b] = i;
+    }
+    s->guide_ok = true;
+}
+
+/* choose's entry, by the guide table when there is one: the same entry. */
+static int choose_guided(const ias_scratch *s, int n, double u) {
+    if (!s->guide_ok || !(u >= 0.0) || !(u < 1.0)) return choose(s->cdf, n, u);
+    const double *cdf = s->cdf;
+    int lo = s->pick_guide[(int)(u * (double)n) < n ? (int)(u * (double)n) : n - 1];
+    while (lo > 0 && cdf[lo] > u) lo--; /* u * n rounded up to the next bucket */
+    while (lo + 1 < n && cdf[lo + 1] <= u) lo++;
     while (lo < n - 1 && !(cdf[lo + 1] > cdf[lo])) lo++; /* never a zero-probability entry */
     return lo;
 }
@@ -2019,6 +2172,10 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         given++;
     }
     if (given == 0) return;
+    /* The scramble seeds of the shadow rays' dimensions 5-9, hashed once per call instead of per
+     * number (pn_sobol_samples: the same numbers). */
+    uint32_t seeds[5];
+    for (int d = 0; d < 5; d++) seeds[d] = pn_sobol_seed(5 + d, scramble);
     const ias_region *built = NULL; /* the region whose PDF s->pdf / s->cdf hold */
     for (int k = 0; k < rc; k++) {
         if (n_of[k] == 0) continue;
@@ -2027,7 +2184,8 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
         s->block_class_used[r->cls] = true;
         pn_ias_stats *pix = sh->bvh_cut || sh->sparse_stats ? NULL : pixel_stats(s, px, r->cls);
         px->classes |= 1u << r->cls;
-        double t_pdf = pn_clock_seconds();
+        const bool timed_pdf = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+        double t_pdf = timed_pdf ? pn_clock_seconds() : 0.0;
         /* Regions of one pixel on one surface usually have the same cut; their PDFs are then
          * the same numbers (the feedback weights are fixed for the pixel's pass), built once. */
         if (!same_cut(s, built, r)) {
@@ -2036,9 +2194,13 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             else
                 build_pdf(sh, s, r, pix, pass);
             if (sh->mis) mis_map_cut(s, r);
+            s->guide_ok = false;
             built = r;
         }
-        px->pdf_seconds += elapsed_since(sh, t_pdf);
+        /* The guide table where it saves more than it costs: some n log2(n) / 8 numbers drawn
+         * with this PDF (living-env-138's ~316 clusters are often drawn from a few times). */
+        if (!s->guide_ok && (int)n_of[k] * 8 >= r->cut_count) build_guide(s, r->cut_count);
+        if (timed_pdf) px->pdf_seconds += elapsed_since(sh, t_pdf) * IAS_REGION_TIMING_STRIDE;
         const int *cut = s->cut + r->cut_first;
         pn_light_sample_cache cache = {0};
         for (unsigned i = 0; i < n_of[k]; i++) {
@@ -2049,10 +2211,11 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             /* The paper variant jitters stratum i of n; the default takes the Sobol number itself,
              * whose consecutive points are already stratified: (i + xi_q) / n breaks that structure
              * (relMSE 2.6e-4 instead of 6.8e-5 on many-1000 at 64 shadow rays, one pass). */
-            double u = sh->sobol_direct ? (double)pn_sobol_sample(q, 5, scramble)
-                                        : ((double)i + (double)pn_sobol_sample(q, 5, scramble)) / (double)n_of[k];
-            float u_pick = pn_sobol_sample(q, 6, scramble);
-            float u1 = pn_sobol_sample(q, 7, scramble), u2 = pn_sobol_sample(q, 8, scramble);
+            float xi[5]; /* dimensions 5-9 (9 only with member points) */
+            pn_sobol_samples(q, 5, r->point_count > 0 ? 5 : 4, seeds, xi);
+            double u = sh->sobol_direct ? (double)xi[0] : ((double)i + (double)xi[0]) / (double)n_of[k];
+            float u_pick = xi[1];
+            float u1 = xi[2], u2 = xi[3];
             double t_upkeep = timed_upkeep ? pn_clock_seconds() : 0.0;
             /* The point the shadow ray leaves from: the representative, or the next member. */
             const ias_point *pt = NULL;
@@ -2060,7 +2223,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 /* Its own quasi-random dimension: tied to the stratum index i instead, each member
                  * saw the same part of the lights' CDF in every pass (relMSE 3.6e-4 instead of
                  * 6.8e-5 on many-1000 at 64 shadow rays). */
-                int m = (int)(pn_sobol_sample(q, 9, scramble) * (float)r->point_count);
+                int m = (int)(xi[4] * (float)r->point_count);
                 pt = &s->points[r->point_first + (m < r->point_count ? m : r->point_count - 1)];
             }
             const vec3 origin = pt ? pt->origin : r->origin, wo = pt ? pt->wo : r->wo;
@@ -2069,7 +2232,7 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
             const float eps = pt ? pt->eps : r->eps;
             /* ias-mis: BSDF samples at this point ('glossy': only where it has a glossy lobe). */
             const bool mis = sh->mis == PN_IAS_MIS_ON || (sh->mis == PN_IAS_MIS_GLOSSY && !v3_is_zero(bsdf->ks));
-            int c = choose(s->cdf, r->cut_count, u);
+            int c = choose_guided(s, r->cut_count, u);
             int id = cut[c];
             double p_cluster = s->pdf[c];
             int light = -1;
@@ -2100,6 +2263,14 @@ static void sample_pixel(const pn_render_job *job, const ias_shared *sh, ias_scr
                 pl = (float)pm;
             } else if (id < sh->light_ids) {
                 light = sh->distant[id - sh->bvh.node_count];
+            }
+            /* The statistics this sample will be added to (record), fetched while the light is
+             * sampled and the shadow ray traced: the pixel's array is cold (zeroed at the block's
+             * end), and that read was 12% of sample_pixel on hall-many. */
+            if (pix) {
+                const int slot = light >= 0 && id < sh->forest.node_count ? sh->forest.leaf_of_light[light] : id;
+                __builtin_prefetch(&pix[slot], 1);
+                __builtin_prefetch(&block[slot], 1);
             }
             if (timed_upkeep) px->pdf_seconds += elapsed_since(sh, t_upkeep) * IAS_TIMING_STRIDE;
             int guide_cell = -1; /* ias-light-guide: the sample's cell in its light's grid */
@@ -2481,7 +2652,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             const pn_eye_hit *h = &hits[r % IAS_EYE_CHUNK];
             const float rx = h->raster_x, ry = h->raster_y, fw = h->weight;
             pn_eye_path path = h->path;
-            px->embree_seconds += (double)h->seconds * IAS_TIMING_STRIDE; /* 0 unless timed */
+            px->embree_seconds += (double)h->seconds * PN_EYE_TIMING_STRIDE; /* 0 unless timed */
             if (r == 0) {
                 out[pi].depth = path.first_depth;
                 out[pi].normal = path.first_normal;
@@ -2535,13 +2706,52 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
         }
         px->emitted = px->weight_sum != 0.0 ? v3_scale(emitted, (float)(1.0 / px->weight_sum)) : v3(0, 0, 0);
         if (sh->member_points && !group_points(s, px)) return PN_ERROR_OUT_OF_MEMORY;
+        /* Trees cuts shared between the pixel's regions (compute_cut): each region not yet cut
+         * leads the later ones near it, whose walks replay the decisions its walk records; the
+         * members are cut right after their leader (a replay reads the latest record). */
+        const bool share_cuts = s->cut_share.links && px->region_count >= 2;
+        if (share_cuts) {
+            const bool timed_cut = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+            double t_cut = timed_cut ? pn_clock_seconds() : 0.0;
+            for (int k = 0; k < px->region_count; k++) s->regions[px->first_region + k].cut_done = false;
+            for (int k = 0; k < px->region_count; k++) {
+                ias_region *lead = &s->regions[px->first_region + k];
+                if (lead->cut_done) continue;
+                double reach = 0.0, turn = 0.0;
+                bool any = false;
+                for (int j = k + 1; j < px->region_count && !v3_is_zero(lead->bsdf.ng); j++) {
+                    ias_region *g = &s->regions[px->first_region + j];
+                    g->member = false;
+                    if (g->cut_done || v3_is_zero(g->bsdf.ng)) continue;
+                    double t = sqrt((double)v3_length2(v3_sub(g->bsdf.ng, lead->bsdf.ng)));
+                    double d = sqrt((double)v3_length2(v3_sub(g->origin, lead->origin)));
+                    if (!(t <= IAS_SHARE_DN && d <= IAS_SHARE_REACH * (double)lead->radius)) continue;
+                    g->member = any = true;
+                    if (d > reach) reach = d;
+                    if (t > turn) turn = t;
+                }
+                /* Rounded up: the ball must hold every member. */
+                s->share_delta = (float)(reach * (1.0 + 1e-6)) * (1.0f + 1e-6f);
+                s->share_dn = (float)(turn * (1.0 + 1e-6)) * (1.0f + 1e-6f);
+                if (!compute_cut(job, sh, s, lead, any ? 1 : 0)) return PN_ERROR_OUT_OF_MEMORY;
+                lead->cut_done = true;
+                for (int j = k + 1; j < px->region_count && any; j++) {
+                    ias_region *g = &s->regions[px->first_region + j];
+                    if (!g->member || g->cut_done) continue;
+                    if (!compute_cut(job, sh, s, g, 2)) return PN_ERROR_OUT_OF_MEMORY;
+                    g->cut_done = true;
+                }
+            }
+            if (timed_cut) px->cut_seconds += elapsed_since(sh, t_cut) * IAS_REGION_TIMING_STRIDE;
+        }
         /* Region weights as shares of the pixel. */
         double ncl = 0.0;
         for (int k = 0; k < px->region_count; k++) {
             ias_region *g = &s->regions[px->first_region + k];
             g->weight = px->weight_sum != 0.0 ? g->weight / px->weight_sum : 0.0;
-            double t_cut = pn_clock_seconds();
-            if (!compute_cut(job, sh, s, g)) return PN_ERROR_OUT_OF_MEMORY;
+            const bool timed_cut = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+            double t_cut = timed_cut ? pn_clock_seconds() : 0.0;
+            if (!share_cuts && !compute_cut(job, sh, s, g, 0)) return PN_ERROR_OUT_OF_MEMORY;
             /* The irradiance prior of the trees' clusters (environment regions keep theirs), once
              * per pixel for regions with the same cut (the first one's point: a prior need not be
              * exact, and the polygon irradiance per region was 19% of bathroom-72-matte's time). */
@@ -2556,7 +2766,7 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
                         s->cut_prior[g->cut_first + i] =
                             pn_ias_cluster_irradiance(&sh->forest, job->lights, id, g->origin, g->bsdf.ng);
                 }
-            px->cut_seconds += elapsed_since(sh, t_cut);
+            if (timed_cut) px->cut_seconds += elapsed_since(sh, t_cut) * IAS_REGION_TIMING_STRIDE;
             px->region_weight += g->weight;
             ncl += g->weight * (double)g->cut_count;
         }
@@ -2611,14 +2821,15 @@ static pn_status ias_render_batch(const pn_render_job *job, const pn_batch *batc
             if (px->done) continue;
             any = true;
             reset_regions(s, px);
-            double t_pdf = pn_clock_seconds();
+            const bool timed_pdf = s->tick++ % IAS_REGION_TIMING_STRIDE == 0u;
+            double t_pdf = timed_pdf ? pn_clock_seconds() : 0.0;
             flush_pending(s); /* the previous pixel pass's evaluations (default variant) */
             if (sh->sparse_stats)
                 sparse_begin_pixel(sh, s, px);
             else if (!sh->bvh_cut)
                 begin_pixel_feedback(sh, s, px);
             if (sh->ratio == PN_IAS_RATIO_CONTROL) control_betas(sh, s, px);
-            px->pdf_seconds += elapsed_since(sh, t_pdf);
+            if (timed_pdf) px->pdf_seconds += elapsed_since(sh, t_pdf) * IAS_REGION_TIMING_STRIDE;
             /* 1.5 N_C samples, at least 50 (§5.8); the default variant: (j + 1) pass_rays. */
             unsigned count = (unsigned)ceil(1.5 * px->clusters);
             if (count < IAS_MIN_SAMPLES) count = IAS_MIN_SAMPLES;

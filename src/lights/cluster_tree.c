@@ -978,6 +978,286 @@ int pn_cluster_cut(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, 
     return pn_cluster_cut_ex(f, lights, p, n, max_solid_angle, out, capacity, NULL, 0, NULL);
 }
 
+/* ---------------------------------------------------------------- shared cuts */
+
+/* A node's decision for every point p' within `delta` of p whose normal n' is within `dn` of n
+ * (Euclidean; n and n' non-zero, so all have a horizon), or CUT_UNSURE. Each test of classify is
+ * a comparison of a quantity with a threshold; the decision is sure when the quantity stays on
+ * one side however p and n move within the ball, with room for the rounding of float arithmetic
+ * on numbers of the size of |p| + |center| + r (SHARE_EPS of it, some 40 times the rounding of the
+ * few operations involved). Sure decisions are then the ones classify computes at p' bit for bit,
+ * so a walk that reads them for p' takes the same cut. */
+enum { CUT_UNSURE = 3 };
+#define SHARE_EPS 1e-5f
+
+typedef struct cut_ball {
+    vec3 p, n;
+    float delta, dn, p1; /* p1: |p|_1, the size of the coordinates for the rounding allowance */
+} cut_ball;
+
+static inline float abs1(vec3 v) {
+    return fabsf(v.x) + fabsf(v.y) + fabsf(v.z);
+}
+
+/* How far dot(X - p', n') can be from dot(X - p, n) for X at distance at most dist from p (|n| = 1
+ * up to rounding): delta |n'| + |X - p'| dn, plus the rounding allowance at coordinate size
+ * `scale`. (Leaves pass |X - p|_1 for the distance: no square root.) */
+static inline float plane_margin(const cut_ball *b, float dist, float scale) {
+    return b->delta * (1.0f + b->dn) + (dist + b->delta) * b->dn + SHARE_EPS * scale;
+}
+
+/* Of a quantity q with margin m: 1 when q' > 0 everywhere, -1 when q' < 0 everywhere, else 0. */
+static inline int sure_sign(float q, float m) {
+    return q - m > 0.0f ? 1 : q + m < 0.0f ? -1 : 0;
+}
+
+/* pn_cluster_light_culled over the ball: PN_CUT_CULL, PN_CUT_TAKE or CUT_UNSURE. */
+static int leaf_ball(const pn_light *l, const cut_ball *b) {
+    const float scale = b->p1 + abs1(l->p);
+    switch (l->kind) {
+    case PN_LIGHT_POINT:
+    case PN_LIGHT_SPHERE: { /* culled when dot(l->p - p, n) (+ radius) <= 0 */
+        vec3 x = v3_sub(l->p, b->p);
+        float rad = l->kind == PN_LIGHT_SPHERE ? l->radius : 0.0f;
+        int sg = sure_sign(v3_dot(x, b->n) + rad, plane_margin(b, abs1(x), scale + rad));
+        return sg > 0 ? PN_CUT_TAKE : sg < 0 ? PN_CUT_CULL : CUT_UNSURE;
+    }
+    case PN_LIGHT_DISTANT: {
+        int sg = sure_sign(v3_dot(l->n, b->n), b->dn * 1.001f + 1e-6f);
+        return sg > 0 ? PN_CUT_TAKE : sg < 0 ? PN_CUT_CULL : CUT_UNSURE;
+    }
+    case PN_LIGHT_TRIANGLE:
+    case PN_LIGHT_RECTANGLE:
+    case PN_LIGHT_DISK: {
+        if (!l->two_sided) { /* culled when p is not in front of the light's plane */
+            int sg = sure_sign(v3_dot(v3_sub(b->p, l->p), l->n), b->delta * 1.001f * abs1(l->n) + SHARE_EPS * scale);
+            if (sg < 0) return PN_CUT_CULL;
+            if (sg == 0) return CUT_UNSURE;
+        }
+        if (l->kind == PN_LIGHT_DISK) {
+            float c = v3_dot(l->n, b->n);
+            float ext = l->radius * sqrtf(fmaxf(0.0f, 1.0f - c * c));
+            vec3 x = v3_sub(l->p, b->p);
+            /* ext moves by at most radius |n' - n| (|n x l->n| is 1-Lipschitz in n), and its
+             * square root rounds by up to some 5e-4 radius where c is near +-1. */
+            float m = plane_margin(b, abs1(x), scale + l->radius) + l->radius * (2.0f * b->dn + 1e-3f);
+            int sg = sure_sign(v3_dot(x, b->n) + ext, m);
+            return sg > 0 ? PN_CUT_TAKE : sg < 0 ? PN_CUT_CULL : CUT_UNSURE;
+        }
+        /* culled when every vertex is on or below the tangent plane */
+        vec3 v[4];
+        int k = planar_vertices(l, v);
+        bool all_below = true;
+        for (int i = 0; i < k; i++) {
+            vec3 x = v3_sub(v[i], b->p);
+            int sg = sure_sign(v3_dot(x, b->n), plane_margin(b, abs1(x), b->p1 + abs1(v[i])));
+            if (sg > 0) return PN_CUT_TAKE;
+            if (sg == 0) all_below = false;
+        }
+        return all_below ? PN_CUT_CULL : CUT_UNSURE;
+    }
+    case PN_LIGHT_SPOT:
+    case PN_LIGHT_GONIOMETRIC:
+    case PN_LIGHT_PROJECTION: return CUT_UNSURE; /* their cones are left to the exact test */
+    default: return PN_CUT_TAKE;                 /* never culled */
+    }
+}
+
+/* node_culled's cone test with the bounding sphere's radius replaced by `radius`, given d > 0 and
+ * the cosine cos_w = dot(axis, (p - center) / d). */
+static inline bool cone_culled(const pn_cluster_node *nd, float cos_w, float d, float radius) {
+    if (!(d > radius * (1.0f + 1e-5f)) || !(nd->cut_cos > -1.5f)) return false;
+    float sb = fminf(radius / d, 1.0f);
+    if (!(nd->cut_cos >= 0.0f || sb < nd->cut_sin)) return false;
+    float cb = sqrtf(fmaxf(0.0f, 1.0f - sb * sb));
+    float limit = nd->cut_cos * cb - nd->cut_sin * sb;
+    return cos_w < limit - 2e-6f;
+}
+
+/* The horizon tests' sums s + r + 1e-5 (|s| + r): below 0, culled. Increasing in s. */
+static inline float horizon_sum(float s, float r) {
+    return s + r + 1e-5f * (fabsf(s) + r);
+}
+
+/* classify over the ball (interior nodes: node_culled, then the solid angle). */
+static int node_ball(const pn_lights *lights, const pn_cluster_node *nd, const cut_ball *b, const cut_limit *lim) {
+    if (nd->left < 0) return leaf_ball(&lights->lights[nd->light], b);
+    const vec3 pc = v3_sub(nd->center, b->p);
+    const float d = v3_length(pc), r = nd->radius;
+    const float scale = b->p1 + abs1(nd->center) + r;
+    bool unsure = false;
+    /* The horizon: the sphere below the plane, or the box when the sphere is not wholly above. */
+    {
+        const float s = v3_dot(pc, b->n), m = plane_margin(b, d, scale) * 1.001f;
+        if (horizon_sum(s + m, r) < 0.0f) return PN_CUT_CULL;
+        if (!(horizon_sum(s - m, r) >= 0.0f)) unsure = true;
+        if (!(s - m > r)) { /* some p' reach the box test */
+            vec3 bc = v3_scale(v3_add(nd->bmin, nd->bmax), 0.5f), he = v3_scale(v3_sub(nd->bmax, nd->bmin), 0.5f);
+            vec3 x = v3_sub(bc, b->p);
+            float sb = v3_dot(x, b->n);
+            float reach = fabsf(b->n.x) * he.x + fabsf(b->n.y) * he.y + fabsf(b->n.z) * he.z;
+            /* reach moves by at most dn (he.x + he.y + he.z) */
+            float mb = (plane_margin(b, abs1(x), scale + abs1(bc)) + b->dn * (he.x + he.y + he.z)) * 1.001f;
+            bool cull_all = horizon_sum(sb + mb, reach) < 0.0f, cull_none = horizon_sum(sb - mb, reach) >= 0.0f;
+            if (cull_all && s + m <= r) return PN_CUT_CULL; /* every p' takes the box test */
+            if (!cull_none) unsure = true;
+        }
+    }
+    /* The cone: the directions from p' to the sphere lie within those from p to the sphere grown by
+     * delta and contain those to the sphere shrunk by delta; the margin 1e-4 d also covers the
+     * test's own constant margins and the rounding of the angles' cosines. */
+    if (nd->cos_spread > -1.0f && nd->cos_emit > -1.0f && d > 0.0f) {
+        const float dc = b->delta * 1.001f + 1e-4f * d + SHARE_EPS * scale;
+        const float cos_w = v3_dot(nd->axis, v3_scale(pc, -1.0f / d));
+        if (cone_culled(nd, cos_w, d, r + dc)) return PN_CUT_CULL;
+        if (!(r - dc > 0.0f) || cone_culled(nd, cos_w, d, r - dc)) return CUT_UNSURE;
+    } else if (nd->cos_spread > -1.0f && nd->cos_emit > -1.0f) {
+        return CUT_UNSURE;
+    }
+    if (unsure) return CUT_UNSURE;
+    /* The solid angle by make_cut_limit's bounds, which decide without the exact function. */
+    const float ds = b->delta * 1.001f + SHARE_EPS * scale, r2 = r * r;
+    const float lo = d - ds, hi = d + ds;
+    if (lo > 0.0f && r2 < lim->x_low * (lo * lo) * 0.9999f) return PN_CUT_TAKE;
+    if (r2 > lim->x_high * (hi * hi) * 1.0001f) return PN_CUT_DESCEND;
+    return CUT_UNSURE;
+}
+
+bool pn_cluster_cut_share_init(pn_cluster_cut_share *sh, const pn_cluster_forest *f) {
+    memset(sh, 0, sizeof *sh);
+    const size_t n = f->node_count > 0 ? (size_t)f->node_count : 1u;
+    sh->links = calloc(n, sizeof *sh->links);
+    int *stack = malloc(n * sizeof *stack);
+    if (!sh->links || !stack) {
+        free(stack);
+        pn_cluster_cut_share_free(sh);
+        return false;
+    }
+    sh->node_count = f->node_count;
+    for (int i = 0; i < f->node_count; i++) sh->links[i] = (pn_cluster_cut_link){f->nodes[i].left, -1, 0u};
+    /* The stackless walk's successors, parents first: past a left child its sibling, past a right
+     * child whatever follows its parent. */
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        if (f->roots[t] < 0) continue;
+        int top = 0;
+        stack[top++] = f->roots[t];
+        while (top > 0) {
+            const int i = stack[--top];
+            const pn_cluster_node *nd = &f->nodes[i];
+            if (nd->left < 0) continue;
+            sh->links[nd->left].skip = nd->right;
+            sh->links[nd->right].skip = sh->links[i].skip;
+            stack[top++] = nd->left;
+            stack[top++] = nd->right;
+        }
+    }
+    free(stack);
+    return true;
+}
+
+void pn_cluster_cut_share_free(pn_cluster_cut_share *sh) {
+    free(sh->links);
+    memset(sh, 0, sizeof *sh);
+}
+
+/* The walk of cut_walk (no cap, no culled list) for pn_cluster_cut_record (b != NULL: decides by
+ * node_ball where sure and records it) and pn_cluster_cut_replay (b == NULL: reads the record). */
+static int shared_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                       int *out, int capacity, pn_cluster_cut_share *sh, const cut_ball *b) {
+    int count = 0;
+    const bool horizon = !v3_is_zero(n);
+    const cut_limit lim = make_cut_limit(max_solid_angle);
+    pn_cluster_cut_link *links = sh->links;
+    const uint32_t tag = sh->stamp << 2;
+    int met = 0, sure = 0;
+    for (int t = 0; t < PN_TREE_COUNT; t++) {
+        /* The same walk as cut_walk's, by the links instead of the parents. */
+        for (int node = f->roots[t]; node >= 0;) {
+            pn_cluster_cut_link *ln = &links[node];
+            int action;
+            if (b) {
+                const pn_cluster_node *nd = &f->nodes[node];
+                action = node_ball(lights, nd, b, &lim);
+                met++;
+                if (action != CUT_UNSURE) {
+                    sure++;
+                    ln->memo = tag | (uint32_t)action;
+#ifdef PN_CUT_SHARE_CHECK
+                    if (action != classify(lights, nd, p, n, horizon, &lim)) abort();
+#endif
+                } else {
+                    action = classify(lights, nd, p, n, horizon, &lim);
+                }
+            } else {
+                action = (ln->memo & ~3u) == tag ? (int)(ln->memo & 3u)
+                                                 : classify(lights, &f->nodes[node], p, n, horizon, &lim);
+#ifdef PN_CUT_SHARE_CHECK
+                if (action != classify(lights, &f->nodes[node], p, n, horizon, &lim)) abort();
+#endif
+            }
+            if (action == PN_CUT_DESCEND) {
+                node = ln->left;
+                continue;
+            }
+            if (action == PN_CUT_TAKE) {
+                if (count < capacity) out[count] = node;
+                count++;
+            }
+            node = ln->skip;
+        }
+    }
+    for (int s = 0; s < f->single_count; s++) {
+        int node = f->singles[s];
+        const pn_light *l = &lights->lights[f->nodes[node].light];
+        int action;
+        if (b) {
+            action = leaf_ball(l, b);
+            met++;
+            if (action != CUT_UNSURE) {
+                sure++;
+                links[node].memo = tag | (uint32_t)action;
+            } else {
+                action = pn_cluster_light_culled(l, p, n) ? PN_CUT_CULL : PN_CUT_TAKE;
+            }
+        } else {
+            action = (links[node].memo & ~3u) == tag ? (int)(links[node].memo & 3u)
+                                                     : (pn_cluster_light_culled(l, p, n) ? PN_CUT_CULL : PN_CUT_TAKE);
+        }
+        if (action == PN_CUT_TAKE) {
+            if (count < capacity) out[count] = node;
+            count++;
+        }
+    }
+    if (b) {
+        sh->met = met;
+        sh->sure = sure;
+        sh->all_sure = sure == met;
+    }
+    return count;
+}
+
+int pn_cluster_cut_record(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          float delta, float dn, int *out, int capacity, pn_cluster_cut_share *sh) {
+    if (v3_is_zero(n) || !(delta >= 0.0f) || !(dn >= 0.0f) || !isfinite(delta) || !isfinite(dn)) {
+        sh->all_sure = false;
+        sh->met = sh->sure = 0;
+        sh->stamp = 0; /* no record: a replay walks in full */
+        return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
+    }
+    if (++sh->stamp >= (1u << 30)) { /* the tags wrap: forget the old records */
+        for (int i = 0; i < sh->node_count; i++) sh->links[i].memo = 0u;
+        sh->stamp = 1;
+    }
+    const cut_ball b = {p, n, delta, dn, abs1(p)};
+    return shared_walk(f, lights, p, n, max_solid_angle, out, capacity, sh, &b);
+}
+
+int pn_cluster_cut_replay(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          int *out, int capacity, pn_cluster_cut_share *sh) {
+    if (sh->stamp == 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
+    return shared_walk(f, lights, p, n, max_solid_angle, out, capacity, sh, NULL);
+}
+
 /* ---------------------------------------------------------------- capped cut */
 
 /* An open node's key in pn_cluster_cut_capped's heaps: its r^2 / d^2 (the solid angle's order). */

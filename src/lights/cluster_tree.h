@@ -125,6 +125,36 @@ int pn_cluster_cut_capped(const pn_cluster_forest *f, const pn_lights *lights, v
                           int max_count, int *out, int capacity, void *work);
 size_t pn_cluster_cut_capped_work(int max_count);
 
+/* Cuts shared between nearby points (stop 21: an ias pixel's antialiasing regions on one surface
+ * are a fraction of a pixel apart, and most of their cuts' decisions are the same). A record walk
+ * computes the cut at p (as pn_cluster_cut) and notes every node whose decision would be the same
+ * for every point p' within `delta` of p with a normal n' within `dn` of n (|n' - n|, n' not
+ * zero), with room for the rounding; a replay walk for such a p', n' reads the noted decisions
+ * and classifies the others itself: the same cut as pn_cluster_cut at p', bit for bit. When the
+ * record decided every node it met (all_sure) the replay's cut is the record's. Stamps tell the
+ * records apart. No cap (pn_cluster_cut_capped's
+ * max_count) and no culled list. */
+typedef struct pn_cluster_cut_link {
+    int left, skip; /* the walk's next node: descending, or past the node's subtree (-1: the tree's end) */
+    uint32_t memo;  /* stamp << 2 | the node's decision in the record of that stamp */
+} pn_cluster_cut_link;
+
+typedef struct pn_cluster_cut_share {
+    pn_cluster_cut_link *links; /* per node, 12 bytes where the node is 140: what a replay reads */
+    int node_count;
+    uint32_t stamp; /* the current record's; 0: none */
+    bool all_sure;  /* the current record decided every node it met for the whole ball */
+    int met, sure;  /* the nodes the current record met, and those it decided for the whole ball */
+} pn_cluster_cut_share;
+
+bool pn_cluster_cut_share_init(pn_cluster_cut_share *sh, const pn_cluster_forest *f);
+void pn_cluster_cut_share_free(pn_cluster_cut_share *sh);
+int pn_cluster_cut_record(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          float delta, float dn, int *out, int capacity, pn_cluster_cut_share *sh);
+/* The caller guarantees |p - p_record| <= delta and |n - n_record| <= dn, n not zero. */
+int pn_cluster_cut_replay(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
+                          int *out, int capacity, pn_cluster_cut_share *sh);
+
 /* Chooses a light of node `node` in proportion to the lights' power (the paper: "based on their
  * relative intensities"); u in [0,1); returns the light index and its probability within the
  * node, power(light) / power(node) (uniform 1/count when the whole node has zero power). Binary
