@@ -12,10 +12,14 @@
 #   usage: bench/progressive/crossing.sh BINARY OUT_DIR [SCENE...]     (scenes: stair hall bath glossy)
 # The dcm run stops at the first snapshot at or beyond TOP (default 25) whose L1 is at or below
 # GOAL (default 0.008), and at the latest at MAX (default 50). painter runs to the same
-# percentage; the paper variant (--dcm-variant paper) gets snapshots at 6% and at the two
-# percentages around the crossing. The crossing is interpolated linearly in L1 between the two
-# measured percentages that bracket it, and the CPU and painter's L1 there the same way.
-# Output: OUT/NAME-VARIANT.cpus (pct cpu per snapshot), OUT/crossing.txt (the tables).
+# percentage and to every share of the work pixels dcm's snapshots reached; the paper variant
+# (--dcm-variant paper) gets snapshots at 6% and at the first dcm share at or below GOAL. The
+# crossing is interpolated linearly in L1 between the two measured shares that bracket it, and the
+# CPU and painter's L1 there the same way; the first measured share at or below GOAL is printed
+# too (dcm cannot stop inside the jump of its simplicity tests).
+# Output: OUT/NAME-VARIANT.cpus (requested, evaluated %, CPU s per snapshot), .curve (with L1 and
+# L2), OUT/crossing.txt (the tables, with pn_noise_floor's split by block class at the first share
+# at or below GOAL).
 # Runs under nice -n 10 with --threads THREADS (default 2); NOISE_FLOOR: pn_noise_floor's path
 # (default beside BINARY); RES overrides the resolution (a quick trial of the script).
 set -u
@@ -33,7 +37,8 @@ THREADS=${THREADS:-2}
 CONFIRM=${CONFIRM:-0}
 NF=${NOISE_FLOOR:-$(dirname "$BIN")/pn_noise_floor}
 TCK=$(getconf CLK_TCK)
-COMMON="--spp 64 --shadow-rays 4 --crop 0.3,0.7,0.3,0.7 --threads $THREADS --quiet"
+COMMONP="--spp 64 --shadow-rays 4 --crop 0.3,0.7,0.3,0.7 --threads $THREADS"
+COMMON="$COMMONP --quiet"
 mkdir -p "$OUT"
 
 metric() { # reference image -> "L1 L2"
@@ -49,15 +54,17 @@ pcts_upto() { # max -> the PCTS at or below max, comma-separated
   for p in $PCTS; do awk -v p="$p" -v m="$1" 'BEGIN { exit !(p <= m + 1e-9) }' && printf '%s ' "$p"; done
 }
 
-# run LABEL "PCT..." STOP_AT EARLY_STOP ARGS...: one render with snapshots, CPU at each snapshot
-# into OUT/LABEL.cpus; with EARLY_STOP=1 it is ended after the first snapshot at or beyond TOP
-# whose L1 against the seed-0 full render is at or below GOAL.
+# run LABEL "PCT..." STOP_AT EARLY_STOP ARGS...: one render with snapshots; OUT/LABEL.cpus gets
+# "requested evaluated cpu" per snapshot (evaluated: the share of the work pixels the driver
+# reports for it, which is above the requested one where dcm's simplicity tests evaluate pixels in
+# one go, never split by a snapshot or --stop-at); with EARLY_STOP=1 the run is ended after the
+# first snapshot at or beyond TOP whose L1 against the seed-0 full render is at or below GOAL.
 run() {
   label=$1 list=$2 stopat=$3 early=$4
   shift 4
   img=$OUT/$label.exr
-  : >"$OUT/$label.cpus"
-  nice -n 10 "$BIN" render "$file" -o "$img" --resolution "$res" $COMMON --seed 0 "$@" \
+  : >"$OUT/$label.cpu0"
+  nice -n 10 "$BIN" render "$file" -o "$img" --resolution "$res" $COMMONP --seed 0 "$@" \
     --stop-at "$stopat" --snapshots "$(echo $list | tr ' ' ',')" >/dev/null 2>"$OUT/$label.err" &
   pid=$!
   set -- $list
@@ -66,10 +73,11 @@ run() {
     if [ -f "$snap" ]; then
       c=$(cpu_of $pid)
       [ -n "$c" ] || c=NA
-      echo "$1 $c" >>"$OUT/$label.cpus"
+      echo "$1 $c" >>"$OUT/$label.cpu0"
       if [ "$early" = 1 ]; then
         l1=$(metric "$full" "$snap" | cut -d' ' -f1)
         if awk -v p="$1" -v l="$l1" -v t="$TOP" -v g="$GOAL" 'BEGIN { exit !(p >= t - 1e-9 && l <= g) }'; then
+          sleep 0.5 # let the log line of the snapshot through
           kill $pid 2>/dev/null
           break
         fi
@@ -81,9 +89,14 @@ run() {
     sleep 0.1
   done
   wait $pid 2>/dev/null
+  # the evaluated share of each snapshot, from the CLI's log line
+  while read -r p c; do
+    e=$(grep -F "$(snapname "$img" "$p") (" "$OUT/$label.err" | sed 's/.*(\([0-9.]*\)% of the work pixels.*/\1/')
+    echo "$p ${e:-NA} $c"
+  done <"$OUT/$label.cpu0" >"$OUT/$label.cpus"
 }
 
-# interpolate FILE GOAL: FILE has "pct l1 cpu" lines in order; prints "pct cpu" where l1 first
+# crossing FILE GOAL: FILE has "pct l1 cpu" lines in order; prints "pct cpu" where l1 first
 # falls to GOAL (linear between the bracketing points), or "none"
 crossing() {
   awk -v g="$2" 'NR > 1 && pl > g && $2 <= g { f = (pl - g) / (pl - $2); printf "%.2f %.2f\n", pp + f * ($1 - pp), pc + f * ($3 - pc); found = 1; exit }
@@ -115,29 +128,36 @@ for sc in $SCENES; do
   done
   tf=$(cat "$OUT/$sc-full.cpu")
   [ -s "$OUT/$sc-dcm.cpus" ] || run "$sc-dcm" "$(pcts_upto $MAX)" "$MAX" 1 --driver dcm --aov sampling_pattern,block_map
-  last=$(tail -n 1 "$OUT/$sc-dcm.cpus" | cut -d' ' -f1)
-  [ -s "$OUT/$sc-painter.cpus" ] || run "$sc-painter" "$(pcts_upto $last)" "$last" 0 --driver painter
-  # the curves
+  last=$(tail -n 1 "$OUT/$sc-dcm.cpus" | cut -d' ' -f2)
+  # painter at the grid and at every share dcm's snapshots reached
+  plist=$( (pcts_upto $last | tr ' ' '\n'; cut -d' ' -f2 "$OUT/$sc-dcm.cpus") | grep -v '^$' | sort -g -u | tr '\n' ' ')
+  [ -s "$OUT/$sc-painter.cpus" ] || run "$sc-painter" "$plist" "$last" 0 --driver painter
+  # the curves: "requested evaluated L1 L2 cpu", one line per distinct image (the first snapshot
+  # of each evaluated share)
   for v in dcm painter; do
-    while read -r p c; do
-      snap=$(snapname "$OUT/$sc-$v.exr" "$p")
-      echo "$p $(metric "$full" "$snap") $c"
-    done <"$OUT/$sc-$v.cpus" >"$OUT/$sc-$v.curve"
+    while read -r p e c; do
+      echo "$p $e $(metric "$full" "$(snapname "$OUT/$sc-$v.exr" "$p")") $c"
+    done <"$OUT/$sc-$v.cpus" | awk '!seen[$2]++' >"$OUT/$sc-$v.curve"
   done
-  awk '{print $1, $2, $4}' "$OUT/$sc-dcm.curve" >"$OUT/$sc-dcm.l1"
+  awk '{print $2, $3, $5}' "$OUT/$sc-dcm.curve" >"$OUT/$sc-dcm.l1"
+  awk '{print $2, $3}' "$OUT/$sc-painter.curve" >"$OUT/$sc-painter.l1"
   cross=$(crossing "$OUT/$sc-dcm.l1" "$GOAL")
   cp=$(echo "$cross" | cut -d' ' -f1)
-  # the paper variant at 6% and at the measured percentages around the crossing
-  if [ ! -s "$OUT/$sc-dcm-paper.cpus" ] && [ "$cross" != none ]; then
-    around=$(awk -v x="${cp#<=}" '$1 < x { b = $1 } $1 >= x { print b ? b " " $1 : $1; exit }' "$OUT/$sc-dcm.l1")
-    list=$(printf '%s\n' 6 $around | sort -n -u | tr '\n' ' ')
+  # the first measured dcm image at or below GOAL: requested, evaluated
+  first=$(awk -v g="$GOAL" '$3 <= g { print $1, $2; exit }' "$OUT/$sc-dcm.curve")
+  # the paper variant at 6% and at the first measured percentage at or below GOAL
+  if [ ! -s "$OUT/$sc-dcm-paper.cpus" ] && [ -n "$first" ]; then
+    list=$(printf '%s\n' 6 "$(echo "$first" | cut -d' ' -f2)" | sort -g -u | tr '\n' ' ')
     run "$sc-dcm-paper" "$list" "$(echo $list | awk '{print $NF}')" 0 --driver dcm --dcm-variant paper
-    while read -r p c; do
-      echo "$p $(metric "$full" "$(snapname "$OUT/$sc-dcm-paper.exr" "$p")") $c"
+  fi
+  if [ -s "$OUT/$sc-dcm-paper.cpus" ]; then
+    while read -r p e c; do
+      echo "$p $e $(metric "$full" "$(snapname "$OUT/$sc-dcm-paper.exr" "$p")") $c"
     done <"$OUT/$sc-dcm-paper.cpus" >"$OUT/$sc-dcm-paper.curve"
   fi
-  if [ "$CONFIRM" = 1 ] && [ "$cross" != none ] && [ ! -f "$OUT/$sc-confirm-painter.exr" ]; then
-    x=$(awk -v x="${cp#<=}" 'BEGIN { printf "%.1f", x + 0.05 }')
+  # CONFIRM=1: plain --stop-at runs (no snapshots) at the first measured share at or below GOAL
+  if [ "$CONFIRM" = 1 ] && [ -n "$first" ] && [ ! -f "$OUT/$sc-confirm-painter.curve" ]; then
+    x=$(echo "$first" | cut -d' ' -f2)
     for v in dcm painter; do
       /usr/bin/time -f "%U %S" -o "$OUT/$sc-confirm-$v.time" nice -n 10 "$BIN" render "$file" \
         -o "$OUT/$sc-confirm-$v.exr" --resolution $res $COMMON --seed 0 --driver $v --stop-at $x >/dev/null 2>&1
@@ -147,24 +167,25 @@ for sc in $SCENES; do
   fi
   {
     echo "## $sc ($res), full render $tf CPU s (seed 1: $(cat "$OUT/$sc-full-seed1.cpu") s)"
-    printf "%6s | %-24s | %-24s | %-15s | %s\n" pct "dcm L1 / L2, CPU (/full)" "painter L1 / L2, CPU" "painter/dcm L1" "floor L1 / L2 (dcm pattern)"
-    while read -r p l1 l2 c; do
-      pl=$(awk -v p="$p" '$1 == p { print $2, $3, $4 }' "$OUT/$sc-painter.curve")
-      fl=$("$NF" "$full" "$OUT/$sc-full-seed1.exr" "$(snapname "$OUT/$sc-dcm.exr" "$p")" \
-        "$(snapname "$OUT/$sc-dcm.exr" "$p")" | sed -n 's/^floor at this pattern.*relL1 \([^ ]*\) relL2 \([^ ]*\)/\1 \2/p')
-      echo "$p $l1 $l2 $c $tf $pl" | awk -v fl="$fl" '{ r = (NF >= 8) ? sprintf("%.2f", $6 / $2) : ""; q = (NF >= 8) ? sprintf("%.4f / %.4f, %6.1f", $6, $7, $8) : "";
-        printf "%6s | %.4f / %.4f, %6.1f (%.3f) | %s | %-15s | %s\n", $1, $2, $3, $4, $4 / $5,
-          q, r, fl }'
+    printf "%6s %6s | %-30s | %-24s | %-6s | %s\n" req eval "dcm L1 / L2, CPU s (/full)" "painter L1 / L2, CPU s" "p/dcm" "floor L1 / L2 at the dcm pattern"
+    while read -r p e l1 l2 c; do
+      pl=$(awk -v e="$e" '{ d = $2 - e; d = d < 0 ? -d : d } d <= 0.05 && (!n++ || d < b) { b = d; r = $3 " " $4 " " $5 } END { if (n) print r }' "$OUT/$sc-painter.curve")
+      snap=$(snapname "$OUT/$sc-dcm.exr" "$p")
+      fl=$("$NF" "$full" "$OUT/$sc-full-seed1.exr" "$snap" "$snap" | sed -n 's/^floor at this pattern.*relL1 \([^ ]*\) relL2 \([^ ]*\)/\1 \/ \2/p')
+      echo "$p $e $l1 $l2 $c $tf $pl" | awk -v fl="$fl" '{ r = (NF >= 9) ? sprintf("%.2f", $7 / $3) : ""; q = (NF >= 9) ? sprintf("%.4f / %.4f, %6.1f", $7, $8, $9) : "";
+        printf "%6s %6s | %.4f / %.4f, %6.1f (1/%.1f) | %-24s | %-6s | %s\n", $1, $2, $3, $4, $5, $6 / $5, q, r, fl }'
     done <"$OUT/$sc-dcm.curve"
     if [ "$cross" = none ]; then
       echo "dcm: L1 <= $GOAL not reached by $last%"
     else
       ccpu=$(echo "$cross" | cut -d' ' -f2)
-      awk '{print $1, $2}' "$OUT/$sc-painter.curve" >"$OUT/$sc-painter.l1"
       pl1=$(at_pct "$OUT/$sc-painter.l1" "${cp#<=}")
-      echo "crossing: dcm L1 = $GOAL at $cp% (interpolated), CPU $ccpu s = $(awk -v a="$ccpu" -v b="$tf" 'BEGIN { printf "1/%.1f", b / a }') of the full render; painter L1 there $pl1 ($(awk -v a="$pl1" -v g="$GOAL" 'BEGIN { printf "%.2f", a / g }')x)"
+      echo "crossing: dcm L1 = $GOAL at $cp% of the work pixels (interpolated in the evaluated share), CPU $ccpu s = $(awk -v a="$ccpu" -v b="$tf" 'BEGIN { printf "1/%.1f", b / a }') of the full render; painter L1 there $pl1 ($(awk -v a="$pl1" -v g="$GOAL" 'BEGIN { printf "%.2f", a / g }')x)"
+      echo "first measured dcm image at or below $GOAL: requested $(echo "$first" | cut -d' ' -f1)%, evaluated $(echo "$first" | cut -d' ' -f2)%"
+      snap=$(snapname "$OUT/$sc-dcm.exr" "$(echo "$first" | cut -d' ' -f1)")
+      "$NF" "$full" "$OUT/$sc-full-seed1.exr" "$snap" "$snap" | sed -n 's/^  class/  there, class/p'
     fi
-    [ -f "$OUT/$sc-dcm-paper.curve" ] && awk '{ printf "paper variant at %s%%: L1 / L2 %.4f / %.4f, CPU %s\n", $1, $2, $3, $4 }' "$OUT/$sc-dcm-paper.curve"
+    [ -f "$OUT/$sc-dcm-paper.curve" ] && awk '{ printf "paper variant, requested %s%% (evaluated %s%%): L1 / L2 %.4f / %.4f, CPU %s s\n", $1, $2, $3, $4, $5 }' "$OUT/$sc-dcm-paper.curve"
     for v in dcm painter; do
       [ -f "$OUT/$sc-confirm-$v.curve" ] && awk -v v=$v '{ printf "confirm: %s --stop-at %s: L1 / L2 %.4f / %.4f, CPU %s s\n", v, $1, $2, $3, $4 }' "$OUT/$sc-confirm-$v.curve"
     done
