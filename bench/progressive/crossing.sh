@@ -35,6 +35,7 @@ MAX=${MAX:-50}
 GOAL=${GOAL:-0.008}
 THREADS=${THREADS:-2}
 CONFIRM=${CONFIRM:-0}
+REFINE=${REFINE:-0}
 NF=${NOISE_FLOOR:-$(dirname "$BIN")/pn_noise_floor}
 TCK=$(getconf CLK_TCK)
 COMMONP="--spp 64 --shadow-rays 4 --crop 0.3,0.7,0.3,0.7 --threads $THREADS"
@@ -142,12 +143,32 @@ for sc in $SCENES; do
   awk '{print $2, $3, $5}' "$OUT/$sc-dcm.curve" >"$OUT/$sc-dcm.l1"
   awk '{print $2, $3}' "$OUT/$sc-painter.curve" >"$OUT/$sc-painter.l1"
   cross=$(crossing "$OUT/$sc-dcm.l1" "$GOAL")
+  # REFINE=1: a second dcm run with snapshots at four shares between the two measured ones that
+  # bracket the crossing, stopped at the upper one (its CPU from /usr/bin/time: four snapshots,
+  # not the main run's many); the crossing is then taken from both runs' points
+  if [ "$REFINE" = 1 ] && [ ! -s "$OUT/$sc-dcm-fine.cpus" ]; then
+    br=$(awk -v g="$GOAL" 'NR > 1 && pl > g && $2 <= g { print pp, $1; exit } { pp = $1; pl = $2 }' "$OUT/$sc-dcm.l1")
+    if [ -n "$br" ]; then
+      flist=$(echo "$br" | awk '{ for (k = 1; k <= 4; k++) printf "%.1f ", $1 + k * ($2 - $1) / 5; print $2 }')
+      run "$sc-dcm-fine" "$flist" "$(echo "$br" | cut -d' ' -f2)" 0 --driver dcm --aov sampling_pattern,block_map
+    fi
+  fi
+  if [ -s "$OUT/$sc-dcm-fine.cpus" ]; then
+    while read -r p e c; do
+      echo "$p $e $(metric "$full" "$(snapname "$OUT/$sc-dcm-fine.exr" "$p")") $c"
+    done <"$OUT/$sc-dcm-fine.cpus" >"$OUT/$sc-dcm-fine.curve"
+    awk '{print $2, $3, $5}' "$OUT/$sc-dcm.curve" "$OUT/$sc-dcm-fine.curve" | sort -g -k1,1 | awk '!seen[$1]++' >"$OUT/$sc-dcm.l1"
+    cross=$(crossing "$OUT/$sc-dcm.l1" "$GOAL")
+  fi
   cp=$(echo "$cross" | cut -d' ' -f1)
-  # the first measured dcm image at or below GOAL: requested, evaluated
-  first=$(awk -v g="$GOAL" '$3 <= g { print $1, $2; exit }' "$OUT/$sc-dcm.curve")
+  # the first measured dcm image at or below GOAL (either run): evaluated share, its file
+  for v in dcm dcm-fine; do
+    [ -f "$OUT/$sc-$v.curve" ] && awk -v f="$OUT/$sc-$v" '{ printf "%s %s %s-%gpct.exr\n", $2, $3, f, $1 }' "$OUT/$sc-$v.curve"
+  done | sort -g -k1,1 >"$OUT/$sc-dcm.all"
+  first=$(awk -v g="$GOAL" '$2 <= g { print $1, $3; exit }' "$OUT/$sc-dcm.all")
   # the paper variant at 6% and at the first measured percentage at or below GOAL
   if [ ! -s "$OUT/$sc-dcm-paper.cpus" ] && [ -n "$first" ]; then
-    list=$(printf '%s\n' 6 "$(echo "$first" | cut -d' ' -f2)" | sort -g -u | tr '\n' ' ')
+    list=$(printf '%s\n' 6 "$(echo "$first" | cut -d' ' -f1)" | sort -g -u | tr '\n' ' ')
     run "$sc-dcm-paper" "$list" "$(echo $list | awk '{print $NF}')" 0 --driver dcm --dcm-variant paper
   fi
   if [ -s "$OUT/$sc-dcm-paper.cpus" ]; then
@@ -157,7 +178,7 @@ for sc in $SCENES; do
   fi
   # CONFIRM=1: plain --stop-at runs (no snapshots) at the first measured share at or below GOAL
   if [ "$CONFIRM" = 1 ] && [ -n "$first" ] && [ ! -f "$OUT/$sc-confirm-painter.curve" ]; then
-    x=$(echo "$first" | cut -d' ' -f2)
+    x=$(echo "$first" | cut -d' ' -f1)
     for v in dcm painter; do
       /usr/bin/time -f "%U %S" -o "$OUT/$sc-confirm-$v.time" nice -n 10 "$BIN" render "$file" \
         -o "$OUT/$sc-confirm-$v.exr" --resolution $res $COMMON --seed 0 --driver $v --stop-at $x >/dev/null 2>&1
@@ -181,8 +202,9 @@ for sc in $SCENES; do
       ccpu=$(echo "$cross" | cut -d' ' -f2)
       pl1=$(at_pct "$OUT/$sc-painter.l1" "${cp#<=}")
       echo "crossing: dcm L1 = $GOAL at $cp% of the work pixels (interpolated in the evaluated share), CPU $ccpu s = $(awk -v a="$ccpu" -v b="$tf" 'BEGIN { printf "1/%.1f", b / a }') of the full render; painter L1 there $pl1 ($(awk -v a="$pl1" -v g="$GOAL" 'BEGIN { printf "%.2f", a / g }')x)"
-      echo "first measured dcm image at or below $GOAL: requested $(echo "$first" | cut -d' ' -f1)%, evaluated $(echo "$first" | cut -d' ' -f2)%"
-      snap=$(snapname "$OUT/$sc-dcm.exr" "$(echo "$first" | cut -d' ' -f1)")
+      [ -f "$OUT/$sc-dcm-fine.curve" ] && awk '{ printf "refined: requested %s%% (evaluated %s%%): L1 / L2 %.4f / %.4f, CPU %s s\n", $1, $2, $3, $4, $5 }' "$OUT/$sc-dcm-fine.curve"
+      echo "first measured dcm image at or below $GOAL: $(echo "$first" | cut -d' ' -f1)% evaluated"
+      snap=$(echo "$first" | cut -d' ' -f2)
       "$NF" "$full" "$OUT/$sc-full-seed1.exr" "$snap" "$snap" | sed -n 's/^  class/  there, class/p'
     fi
     [ -f "$OUT/$sc-dcm-paper.curve" ] && awk '{ printf "paper variant, requested %s%% (evaluated %s%%): L1 / L2 %.4f / %.4f, CPU %s s\n", $1, $2, $3, $4, $5 }' "$OUT/$sc-dcm-paper.curve"
