@@ -20,6 +20,7 @@
 # Output: OUT/NAME-VARIANT.cpus (requested, evaluated %, CPU s per snapshot), .curve (with L1 and
 # L2), OUT/crossing.txt (the tables, with pn_noise_floor's split by block class at the first share
 # at or below GOAL).
+# SEEDS="0" skips the seed-1 full render (and with it the floor).
 # Runs under nice -n 10 with --threads THREADS (default 2); NOISE_FLOOR: pn_noise_floor's path
 # (default beside BINARY); RES overrides the resolution (a quick trial of the script).
 set -u
@@ -36,6 +37,7 @@ GOAL=${GOAL:-0.008}
 THREADS=${THREADS:-2}
 CONFIRM=${CONFIRM:-0}
 REFINE=${REFINE:-0}
+SEEDS=${SEEDS:-"0 1"}
 NF=${NOISE_FLOOR:-$(dirname "$BIN")/pn_noise_floor}
 TCK=$(getconf CLK_TCK)
 COMMONP="--spp 64 --shadow-rays 4 --crop 0.3,0.7,0.3,0.7 --threads $THREADS"
@@ -119,7 +121,7 @@ for sc in $SCENES; do
   esac
   res=${RES:-$res} # RES: another resolution, for trying the script out
   full=$OUT/$sc-full.exr
-  for seed in 0 1; do
+  for seed in $SEEDS; do
     f=$full; [ $seed = 1 ] && f=$OUT/$sc-full-seed1.exr
     if [ ! -f "$f" ]; then
       /usr/bin/time -f "%U %S" -o "${f%.exr}.time" nice -n 10 "$BIN" render "$file" -o "$f" --resolution $res \
@@ -187,12 +189,12 @@ for sc in $SCENES; do
     done
   fi
   {
-    echo "## $sc ($res), full render $tf CPU s (seed 1: $(cat "$OUT/$sc-full-seed1.cpu") s)"
+    echo "## $sc ($res), full render $tf CPU s (seed 1: $(cat "$OUT/$sc-full-seed1.cpu" 2>/dev/null) s)"
     printf "%6s %6s | %-30s | %-24s | %-6s | %s\n" req eval "dcm L1 / L2, CPU s (/full)" "painter L1 / L2, CPU s" "p/dcm" "floor L1 / L2 at the dcm pattern"
     while read -r p e l1 l2 c; do
       pl=$(awk -v e="$e" '{ d = $2 - e; d = d < 0 ? -d : d } d <= 0.05 && (!n++ || d < b) { b = d; r = $3 " " $4 " " $5 } END { if (n) print r }' "$OUT/$sc-painter.curve")
       snap=$(snapname "$OUT/$sc-dcm.exr" "$p")
-      fl=$("$NF" "$full" "$OUT/$sc-full-seed1.exr" "$snap" "$snap" | sed -n 's/^floor at this pattern.*relL1 \([^ ]*\) relL2 \([^ ]*\)/\1 \/ \2/p')
+      fl=; [ -f "$OUT/$sc-full-seed1.exr" ] && fl=$("$NF" "$full" "$OUT/$sc-full-seed1.exr" "$snap" "$snap" | sed -n 's/^floor at this pattern.*relL1 \([^ ]*\) relL2 \([^ ]*\)/\1 \/ \2/p')
       echo "$p $e $l1 $l2 $c $tf $pl" | awk -v fl="$fl" '{ r = (NF >= 9) ? sprintf("%.2f", $7 / $3) : ""; q = (NF >= 9) ? sprintf("%.4f / %.4f, %6.1f", $7, $8, $9) : "";
         printf "%6s %6s | %.4f / %.4f, %6.1f (1/%.1f) | %-24s | %-6s | %s\n", $1, $2, $3, $4, $5, $6 / $5, q, r, fl }'
     done <"$OUT/$sc-dcm.curve"
@@ -205,7 +207,7 @@ for sc in $SCENES; do
       [ -f "$OUT/$sc-dcm-fine.curve" ] && awk '{ printf "refined: requested %s%% (evaluated %s%%): L1 / L2 %.4f / %.4f, CPU %s s\n", $1, $2, $3, $4, $5 }' "$OUT/$sc-dcm-fine.curve"
       echo "first measured dcm image at or below $GOAL: $(echo "$first" | cut -d' ' -f1)% evaluated"
       snap=$(echo "$first" | cut -d' ' -f2)
-      "$NF" "$full" "$OUT/$sc-full-seed1.exr" "$snap" "$snap" | sed -n 's/^  class/  there, class/p'
+      [ -f "$OUT/$sc-full-seed1.exr" ] && "$NF" "$full" "$OUT/$sc-full-seed1.exr" "$snap" "$snap" | sed -n 's/^  class/  there, class/p'
     fi
     [ -f "$OUT/$sc-dcm-paper.curve" ] && awk '{ printf "paper variant, requested %s%% (evaluated %s%%): L1 / L2 %.4f / %.4f, CPU %s s\n", $1, $2, $3, $4, $5 }' "$OUT/$sc-dcm-paper.curve"
     for v in dcm painter; do
