@@ -6,9 +6,13 @@
 # appears; rel L1 / L2 of every snapshot against the seed-0 full render, and for dcm the noise
 # floor at the snapshot's pattern (build/pn_noise_floor with the seed-1 render). A snapshot at P
 # is the image of `--stop-at P` (same pixels evaluated, same reconstruction; checked with
-# `penumbra diff` and the AOVs), so one run gives the whole curve. Its CPU includes the earlier
-# snapshots' reconstructions and EXR writes (a fraction of a second each); CONFIRM=1 adds a plain
-# `--stop-at` run of dcm and painter at the crossing for the direct figure.
+# `penumbra diff` and the AOVs), so one run gives the whole curve, except inside the jumps of
+# dcm's simplicity tests, which evaluate pixels that no snapshot or --stop-at splits: a snapshot
+# requested there shows the image after the jump, and the tables give the share the driver
+# reports. Its CPU includes the earlier snapshots' reconstructions and EXR writes (a fraction of
+# a second each); CONFIRM=1 adds a plain `--stop-at` run of dcm and painter at the first share at
+# or below GOAL for the direct figure; REFINE=1 a second dcm run with four snapshots between the
+# two shares that bracket the crossing.
 #   usage: bench/progressive/crossing.sh BINARY OUT_DIR [SCENE...]     (scenes: stair hall bath glossy)
 # The dcm run stops at the first snapshot at or beyond TOP (default 25) whose L1 is at or below
 # GOAL (default 0.008), and at the latest at MAX (default 50). painter runs to the same
