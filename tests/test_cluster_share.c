@@ -161,4 +161,57 @@ static void test_replay_is_the_cut(void) {
     free(ls);
 }
 
-PN_TESTS(TEST(test_replay_is_the_cut))
+/* A record that has no ball (a zero normal) falls back to the plain cut; the records after it
+ * must not read what an earlier record noted. Each trial starts a fresh share so that its first
+ * record and the one after the fallback would carry the same stamp if the fallback restarted the
+ * stamps: a replay near the later point would then read the first point's decisions. */
+static void test_fallback_forgets_older_records(void) {
+    srng r = {77};
+    const int count = 600;
+    pn_light *ls = some_lights(&r, count);
+    pn_lights L;
+    memset(&L, 0, sizeof L);
+    L.lights = ls;
+    L.count = count;
+    L.scene_radius = 10.0f;
+    pn_cluster_forest f;
+    pn_err err;
+    pn_err_init(&err);
+    CHECK(pn_cluster_forest_build(&L, &f, &err) == PN_OK);
+    const int cap = f.node_count + 1;
+    int *out = malloc((size_t)cap * sizeof *out), *plain = malloc((size_t)cap * sizeof *plain);
+    int replays = 0, mismatches = 0;
+    for (int t = 0; t < 200; t++) {
+        pn_cluster_cut_share sh;
+        CHECK(pn_cluster_cut_share_init(&sh, &f));
+        vec3 pa = rnd_cube(&r, 5.0f), na = rnd_dir(&r);
+        (void)pn_cluster_cut_record(&f, &L, pa, na, 0.02f, 1e-4f, 0.0f, out, cap, &sh);
+        /* The fallback, and a replay after it: the plain cut wherever it is asked. */
+        (void)pn_cluster_cut_record(&f, &L, pa, v3(0, 0, 0), 0.02f, 1e-4f, 0.0f, out, cap, &sh);
+        CHECK(!sh.all_sure);
+        vec3 q = rnd_cube(&r, 5.0f), m = rnd_dir(&r);
+        int k = pn_cluster_cut_replay(&f, &L, q, m, 0.02f, out, cap, &sh);
+        int kp = pn_cluster_cut(&f, &L, q, m, 0.02f, plain, cap);
+        replays++;
+        mismatches += !(k == kp && memcmp(out, plain, (size_t)k * sizeof *out) == 0);
+        /* A wide ball (few sure decisions) at another point, and replays within it. */
+        vec3 pb = rnd_cube(&r, 5.0f), nb = rnd_dir(&r);
+        (void)pn_cluster_cut_record(&f, &L, pb, nb, 0.02f, 0.5f, 0.0f, out, cap, &sh);
+        for (int j = 0; j < 4; j++) {
+            vec3 qb = v3_add(pb, v3_scale(rnd_dir(&r), 0.5f * rnd(&r) * 0.999f));
+            k = pn_cluster_cut_replay(&f, &L, qb, nb, 0.02f, out, cap, &sh);
+            kp = pn_cluster_cut(&f, &L, qb, nb, 0.02f, plain, cap);
+            replays++;
+            mismatches += !(k == kp && memcmp(out, plain, (size_t)k * sizeof *out) == 0);
+        }
+        pn_cluster_cut_share_free(&sh);
+    }
+    printf("  %d replays after fallbacks, %d mismatches\n", replays, mismatches);
+    CHECK(mismatches == 0);
+    free(out);
+    free(plain);
+    pn_cluster_forest_free(&f);
+    free(ls);
+}
+
+PN_TESTS(TEST(test_replay_is_the_cut), TEST(test_fallback_forgets_older_records))

@@ -253,11 +253,10 @@ typedef struct ias_shared {
      * offset) were seen unoccluded anywhere in the image; bytes set by any thread. */
     int light_count, visible_slots;
     atomic_uchar *seen;
-    double clock_cost; /* what one timed interval adds by itself (two clock reads), subtracted */
-    int *post_order;   /* the trees' interior nodes, every node after its children */
+    double clock_cost;     /* what one timed interval adds by itself (two clock reads), subtracted */
+    struct ias_post *post; /* the trees' interior nodes, every node after its children (aggregate_stats) */
     int post_count;
-    struct ias_post *post; /* the same nodes as aggregate_stats reads them */
-    int light_ids;         /* ids below this are clusters of lights (forest nodes; or BVH nodes, then
+    int light_ids; /* ids below this are clusters of lights (forest nodes; or BVH nodes, then
                       distant lights), above are environment regions */
     /* The default variant (issue 15; see the header): which departures are on. */
     bool bvh_cut;          /* cut of the light BVH by importance instead of the cluster trees */
@@ -333,7 +332,6 @@ static void ias_release(pn_render_job *job) {
     free(sh->env_light);
     free(sh->env_base);
     free(sh->seen);
-    free(sh->post_order);
     free(sh->post);
     pn_light_bvh_free(&sh->bvh);
     free(sh->distant);
@@ -345,13 +343,13 @@ static void ias_release(pn_render_job *job) {
 }
 
 /* The interior nodes of the cluster trees in an order that puts every node after its two
- * children (iterative depth-first walks), for aggregate_stats. */
+ * children (iterative depth-first walks), as aggregate_stats reads them (ias_post). */
 static bool build_post_order(ias_shared *sh) {
     const pn_cluster_forest *f = &sh->forest;
-    sh->post_order = malloc((size_t)(f->node_count > 0 ? f->node_count : 1) * sizeof *sh->post_order);
+    sh->post = malloc((size_t)(f->node_count > 0 ? f->node_count : 1) * sizeof *sh->post);
     int *stack = malloc((size_t)(f->node_count > 0 ? f->node_count : 1) * sizeof *stack);
     unsigned char *expanded = calloc((size_t)(f->node_count > 0 ? f->node_count : 1), 1);
-    if (!sh->post_order || !stack || !expanded) {
+    if (!sh->post || !stack || !expanded) {
         free(stack);
         free(expanded);
         return false;
@@ -376,20 +374,14 @@ static bool build_post_order(ias_shared *sh) {
                 continue;
             }
             top--;
-            sh->post_order[sh->post_count++] = m;
+            const double pm = (double)nd->power, pa = (double)f->nodes[nd->left].power,
+                         pb = (double)f->nodes[nd->right].power;
+            sh->post[sh->post_count++] =
+                (ias_post){m, nd->left, nd->right, 0, pa > 0.0 ? pm / pa : 1.0, pb > 0.0 ? pm / pb : 1.0};
         }
     }
     free(stack);
     free(expanded);
-    sh->post = malloc((size_t)(sh->post_count > 0 ? sh->post_count : 1) * sizeof *sh->post);
-    if (!sh->post) return false;
-    for (int k = 0; k < sh->post_count; k++) {
-        const int m = sh->post_order[k];
-        const pn_cluster_node *nd = &f->nodes[m];
-        const double pm = (double)nd->power, pa = (double)f->nodes[nd->left].power,
-                     pb = (double)f->nodes[nd->right].power;
-        sh->post[k] = (ias_post){m, nd->left, nd->right, 0, pa > 0.0 ? pm / pa : 1.0, pb > 0.0 ? pm / pb : 1.0};
-    }
     return true;
 }
 

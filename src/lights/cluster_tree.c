@@ -1238,15 +1238,18 @@ static int shared_walk(const pn_cluster_forest *f, const pn_lights *lights, vec3
 
 int pn_cluster_cut_record(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                           float delta, float dn, int *out, int capacity, pn_cluster_cut_share *sh) {
-    if (v3_is_zero(n) || !(delta >= 0.0f) || !(dn >= 0.0f) || !isfinite(delta) || !isfinite(dn)) {
-        sh->all_sure = false;
-        sh->met = sh->sure = 0;
-        sh->stamp = 0; /* no record: a replay walks in full */
-        return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
-    }
-    if (++sh->stamp >= (1u << 30)) { /* the tags wrap: forget the old records */
+    /* A new stamp for every record, the fallback's included: a memo of an older record never
+     * matches (the stamps only grow until they wrap, and then every memo is forgotten). */
+    if (++sh->stamp >= (1u << 30)) {
         for (int i = 0; i < sh->node_count; i++) sh->links[i].memo = 0u;
         sh->stamp = 1;
+    }
+    if (v3_is_zero(n) || !(delta >= 0.0f) || !(dn >= 0.0f) || !isfinite(delta) || !isfinite(dn)) {
+        /* No ball to decide over: nothing is noted under the new stamp, so a replay classifies
+         * every node itself (the plain cut). */
+        sh->all_sure = false;
+        sh->met = sh->sure = 0;
+        return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
     }
     const cut_ball b = {p, n, delta, dn, abs1(p)};
     return shared_walk(f, lights, p, n, max_solid_angle, out, capacity, sh, &b);
@@ -1254,7 +1257,7 @@ int pn_cluster_cut_record(const pn_cluster_forest *f, const pn_lights *lights, v
 
 int pn_cluster_cut_replay(const pn_cluster_forest *f, const pn_lights *lights, vec3 p, vec3 n, float max_solid_angle,
                           int *out, int capacity, pn_cluster_cut_share *sh) {
-    if (sh->stamp == 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity);
+    if (sh->stamp == 0) return pn_cluster_cut(f, lights, p, n, max_solid_angle, out, capacity); /* never recorded */
     return shared_walk(f, lights, p, n, max_solid_angle, out, capacity, sh, NULL);
 }
 
