@@ -9,7 +9,7 @@ set -u
 OLD=$1
 NEW=$2
 RUNS=${3:-5}
-OUT=${4:-/tmp/penumbra-upkeep}
+OUT=${4:-bench/out/upkeep}
 HERE=$(cd "$(dirname "$0")/../.." && pwd)
 S=${PN_SHARED:-$HERE/../shared}/scenes
 CROP="--crop 0.375,0.625,0.375,0.625 --threads 1 --seed 0 --quiet"
